@@ -3,7 +3,7 @@
 #   make test   creates the venv if needed and runs the whole test suite
 # The virtual environment is created from the pinned requirements and reused while they match.
 
-PYTHON ?= python3.11
+PYTHON ?= $(shell command -v python3.11 2>/dev/null || command -v python3 2>/dev/null || echo python3.11)
 VENV   ?= .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
@@ -22,10 +22,8 @@ help:
 venv: $(STAMP)
 
 $(STAMP): $(REQS)
-	@command -v $(PYTHON) >/dev/null 2>&1 || { \
-	  echo "inertia_ros needs Python 3.11: '$(PYTHON)' was not found (install python3.11 or run make PYTHON=/path/to/python3.11)"; exit 2; }
-	@$(PYTHON) -c 'import sys; sys.exit(0 if sys.version_info[:2] == (3, 11) else 1)' || { \
-	  echo "inertia_ros needs Python 3.11 (ROS 2 Jazzy wheels): '$(PYTHON)' is $$($(PYTHON) -c 'import platform; print(platform.python_version())'); run make PYTHON=/path/to/python3.11"; exit 2; }
+	@$(PYTHON) -c 'import sys; sys.exit(0 if sys.version_info[:2] == (3, 11) else 1)' 2>/dev/null || { \
+	  echo "inertia_ros needs Python 3.11 (the ROS 2 Jazzy wheels are built for it): '$(PYTHON)' is $$($(PYTHON) --version 2>&1 | head -n1 || echo missing); install python3.11 or run make PYTHON=/path/to/python3.11" >&2; exit 2; }
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --disable-pip-version-check -r requirements-test.txt
 	$(PY) -m pip install --quiet --disable-pip-version-check --no-deps --no-build-isolation -e .

@@ -27,7 +27,6 @@ setup(
     maintainer_email='maintainers@users.noreply.h-seed-a8376161.example',
     description='Rigid-body inertia tensor estimation from gyro and torque streams (ROS 2 Jazzy).',
     license='Apache-2.0',
-    tests_require=['pytest'],
     entry_points={
         'console_scripts': [
             # Executables are registered here as the issue that builds each one lands.
