@@ -1,0 +1,243 @@
+"""Message <-> array conversion at the ROS boundary (no rclpy.init needed)."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from builtin_interfaces.msg import Time
+from diagnostic_msgs.msg import DiagnosticStatus
+from geometry_msgs.msg import Vector3Stamped
+from scipy.spatial.transform import Rotation
+from visualization_msgs.msg import Marker
+
+from inertia_ros.io import ros_msgs as rm
+
+I_NOM = np.array([[1.0, 0.05, -0.03], [0.05, 1.2, 0.02], [-0.03, 0.02, 0.9]])
+
+
+def _values(status: DiagnosticStatus) -> dict[str, str]:
+    return {kv.key: kv.value for kv in status.values}
+
+
+@pytest.mark.parametrize('t_ns', [0, 1, 999_999_999, 1_000_000_000, 1_700_000_000_123_456_789,
+                                  -1, -1_500_000_000])
+def test_stamp_roundtrip(t_ns):
+    """ns -> Time -> ns is exact and nanosec stays in [0, 1e9)."""
+    stamp = rm.ns_to_stamp(t_ns)
+    assert 0 <= stamp.nanosec < 1_000_000_000
+    assert rm.stamp_to_ns(stamp) == t_ns
+
+
+@pytest.mark.parametrize('bad, match', [(1.5, 'integer'), (2**31 * 10**9, 'int32'),
+                                        (True, 'integer')])
+def test_ns_to_stamp_rejects(bad, match):
+    """Non-integer or out-of-range times are refused with a message naming t_ns."""
+    with pytest.raises(ValueError, match=match):
+        rm.ns_to_stamp(bad)
+
+
+def test_stamp_to_ns_reads_message_time():
+    """A Time(sec, nanosec) gives sec*1e9 + nanosec."""
+    assert rm.stamp_to_ns(Time(sec=3, nanosec=5)) == 3_000_000_005
+
+
+@pytest.mark.parametrize('build, read, vec', [
+    (rm.imu_msg, rm.imu_sample, [0.1, -0.2, 0.3]),
+    (rm.vector3_stamped, rm.vector3_sample, [1e-9, 2.5, -7.0]),
+    (rm.wrench_msg, rm.wrench_sample, [0.01, 0.0, -0.02]),
+])
+def test_input_roundtrip(build, read, vec):
+    """Each input message type round-trips (t_ns, vector) exactly (atol=0)."""
+    msg = build(1_234_567_890_123, vec, 'base_link')
+    assert msg.header.frame_id == 'base_link'
+    t_ns, v = read(msg)
+    assert t_ns == 1_234_567_890_123
+    np.testing.assert_allclose(v, vec, rtol=0, atol=0)
+
+
+def test_imu_marks_orientation_and_acceleration_absent():
+    """The Imu we publish flags orientation and linear acceleration as absent (REP 145)."""
+    msg = rm.imu_msg(0, [0, 0, 1], 'imu')
+    assert msg.orientation_covariance[0] == -1.0
+    assert msg.linear_acceleration_covariance[0] == -1.0
+
+
+def test_nan_passes_through_input():
+    """NaN in an input message is returned as NaN (the node counts and drops it)."""
+    _, w = rm.imu_sample(rm.imu_msg(0, [np.nan, 0, 0], 'imu'))
+    assert np.isnan(w[0])
+
+
+@pytest.mark.parametrize('fn, args, match', [
+    (rm.imu_msg, (0, [1, 2], 'f'), 'omega must have shape'),
+    (rm.wrench_msg, (0, np.zeros((3, 1)), 'f'), 'tau must have shape'),
+    (rm.inertia_stamped, (np.eye(2), 0, 'f'), r'inertia must have shape \(3, 3\)'),
+    (rm.principal_axes_msg, (np.diag([1.0, 1.0, -1.0]), 0, 'f'), 'proper rotation'),
+    (rm.principal_axes_msg, (np.full((3, 3), np.nan), 0, 'f'), 'finite'),
+])
+def test_builders_reject_bad_shapes(fn, args, match):
+    """Builders refuse wrongly shaped arrays or improper rotations with a specific message."""
+    with pytest.raises(ValueError, match=match):
+        fn(*args)
+
+
+def test_inertia_stamped_roundtrip_uses_matrix_elements():
+    """InertiaStamped carries the matrix entries (ixy = I[0,1], not its negative), exactly."""
+    msg = rm.inertia_stamped(I_NOM, 42, 'body')
+    assert msg.inertia.ixy == I_NOM[0, 1]
+    assert msg.inertia.ixz == I_NOM[0, 2]
+    assert msg.inertia.iyz == I_NOM[1, 2]
+    assert msg.inertia.m == 0.0
+    t_ns, mat = rm.inertia_from_msg(msg)
+    assert t_ns == 42
+    np.testing.assert_allclose(mat, I_NOM, rtol=0, atol=0)
+
+
+def test_principal_moments_msg():
+    """Principal moments go into x, y, z in the given (ascending) order."""
+    msg = rm.principal_moments_msg([0.8, 1.0, 1.3], 7, 'body')
+    assert isinstance(msg, Vector3Stamped)
+    assert (msg.vector.x, msg.vector.y, msg.vector.z) == (0.8, 1.0, 1.3)
+
+
+@pytest.mark.parametrize('seed', range(5))
+def test_principal_axes_quaternion_roundtrip(seed):
+    """Axes -> quaternion (w >= 0, unit) -> axes reproduces the rotation to 1e-12."""
+    rot = Rotation.random(random_state=np.random.default_rng(seed)).as_matrix()
+    msg = rm.principal_axes_msg(rot, 0, 'body')
+    q = msg.quaternion
+    assert q.w >= 0
+    np.testing.assert_allclose(q.x**2 + q.y**2 + q.z**2 + q.w**2, 1.0, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(rm.quaternion_to_axes(msg), rot, rtol=0, atol=1e-12)
+
+
+def _result(status='ok', **kw):
+    d = {
+        'status': status,
+        'inertia': I_NOM.tolist(),
+        'inertia_std': (I_NOM * 0.001).tolist(),
+        'model': 'full', 'method': 'recursive',
+        'samples': {'used': 1000, 'dropped': 3},
+        'torque_bias': None,
+        'identifiable': {n: True for n in rm.THETA_NAMES},
+        'diagnostics': {'condition_number': 12.5, 'residual_rms': 0.01},
+    }
+    d.update(kw)
+    return d
+
+
+@pytest.mark.parametrize('status, level', [
+    ('ok', DiagnosticStatus.OK),
+    ('insufficient_data', DiagnosticStatus.WARN),
+    ('partially_identifiable', DiagnosticStatus.WARN),
+    ('scale_unobservable', DiagnosticStatus.ERROR),
+    ('insufficient_excitation', DiagnosticStatus.ERROR),
+])
+def test_diagnostic_level_per_status(status, level):
+    """Each estimate status maps to its documented DiagnosticStatus level."""
+    st = rm.diagnostic_status(_result(status), name='est')
+    assert st.level == level
+    assert st.message.startswith(status)
+    assert _values(st)['status'] == status
+
+
+def test_diagnostic_values_carry_contract_fields():
+    """Values include model, condition number, std errors per element and sample counts."""
+    st = rm.diagnostic_status(_result(), name='est', hardware_id='body',
+                              extra={'gyro_received': 10, 'nan_dropped': 2})
+    v = _values(st)
+    assert st.name == 'est' and st.hardware_id == 'body'
+    assert v['model'] == 'full'
+    assert float(v['condition_number']) == pytest.approx(12.5, rel=1e-6)
+    assert float(v['std_ixy']) == pytest.approx(I_NOM[0, 1] * 0.001, rel=1e-5)
+    assert v['samples_used'] == '1000' and v['samples_dropped'] == '3'
+    assert v['residual_rms'] == '0.01'
+    assert v['gyro_received'] == '10' and v['nan_dropped'] == '2'
+
+
+def test_diagnostic_null_std_and_reason():
+    """Null standard errors render as 'null'; the reason is in the message when not ok."""
+    res = _result('scale_unobservable', inertia=None, inertia_std=None,
+                  diagnostics={'reason': 'no torque: only ratios observable'})
+    st = rm.diagnostic_status(res, name='est')
+    v = _values(st)
+    assert v['std_ixx'] == 'null'
+    assert 'no torque' in st.message and v['reason'] == 'no torque: only ratios observable'
+
+
+def test_diagnostic_problems_raise_level():
+    """A node-level problem (stream timeout) raises an ok estimate to WARN and is reported."""
+    st = rm.diagnostic_status(_result(), name='est',
+                              problems=[(DiagnosticStatus.WARN, 'torque stream timed out')])
+    assert st.level == DiagnosticStatus.WARN
+    assert st.message.startswith('torque stream timed out')
+    assert rm.level_name(st.level) == 'WARN'
+
+
+def test_diagnostic_none_result_is_warming_up():
+    """Before any estimate the status is insufficient_data at WARN level."""
+    st = rm.diagnostic_status(None, name='est')
+    assert st.level == DiagnosticStatus.WARN
+    assert _values(st)['status'] == 'insufficient_data'
+
+
+def test_diagnostic_rejects_unknown_status():
+    """An unknown status string is refused, naming the allowed ones."""
+    with pytest.raises(ValueError, match='result status'):
+        rm.diagnostic_status({'status': 'great'}, name='est')
+
+
+def test_diagnostic_array_stamp():
+    """The array carries the statuses and the stamp."""
+    arr = rm.diagnostic_array([rm.diagnostic_status(None, name='a')], 5_000_000_001)
+    assert rm.stamp_to_ns(arr.header.stamp) == 5_000_000_001
+    assert len(arr.status) == 1
+
+
+def _by_id(ma):
+    return {m.id: m for m in ma.markers if m.action == Marker.ADD}
+
+
+def test_markers_ellipsoid_axes_and_arrows():
+    """Ellipsoid semi-axes are 1/sqrt(I_k) scaled, oriented by the axes; L differs from omega."""
+    moments, axes = np.linalg.eigh(I_NOM)
+    axes[:, 2] = np.cross(axes[:, 0], axes[:, 1])
+    omega = np.array([0.3, 0.1, -0.2])
+    ma = rm.inertia_markers(9, 'body', inertia=I_NOM, moments=moments, axes=axes, omega=omega,
+                            scale=0.5, label='ok')
+    assert ma.markers[0].action == Marker.DELETEALL
+    by_id = _by_id(ma)
+    ell = by_id[rm.MARKER_IDS['ellipsoid']]
+    semi = np.array([ell.scale.x, ell.scale.y, ell.scale.z]) / 2
+    expected = 1 / np.sqrt(moments)
+    np.testing.assert_allclose(semi, expected * 0.5 / expected.max(), rtol=1e-12)
+    q = ell.pose.orientation
+    np.testing.assert_allclose(Rotation.from_quat([q.x, q.y, q.z, q.w]).as_matrix(), axes,
+                               atol=1e-12)
+    for k in range(3):
+        tip = by_id[rm.MARKER_IDS[f'axis{k + 1}']].points[1]
+        np.testing.assert_allclose([tip.x, tip.y, tip.z], axes[:, k] * 0.65, atol=1e-12)
+
+    def direction(mid):
+        p = by_id[mid].points[1]
+        v = np.array([p.x, p.y, p.z])
+        return v / np.linalg.norm(v)
+    np.testing.assert_allclose(direction(rm.MARKER_IDS['omega']),
+                               omega / np.linalg.norm(omega), atol=1e-12)
+    L = I_NOM @ omega
+    np.testing.assert_allclose(direction(rm.MARKER_IDS['momentum']), L / np.linalg.norm(L),
+                               atol=1e-12)
+    assert by_id[rm.MARKER_IDS['label']].text == 'ok'
+
+
+def test_markers_without_estimate_keep_only_omega():
+    """With no valid estimate only DELETEALL and the omega arrow are published."""
+    ma = rm.inertia_markers(0, 'body', omega=[0, 0, 1.0])
+    assert [m.id for m in ma.markers if m.action == Marker.ADD] == [rm.MARKER_IDS['omega']]
+    assert len(rm.inertia_markers(0, 'body').markers) == 1
+
+
+@pytest.mark.parametrize('scale', [0.0, -1.0, float('nan')])
+def test_markers_reject_bad_scale(scale):
+    """A non-positive or NaN display scale is refused."""
+    with pytest.raises(ValueError, match='scale must be'):
+        rm.inertia_markers(0, 'body', scale=scale)
