@@ -1,0 +1,546 @@
+"""Scenes: what the simulator needs to know about a body, its torques and its sensors.
+
+A scene is built from a plain dict (the YAML schema documented in ``docs/SCENES.md``) by
+:meth:`Scene.from_dict`.  Every value is SI: s, Hz, kg, m, kg m^2, rad, rad/s, N m.  Validation
+errors are :class:`SceneError` (a ``ValueError``) whose message names the offending key, e.g.
+``gyro.rate: must be a positive number, got -5``.
+
+This module is pure numpy: the YAML file itself is parsed in ``inertia_ros.io.scene_file``.
+
+Torque components (``torque:`` list, summed) and their type-specific keys, with defaults:
+
+============  ===========================================================================
+type          keys (all components also take ``amplitude``, ``axes``, ``start``, ``end``)
+============  ===========================================================================
+multisine     ``f_min`` 0.05 Hz, ``f_max`` 1.0 Hz, ``n_freq`` 6 (per axis),
+              ``phases`` ``schroeder`` | ``random``; axes get interleaved frequencies
+sine          ``frequency`` Hz (required), ``phase`` rad (scalar or per axis, default 0)
+steps         ``period`` 2.0 s; levels uniform in [-amplitude, amplitude] per axis
+prbs          ``bit_time`` 0.5 s; levels +-amplitude, independent random bits per axis
+chirp         ``f0`` 0.02 Hz, ``f1`` 1.0 Hz, ``mode`` ``sequential`` (one axis after the
+              other) | ``simultaneous`` (axes phase-shifted by 2 pi / 3)
+doublet       ``width`` 1.0 s: +amplitude for ``width`` then -amplitude for ``width``,
+              repeated every ``period`` (default: ``end - start``, i.e. once)
+constant      the (signed) amplitude, held
+============  ===========================================================================
+
+``amplitude`` is the peak torque per axis [N m] (scalar or ``[x, y, z]``); for multisine and
+chirp the signal is scaled so its peak over the scene's command grid equals it.
+"""
+from __future__ import annotations
+
+import copy
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from types import MappingProxyType
+from typing import Any
+
+import numpy as np
+
+__all__ = [
+    'TORQUE_TYPES',
+    'GyroSpec',
+    'Imperfections',
+    'InertiaChange',
+    'Scene',
+    'SceneError',
+    'TorqueComponent',
+    'TorqueSensorSpec',
+    'matrix_from_inertia_value',
+]
+
+
+class SceneError(ValueError):
+    """A scene dict (or YAML file) that cannot be simulated; the message names the key."""
+
+
+AXIS_NAMES = ('x', 'y', 'z')
+
+#: Type-specific keys of each torque component type, with their defaults (None = required).
+TORQUE_TYPES: Mapping[str, Mapping[str, Any]] = MappingProxyType({
+    'multisine': {'f_min': 0.05, 'f_max': 1.0, 'n_freq': 6, 'phases': 'schroeder'},
+    'sine': {'frequency': None, 'phase': 0.0},
+    'steps': {'period': 2.0},
+    'prbs': {'bit_time': 0.5},
+    'chirp': {'f0': 0.02, 'f1': 1.0, 'mode': 'sequential'},
+    'doublet': {'width': 1.0, 'period': 0.0},
+    'constant': {},
+})
+_COMMON_TORQUE_KEYS = ('type', 'amplitude', 'axes', 'start', 'end')
+
+# --------------------------------------------------------------------------------------------
+# small validators: each raises SceneError naming the key
+# --------------------------------------------------------------------------------------------
+
+def _number(value: Any, key: str, *, positive: bool = False, nonneg: bool = False) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise SceneError(f'{key}: must be a number, got {value!r}')
+    x = float(value)
+    if not math.isfinite(x):
+        raise SceneError(f'{key}: must be finite, got {value!r}')
+    if positive and x <= 0.0:
+        raise SceneError(f'{key}: must be a positive number, got {value!r}')
+    if nonneg and x < 0.0:
+        raise SceneError(f'{key}: must be >= 0, got {value!r}')
+    return x
+
+
+def _integer(value: Any, key: str, *, minimum: int = 0) -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+        raise SceneError(f'{key}: must be an integer, got {value!r}')
+    if int(value) < minimum:
+        raise SceneError(f'{key}: must be >= {minimum}, got {value!r}')
+    return int(value)
+
+
+def _vector(value: Any, key: str, n: int = 3, *, nonneg: bool = False) -> np.ndarray:
+    if isinstance(value, (str, bytes, Mapping)) or not isinstance(value, (Sequence, np.ndarray)):
+        raise SceneError(f'{key}: must be a list of {n} numbers, got {value!r}')
+    if len(value) != n:
+        raise SceneError(f'{key}: must be a list of {n} numbers, got {len(value)} items')
+    out = np.array([_number(v, f'{key}[{i}]', nonneg=nonneg) for i, v in enumerate(value)])
+    out.setflags(write=False)
+    return out
+
+
+def _vector_or_scalar(value: Any, key: str, *, nonneg: bool = False) -> np.ndarray:
+    if isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool):
+        x = _number(value, key, nonneg=nonneg)
+        out = np.full(3, x)
+        out.setflags(write=False)
+        return out
+    return _vector(value, key, nonneg=nonneg)
+
+
+def _string(value: Any, key: str, choices: Sequence[str] | None = None) -> str:
+    if not isinstance(value, str):
+        raise SceneError(f'{key}: must be a string, got {value!r}')
+    if choices is not None and value not in choices:
+        raise SceneError(f'{key}: must be one of {", ".join(choices)}; got {value!r}')
+    return value
+
+
+def _mapping(value: Any, key: str, known: Sequence[str]) -> Mapping[str, Any]:
+    if value is None:
+        return {}
+    if not isinstance(value, Mapping):
+        raise SceneError(f'{key}: must be a mapping, got {value!r}')
+    for k in value:
+        if k not in known:
+            raise SceneError(f'{key}.{k}: unknown key (known: {", ".join(known)})')
+    return value
+
+
+def matrix_from_inertia_value(value: Any, key: str) -> np.ndarray:
+    """Return the (3, 3) tensor [kg m^2] for a scene ``inertia`` value, validated as physical.
+
+    Parameters
+    ----------
+    value : list of 6 numbers ``[ixx, iyy, izz, ixy, ixz, iyz]`` or a 3x3 nested list
+        Tensor about the centre of mass [kg m^2]; ``ixy`` is the matrix element.
+    key : str
+        Name of the key, used in error messages.
+
+    Returns
+    -------
+    numpy.ndarray, shape (3, 3)
+        Symmetric positive-definite tensor satisfying the triangle inequality.
+
+    Raises
+    ------
+    SceneError
+        If the value is malformed, not symmetric or not a physical rigid-body tensor.
+    """
+    if isinstance(value, (Sequence, np.ndarray)) and not isinstance(value, str) \
+            and len(value) == 3 and all(isinstance(r, (Sequence, np.ndarray)) for r in value):
+        rows = [_vector(r, f'{key}[{i}]') for i, r in enumerate(value)]
+        m = np.array(rows)
+        if not np.allclose(m, m.T, rtol=1e-12, atol=1e-15):
+            raise SceneError(f'{key}: 3x3 matrix must be symmetric')
+        m = 0.5 * (m + m.T)
+    else:
+        th = _vector(value, key, 6)
+        m = np.array([[th[0], th[3], th[4]], [th[3], th[1], th[5]], [th[4], th[5], th[2]]])
+    ev = np.linalg.eigvalsh(m)
+    if ev[0] <= 0.0:
+        raise SceneError(f'{key}: not positive definite (principal moments {ev.tolist()})')
+    if ev[0] + ev[1] < ev[2] * (1.0 - 1e-9):
+        raise SceneError(f'{key}: violates the triangle inequality I1 + I2 >= I3 '
+                         f'(principal moments {ev.tolist()})')
+    m.setflags(write=False)
+    return m
+
+
+def _parts_inertia(parts: Any, key: str) -> np.ndarray:
+    """Composite tensor about the composite centre of mass from a ``parts`` list."""
+    raise SceneError(f'{key}: composite bodies are not supported yet')
+
+
+def _body_inertia(body: Any, key: str) -> tuple[np.ndarray, tuple[Mapping[str, Any], ...]]:
+    body = _mapping(body, key, ('inertia', 'parts'))
+    has_i, has_p = 'inertia' in body, 'parts' in body
+    if has_i == has_p:
+        raise SceneError(f'{key}: give exactly one of inertia | parts')
+    if has_i:
+        return matrix_from_inertia_value(body['inertia'], f'{key}.inertia'), ()
+    parts = body['parts']
+    if not isinstance(parts, Sequence) or isinstance(parts, str) or len(parts) == 0:
+        raise SceneError(f'{key}.parts: must be a non-empty list of parts')
+    m = _parts_inertia(parts, f'{key}.parts')
+    m = matrix_from_inertia_value(m.tolist(), f'{key}.parts (composite)')
+    return m, tuple(MappingProxyType(dict(p)) for p in parts)
+
+
+# --------------------------------------------------------------------------------------------
+# scene parts
+# --------------------------------------------------------------------------------------------
+
+@dataclass(frozen=True, eq=False)
+class TorqueComponent:
+    """One commanded-torque component; the scene's command is the sum of its components.
+
+    Attributes
+    ----------
+    type : str
+        One of :data:`TORQUE_TYPES`.
+    amplitude : numpy.ndarray, shape (3,)
+        Peak torque per body axis [N m], zero on axes that are not excited.  Signed for
+        ``constant``.
+    axes : tuple of int
+        Excited axes (0 = x, 1 = y, 2 = z), in the order given.
+    start, end : float
+        Active window [s]; the component is zero outside ``start <= t < end``.
+    params : Mapping[str, Any]
+        Type-specific parameters with defaults filled in (see the module docstring).
+    """
+
+    type: str
+    amplitude: np.ndarray
+    axes: tuple[int, ...]
+    start: float
+    end: float
+    params: Mapping[str, Any]
+
+    @classmethod
+    def from_dict(cls, d: Any, key: str, duration: float) -> TorqueComponent:
+        """Validate one ``torque`` list entry; ``key`` names it in errors (``torque[0]``)."""
+        if not isinstance(d, Mapping):
+            raise SceneError(f'{key}: must be a mapping with a type, got {d!r}')
+        if 'type' not in d:
+            raise SceneError(f'{key}.type: missing (one of {", ".join(TORQUE_TYPES)})')
+        typ = _string(d['type'], f'{key}.type', tuple(TORQUE_TYPES))
+        defaults = TORQUE_TYPES[typ]
+        _mapping(d, key, _COMMON_TORQUE_KEYS + tuple(defaults))
+        axes_raw = d.get('axes', list(AXIS_NAMES))
+        if isinstance(axes_raw, str):
+            axes_raw = [axes_raw]
+        if not isinstance(axes_raw, Sequence) or len(axes_raw) == 0:
+            raise SceneError(f'{key}.axes: must be a non-empty list of x, y, z')
+        axes = []
+        for i, a in enumerate(axes_raw):
+            name = _string(a, f'{key}.axes[{i}]', AXIS_NAMES)
+            if AXIS_NAMES.index(name) in axes:
+                raise SceneError(f'{key}.axes: axis {name!r} listed twice')
+            axes.append(AXIS_NAMES.index(name))
+        if 'amplitude' not in d:
+            raise SceneError(f'{key}.amplitude: missing (peak torque, N m)')
+        amp = np.array(_vector_or_scalar(d['amplitude'], f'{key}.amplitude',
+                                         nonneg=typ != 'constant'))
+        mask = np.zeros(3, dtype=bool)
+        mask[axes] = True
+        amp[~mask] = 0.0
+        amp.setflags(write=False)
+        start = _number(d.get('start', 0.0), f'{key}.start', nonneg=True)
+        end = _number(d.get('end', duration), f'{key}.end', nonneg=True)
+        if end <= start:
+            raise SceneError(f'{key}.end: must be after start ({start}), got {end}')
+        params: dict[str, Any] = {}
+        for k, default in defaults.items():
+            if k not in d and default is None:
+                raise SceneError(f'{key}.{k}: missing (required for type {typ})')
+            params[k] = d.get(k, default)
+        params = cls._check_params(typ, params, key, end - start)
+        return cls(typ, amp, tuple(axes), start, end, MappingProxyType(params))
+
+    @staticmethod
+    def _check_params(typ: str, p: dict[str, Any], key: str, span: float) -> dict[str, Any]:
+        if typ == 'multisine':
+            p['f_min'] = _number(p['f_min'], f'{key}.f_min', positive=True)
+            p['f_max'] = _number(p['f_max'], f'{key}.f_max', positive=True)
+            if p['f_max'] <= p['f_min']:
+                raise SceneError(f'{key}.f_max: must exceed f_min ({p["f_min"]} Hz)')
+            p['n_freq'] = _integer(p['n_freq'], f'{key}.n_freq', minimum=1)
+            p['phases'] = _string(p['phases'], f'{key}.phases', ('schroeder', 'random'))
+        elif typ == 'sine':
+            p['frequency'] = _number(p['frequency'], f'{key}.frequency', positive=True)
+            p['phase'] = _vector_or_scalar(p['phase'], f'{key}.phase')
+        elif typ == 'steps':
+            p['period'] = _number(p['period'], f'{key}.period', positive=True)
+        elif typ == 'prbs':
+            p['bit_time'] = _number(p['bit_time'], f'{key}.bit_time', positive=True)
+        elif typ == 'chirp':
+            p['f0'] = _number(p['f0'], f'{key}.f0', positive=True)
+            p['f1'] = _number(p['f1'], f'{key}.f1', positive=True)
+            p['mode'] = _string(p['mode'], f'{key}.mode', ('sequential', 'simultaneous'))
+        elif typ == 'doublet':
+            p['width'] = _number(p['width'], f'{key}.width', positive=True)
+            p['period'] = _number(p['period'], f'{key}.period', nonneg=True)
+            if p['period'] == 0.0:
+                p['period'] = max(span, 2.0 * p['width'])
+            if p['period'] < 2.0 * p['width']:
+                raise SceneError(f'{key}.period: must be >= 2 * width ({2 * p["width"]} s)')
+        return p
+
+    def evaluate(self, t: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+        """Commanded torque of this component at times ``t``.
+
+        Parameters
+        ----------
+        t : numpy.ndarray, shape (M,)
+            Command update times [s], increasing (the scene's command grid).
+        rng : numpy.random.Generator
+            Source of the component's random phases / levels (seeded by the caller).
+
+        Returns
+        -------
+        numpy.ndarray, shape (M, 3)
+            Torque [N m] in body axes; zero outside ``[start, end)``.
+        """
+        t = np.asarray(t, dtype=float)
+        out = np.zeros((t.size, 3))
+        active = (t >= self.start - 1e-12) & (t < self.end - 1e-12)
+        tau = t[active] - self.start
+        span = self.end - self.start
+        p = self.params
+        n_ax = len(self.axes)
+        sig = np.zeros((tau.size, 3))
+        if self.type == 'multisine':
+            n = p['n_freq']
+            freqs = np.linspace(p['f_min'], p['f_max'], n * n_ax)
+            if p['phases'] == 'random':
+                phases = rng.uniform(0.0, 2.0 * np.pi, size=n * n_ax)
+            else:  # Schroeder phases over all the frequencies, low crest factor
+                k = np.arange(1, n * n_ax + 1)
+                phases = -np.pi * k * (k - 1) / (n * n_ax)
+            for j, ax in enumerate(self.axes):
+                f, ph = freqs[j::n_ax], phases[j::n_ax]
+                s = np.cos(2.0 * np.pi * np.outer(tau, f) + ph).sum(axis=1)
+                peak = np.max(np.abs(s)) if s.size else 1.0
+                sig[:, ax] = s / peak if peak > 0 else s
+        elif self.type == 'sine':
+            for ax in self.axes:
+                sig[:, ax] = np.sin(2.0 * np.pi * p['frequency'] * tau + p['phase'][ax])
+        elif self.type == 'steps':
+            n_lv = int(math.ceil(span / p['period'])) + 1
+            levels = rng.uniform(-1.0, 1.0, size=(n_lv, 3))
+            idx = np.minimum((tau / p['period'] + 1e-9).astype(int), n_lv - 1)
+            sig = levels[idx]
+        elif self.type == 'prbs':
+            n_lv = int(math.ceil(span / p['bit_time'])) + 1
+            levels = np.where(rng.random(size=(n_lv, 3)) < 0.5, -1.0, 1.0)
+            idx = np.minimum((tau / p['bit_time'] + 1e-9).astype(int), n_lv - 1)
+            sig = levels[idx]
+        elif self.type == 'chirp':
+            f0, f1 = p['f0'], p['f1']
+            if p['mode'] == 'sequential':
+                win = span / n_ax
+                for j, ax in enumerate(self.axes):
+                    tl = tau - j * win
+                    on = (tl >= 0.0) & (tl < win)
+                    ph = 2.0 * np.pi * (f0 * tl + 0.5 * (f1 - f0) / win * tl ** 2)
+                    sig[on, ax] = np.sin(ph[on])
+            else:
+                ph = 2.0 * np.pi * (f0 * tau + 0.5 * (f1 - f0) / span * tau ** 2)
+                for j, ax in enumerate(self.axes):
+                    sig[:, ax] = np.sin(ph + 2.0 * np.pi * j / 3.0)
+        elif self.type == 'doublet':
+            tp = np.mod(tau, p['period'])
+            s = np.where(tp < p['width'], 1.0, np.where(tp < 2.0 * p['width'], -1.0, 0.0))
+            sig[:, list(self.axes)] = s[:, None]
+        elif self.type == 'constant':
+            sig[:] = 1.0
+        out[active] = sig * self.amplitude
+        return out
+
+
+@dataclass(frozen=True)
+class GyroSpec:
+    """Gyro stream: sample rate [Hz], white-noise std [rad/s], constant bias [rad/s], frame."""
+
+    rate: float = 200.0
+    noise_std: float = 0.0
+    bias: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    frame_id: str = 'base_link'
+
+
+@dataclass(frozen=True)
+class TorqueSensorSpec:
+    """Torque stream: rate [Hz]; per-axis noise std = noise_std [N m] + noise_rel * rms(cmd)."""
+
+    rate: float = 50.0
+    noise_rel: float = 0.0
+    noise_std: float = 0.0
+
+
+@dataclass(frozen=True)
+class Imperfections:
+    """Stamp jitter std [s], torque-stream stamp delay [s], independent drop probability."""
+
+    timestamp_jitter: float = 0.0
+    torque_delay: float = 0.0
+    drop_rate: float = 0.0
+
+
+@dataclass(frozen=True, eq=False)
+class InertiaChange:
+    """A step change of the tensor at ``time`` [s] to ``inertia`` (3, 3) [kg m^2]."""
+
+    time: float
+    inertia: np.ndarray
+
+
+_TOP_KEYS = ('name', 'description', 'seed', 'duration', 'body', 'initial_omega', 'torque',
+             'disturbance', 'command_rate', 'gyro', 'torque_sensor', 'imperfections',
+             'inertia_change')
+
+
+@dataclass(frozen=True, eq=False)
+class Scene:
+    """A validated simulation scene (see ``docs/SCENES.md`` for the schema).
+
+    Attributes
+    ----------
+    name : str
+        Scene name (``'scene'`` when not given).
+    seed : int
+        Default seed for every random draw of the simulation.
+    duration : float
+        Length of the run [s].
+    inertia : numpy.ndarray, shape (3, 3)
+        Body tensor about the centre of mass at t = 0 [kg m^2], body axes.
+    parts : tuple of Mapping
+        The ``body.parts`` entries when the body is a composite, else empty.
+    initial_omega : numpy.ndarray, shape (3,)
+        Angular velocity at t = 0 [rad/s], body axes.
+    torque : tuple of TorqueComponent
+        Commanded-torque components, summed; empty = torque-free.
+    disturbance : numpy.ndarray, shape (3,)
+        Constant torque acting on the body but absent from the torque stream [N m].
+    command_rate : float
+        Torque command update rate [Hz]; commands are held between updates (zero-order hold).
+    gyro : GyroSpec
+    torque_sensor : TorqueSensorSpec
+    imperfections : Imperfections
+    inertia_change : InertiaChange or None
+    description : str
+        Free text.
+    source : Mapping
+        The dict the scene was built from (read-only view).
+    """
+
+    name: str
+    seed: int
+    duration: float
+    inertia: np.ndarray
+    initial_omega: np.ndarray
+    torque: tuple[TorqueComponent, ...]
+    disturbance: np.ndarray
+    command_rate: float
+    gyro: GyroSpec
+    torque_sensor: TorqueSensorSpec
+    imperfections: Imperfections
+    inertia_change: InertiaChange | None = None
+    parts: tuple[Mapping[str, Any], ...] = ()
+    description: str = ''
+    source: Mapping[str, Any] = field(default_factory=dict, repr=False)
+
+    @classmethod
+    def from_dict(cls, d: Mapping[str, Any]) -> Scene:
+        """Build and validate a scene from a plain dict (the YAML schema).
+
+        Parameters
+        ----------
+        d : Mapping
+            Scene description; only ``body`` is required.  See ``docs/SCENES.md``.
+
+        Returns
+        -------
+        Scene
+
+        Raises
+        ------
+        SceneError
+            For an unknown key, a missing required key or an invalid value; the message
+            starts with the dotted key, e.g. ``torque[1].f_max: must exceed f_min``.
+        """
+        if not isinstance(d, Mapping):
+            raise SceneError(f'scene: must be a mapping of keys, got {type(d).__name__}')
+        _mapping(d, 'scene', _TOP_KEYS)
+        name = _string(d.get('name', 'scene'), 'name')
+        description = _string(d.get('description', ''), 'description')
+        seed = _integer(d.get('seed', 0), 'seed', minimum=0)
+        duration = _number(d.get('duration', 10.0), 'duration', positive=True)
+        if 'body' not in d:
+            raise SceneError('body: missing (give body.inertia or body.parts)')
+        inertia, parts = _body_inertia(d['body'], 'body')
+        omega0 = _vector(d.get('initial_omega', [0.0, 0.0, 0.0]), 'initial_omega')
+        torque_raw = d.get('torque') or []
+        if isinstance(torque_raw, Mapping):
+            torque_raw = [torque_raw]
+        if not isinstance(torque_raw, Sequence) or isinstance(torque_raw, str):
+            raise SceneError('torque: must be a list of components (or omitted)')
+        torque = tuple(TorqueComponent.from_dict(c, f'torque[{i}]', duration)
+                       for i, c in enumerate(torque_raw))
+        disturbance = _vector(d.get('disturbance', [0.0, 0.0, 0.0]), 'disturbance')
+        command_rate = _number(d.get('command_rate', 50.0), 'command_rate', positive=True)
+
+        g = _mapping(d.get('gyro'), 'gyro', ('rate', 'noise_std', 'bias', 'frame_id'))
+        gyro = GyroSpec(
+            rate=_number(g.get('rate', 200.0), 'gyro.rate', positive=True),
+            noise_std=_number(g.get('noise_std', 0.0), 'gyro.noise_std', nonneg=True),
+            bias=tuple(_vector(g.get('bias', [0.0, 0.0, 0.0]), 'gyro.bias').tolist()),
+            frame_id=_string(g.get('frame_id', 'base_link'), 'gyro.frame_id'))
+        if not gyro.frame_id:
+            raise SceneError('gyro.frame_id: must not be empty')
+        ts = _mapping(d.get('torque_sensor'), 'torque_sensor', ('rate', 'noise_rel', 'noise_std'))
+        torque_sensor = TorqueSensorSpec(
+            rate=_number(ts.get('rate', 50.0), 'torque_sensor.rate', positive=True),
+            noise_rel=_number(ts.get('noise_rel', 0.0), 'torque_sensor.noise_rel', nonneg=True),
+            noise_std=_number(ts.get('noise_std', 0.0), 'torque_sensor.noise_std', nonneg=True))
+        im = _mapping(d.get('imperfections'), 'imperfections',
+                      ('timestamp_jitter', 'torque_delay', 'drop_rate'))
+        imperfections = Imperfections(
+            timestamp_jitter=_number(im.get('timestamp_jitter', 0.0),
+                                     'imperfections.timestamp_jitter', nonneg=True),
+            torque_delay=_number(im.get('torque_delay', 0.0), 'imperfections.torque_delay'),
+            drop_rate=_number(im.get('drop_rate', 0.0), 'imperfections.drop_rate', nonneg=True))
+        if imperfections.drop_rate >= 1.0:
+            raise SceneError(f'imperfections.drop_rate: must be < 1, got '
+                             f'{imperfections.drop_rate}')
+        min_period = 1.0 / max(gyro.rate, torque_sensor.rate)
+        if imperfections.timestamp_jitter > 0.25 * min_period:
+            raise SceneError(f'imperfections.timestamp_jitter: must be <= a quarter of the '
+                             f'fastest sample period ({0.25 * min_period:g} s) so stamps stay '
+                             f'increasing, got {imperfections.timestamp_jitter}')
+        change = None
+        if d.get('inertia_change') is not None:
+            c = _mapping(d['inertia_change'], 'inertia_change', ('time', 'inertia', 'parts'))
+            if 'time' not in c:
+                raise SceneError('inertia_change.time: missing (s)')
+            t_c = _number(c['time'], 'inertia_change.time', positive=True)
+            if t_c >= duration:
+                raise SceneError(f'inertia_change.time: must be before the end of the run '
+                                 f'({duration} s), got {t_c}')
+            i_c, _ = _body_inertia({k: v for k, v in c.items() if k != 'time'},
+                                   'inertia_change')
+            change = InertiaChange(t_c, i_c)
+        return cls(name=name, seed=seed, duration=duration, inertia=inertia,
+                   initial_omega=omega0, torque=torque, disturbance=disturbance,
+                   command_rate=command_rate, gyro=gyro, torque_sensor=torque_sensor,
+                   imperfections=imperfections, inertia_change=change, parts=parts,
+                   description=description, source=MappingProxyType(dict(d)))
+
+    def to_dict(self) -> dict[str, Any]:
+        """Return a copy of the dict the scene was built from (``Scene.from_dict`` round-trips)."""
+        return copy.deepcopy(dict(self.source))
