@@ -26,15 +26,31 @@ from typing import Any
 import numpy as np
 
 __all__ = [
+    'STANDARD_GRAVITY',
     'THETA_NAMES',
+    'Ellipsoid',
+    'InertiaTensor',
     'PhysicalCheck',
+    'angular_momentum',
+    'angular_momentum_about_point',
     'as_inertia_matrix',
+    'axes_to_quaternion',
     'check_physical',
+    'composite',
     'euler_omega_dot',
     'euler_torque',
+    'kinetic_energy',
+    'kinetic_energy_rate',
     'matrix_to_theta',
+    'mechanical_power',
+    'moment_about_axis',
     'nearest_physical',
+    'parallel_axis',
+    'parallel_axis_to_com',
+    'pendulum_period',
+    'power_identity_residual',
     'principal_axes',
+    'rotational_kinetic_energy',
     'theta_to_matrix',
 ]
 
@@ -569,3 +585,985 @@ def euler_omega_dot(I: Any, omega: Any, tau: Any) -> np.ndarray:
     m_b = np.broadcast_to(m, batch + (3, 3))
     rhs_b = np.broadcast_to(rhs, batch + (3,))[..., None]
     return np.linalg.solve(m_b, rhs_b)[..., 0]
+
+
+# ---------------------------------------------------------------------------------------------
+# parallel-axis theorem and scalar helpers on arrays
+# ---------------------------------------------------------------------------------------------
+#: Standard gravity [m/s^2] (the default for pendulum periods).
+STANDARD_GRAVITY = 9.80665
+
+
+def _as_mass(m: Any, name: str = 'mass', *, positive: bool = False) -> float:
+    """A finite mass >= 0 (> 0 when ``positive``) as float; ValueError names ``name``."""
+    try:
+        val = float(m)
+    except (TypeError, ValueError):
+        raise ValueError(f'{name}: expected a number [kg], got {m!r}') from None
+    if not np.isfinite(val):
+        raise ValueError(f'{name}: must be finite, got {val!r}')
+    if val < 0.0 or (positive and val == 0.0):
+        raise ValueError(f'{name}: must be {"> 0" if positive else ">= 0"} kg, got {val!r}')
+    return val
+
+
+def _as_unit_axis(n: Any, name: str = 'axis') -> np.ndarray:
+    """Normalise a non-zero finite (..., 3) direction; ValueError names ``name``."""
+    v = _as_vectors(n, name)
+    norm = np.linalg.norm(v, axis=-1, keepdims=True)
+    if np.any(norm == 0.0):
+        raise ValueError(f'{name}: zero vector has no direction; pass a non-zero axis')
+    return v / norm
+
+
+def _as_rotation(R: Any, name: str = 'rotation', atol: float = 1e-9) -> np.ndarray:
+    """A (3, 3) proper rotation matrix (orthonormal within ``atol``, det +1)."""
+    arr = _as_float_array(R, name)
+    if arr.shape != (3, 3):
+        raise ValueError(f'{name}: expected shape (3, 3), got {arr.shape}')
+    _check_finite(arr, name)
+    err = float(np.max(np.abs(arr @ arr.T - np.eye(3))))
+    if err > atol:
+        raise ValueError(f'{name}: not orthonormal: max |R R^T - 1| = {err:.3g} '
+                         f'exceeds {atol:.1g}')
+    if np.linalg.det(arr) < 0.0:
+        raise ValueError(f'{name}: det = -1 is a reflection, not a proper rotation')
+    return arr
+
+
+def _shift_term(mass: float, r: np.ndarray) -> np.ndarray:
+    """``m (|r|^2 1 - r r^T)``, shape (3, 3) [kg m^2]."""
+    return mass * (np.dot(r, r) * np.eye(3) - np.outer(r, r))
+
+
+def parallel_axis(I_com: Any, mass: Any, r: Any) -> np.ndarray:
+    """Parallel-axis theorem in tensor form: inertia about a point P from that about the CoM.
+
+    ``I_P = I_C + m (|r|^2 1 - r r^T)`` with ``r = P - C`` (the sign of ``r`` does not matter).
+
+    Parameters
+    ----------
+    I_com : array_like, shape (3, 3), or InertiaTensor
+        Inertia about the centre of mass C [kg m^2].
+    mass : float
+        Mass [kg], >= 0.
+    r : array_like, shape (3,)
+        Offset between P and C [m], in the frame of ``I_com``.
+
+    Returns
+    -------
+    ndarray, shape (3, 3)
+        Inertia about P [kg m^2].
+
+    Raises
+    ------
+    ValueError
+        Bad shapes, NaN/inf, asymmetric ``I_com`` or negative ``mass``.
+    """
+    return as_inertia_matrix(I_com, 'I_com') + _shift_term(_as_mass(mass), _as_vector3(r, 'r'))
+
+
+def parallel_axis_to_com(I_point: Any, mass: Any, r: Any) -> np.ndarray:
+    """Inverse parallel-axis theorem: inertia about the CoM from that about a point P.
+
+    ``I_C = I_P - m (|r|^2 1 - r r^T)`` with ``r = P - C``.
+
+    Parameters
+    ----------
+    I_point : array_like, shape (3, 3), or InertiaTensor
+        Inertia about P [kg m^2].
+    mass : float
+        Mass [kg], >= 0.
+    r : array_like, shape (3,)
+        Offset between P and C [m].
+
+    Returns
+    -------
+    ndarray, shape (3, 3)
+        Inertia about the centre of mass [kg m^2].
+
+    Raises
+    ------
+    ValueError
+        Bad shapes, NaN/inf, asymmetric ``I_point`` or negative ``mass``.
+    """
+    return (as_inertia_matrix(I_point, 'I_point')
+            - _shift_term(_as_mass(mass), _as_vector3(r, 'r')))
+
+
+def moment_about_axis(I: Any, axis: Any) -> np.ndarray | float:
+    """Moment of inertia about an axis through the reference point, ``n^T I n`` with |n| = 1.
+
+    Parameters
+    ----------
+    I : array_like, shape (3, 3), or InertiaTensor
+        Inertia matrix [kg m^2].
+    axis : array_like, shape (3,) or (..., 3)
+        Axis direction(s), any non-zero length (normalised here).
+
+    Returns
+    -------
+    float or ndarray, shape (...)
+        Moment(s) of inertia [kg m^2].
+
+    Raises
+    ------
+    ValueError
+        Bad shapes, NaN/inf, asymmetric ``I`` or a zero axis.
+    """
+    m = as_inertia_matrix(I, 'I')
+    n = _as_unit_axis(axis)
+    val = np.einsum('...i,ij,...j->...', n, m, n)
+    return float(val) if val.ndim == 0 else val
+
+
+def axes_to_quaternion(axes: Any) -> np.ndarray:
+    """Quaternion ``[x, y, z, w]`` (ROS order, w >= 0) of a proper rotation matrix.
+
+    Useful for publishing principal axes or an ellipsoid orientation
+    (geometry_msgs/Quaternion): the rotation maps body axes onto the given columns.
+
+    Parameters
+    ----------
+    axes : array_like, shape (3, 3)
+        Proper rotation matrix, columns are the rotated x, y, z axes.
+
+    Returns
+    -------
+    ndarray, shape (4,)
+        Unit quaternion ``[x, y, z, w]`` with ``w >= 0``.
+
+    Raises
+    ------
+    ValueError
+        Not a proper rotation matrix.
+    """
+    from scipy.spatial.transform import Rotation
+
+    q = Rotation.from_matrix(_as_rotation(axes, 'axes')).as_quat()
+    return -q if q[3] < 0 else q
+
+
+# ---------------------------------------------------------------------------------------------
+# dynamics on arrays
+# ---------------------------------------------------------------------------------------------
+def angular_momentum(I: Any, omega: Any) -> np.ndarray:
+    """Angular momentum about the centre of mass, ``L = I w``.
+
+    Parameters
+    ----------
+    I : array_like, shape (3, 3) or (..., 3, 3), or InertiaTensor
+        Inertia about the centre of mass [kg m^2].
+    omega : array_like, shape (..., 3)
+        Angular velocity [rad/s], same frame as ``I``.
+
+    Returns
+    -------
+    ndarray, shape (..., 3)
+        Angular momentum [kg m^2/s].
+    """
+    return np.einsum('...ij,...j->...i', _as_stack_matrix(I), _as_vectors(omega, 'omega'))
+
+
+def angular_momentum_about_point(I_com: Any, mass: Any, omega: Any, r_pc: Any,
+                                 v_com: Any) -> np.ndarray:
+    """Angular momentum about a point P, ``L_P = I_C w + m r_PC x v_C``.
+
+    Parameters
+    ----------
+    I_com : array_like, shape (3, 3), or InertiaTensor
+        Inertia about the centre of mass C [kg m^2].
+    mass : float
+        Mass [kg].
+    omega : array_like, shape (..., 3)
+        Angular velocity [rad/s].
+    r_pc : array_like, shape (..., 3)
+        Position of C relative to P, ``C - P`` [m].
+    v_com : array_like, shape (..., 3)
+        Velocity of C [m/s] (relative to the frame P is fixed in).
+
+    Returns
+    -------
+    ndarray, shape (..., 3)
+        Angular momentum about P [kg m^2/s]; all vectors in one frame.
+    """
+    m = _as_mass(mass)
+    r = _as_vectors(r_pc, 'r_pc')
+    v = _as_vectors(v_com, 'v_com')
+    return angular_momentum(I_com, omega) + m * np.cross(r, v)
+
+
+def rotational_kinetic_energy(I: Any, omega: Any) -> np.ndarray | float:
+    """Rotational kinetic energy ``T_rot = 1/2 w . (I w)``.
+
+    Parameters
+    ----------
+    I : array_like, shape (3, 3) or (..., 3, 3), or InertiaTensor
+        Inertia about the centre of mass [kg m^2].
+    omega : array_like, shape (..., 3)
+        Angular velocity [rad/s].
+
+    Returns
+    -------
+    float or ndarray, shape (...)
+        Energy [J].
+    """
+    w = _as_vectors(omega, 'omega')
+    val = 0.5 * np.einsum('...i,...i->...', w, angular_momentum(I, w))
+    return float(val) if np.ndim(val) == 0 else val
+
+
+def kinetic_energy(I_com: Any, mass: Any, omega: Any, v_com: Any) -> np.ndarray | float:
+    """Total kinetic energy ``T = 1/2 m |v_C|^2 + 1/2 w . (I_C w)`` (Koenig's theorem).
+
+    Parameters
+    ----------
+    I_com : array_like, shape (3, 3) or (..., 3, 3), or InertiaTensor
+        Inertia about the centre of mass [kg m^2].
+    mass : float
+        Mass [kg].
+    omega : array_like, shape (..., 3)
+        Angular velocity [rad/s].
+    v_com : array_like, shape (..., 3)
+        Velocity of the centre of mass [m/s].
+
+    Returns
+    -------
+    float or ndarray, shape (...)
+        Energy [J].
+    """
+    v = _as_vectors(v_com, 'v_com')
+    val = 0.5 * _as_mass(mass) * np.einsum('...i,...i->...', v, v) \
+        + rotational_kinetic_energy(I_com, omega)
+    return float(val) if np.ndim(val) == 0 else val
+
+
+def pendulum_period(I_pivot: Any, mass: Any, h: Any,
+                    g: float = STANDARD_GRAVITY) -> np.ndarray | float:
+    """Small-amplitude period of a physical pendulum, ``2 pi sqrt(I / (m g h))``.
+
+    Parameters
+    ----------
+    I_pivot : float or array_like
+        Moment of inertia about the pivot axis [kg m^2], > 0.
+    mass : float
+        Mass [kg], > 0.
+    h : float or array_like
+        Distance from the pivot axis to the centre of mass [m], > 0.
+    g : float
+        Gravitational acceleration [m/s^2], > 0.
+
+    Returns
+    -------
+    float or ndarray
+        Period [s].
+
+    Raises
+    ------
+    ValueError
+        Non-positive or non-finite inputs.
+    """
+    i = _as_float_array(I_pivot, 'I_pivot')
+    hh = _as_float_array(h, 'h')
+    for arr, name in ((i, 'I_pivot'), (hh, 'h')):
+        _check_finite(arr, name)
+        if np.any(arr <= 0.0):
+            raise ValueError(f'{name}: must be > 0, got {arr.min():.6g}')
+    m = _as_mass(mass, positive=True)
+    gg = _as_mass(g, 'g', positive=True)
+    val = 2.0 * np.pi * np.sqrt(i / (m * gg * hh))
+    return float(val) if np.ndim(val) == 0 else val
+
+
+def mechanical_power(velocity: Any, force: Any, omega: Any, torque: Any) -> np.ndarray | float:
+    """Power delivered to a rigid body, ``P = v_C . F + w . M``.
+
+    ``F`` is the resultant force and ``M`` the resultant torque about the centre of mass; ``v_C``
+    and ``F`` share one frame, ``w`` and ``M`` share one frame (e.g. body axes).
+
+    Parameters
+    ----------
+    velocity : array_like, shape (..., 3)
+        Velocity of the centre of mass [m/s].
+    force : array_like, shape (..., 3)
+        Resultant force [N].
+    omega : array_like, shape (..., 3)
+        Angular velocity [rad/s].
+    torque : array_like, shape (..., 3)
+        Resultant torque about the centre of mass [N m].
+
+    Returns
+    -------
+    float or ndarray, shape (...)
+        Power [W].
+    """
+    v = _as_vectors(velocity, 'velocity')
+    f = _as_vectors(force, 'force')
+    w = _as_vectors(omega, 'omega')
+    t = _as_vectors(torque, 'torque')
+    val = np.einsum('...i,...i->...', v, f) + np.einsum('...i,...i->...', w, t)
+    return float(val) if np.ndim(val) == 0 else val
+
+
+def kinetic_energy_rate(I_com: Any, mass: Any, velocity: Any, acceleration: Any, omega: Any,
+                        omega_dot: Any) -> np.ndarray | float:
+    """Analytic ``dT/dt = m v_C . a_C + w . (I_C w_dot)`` for a rigid body.
+
+    Valid with ``v``, ``a`` in an inertial frame and ``w``, ``w_dot``, ``I_C`` in body axes
+    (where ``I_C`` is constant).  By Newton and Euler it equals :func:`mechanical_power`
+    (the power identity ``dT/dt = v . F + w . M``), because ``w . (w x I w) = 0``.
+
+    Parameters
+    ----------
+    I_com : array_like, shape (3, 3), or InertiaTensor
+        Inertia about the centre of mass [kg m^2].
+    mass : float
+        Mass [kg].
+    velocity, acceleration : array_like, shape (..., 3)
+        Velocity [m/s] and acceleration [m/s^2] of the centre of mass.
+    omega, omega_dot : array_like, shape (..., 3)
+        Angular velocity [rad/s] and acceleration [rad/s^2].
+
+    Returns
+    -------
+    float or ndarray, shape (...)
+        Rate of change of kinetic energy [W].
+    """
+    v = _as_vectors(velocity, 'velocity')
+    a = _as_vectors(acceleration, 'acceleration')
+    w = _as_vectors(omega, 'omega')
+    val = _as_mass(mass) * np.einsum('...i,...i->...', v, a) \
+        + np.einsum('...i,...i->...', w, angular_momentum(I_com, omega_dot))
+    return float(val) if np.ndim(val) == 0 else val
+
+
+def power_identity_residual(t: Any, energy: Any, velocity: Any, force: Any, omega: Any,
+                            torque: Any) -> np.ndarray:
+    """Check the power identity on sampled data: ``dT/dt - (v . F + w . M)``.
+
+    ``dT/dt`` is taken from the sampled kinetic energy by second-order finite differences
+    (:func:`numpy.gradient`), so the residual is O(dt^2) for smooth motion and exposes
+    wrong inertia, wrong frames or unmodelled forces/torques.
+
+    Parameters
+    ----------
+    t : array_like, shape (N,)
+        Strictly increasing sample times [s], N >= 3.
+    energy : array_like, shape (N,)
+        Kinetic energy at each sample [J] (e.g. from :func:`kinetic_energy`).
+    velocity, force, omega, torque : array_like, shape (N, 3)
+        As in :func:`mechanical_power` [m/s, N, rad/s, N m].
+
+    Returns
+    -------
+    ndarray, shape (N,)
+        Residual power [W].
+
+    Raises
+    ------
+    ValueError
+        Bad shapes, fewer than 3 samples, non-increasing ``t`` or NaN/inf.
+    """
+    tt = _as_float_array(t, 't')
+    e = _as_float_array(energy, 'energy')
+    if tt.ndim != 1 or tt.size < 3:
+        raise ValueError(f't: expected shape (N,) with N >= 3, got {tt.shape}')
+    if e.shape != tt.shape:
+        raise ValueError(f'energy: expected shape {tt.shape} like t, got {e.shape}')
+    _check_finite(tt, 't')
+    _check_finite(e, 'energy')
+    if np.any(np.diff(tt) <= 0.0):
+        raise ValueError('t: must be strictly increasing')
+    p = mechanical_power(velocity, force, omega, torque)
+    if np.shape(p) != tt.shape:
+        raise ValueError(f'velocity, force, omega, torque: expected shape ({tt.size}, 3), '
+                         f'giving power of shape {np.shape(p)}')
+    return np.gradient(e, tt, edge_order=2) - p
+
+
+# ---------------------------------------------------------------------------------------------
+# the value type
+# ---------------------------------------------------------------------------------------------
+def _readonly(a: np.ndarray) -> np.ndarray:
+    """A read-only float64 copy of ``a``."""
+    out = np.array(a, dtype=np.float64, copy=True)
+    out.setflags(write=False)
+    return out
+
+
+def _vector_from_msg(x: Any, name: str) -> np.ndarray:
+    """(3,) from a sequence or from an object with ``x``, ``y``, ``z`` (geometry_msgs/Vector3)."""
+    if all(hasattr(x, k) for k in ('x', 'y', 'z')):
+        x = (x.x, x.y, x.z)
+    return _as_vector3(x, name)
+
+
+@dataclass(frozen=True)
+class Ellipsoid:
+    """An ellipsoid for drawing a tensor: centre, semi-axes and orientation.
+
+    Attributes
+    ----------
+    center : ndarray, shape (3,)
+        Centre [m] (the tensor's reference point).
+    semi_axes : ndarray, shape (3,)
+        Semi-axis lengths along the columns of ``axes`` (units depend on the kind: [m] for
+        ``'equivalent'`` and ``'gyration'``, [kg^-1/2 m^-1] for ``'inertia'``).
+    axes : ndarray, shape (3, 3)
+        Proper rotation; column k is the direction of semi-axis k (the principal axes).
+    kind : str
+        ``'inertia'``, ``'equivalent'`` or ``'gyration'`` (see :meth:`InertiaTensor.ellipsoid`).
+    """
+
+    center: np.ndarray
+    semi_axes: np.ndarray
+    axes: np.ndarray
+    kind: str
+
+    @property
+    def quaternion(self) -> np.ndarray:
+        """Orientation as quaternion ``[x, y, z, w]`` (ROS order), shape (4,)."""
+        return axes_to_quaternion(self.axes)
+
+    @property
+    def diameters(self) -> np.ndarray:
+        """Full lengths ``2 * semi_axes``, shape (3,) (visualization_msgs Marker scale)."""
+        return 2.0 * self.semi_axes
+
+    def surface(self, n: int = 24) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Surface grid for plotting (e.g. matplotlib ``plot_surface``).
+
+        Parameters
+        ----------
+        n : int
+            Number of latitude samples (>= 3); longitude uses ``2 n``.
+
+        Returns
+        -------
+        x, y, z : ndarray, shape (n, 2 n)
+            Surface point coordinates, in the units of ``semi_axes``, offset by ``center``.
+        """
+        if int(n) != n or n < 3:
+            raise ValueError(f'n: must be an integer >= 3, got {n!r}')
+        n = int(n)
+        u = np.linspace(0.0, np.pi, n)[:, None]
+        v = np.linspace(0.0, 2.0 * np.pi, 2 * n)[None, :]
+        local = np.stack([np.sin(u) * np.cos(v), np.sin(u) * np.sin(v),
+                          np.cos(u) * np.ones_like(v)], axis=-1) * self.semi_axes
+        world = local @ self.axes.T + self.center
+        return world[..., 0], world[..., 1], world[..., 2]
+
+
+@dataclass(frozen=True, eq=False)
+class InertiaTensor:
+    """Immutable inertia tensor of a rigid body about a reference point.
+
+    The matrix is about :attr:`point` (by default the centre of mass), expressed in the axes
+    of the frame all the vectors here are in.  Arrays are stored read-only.  Validation on
+    construction: ``matrix`` finite, shape (3, 3), symmetric within ``1e-9`` relative (the
+    symmetric part is stored); ``mass`` finite and >= 0 if given; ``com`` and ``point``
+    finite, shape (3,).  Physical validity is *not* enforced (estimates may be unphysical);
+    use :meth:`check` or :func:`check_physical`.
+
+    Parameters
+    ----------
+    matrix : array_like, shape (3, 3)
+        Inertia about ``point`` [kg m^2].
+    mass : float, optional
+        Mass [kg]; needed for the parallel-axis theorem, composites, radius of gyration.
+    com : array_like, shape (3,), optional
+        Centre of mass position [m]; default the origin.
+    point : array_like, shape (3,), optional
+        Reference point the matrix is about [m]; default ``com``.
+
+    Notes
+    -----
+    ``a + b`` (and :func:`composite`) combine bodies about their common centre of mass;
+    ``a - b`` removes a part (a hole).  Equality is exact; use :meth:`allclose` for floats.
+    """
+
+    matrix: np.ndarray
+    mass: float | None = None
+    com: np.ndarray = None  # type: ignore[assignment]
+    point: np.ndarray = None  # type: ignore[assignment]
+
+    def __post_init__(self) -> None:
+        """Validate and freeze the fields."""
+        object.__setattr__(self, 'matrix', _readonly(as_inertia_matrix(self.matrix, 'matrix')))
+        if self.mass is not None:
+            object.__setattr__(self, 'mass', _as_mass(self.mass))
+        com = np.zeros(3) if self.com is None else _as_vector3(self.com, 'com')
+        object.__setattr__(self, 'com', _readonly(com))
+        point = com if self.point is None else _as_vector3(self.point, 'point')
+        object.__setattr__(self, 'point', _readonly(point))
+
+    # -- constructors ------------------------------------------------------------------------
+    @classmethod
+    def from_theta(cls, theta: Any, mass: float | None = None, com: Any = None,
+                   point: Any = None) -> InertiaTensor:
+        """From ``[ixx, iyy, izz, ixy, ixz, iyz]`` [kg m^2] (matrix elements, DESIGN order).
+
+        Parameters
+        ----------
+        theta : array_like, shape (6,)
+            The six unique elements [kg m^2].
+        mass, com, point
+            As in the class signature.
+
+        Returns
+        -------
+        InertiaTensor
+        """
+        th = _as_float_array(theta, 'theta')
+        if th.shape != (6,):
+            raise ValueError(f'theta: expected shape (6,), got {th.shape}')
+        return cls(theta_to_matrix(th), mass, com, point)
+
+    @classmethod
+    def from_matrix(cls, matrix: Any, mass: float | None = None, com: Any = None,
+                    point: Any = None, *, rtol: float = SYMMETRY_RTOL) -> InertiaTensor:
+        """From a 3x3 matrix, validated finite and symmetric within ``rtol``.
+
+        Parameters
+        ----------
+        matrix : array_like, shape (3, 3)
+            Inertia [kg m^2] about ``point``.
+        mass, com, point
+            As in the class signature.
+        rtol : float
+            Symmetry tolerance relative to max |I_ij|; the symmetric part is kept.
+
+        Returns
+        -------
+        InertiaTensor
+        """
+        return cls(as_inertia_matrix(matrix, 'matrix', rtol=rtol), mass, com, point)
+
+    @classmethod
+    def from_principal(cls, moments: Any, axes: Any = None, mass: float | None = None,
+                       com: Any = None, point: Any = None) -> InertiaTensor:
+        """From principal moments and axes, ``I = R diag(moments) R^T``.
+
+        Parameters
+        ----------
+        moments : array_like, shape (3,)
+            Principal moments [kg m^2], any order (matching the columns of ``axes``).
+        axes : array_like, shape (3, 3), optional
+            Proper rotation whose columns are the principal axes; default identity.
+        mass, com, point
+            As in the class signature.
+
+        Returns
+        -------
+        InertiaTensor
+        """
+        mom = _as_vector3(moments, 'moments')
+        R = np.eye(3) if axes is None else _as_rotation(axes, 'axes')
+        mat = (R * mom) @ R.T
+        return cls(0.5 * (mat + mat.T), mass, com, point)
+
+    @classmethod
+    def from_inertia_msg(cls, m: Any, com: Any, ixx: float, ixy: float, ixz: float,
+                         iyy: float, iyz: float, izz: float) -> InertiaTensor:
+        """From geometry_msgs/Inertia-shaped data (plain numbers; no ROS import).
+
+        The message's tensor is about its centre of mass ``com``.  ``m = 0`` (unknown mass,
+        as estimators publish) gives ``mass=None``.  ``InertiaTensor.from_inertia_msg(
+        **t.to_inertia_msg())`` round-trips.
+
+        Parameters
+        ----------
+        m : float
+            Mass [kg], >= 0.
+        com : array_like, shape (3,), or an object with ``x``, ``y``, ``z``
+            Centre of mass [m].
+        ixx, ixy, ixz, iyy, iyz, izz : float
+            Matrix elements [kg m^2].
+
+        Returns
+        -------
+        InertiaTensor
+            About the centre of mass.
+        """
+        mass = _as_mass(m, 'm')
+        c = _vector_from_msg(com, 'com')
+        theta = []
+        for name, val in (('ixx', ixx), ('iyy', iyy), ('izz', izz), ('ixy', ixy),
+                          ('ixz', ixz), ('iyz', iyz)):
+            try:
+                theta.append(float(val))
+            except (TypeError, ValueError):
+                raise ValueError(f'{name}: expected a number [kg m^2], got {val!r}') from None
+            if not np.isfinite(theta[-1]):
+                raise ValueError(f'{name}: must be finite, got {theta[-1]!r}')
+        return cls(theta_to_matrix(theta), mass if mass > 0.0 else None, c, c)
+
+    def to_inertia_msg(self) -> dict[str, Any]:
+        """geometry_msgs/Inertia fields as plain numbers, about the centre of mass.
+
+        Returns
+        -------
+        dict
+            ``m`` [kg] (0.0 when the mass is unknown), ``com`` (x, y, z) [m], and ``ixx``,
+            ``ixy``, ``ixz``, ``iyy``, ``iyz``, ``izz`` [kg m^2].
+
+        Raises
+        ------
+        ValueError
+            The tensor is not about its centre of mass and the mass is unknown.
+        """
+        c = self.about_com()
+        mat = c.matrix
+        return {'m': 0.0 if c.mass is None else c.mass,
+                'com': tuple(float(v) for v in c.com),
+                'ixx': float(mat[0, 0]), 'ixy': float(mat[0, 1]), 'ixz': float(mat[0, 2]),
+                'iyy': float(mat[1, 1]), 'iyz': float(mat[1, 2]), 'izz': float(mat[2, 2])}
+
+    # -- derived quantities ------------------------------------------------------------------
+    @property
+    def theta(self) -> np.ndarray:
+        """``[ixx, iyy, izz, ixy, ixz, iyz]`` [kg m^2], shape (6,)."""
+        return self.matrix[_THETA_ROWS, _THETA_COLS]
+
+    @property
+    def principal_moments(self) -> np.ndarray:
+        """Principal moments, ascending [kg m^2], shape (3,)."""
+        return principal_axes(self.matrix)[0]
+
+    @property
+    def principal_axes(self) -> np.ndarray:
+        """Principal axes as columns of a proper rotation, shape (3, 3) (DESIGN convention)."""
+        return principal_axes(self.matrix)[1]
+
+    def principal(self) -> tuple[np.ndarray, np.ndarray]:
+        """Principal moments (3,) ascending [kg m^2] and axes (3, 3) in one decomposition."""
+        return principal_axes(self.matrix)
+
+    @property
+    def trace(self) -> float:
+        """Trace of the matrix [kg m^2]."""
+        return float(np.trace(self.matrix))
+
+    @property
+    def is_about_com(self) -> bool:
+        """True when the reference point is the centre of mass."""
+        return bool(np.array_equal(self.point, self.com))
+
+    def check(self, rtol: float = 1e-9, *, allow_singular: bool = False) -> PhysicalCheck:
+        """:func:`check_physical` on the matrix (see there)."""
+        return check_physical(self.matrix, rtol, allow_singular=allow_singular)
+
+    def about_axis(self, axis: Any) -> float:
+        """Moment about an axis through :attr:`point`, ``n^T I n`` [kg m^2].
+
+        Parameters
+        ----------
+        axis : array_like, shape (3,)
+            Direction, any non-zero length.
+        """
+        return float(moment_about_axis(self.matrix, _as_vector3(axis, 'axis')))
+
+    def _require_mass(self, what: str, positive: bool = False) -> float:
+        """The mass, or ValueError explaining that ``what`` needs it."""
+        if self.mass is None:
+            raise ValueError(f'mass: {what} needs the mass, but this tensor has mass=None')
+        if positive and self.mass <= 0.0:
+            raise ValueError(f'mass: {what} needs mass > 0, got {self.mass!r}')
+        return self.mass
+
+    def radius_of_gyration(self, axis: Any) -> float:
+        """Radius of gyration about an axis through :attr:`point`, ``sqrt(I_n / m)`` [m].
+
+        Parameters
+        ----------
+        axis : array_like, shape (3,)
+            Direction, any non-zero length.
+        """
+        m = self._require_mass('radius_of_gyration', positive=True)
+        return float(np.sqrt(max(self.about_axis(axis), 0.0) / m))
+
+    def principal_radii_of_gyration(self) -> np.ndarray:
+        """Radii of gyration about the principal axes, ``sqrt(I_k / m)`` [m], shape (3,)."""
+        m = self._require_mass('principal_radii_of_gyration', positive=True)
+        return np.sqrt(np.clip(self.principal_moments, 0.0, None) / m)
+
+    def ellipsoid(self, kind: str = 'inertia') -> Ellipsoid:
+        """An ellipsoid picturing the tensor, centred at :attr:`point`, along principal axes.
+
+        Parameters
+        ----------
+        kind : {'inertia', 'equivalent', 'gyration'}
+            ``'inertia'``: Poinsot's inertia ellipsoid ``x^T I x = 1``, semi-axes
+            ``1 / sqrt(I_k)`` [kg^-1/2 m^-1] (longest about the axis of least inertia);
+            needs positive moments.  ``'equivalent'``: the uniform solid ellipsoid with the
+            same mass and tensor, semi-axes ``sqrt(5 (I_j + I_k - I_i) / (2 m))`` [m] (the
+            body's "shape"); needs mass and the triangle inequalities.  ``'gyration'``:
+            semi-axes are the principal radii of gyration ``sqrt(I_k / m)`` [m].
+
+        Returns
+        -------
+        Ellipsoid
+        """
+        moments, axes = self.principal()
+        if kind == 'inertia':
+            if moments[0] <= 0.0:
+                raise ValueError('kind: the inertia ellipsoid needs positive principal '
+                                 f'moments, smallest is {moments[0]:.6g}')
+            semi = 1.0 / np.sqrt(moments)
+        elif kind == 'equivalent':
+            m = self._require_mass("ellipsoid(kind='equivalent')", positive=True)
+            margins = np.sum(moments) - 2.0 * moments
+            tol = 1e-9 * float(np.max(np.abs(moments)))
+            if np.any(margins < -tol):
+                raise ValueError('kind: the equivalent ellipsoid needs the triangle '
+                                 f'inequalities, margins {margins}')
+            semi = np.sqrt(2.5 * np.clip(margins, 0.0, None) / m)
+        elif kind == 'gyration':
+            semi = self.principal_radii_of_gyration()
+        else:
+            raise ValueError(f"kind: expected 'inertia', 'equivalent' or 'gyration', "
+                             f'got {kind!r}')
+        return Ellipsoid(center=self.point.copy(), semi_axes=semi, axes=axes, kind=kind)
+
+    # -- moving the reference point and the frame --------------------------------------------
+    def about_com(self) -> InertiaTensor:
+        """The same body with the tensor about its centre of mass (inverse parallel axis)."""
+        if self.is_about_com:
+            return self
+        return self.shifted(self.com)
+
+    def shifted(self, point: Any) -> InertiaTensor:
+        """The same body with the tensor about another point (parallel-axis theorem).
+
+        Goes through the centre of mass: ``I_C = I_P - m S(P - C)``, then
+        ``I_Q = I_C + m S(Q - C)`` with ``S(r) = |r|^2 1 - r r^T``.
+
+        Parameters
+        ----------
+        point : array_like, shape (3,)
+            New reference point Q [m].
+
+        Returns
+        -------
+        InertiaTensor
+            With ``point = Q``; mass and centre of mass unchanged.
+        """
+        q = _as_vector3(point, 'point')
+        if np.array_equal(q, self.point):
+            return self
+        m = self._require_mass('shifted (parallel-axis theorem)')
+        mat = self.matrix - _shift_term(m, self.point - self.com) + _shift_term(m, q - self.com)
+        return InertiaTensor(mat, m, self.com, q)
+
+    def transformed(self, rotation: Any = None, translation: Any = None) -> InertiaTensor:
+        """The body expressed in (or moved to) another frame: ``x' = R x + t``.
+
+        The matrix becomes ``R I R^T``; centre of mass and reference point map as points.
+
+        Parameters
+        ----------
+        rotation : array_like, shape (3, 3), optional
+            Proper rotation ``R`` (default identity).
+        translation : array_like, shape (3,), optional
+            Offset ``t`` [m] (default zero).
+
+        Returns
+        -------
+        InertiaTensor
+        """
+        R = np.eye(3) if rotation is None else _as_rotation(rotation)
+        t = np.zeros(3) if translation is None else _as_vector3(translation, 'translation')
+        mat = R @ self.matrix @ R.T
+        return InertiaTensor(0.5 * (mat + mat.T), self.mass, R @ self.com + t,
+                             R @ self.point + t)
+
+    def rotated(self, rotation: Any) -> InertiaTensor:
+        """:meth:`transformed` with a rotation only (``R I R^T``)."""
+        return self.transformed(rotation=rotation)
+
+    def translated(self, translation: Any) -> InertiaTensor:
+        """:meth:`transformed` with a translation only (matrix unchanged)."""
+        return self.transformed(translation=translation)
+
+    # -- dynamics ----------------------------------------------------------------------------
+    def angular_momentum(self, omega: Any, velocity: Any = None,
+                         point: Any = None) -> np.ndarray:
+        """Angular momentum ``I_C w`` about the CoM, or ``I_C w + m r_PC x v_C`` about P.
+
+        Parameters
+        ----------
+        omega : array_like, shape (..., 3)
+            Angular velocity [rad/s].
+        velocity : array_like, shape (..., 3), optional
+            Velocity of the centre of mass [m/s] (needed with ``point``).
+        point : array_like, shape (3,), optional
+            Point P [m] the momentum is taken about; default the centre of mass.
+
+        Returns
+        -------
+        ndarray, shape (..., 3)
+            Angular momentum [kg m^2/s].
+        """
+        c = self.about_com()
+        if point is None:
+            return angular_momentum(c.matrix, omega)
+        if velocity is None:
+            raise ValueError('velocity: angular momentum about a point needs the centre of '
+                             'mass velocity')
+        m = self._require_mass('angular momentum about a point')
+        r_pc = self.com - _as_vector3(point, 'point')
+        return angular_momentum_about_point(c.matrix, m, omega, r_pc, velocity)
+
+    def kinetic_energy(self, omega: Any, velocity: Any = None) -> np.ndarray | float:
+        """Kinetic energy: rotational ``1/2 w.I_C w`` plus ``1/2 m |v_C|^2`` if ``velocity``.
+
+        Parameters
+        ----------
+        omega : array_like, shape (..., 3)
+            Angular velocity [rad/s].
+        velocity : array_like, shape (..., 3), optional
+            Velocity of the centre of mass [m/s].
+
+        Returns
+        -------
+        float or ndarray, shape (...)
+            Energy [J].
+        """
+        c = self.about_com()
+        if velocity is None:
+            return rotational_kinetic_energy(c.matrix, omega)
+        return kinetic_energy(c.matrix, self._require_mass('kinetic energy'), omega, velocity)
+
+    def pendulum_period(self, pivot: Any, axis: Any, g: float = STANDARD_GRAVITY) -> float:
+        """Small-oscillation period swinging about an axis through ``pivot``.
+
+        ``T = 2 pi sqrt(I_axis / (m g h))`` with ``I_axis`` about the pivot axis and ``h`` the
+        distance of the centre of mass from that axis.
+
+        Parameters
+        ----------
+        pivot : array_like, shape (3,)
+            A point on the (horizontal) pivot axis [m].
+        axis : array_like, shape (3,)
+            Pivot axis direction, any non-zero length.
+        g : float
+            Gravitational acceleration [m/s^2].
+
+        Returns
+        -------
+        float
+            Period [s].
+        """
+        m = self._require_mass('pendulum_period', positive=True)
+        n = _as_unit_axis(_as_vector3(axis, 'axis'))
+        p = _as_vector3(pivot, 'pivot')
+        d = self.com - p
+        h = float(np.linalg.norm(d - np.dot(d, n) * n))
+        if h == 0.0:
+            raise ValueError('pivot: the centre of mass lies on the pivot axis (h = 0), '
+                             'so the body does not swing')
+        return float(pendulum_period(self.shifted(p).about_axis(n), m, h, g))
+
+    # -- composites --------------------------------------------------------------------------
+    def __add__(self, other: object) -> InertiaTensor:
+        """Composite of two bodies about their common centre of mass."""
+        if not isinstance(other, InertiaTensor):
+            return NotImplemented
+        return composite([self, other])
+
+    def __radd__(self, other: object) -> InertiaTensor:
+        """Support ``sum(parts)`` (``0 + part``)."""
+        if isinstance(other, int | float) and other == 0:
+            return self
+        return NotImplemented
+
+    def __sub__(self, other: object) -> InertiaTensor:
+        """Remove a part (e.g. a hole) from a body: the composite with negative mass."""
+        if not isinstance(other, InertiaTensor):
+            return NotImplemented
+        return composite([self, other], signs=[1.0, -1.0])
+
+    # -- comparison --------------------------------------------------------------------------
+    def __eq__(self, other: object) -> bool:
+        """Exact equality of all fields."""
+        if not isinstance(other, InertiaTensor):
+            return NotImplemented
+        return (self.mass == other.mass and np.array_equal(self.matrix, other.matrix)
+                and np.array_equal(self.com, other.com)
+                and np.array_equal(self.point, other.point))
+
+    def __hash__(self) -> int:
+        """Hash of all fields (consistent with exact equality)."""
+        return hash((self.matrix.tobytes(), self.mass, self.com.tobytes(),
+                     self.point.tobytes()))
+
+    def allclose(self, other: InertiaTensor, rtol: float = 1e-9, atol: float = 0.0) -> bool:
+        """Whether matrix, mass, com and point agree within ``rtol``/``atol``.
+
+        ``atol`` applies to every field in its own units; the matrix tolerance is relative to
+        its largest element.  Masses must both be known or both be None.
+        """
+        if (self.mass is None) != (other.mass is None):
+            return False
+        scale = max(float(np.max(np.abs(self.matrix))), float(np.max(np.abs(other.matrix))))
+        if not np.all(np.abs(self.matrix - other.matrix) <= atol + rtol * scale):
+            return False
+        if self.mass is not None and not np.isclose(self.mass, other.mass, rtol=rtol,
+                                                    atol=atol):
+            return False
+        lscale = max(1.0, float(np.max(np.abs(np.r_[self.com, other.com]))))
+        return bool(np.all(np.abs(self.com - other.com) <= atol + rtol * lscale)
+                    and np.all(np.abs(self.point - other.point) <= atol + rtol * lscale))
+
+    def __repr__(self) -> str:
+        """Compact representation."""
+        th = ', '.join(f'{k}={v:.6g}' for k, v in zip(THETA_NAMES, self.theta, strict=True))
+        extra = '' if self.is_about_com else f', point={self.point.tolist()}'
+        return f'InertiaTensor({th}, mass={self.mass}, com={self.com.tolist()}{extra})'
+
+
+def composite(parts: Any, signs: Any = None) -> InertiaTensor:
+    """Combine bodies into one, about their common centre of mass.
+
+    ``M = sum m_i``, ``C = sum m_i c_i / M`` and ``I_C = sum (I_Ci + m_i S(c_i - C))`` with
+    ``S(r) = |r|^2 1 - r r^T``.  Every part's tensor must be in the same frame; parts may be
+    about any reference point (they are moved to their own centre of mass first).
+
+    Parameters
+    ----------
+    parts : sequence of InertiaTensor
+        At least one part, each with a mass.
+    signs : sequence of float, optional
+        +1 to add, -1 to remove a part (e.g. a hole); default all +1.
+
+    Returns
+    -------
+    InertiaTensor
+        About the composite centre of mass, with the total mass.
+
+    Raises
+    ------
+    ValueError
+        No parts, a part without mass, or a total mass <= 0.
+    """
+    parts = list(parts)
+    if not parts:
+        raise ValueError('parts: need at least one InertiaTensor')
+    for k, p in enumerate(parts):
+        if not isinstance(p, InertiaTensor):
+            raise ValueError(f'parts[{k}]: expected InertiaTensor, got {type(p).__name__}')
+        if p.mass is None:
+            raise ValueError(f'parts[{k}]: mass is None; composites need every part\'s mass')
+    s = np.ones(len(parts)) if signs is None else _as_float_array(signs, 'signs')
+    if s.shape != (len(parts),):
+        raise ValueError(f'signs: expected shape ({len(parts)},), got {s.shape}')
+    masses = s * np.array([p.mass for p in parts])
+    total = float(np.sum(masses))
+    if not total > 0.0:
+        raise ValueError(f'parts: total mass must be > 0 kg, got {total!r}')
+    coms = np.array([p.com for p in parts])
+    c = masses @ coms / total
+    mat = np.zeros((3, 3))
+    for sign, p, m_i in zip(s, parts, masses, strict=True):
+        mat += sign * p.about_com().matrix + _shift_term(float(m_i), p.com - c)
+    return InertiaTensor(0.5 * (mat + mat.T), total, c, c)
