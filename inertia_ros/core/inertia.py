@@ -1198,6 +1198,45 @@ class InertiaTensor:
                 raise ValueError(f'{name}: must be finite, got {theta[-1]!r}')
         return cls(theta_to_matrix(theta), mass if mass > 0.0 else None, c, c)
 
+    @classmethod
+    def from_point_masses(cls, positions: Any, masses: Any) -> InertiaTensor:
+        """From a cloud of point masses (e.g. a sampled or voxelised body), about its CoM.
+
+        ``M = sum m_k``, ``C = sum m_k p_k / M``, ``I_C = sum m_k (|r_k|^2 1 - r_k r_k^T)``
+        with ``r_k = p_k - C``.
+
+        Parameters
+        ----------
+        positions : array_like, shape (N, 3)
+            Point positions [m], N >= 1.
+        masses : float or array_like, shape (N,)
+            Point masses [kg], each >= 0, total > 0 (a scalar is used for every point).
+
+        Returns
+        -------
+        InertiaTensor
+            About the centre of mass, with the total mass.
+        """
+        p = _as_vectors(positions, 'positions')
+        if p.ndim != 2 or p.shape[0] < 1:
+            raise ValueError(f'positions: expected shape (N, 3) with N >= 1, got {p.shape}')
+        w = _as_float_array(masses, 'masses')
+        if w.ndim == 0:
+            w = np.full(p.shape[0], float(w))
+        if w.shape != (p.shape[0],):
+            raise ValueError(f'masses: expected a scalar or shape ({p.shape[0]},), '
+                             f'got {w.shape}')
+        _check_finite(w, 'masses')
+        if np.any(w < 0.0):
+            raise ValueError(f'masses: must be >= 0 kg, smallest is {w.min()!r}')
+        total = float(np.sum(w))
+        if not total > 0.0:
+            raise ValueError('masses: total mass must be > 0 kg')
+        c = w @ p / total
+        r = p - c
+        mat = np.sum(w * np.einsum('ki,ki->k', r, r)) * np.eye(3) - (r.T * w) @ r
+        return cls(0.5 * (mat + mat.T), total, c, c)
+
     def to_inertia_msg(self) -> dict[str, Any]:
         """geometry_msgs/Inertia fields as plain numbers, about the centre of mass.
 
