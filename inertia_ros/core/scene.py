@@ -47,7 +47,10 @@ __all__ = [
     'SceneError',
     'TorqueComponent',
     'TorqueSensorSpec',
+    'PART_SHAPES',
     'matrix_from_inertia_value',
+    'parts_inertia',
+    'rpy_matrix',
 ]
 
 
@@ -172,9 +175,130 @@ def matrix_from_inertia_value(value: Any, key: str) -> np.ndarray:
     return m
 
 
-def _parts_inertia(parts: Any, key: str) -> np.ndarray:
-    """Composite tensor about the composite centre of mass from a ``parts`` list."""
-    raise SceneError(f'{key}: composite bodies are not supported yet')
+#: Part shapes of a composite body: the toolkit primitive and the size keys it takes.
+#: Symmetry axes are along the part's z axis (see ``inertia_ros.core.bodies``).
+PART_SHAPES: Mapping[str, tuple[str, ...]] = MappingProxyType({
+    'point_mass': (),
+    'thin_rod': ('length',),
+    'rectangular_lamina': ('size',),
+    'thin_disc': ('radius',),
+    'thin_ring': ('radius',),
+    'solid_sphere': ('radius',),
+    'hollow_sphere': ('radius',),
+    'solid_box': ('size',),
+    'solid_cylinder': ('radius', 'length'),
+    'thin_walled_cylinder': ('radius', 'length'),
+    'hollow_cylinder': ('radius', 'inner_radius', 'length'),
+    'solid_cone': ('radius', 'length'),
+    'tensor': ('inertia',),
+})
+_PART_COMMON = ('shape', 'mass', 'position', 'rpy', 'subtract', 'name')
+
+
+def rpy_matrix(rpy: Sequence[float]) -> np.ndarray:
+    """Rotation matrix for URDF roll-pitch-yaw [rad]: ``R = Rz(yaw) Ry(pitch) Rx(roll)``.
+
+    Parameters
+    ----------
+    rpy : sequence of 3 float
+        Roll, pitch, yaw [rad] about the fixed x, y, z axes.
+
+    Returns
+    -------
+    numpy.ndarray, shape (3, 3)
+        Proper rotation mapping part axes to body axes.
+    """
+    r, p, y = (float(v) for v in rpy)
+    cr, sr, cp, sp, cy, sy = (math.cos(r), math.sin(r), math.cos(p), math.sin(p),
+                              math.cos(y), math.sin(y))
+    return np.array([[cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+                     [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+                     [-sp, cp * sr, cp * cr]])
+
+
+def _part_body(part: Any, key: str) -> tuple[Any, float]:
+    """One part as a toolkit ``InertiaTensor`` placed in body axes, and its sign."""
+    from inertia_ros.core import bodies
+    from inertia_ros.core.inertia import InertiaTensor
+
+    if not isinstance(part, Mapping):
+        raise SceneError(f'{key}: must be a mapping with shape and mass, got {part!r}')
+    if 'shape' not in part:
+        raise SceneError(f'{key}.shape: missing (one of {", ".join(PART_SHAPES)})')
+    shape = _string(part['shape'], f'{key}.shape', tuple(PART_SHAPES))
+    sizes = PART_SHAPES[shape]
+    _mapping(part, key, _PART_COMMON + sizes)
+    if 'mass' not in part:
+        raise SceneError(f'{key}.mass: missing (kg)')
+    mass = _number(part['mass'], f'{key}.mass', positive=True)
+    for k in sizes:
+        if k not in part:
+            raise SceneError(f'{key}.{k}: missing (required for shape {shape})')
+    try:
+        if shape == 'point_mass':
+            body = bodies.point_mass(mass)
+        elif shape == 'tensor':
+            body = InertiaTensor(matrix_from_inertia_value(part['inertia'], f'{key}.inertia'),
+                                 mass)
+        elif shape in ('rectangular_lamina', 'solid_box'):
+            n = 2 if shape == 'rectangular_lamina' else 3
+            size = _vector(part['size'], f'{key}.size', n, nonneg=True)
+            body = getattr(bodies, shape)(mass, *size.tolist())
+        else:
+            args = [_number(part[k], f'{key}.{k}', nonneg=True) for k in sizes]
+            if shape == 'hollow_cylinder':
+                args = [args[0], args[1], args[2]]
+            body = getattr(bodies, shape)(mass, *args)
+    except ValueError as exc:
+        if isinstance(exc, SceneError):
+            raise
+        raise SceneError(f'{key}: {exc}') from None
+    pos = _vector(part.get('position', [0.0, 0.0, 0.0]), f'{key}.position')
+    rot = rpy_matrix(_vector(part.get('rpy', [0.0, 0.0, 0.0]), f'{key}.rpy'))
+    subtract = part.get('subtract', False)
+    if not isinstance(subtract, bool):
+        raise SceneError(f'{key}.subtract: must be true or false, got {subtract!r}')
+    if 'name' in part:
+        _string(part['name'], f'{key}.name')
+    return body.transformed(rot, pos), (-1.0 if subtract else 1.0)
+
+
+def parts_inertia(parts: Any, key: str = 'body.parts') -> tuple[np.ndarray, float, np.ndarray]:
+    """Composite of primitive parts about the composite centre of mass.
+
+    Parameters
+    ----------
+    parts : list of Mapping
+        Each ``{shape, mass, <size keys>, position, rpy, subtract}`` (see ``docs/SCENES.md``):
+        ``mass`` [kg], sizes [m], ``position`` [m] of the part's centre of mass and ``rpy``
+        [rad] of its axes in body axes; ``subtract: true`` removes it (a hole).
+    key : str, optional
+        Name used in error messages.
+
+    Returns
+    -------
+    inertia : numpy.ndarray, shape (3, 3)
+        Tensor about the composite centre of mass [kg m^2], body axes (parallel-axis theorem).
+    mass : float
+        Total mass [kg].
+    com : numpy.ndarray, shape (3,)
+        Composite centre of mass [m] in the parts' coordinates.
+
+    Raises
+    ------
+    SceneError
+        If a part is malformed or the composite has no positive mass.
+    """
+    from inertia_ros.core.inertia import composite
+
+    if not isinstance(parts, Sequence) or isinstance(parts, str) or len(parts) == 0:
+        raise SceneError(f'{key}: must be a non-empty list of parts')
+    placed = [_part_body(p, f'{key}[{i}]') for i, p in enumerate(parts)]
+    try:
+        total = composite([b for b, _ in placed], [s for _, s in placed])
+    except ValueError as exc:
+        raise SceneError(f'{key}: {exc}') from None
+    return np.array(total.matrix), float(total.mass), np.array(total.com)
 
 
 def _body_inertia(body: Any, key: str) -> tuple[np.ndarray, tuple[Mapping[str, Any], ...]]:
@@ -185,9 +309,7 @@ def _body_inertia(body: Any, key: str) -> tuple[np.ndarray, tuple[Mapping[str, A
     if has_i:
         return matrix_from_inertia_value(body['inertia'], f'{key}.inertia'), ()
     parts = body['parts']
-    if not isinstance(parts, Sequence) or isinstance(parts, str) or len(parts) == 0:
-        raise SceneError(f'{key}.parts: must be a non-empty list of parts')
-    m = _parts_inertia(parts, f'{key}.parts')
+    m, _, _ = parts_inertia(parts, f'{key}.parts')
     m = matrix_from_inertia_value(m.tolist(), f'{key}.parts (composite)')
     return m, tuple(MappingProxyType(dict(p)) for p in parts)
 
