@@ -1,0 +1,344 @@
+"""``python -m inertia_ros demo``: the live demo over DDS (``make demo``).
+
+Starts the scene simulator and the inertia estimator as two separate processes, subscribes
+to their topics from this process, prints a small live table (estimate against truth,
+status), then writes into ``--out``:
+
+- ``demo_<scene>_<time>.mcap``: the run's topics as received (rosbag2-compatible MCAP; the
+  topics whose message types the MCAP writer has schemas for),
+- ``demo_<scene>_<time>.png``: the six tensor elements converging to the truth and the
+  relative error over time,
+- ``demo_<scene>_<time>.log``: the two nodes' console output.
+
+Existing files are never overwritten: a numeric suffix is added.  The final error is
+``max_ij |I_est - I_true| / I3_true`` (I3 the largest true principal moment) and the relative
+principal-moment errors.  Exit status 0 when the run produced an estimate, 1 when it did not.
+"""
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import signal
+import subprocess
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from inertia_ros.cli import UserError
+
+DEFAULT_RATE = 4.0  # playback speed factor: the 60 s default scene runs in 15 s
+MAX_RATE = 50.0
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    """Register ``demo`` on the CLI's sub-parsers."""
+    p = sub.add_parser(
+        'demo', help='live demo: simulator + estimator over DDS, table, MCAP and PNG',
+        description=__doc__.split('\n\n')[0] + ' Runs the scene at --rate times real time.')
+    p.add_argument('--scene', default=None,
+                   help='scene YAML (default: config/scenes/default.yaml)')
+    p.add_argument('--rate', type=float, default=DEFAULT_RATE,
+                   help=f'playback speed factor, (0, {MAX_RATE:g}] (default {DEFAULT_RATE:g})')
+    p.add_argument('--out', default='demo_out',
+                   help='output directory for the MCAP, PNG and log (default demo_out/)')
+    p.add_argument('--seed', type=int, default=None, help="simulation seed (default: scene's)")
+    p.add_argument('--domain-id', type=int, default=None,
+                   help='ROS_DOMAIN_ID for the run (default: the environment\'s)')
+    p.add_argument('--quiet', action='store_true', help='no live table, only the result')
+    p.set_defaults(func=run)
+
+
+def _unique(path: Path) -> Path:
+    """``path`` itself, or with the first free ``-N`` suffix: never overwrite a file."""
+    if not path.exists():
+        return path
+    for k in range(1, 10000):
+        cand = path.with_name(f'{path.stem}-{k}{path.suffix}')
+        if not cand.exists():
+            return cand
+    raise UserError(f'no free file name like {path} in {path.parent}')
+
+
+@dataclass
+class _Run:
+    """What the demo's own subscriber collected."""
+
+    records: dict[str, list[tuple[int, bytes]]] = field(default_factory=dict)
+    truth: list[tuple[int, np.ndarray]] = field(default_factory=list)
+    est: list[tuple[int, np.ndarray]] = field(default_factory=list)
+    status: str = 'waiting'
+    message: str = ''
+    counts: dict[str, str] = field(default_factory=dict)
+    first_gyro_ns: int | None = None
+    last_gyro_ns: int | None = None
+
+
+TOPICS = {
+    # topic: (message type name, module, class, qos kind)
+    '/imu': ('sensor_msgs/msg/Imu', 'sensor_msgs.msg', 'Imu', 'sensor_data'),
+    '/torque': ('geometry_msgs/msg/WrenchStamped', 'geometry_msgs.msg', 'WrenchStamped',
+                'sensor_data'),
+    '/scene_simulator/truth': ('geometry_msgs/msg/InertiaStamped', 'geometry_msgs.msg',
+                               'InertiaStamped', 'latched'),
+    '/inertia_estimator/inertia': ('geometry_msgs/msg/InertiaStamped', 'geometry_msgs.msg',
+                                   'InertiaStamped', 'reliable'),
+    '/inertia_estimator/principal_moments': ('geometry_msgs/msg/Vector3Stamped',
+                                             'geometry_msgs.msg', 'Vector3Stamped', 'reliable'),
+    '/inertia_estimator/principal_axes': ('geometry_msgs/msg/QuaternionStamped',
+                                          'geometry_msgs.msg', 'QuaternionStamped', 'reliable'),
+    '/inertia_estimator/markers': ('visualization_msgs/msg/MarkerArray', 'visualization_msgs.msg',
+                                   'MarkerArray', 'reliable'),
+    '/diagnostics': ('diagnostic_msgs/msg/DiagnosticArray', 'diagnostic_msgs.msg',
+                     'DiagnosticArray', 'reliable'),
+}
+
+
+def _error(est: np.ndarray, truth: np.ndarray) -> float:
+    """max_ij |est - truth| / (largest true principal moment) [dimensionless]."""
+    return float(np.max(np.abs(est - truth)) / np.linalg.eigvalsh(truth)[-1])
+
+
+def _truth_at(run: _Run, t_ns: int) -> np.ndarray | None:
+    best = None
+    for t, mat in run.truth:
+        if t <= t_ns or best is None:
+            best = mat
+    return best
+
+
+def run(args: argparse.Namespace) -> int:
+    """Execute the demo; return the exit status."""
+    import importlib
+
+    from inertia_ros.scene_simulator_node import default_scene_path
+
+    scene_path = Path(args.scene) if args.scene else default_scene_path()
+    if not scene_path.is_file():
+        raise UserError(f'--scene: no such file {scene_path}')
+    if not (0 < args.rate <= MAX_RATE) or not math.isfinite(args.rate):
+        raise UserError(f'--rate: must be in (0, {MAX_RATE:g}], got {args.rate}')
+    if args.domain_id is not None and not 0 <= args.domain_id <= 232:
+        raise UserError(f'--domain-id: must be in [0, 232], got {args.domain_id}')
+    from inertia_ros.io.scene_file import load_scene
+    try:
+        scene = load_scene(scene_path)
+    except ValueError as exc:
+        raise UserError(str(exc)) from None
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        raise UserError(f'--out: {out} exists and is not a directory')
+    out.mkdir(parents=True, exist_ok=True)
+    stem = f'demo_{scene.name}_{time.strftime("%Y%m%d-%H%M%S")}'
+    mcap_path, png_path, log_path = (_unique(out / f'{stem}{ext}')
+                                     for ext in ('.mcap', '.png', '.log'))
+
+    env = dict(os.environ)
+    if args.domain_id is not None:
+        env['ROS_DOMAIN_ID'] = str(args.domain_id)
+        os.environ['ROS_DOMAIN_ID'] = str(args.domain_id)
+    env.setdefault('RCUTILS_LOGGING_BUFFERED_STREAM', '1')
+    params = Path(__file__).resolve().parents[2] / 'config' / 'inertia_estimator.yaml'
+    est_cmd = [sys.executable, '-m', 'inertia_ros.inertia_estimator_node', '--ros-args']
+    if params.is_file():
+        est_cmd += ['--params-file', str(params)]
+    est_cmd += ['-p', 'publish_rate:=5.0']
+    sim_cmd = [sys.executable, '-m', 'inertia_ros.scene_simulator_node', '--ros-args',
+               '-p', f'scene:={scene_path.resolve()}', '-p', f'rate:={args.rate}',
+               '-p', 'wait_for_subscribers:=2', '-p', 'start_delay:=1.0',
+               '-p', 'exit_on_end:=true']
+    if args.seed is not None:
+        sim_cmd += ['-p', f'seed:={int(args.seed)}']
+
+    import rclpy
+    from rclpy.node import Node
+    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+    from rclpy.serialization import deserialize_message
+
+    from inertia_ros.io import ros_msgs
+
+    run_data = _Run()
+    classes = {t: getattr(importlib.import_module(v[1]), v[2]) for t, v in TOPICS.items()}
+
+    def on_message(topic: str, data: bytes) -> None:
+        now = time.time_ns()
+        run_data.records.setdefault(topic, []).append((now, data))
+        if topic == '/imu':
+            msg = deserialize_message(data, classes[topic])
+            t_ns = ros_msgs.stamp_to_ns(msg.header.stamp)
+            if run_data.first_gyro_ns is None:
+                run_data.first_gyro_ns = t_ns
+            run_data.last_gyro_ns = t_ns
+        elif topic in ('/scene_simulator/truth', '/inertia_estimator/inertia'):
+            t_ns, mat = ros_msgs.inertia_from_msg(deserialize_message(data, classes[topic]))
+            (run_data.truth if topic.endswith('truth') else run_data.est).append((t_ns, mat))
+        elif topic == '/diagnostics':
+            msg = deserialize_message(data, classes[topic])
+            for st in msg.status:
+                if st.name.endswith('inertia_estimator'):
+                    vals = {kv.key: kv.value for kv in st.values}
+                    run_data.status = vals.get('status', '?')
+                    run_data.message = st.message
+                    run_data.counts = vals
+
+    log = open(log_path, 'w')  # closed in the finally clause below
+    procs: list[subprocess.Popen] = []
+    rclpy.init()
+    node = Node('inertia_demo')
+    try:
+        for topic, (_, _, _, kind) in TOPICS.items():
+            if kind == 'sensor_data':
+                qos = QoSProfile(depth=1000, reliability=ReliabilityPolicy.BEST_EFFORT)
+            elif kind == 'latched':
+                qos = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+            else:
+                qos = QoSProfile(depth=100)
+            node.create_subscription(classes[topic], topic,
+                                     lambda d, t=topic: on_message(t, d), qos, raw=True)
+        procs.append(subprocess.Popen(est_cmd, env=env, stdout=log, stderr=subprocess.STDOUT))
+        procs.append(subprocess.Popen(sim_cmd, env=env, stdout=log, stderr=subprocess.STDOUT))
+        sim = procs[1]
+        wall_budget = scene.duration / args.rate + 60.0
+        t_start = time.monotonic()
+        if not args.quiet:
+            print(f'inertia_ros demo: scene {scene.name!r} ({scene.duration:g} s) at rate '
+                  f'{args.rate:g}; simulator and estimator started (logs: {log_path})')
+            print(f'{"t [s]":>7} {"status":<24} {"I1":>8} {"I2":>8} {"I3":>8}  '
+                  f'{"true I1":>8} {"I2":>8} {"I3":>8}  {"error":>7}')
+        next_print = time.monotonic() + 1.0
+        sim_done_at = None
+        while True:
+            rclpy.spin_once(node, timeout_sec=0.05)
+            now = time.monotonic()
+            if sim_done_at is None and sim.poll() is not None:
+                sim_done_at = now
+            if sim_done_at is not None and now - sim_done_at > 1.5:
+                break
+            if now - t_start > wall_budget:
+                print('inertia_ros demo: time budget exceeded, stopping', file=sys.stderr)
+                break
+            if procs[0].poll() is not None:
+                print('inertia_ros demo: the estimator exited early; see ' + str(log_path),
+                      file=sys.stderr)
+                break
+            if now >= next_print and not args.quiet:
+                next_print = now + 1.0
+                _print_row(run_data)
+    finally:
+        for p in procs:
+            if p.poll() is None:
+                p.send_signal(signal.SIGINT)
+        for p in procs:
+            try:
+                p.wait(timeout=5)
+            except subprocess.TimeoutExpired:
+                p.kill()
+                p.wait()
+        node.destroy_node()
+        rclpy.try_shutdown()
+        log.close()
+
+    skipped = _write_mcap(mcap_path, run_data)
+    final = _final(run_data)
+    _plot(png_path, run_data, scene.name)
+    print(f'wrote {mcap_path}' + (f' (not recorded, no schema: {", ".join(skipped)})'
+                                  if skipped else ''))
+    print(f'wrote {png_path}')
+    if final is None:
+        print(f'inertia_ros demo: no estimate was published (last status {run_data.status}: '
+              f'{run_data.message}); see {log_path}', file=sys.stderr)
+        return 1
+    print(final)
+    return 0
+
+
+def _print_row(run: _Run) -> None:
+    t = 0.0 if run.first_gyro_ns is None else (run.last_gyro_ns - run.first_gyro_ns) * 1e-9
+    cells = ['-'] * 3
+    err = '-'
+    truth = _truth_at(run, run.est[-1][0]) if run.est else (run.truth[-1][1] if run.truth
+                                                             else None)
+    if run.est:
+        mom = np.linalg.eigvalsh(run.est[-1][1])
+        cells = [f'{m:8.4f}' for m in mom]
+        if truth is not None:
+            err = f'{100 * _error(run.est[-1][1], truth):6.2f}%'
+    tcells = ['-'] * 3 if truth is None else [f'{m:8.4f}' for m in np.linalg.eigvalsh(truth)]
+    print(f'{t:7.1f} {run.status:<24} {cells[0]:>8} {cells[1]:>8} {cells[2]:>8}  '
+          f'{tcells[0]:>8} {tcells[1]:>8} {tcells[2]:>8}  {err:>7}', flush=True)
+
+
+def _final(run: _Run) -> str | None:
+    if not run.est:
+        return None
+    t_ns, est = run.est[-1]
+    truth = _truth_at(run, t_ns)
+    if truth is None:
+        return 'final estimate (no truth received):\n' + np.array2string(est, precision=5)
+    m_est, m_true = np.linalg.eigvalsh(est), np.linalg.eigvalsh(truth)
+    rel = (m_est - m_true) / m_true
+    counts = run.counts
+    return (f'final status {run.status}; final error max|I_est - I_true| / I3 = '
+            f'{100 * _error(est, truth):.3f}%; principal moments '
+            + ', '.join(f'{a:.4f} (true {b:.4f}, {100 * r:+.2f}%)'
+                        for a, b, r in zip(m_est, m_true, rel, strict=True))
+            + f"; messages received by the estimator: gyro {counts.get('gyro_received', '?')}"
+            f", torque {counts.get('torque_received', '?')}")
+
+
+def _write_mcap(path: Path, run: _Run) -> list[str]:
+    """Write the recorded topics; return the topics skipped for want of a schema."""
+    from inertia_ros.io.mcap_writer import McapWriter
+
+    skipped = []
+    with McapWriter(path) as w:
+        for topic, rows in run.records.items():
+            msgtype, _, _, kind = TOPICS[topic]
+            try:
+                w.add_topic(topic, msgtype, qos=kind)
+            except ValueError:
+                skipped.append(topic)
+                continue
+            w.write_many(topic, np.array([r[0] for r in rows], dtype=np.int64),
+                         [r[1] for r in rows])
+    return skipped
+
+
+def _plot(path: Path, run: _Run, name: str) -> None:
+    import matplotlib
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+
+    fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(9, 7), sharex=True)
+    t0 = run.truth[0][0] if run.truth else (run.est[0][0] if run.est else 0)
+    idx = [(0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)]
+    names = ['ixx', 'iyy', 'izz', 'ixy', 'ixz', 'iyz']
+    colors = plt.rcParams['axes.prop_cycle'].by_key()['color']
+    if run.est:
+        t = (np.array([e[0] for e in run.est]) - t0) * 1e-9
+        mats = np.array([e[1] for e in run.est])
+        for k, (i, j) in enumerate(idx):
+            ax1.plot(t, mats[:, i, j], color=colors[k], label=names[k])
+        truths = [_truth_at(run, e[0]) for e in run.est]
+        if all(x is not None for x in truths):
+            err = [100 * _error(e[1], tr) for e, tr in zip(run.est, truths, strict=True)]
+            ax2.semilogy(t, err, color='k')
+    t_end = ((run.est[-1][0] - t0) * 1e-9) if run.est else 1.0
+    for k, (i, j) in enumerate(idx):
+        for n, (tt, mat) in enumerate(run.truth):
+            t_a = (tt - t0) * 1e-9
+            t_b = (run.truth[n + 1][0] - t0) * 1e-9 if n + 1 < len(run.truth) else t_end
+            ax1.hlines(mat[i, j], t_a, max(t_b, t_a), colors=colors[k], linestyles='--')
+    ax1.set_ylabel('tensor element [kg m^2]')
+    ax1.set_title(f'inertia_ros demo, scene {name!r}: estimate (solid) vs truth (dashed)')
+    ax1.legend(ncol=6, fontsize='small')
+    ax2.set_ylabel('max |I_est - I_true| / I3 [%]')
+    ax2.set_xlabel('data time [s]')
+    ax2.grid(True, which='both', alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+

@@ -1,0 +1,527 @@
+"""``inertia_estimator``: the live inertia-tensor estimator node (ROS 2 Jazzy).
+
+Subscribes the gyro stream (``imu``: sensor_msgs/Imu, or ``omega``: geometry_msgs/
+Vector3Stamped by parameter) and the torque stream (``torque``: geometry_msgs/WrenchStamped,
+or Vector3Stamped by parameter) with sensor-data QoS (best effort, volatile; history depth
+``qos_depth`` so that a short stall of the executor drops nothing at 1 kHz).  Samples are
+aligned by their header stamps inside the core (:mod:`inertia_ros.core.estimation`); this node
+only converts messages, keeps counts and publishes:
+
+``~/inertia``            geometry_msgs/InertiaStamped, only while the status is ``ok`` (or
+                         ``partially_identifiable`` with ``publish_partial``: NaN elements)
+``~/principal_moments``  geometry_msgs/Vector3Stamped [kg m^2], ascending
+``~/principal_axes``     geometry_msgs/QuaternionStamped (rotation whose columns are the axes)
+``/diagnostics``         diagnostic_msgs/DiagnosticArray, every update and at least once a
+                         second: status, model, condition number, standard errors, sample
+                         counts, the reason when not ok, stream timeouts, refused frames
+``~/markers``            visualization_msgs/MarkerArray: ellipsoid, principal axes, omega, L
+
+Service ``~/reset`` (std_srvs/Trigger) forgets every sample.  Every output is stamped with
+the newest input header stamp the estimate has seen.  Robustness: NaN/Inf samples are dropped
+and counted; samples from another frame than the gyro's are refused, counted and reported
+(ERROR diagnostic); a backward jump of the input stamps larger than ``clock_jump_threshold``
+(bag loop, simulator restart) or a backward jump of the node's ROS clock (``use_sim_time``)
+resets the estimator cleanly; a stream silent for ``stream_timeout`` raises a WARN diagnostic.
+
+Updates are driven by the data: after a message arrives, the estimator is updated and the
+outputs published if at least ``1/publish_rate`` seconds (steady clock) have passed since the
+previous update, so the latency from the newest input to the published estimate is the
+compute time, not a timer phase.  Samples are buffered between updates and handed to the core
+in blocks.  All numerics live in :mod:`inertia_ros.core`; messages in :mod:`inertia_ros.io`.
+"""
+from __future__ import annotations
+
+import math
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from geometry_msgs.msg import InertiaStamped, QuaternionStamped, Vector3Stamped, WrenchStamped
+from rcl_interfaces.msg import (
+    FloatingPointRange,
+    IntegerRange,
+    ParameterDescriptor,
+    ParameterType,
+    SetParametersResult,
+)
+from rclpy.clock import ClockChange, JumpThreshold, TimeJump
+from rclpy.duration import Duration
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.qos import QoSProfile, qos_profile_sensor_data
+from sensor_msgs.msg import Imu
+from std_srvs.srv import Trigger
+from visualization_msgs.msg import MarkerArray
+
+from inertia_ros.core import estimation
+from inertia_ros.io import ros_msgs
+
+NODE_NAME = 'inertia_estimator'
+
+OMEGA_TYPES = {'imu': (Imu, 'imu', ros_msgs.imu_sample),
+               'vector3': (Vector3Stamped, 'omega', ros_msgs.vector3_sample)}
+TORQUE_TYPES = {'wrench': (WrenchStamped, 'torque', ros_msgs.wrench_sample),
+                'vector3': (Vector3Stamped, 'torque', ros_msgs.vector3_sample)}
+METHODS = ('recursive', 'batch')
+HOLDS = ('zoh', 'linear')
+
+
+@dataclass(frozen=True)
+class _Param:
+    """One declared parameter: default, description and range (None: no range)."""
+
+    default: Any
+    description: str
+    lo: float | None = None
+    hi: float | None = None
+    read_only: bool = False
+    choices: tuple[str, ...] = ()
+
+
+#: Every parameter of the node (config/inertia_estimator.yaml documents the same set).
+PARAMETERS: dict[str, _Param] = {
+    'omega_msg_type': _Param('imu', "gyro input: 'imu' (sensor_msgs/Imu on 'imu') or "
+                             "'vector3' (geometry_msgs/Vector3Stamped on 'omega')",
+                             read_only=True, choices=tuple(OMEGA_TYPES)),
+    'torque_msg_type': _Param('wrench', "torque input on 'torque': 'wrench' (geometry_msgs/"
+                              "WrenchStamped, torque part) or 'vector3' (Vector3Stamped) [N m]",
+                              read_only=True, choices=tuple(TORQUE_TYPES)),
+    'qos_depth': _Param(1000, 'history depth of the sensor-data subscriptions [messages]',
+                        1, 100000, read_only=True),
+    'frame_id': _Param('', "frame the gyro and torque must be expressed in; '' adopts the "
+                       'first gyro message\'s frame'),
+    'method': _Param('recursive', "'recursive' (core RecursiveEstimator over all data or the "
+                     "window) or 'batch' (core estimate() re-solved over the sliding window)",
+                     choices=METHODS),
+    'model': _Param('full', "tensor parameters: 'full' (6), 'diagonal' (3), 'axisymmetric' "
+                    "(batch also 'auto')"),
+    'torque_bias': _Param(False, 'estimate a constant unmeasured disturbance torque [N m]'),
+    'forgetting': _Param(1.0, 'recursive forgetting factor per second of data; 1 = none '
+                         '[dimensionless]', 0.5, 1.0),
+    'window': _Param(0.0, 'sliding window of data used [s]; 0 = all data since the last '
+                     'reset (batch: 0 means 30 s)', 0.0, 86400.0),
+    'hold': _Param('zoh', "torque between samples: 'zoh' (held) or 'linear'", choices=HOLDS),
+    'publish_rate': _Param(10.0, 'maximum estimate/publish rate [Hz]', 0.01, 1000.0),
+    'publish_partial': _Param(False, 'also publish ~/inertia when partially_identifiable '
+                              '(undetermined elements NaN)'),
+    'stream_timeout': _Param(1.0, 'warn when a stream is silent this long [s]', 0.01, 3600.0),
+    'clock_jump_threshold': _Param(0.5, 'reset when input stamps jump back more than this [s]',
+                                   0.0, 3600.0),
+    'marker_scale': _Param(0.5, 'display size of the markers (longest ellipsoid semi-axis) [m]',
+                           0.001, 100.0),
+}
+
+BATCH_DEFAULT_WINDOW = 30.0  # s, batch re-solve when window = 0
+
+
+def _descriptor(name: str, p: _Param) -> ParameterDescriptor:
+    desc = ParameterDescriptor(name=name, description=p.description, read_only=p.read_only)
+    if p.choices:
+        desc.additional_constraints = 'one of: ' + ', '.join(p.choices)
+    if p.lo is not None and isinstance(p.default, bool):
+        pass
+    elif p.lo is not None and isinstance(p.default, int):
+        desc.type = ParameterType.PARAMETER_INTEGER
+        desc.integer_range = [IntegerRange(from_value=int(p.lo), to_value=int(p.hi), step=0)]
+    elif p.lo is not None:
+        desc.type = ParameterType.PARAMETER_DOUBLE
+        desc.floating_point_range = [FloatingPointRange(from_value=float(p.lo),
+                                                        to_value=float(p.hi), step=0.0)]
+    return desc
+
+
+def make_estimator(cfg: dict[str, Any]) -> Callable[[], Any]:
+    """Return a factory for the core estimator described by ``cfg`` (validated by the core).
+
+    Parameters
+    ----------
+    cfg : dict
+        The node's parameter values (``method``, ``model``, ``torque_bias``, ``forgetting``,
+        ``window`` [s], ``hold``).
+
+    Returns
+    -------
+    callable
+        ``() -> estimator`` with ``add_gyro``, ``add_torque``, ``estimate``, ``reset``.
+
+    Raises
+    ------
+    ValueError
+        From the core, naming the offending setting.
+    """
+    if cfg['method'] == 'recursive':
+        kwargs = dict(model=cfg['model'], torque_bias=bool(cfg['torque_bias']),
+                      forgetting=float(cfg['forgetting']),
+                      window=float(cfg['window']) or None, hold=cfg['hold'])
+        estimation.RecursiveEstimator(**kwargs)  # validates
+        return lambda: estimation.RecursiveEstimator(**kwargs)
+    window = float(cfg['window']) or BATCH_DEFAULT_WINDOW
+    bias = 'on' if cfg['torque_bias'] else 'off'
+    probe = _BatchWindow(window, dict(model=cfg['model'], torque_bias=bias, hold=cfg['hold']))
+    probe.validate()
+    return lambda: _BatchWindow(window, dict(model=cfg['model'], torque_bias=bias,
+                                             hold=cfg['hold']))
+
+
+class _BatchWindow:
+    """Sliding-window buffer re-solved by the core's batch ``estimate()`` at each update.
+
+    Same interface as the core's RecursiveEstimator (add_gyro, add_torque, estimate, reset).
+    """
+
+    def __init__(self, window: float, options: dict[str, Any]) -> None:
+        self.window = window
+        self.options = options
+        self.reset()
+
+    def validate(self) -> None:
+        """Run the core on a tiny input so that bad options raise their ValueError now."""
+        t = np.arange(8) * 0.01
+        try:
+            estimation.estimate(t, np.zeros((8, 3)), t, np.zeros((8, 3)), **self.options)
+        except ValueError as exc:
+            msg = str(exc)
+            if any(k in msg for k in ('model', 'torque_bias', 'hold', 'method')):
+                raise
+            # Any other complaint is about the dummy data, not the options.
+
+    def reset(self) -> None:
+        """Forget every buffered sample."""
+        self._g: list[tuple[np.ndarray, np.ndarray]] = []
+        self._q: list[tuple[np.ndarray, np.ndarray]] = []
+
+    def add_gyro(self, t: np.ndarray, omega: np.ndarray) -> None:
+        """Buffer gyro samples ``t`` (n,) [s], ``omega`` (n, 3) [rad/s]."""
+        self._g.append((np.atleast_1d(t), np.atleast_2d(omega)))
+
+    def add_torque(self, t: np.ndarray, tau: np.ndarray) -> None:
+        """Buffer torque samples ``t`` (n,) [s], ``tau`` (n, 3) [N m]."""
+        self._q.append((np.atleast_1d(t), np.atleast_2d(tau)))
+
+    @staticmethod
+    def _trim(blocks: list, t_min: float) -> tuple[np.ndarray, np.ndarray]:
+        t = np.concatenate([b[0] for b in blocks]) if blocks else np.zeros(0)
+        v = np.concatenate([b[1] for b in blocks]) if blocks else np.zeros((0, 3))
+        keep = t >= t_min
+        t, v = t[keep], v[keep]
+        blocks[:] = [(t, v)] if len(t) else []
+        return t, v
+
+    def estimate(self) -> Any:
+        """Batch estimate over the newest ``window`` seconds of both streams."""
+        t_end = max((b[0][-1] for b in self._g + self._q if len(b[0])), default=0.0)
+        tg, w = self._trim(self._g, t_end - self.window)
+        tq, q = self._trim(self._q, t_end - self.window)
+        return estimation.estimate(tg, w, tq, q, **self.options)
+
+
+@dataclass
+class _Stream:
+    """Per-stream bookkeeping (counts, newest stamp, pending samples)."""
+
+    name: str
+    received: int = 0
+    nan_dropped: int = 0
+    out_of_order: int = 0
+    refused: int = 0
+    last_ns: int | None = None
+    last_rx: float | None = None  # steady clock [s]
+    t_ns: list[int] = field(default_factory=list)
+    values: list[np.ndarray] = field(default_factory=list)
+
+
+class InertiaEstimatorNode(Node):
+    """ROS 2 wrapper around the core's online inertia estimator (see the module docstring)."""
+
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__(NODE_NAME, **kwargs)
+        for name, p in PARAMETERS.items():
+            self.declare_parameter(name, p.default, _descriptor(name, p))
+        cfg = {name: self.get_parameter(name).value for name in PARAMETERS}
+        problem = self._validate(cfg)
+        if problem:
+            raise ValueError(f'{NODE_NAME}: {problem}')
+        self._cfg = cfg
+        self._lock = threading.RLock()
+        self._factory = make_estimator(cfg)
+        self._estimator = self._factory()
+        self._gyro = _Stream('gyro')
+        self._torque = _Stream('torque')
+        self._epoch_ns: int | None = None
+        self._frame: str | None = cfg['frame_id'] or None
+        self._resets = 0
+        self._last_update = -math.inf
+        self._last_diag = -math.inf
+        self._last_result: dict[str, Any] | None = None
+        self._last_omega: np.ndarray | None = None
+        self._frame_problem: tuple[float, str] | None = None
+        self._reset_reason: str | None = None
+        self._update_ms = 0.0
+        self._started = time.monotonic()
+        self.add_on_set_parameters_callback(self._on_set_parameters)
+
+        om_type, om_topic, self._read_omega = OMEGA_TYPES[cfg['omega_msg_type']]
+        tq_type, tq_topic, self._read_torque = TORQUE_TYPES[cfg['torque_msg_type']]
+        qos = QoSProfile(depth=int(cfg['qos_depth']))
+        qos.reliability = qos_profile_sensor_data.reliability
+        qos.durability = qos_profile_sensor_data.durability
+        qos.history = qos_profile_sensor_data.history
+        self._sub_omega = self.create_subscription(om_type, om_topic, self._on_omega, qos)
+        self._sub_torque = self.create_subscription(tq_type, tq_topic, self._on_torque, qos)
+
+        self._pub_inertia = self.create_publisher(InertiaStamped, '~/inertia', 10)
+        self._pub_moments = self.create_publisher(Vector3Stamped, '~/principal_moments', 10)
+        self._pub_axes = self.create_publisher(QuaternionStamped, '~/principal_axes', 10)
+        self._pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
+        self._pub_markers = self.create_publisher(MarkerArray, '~/markers', 10)
+        self._srv_reset = self.create_service(Trigger, '~/reset', self._on_reset)
+        self._watchdog = self.create_timer(0.25, self._on_watchdog)
+        self._jump_handle = self.get_clock().create_jump_handler(
+            JumpThreshold(min_forward=None, min_backward=Duration(nanoseconds=-1_000_000),
+                          on_clock_change=True),
+            post_callback=self._on_clock_jump)
+        self.get_logger().info(
+            f'listening on {self._sub_omega.topic_name} ({om_type.__name__}) and '
+            f'{self._sub_torque.topic_name} ({tq_type.__name__}); method={cfg["method"]}, '
+            f'model={cfg["model"]}, torque_bias={cfg["torque_bias"]}')
+
+    # ------------------------------------------------------------------ parameters
+    @staticmethod
+    def _validate(cfg: dict[str, Any]) -> str:
+        """Return '' when the configuration is valid, else a message naming the problem."""
+        for name, p in PARAMETERS.items():
+            v = cfg[name]
+            if p.choices and v not in p.choices:
+                return f'{name} must be one of {list(p.choices)}, got {v!r}'
+            if p.lo is not None and not (p.lo <= v <= p.hi):
+                return f'{name} must be in [{p.lo}, {p.hi}], got {v!r}'
+        try:
+            make_estimator(cfg)
+        except ValueError as exc:
+            return f'rejected by the estimator: {exc}'
+        return ''
+
+    def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
+        """Validate a parameter change; on success rebuild the estimator (a reset)."""
+        cfg = dict(self._cfg)
+        for p in params:
+            if p.name in PARAMETERS:
+                cfg[p.name] = p.value
+        problem = self._validate(cfg)
+        if problem:
+            return SetParametersResult(successful=False, reason=problem)
+        with self._lock:
+            rebuild = any(cfg[k] != self._cfg[k] for k in
+                          ('method', 'model', 'torque_bias', 'forgetting', 'window', 'hold'))
+            if cfg['frame_id'] != self._cfg['frame_id']:
+                self._frame = cfg['frame_id'] or None
+                rebuild = True
+            self._cfg = cfg
+            if rebuild:
+                self._factory = make_estimator(cfg)
+                self._reset('parameters changed')
+        return SetParametersResult(successful=True)
+
+    # ------------------------------------------------------------------ input
+    def _on_omega(self, msg: Any) -> None:
+        t_ns, omega = self._read_omega(msg)
+        if self._accept(self._gyro, t_ns, omega, msg.header.frame_id, is_gyro=True):
+            self._last_omega = omega
+        self._maybe_update()
+
+    def _on_torque(self, msg: Any) -> None:
+        t_ns, tau = self._read_torque(msg)
+        self._accept(self._torque, t_ns, tau, msg.header.frame_id, is_gyro=False)
+        self._maybe_update()
+
+    def _accept(self, s: _Stream, t_ns: int, v: np.ndarray, frame: str, *,
+                is_gyro: bool) -> bool:
+        """Bookkeeping for one sample; return True when it was queued for the estimator."""
+        now = time.monotonic()
+        with self._lock:
+            s.received += 1
+            s.last_rx = now
+            if self._frame is None and is_gyro:
+                self._frame = frame
+                self.get_logger().info(f'estimating in frame {frame!r} (first gyro message)')
+            if frame != self._frame:
+                s.refused += 1
+                text = (f'{s.name} frame {frame!r} differs from the estimation frame '
+                        f'{self._frame!r}: samples refused')
+                self._frame_problem = (now, text)
+                self.get_logger().warning(text, throttle_duration_sec=5.0)
+                return False
+            if not np.all(np.isfinite(v)):
+                s.nan_dropped += 1
+                return False
+            jump = self._cfg['clock_jump_threshold'] * 1e9
+            if s.last_ns is not None and t_ns < s.last_ns:
+                if s.last_ns - t_ns > jump:
+                    self._reset(f'{s.name} stamps jumped back {(s.last_ns - t_ns) * 1e-9:.3f} s')
+                else:
+                    s.out_of_order += 1
+                    return False
+            if self._epoch_ns is None:
+                self._epoch_ns = t_ns
+            s.last_ns = t_ns
+            s.t_ns.append(t_ns)
+            s.values.append(v)
+            return True
+
+    def _flush(self, s: _Stream, add: Callable[[np.ndarray, np.ndarray], None]) -> None:
+        if not s.t_ns:
+            return
+        t = (np.asarray(s.t_ns, dtype=np.int64) - self._epoch_ns) * 1e-9
+        add(t, np.asarray(s.values, dtype=float))
+        s.t_ns.clear()
+        s.values.clear()
+
+    # ------------------------------------------------------------------ reset / clock
+    def _reset(self, reason: str) -> None:
+        """Forget every sample (estimator, pending buffers, epoch); counts are kept."""
+        with self._lock:
+            self._estimator = self._factory()
+            for s in (self._gyro, self._torque):
+                s.t_ns.clear()
+                s.values.clear()
+                s.last_ns = None
+            self._epoch_ns = None
+            self._last_result = None
+            self._resets += 1
+            self._reset_reason = reason
+        self.get_logger().info(f'estimator reset: {reason}')
+
+    def _on_reset(self, request: Trigger.Request, response: Trigger.Response
+                  ) -> Trigger.Response:
+        self._reset('~/reset service')
+        response.success = True
+        response.message = f'estimator reset ({self._resets} resets so far)'
+        return response
+
+    def _on_clock_jump(self, jump: TimeJump | dict[str, Any]) -> None:
+        """Reset when the ROS clock jumps back (sim time restarted) or changes source."""
+        if isinstance(jump, dict):
+            change, delta_ns = jump['clock_change'], int(jump['delta'])
+        else:
+            change, delta_ns = jump.clock_change, jump.delta.nanoseconds
+        if change in (ClockChange.ROS_TIME_ACTIVATED, ClockChange.ROS_TIME_DEACTIVATED):
+            self._reset(f'clock source changed ({ClockChange(change).name})')
+        elif delta_ns < 0:
+            self._reset(f'ROS clock jumped back {-delta_ns * 1e-9:.3f} s')
+
+    # ------------------------------------------------------------------ output
+    def _maybe_update(self) -> None:
+        now = time.monotonic()
+        if now - self._last_update >= 1.0 / self._cfg['publish_rate']:
+            self._update(now)
+
+    def _update(self, now: float) -> None:
+        """Hand buffered samples to the core, estimate, publish everything."""
+        with self._lock:
+            self._last_update = now
+            if self._epoch_ns is None:
+                return
+            self._flush(self._gyro, self._estimator.add_gyro)
+            self._flush(self._torque, self._estimator.add_torque)
+            est = self._estimator.estimate()
+            self._last_result = est.to_dict()
+            stamp = max(x for x in (self._gyro.last_ns, self._torque.last_ns) if x is not None)
+            self._update_ms = (time.monotonic() - now) * 1e3
+            self._publish(est, stamp)
+
+    def _publish(self, est: Any, stamp: int) -> None:
+        frame = self._frame or ''
+        status = est.status
+        valid = status == 'ok' or (status == 'partially_identifiable'
+                                   and self._cfg['publish_partial'])
+        if valid and est.inertia is not None:
+            self._pub_inertia.publish(ros_msgs.inertia_stamped(est.inertia, stamp, frame))
+        have_axes = est.principal_moments is not None and est.principal_axes is not None \
+            and np.all(np.isfinite(est.principal_moments)) \
+            and np.all(np.isfinite(est.principal_axes))
+        if have_axes:
+            self._pub_moments.publish(
+                ros_msgs.principal_moments_msg(est.principal_moments, stamp, frame))
+            self._pub_axes.publish(ros_msgs.principal_axes_msg(est.principal_axes, stamp, frame))
+        self._pub_markers.publish(ros_msgs.inertia_markers(
+            stamp, frame, inertia=est.inertia if valid else None,
+            moments=est.principal_moments if have_axes else None,
+            axes=est.principal_axes if have_axes else None,
+            omega=self._last_omega, scale=float(self._cfg['marker_scale']), label=status))
+        self._publish_diagnostics(stamp)
+
+    def _problems(self, now: float) -> list[tuple[bytes, str]]:
+        out: list[tuple[bytes, str]] = []
+        timeout = self._cfg['stream_timeout']
+        for s, topic in ((self._gyro, self._sub_omega.topic_name),
+                         (self._torque, self._sub_torque.topic_name)):
+            if s.last_rx is None:
+                if now - self._started > timeout:
+                    out.append((DiagnosticStatus.WARN, f'no {s.name} message on {topic} yet'))
+            elif now - s.last_rx > timeout:
+                out.append((DiagnosticStatus.WARN, f'{s.name} stream on {topic} silent for '
+                            f'{now - s.last_rx:.1f} s (timeout {timeout:g} s)'))
+        if self._frame_problem and now - self._frame_problem[0] <= max(timeout, 1.0):
+            out.append((DiagnosticStatus.ERROR, self._frame_problem[1]))
+        return out
+
+    def counts(self) -> dict[str, Any]:
+        """Node-level counts and ages reported in the diagnostics (also used by tests)."""
+        now = time.monotonic()
+        out: dict[str, Any] = {}
+        for s in (self._gyro, self._torque):
+            out[f'{s.name}_received'] = s.received
+            out[f'{s.name}_nan_dropped'] = s.nan_dropped
+            out[f'{s.name}_out_of_order_dropped'] = s.out_of_order
+            out[f'{s.name}_frame_refused'] = s.refused
+            out[f'{s.name}_age_s'] = None if s.last_rx is None else now - s.last_rx
+        out['resets'] = self._resets
+        out['last_reset_reason'] = self._reset_reason or ''
+        out['frame_id'] = self._frame or ''
+        out['update_ms'] = self._update_ms
+        return out
+
+    def _publish_diagnostics(self, stamp: int | None = None) -> None:
+        now = time.monotonic()
+        self._last_diag = now
+        if stamp is None:
+            stamp = self.get_clock().now().nanoseconds
+        status = ros_msgs.diagnostic_status(
+            self._last_result, name=self.get_fully_qualified_name().lstrip('/'),
+            hardware_id=self._frame or '', extra=self.counts(), problems=self._problems(now))
+        self._pub_diag.publish(ros_msgs.diagnostic_array([status], stamp))
+
+    def _on_watchdog(self) -> None:
+        """Publish pending data and diagnostics when the streams are slow or silent."""
+        now = time.monotonic()
+        with self._lock:
+            pending = self._gyro.t_ns or self._torque.t_ns
+            if pending and now - self._last_update >= 1.0 / self._cfg['publish_rate']:
+                self._update(now)
+            elif now - self._last_diag >= 1.0:
+                self._publish_diagnostics()
+
+
+def main(args: list[str] | None = None) -> None:
+    """Run the node until Ctrl-C or shutdown (``ros2 run inertia_ros inertia_estimator``)."""
+    rclpy.init(args=args)
+    node = None
+    try:
+        node = InertiaEstimatorNode()
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+
+
+if __name__ == '__main__':
+    main()
