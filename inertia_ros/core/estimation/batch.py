@@ -1,0 +1,739 @@
+"""Batch inertia estimation from gyro and torque streams: :func:`estimate`.
+
+Methods (:data:`METHODS`), all built from :mod:`.regressors`:
+
+``integral`` (default)
+    Momentum form anchored per segment.  For every gyro sample ``b`` of a segment,
+    ``I w_b + int_{t0}^{t_b} w x (I w) dt - d t_b - h0 = int_{t0}^{t_b} tau dt``, with the
+    segment's initial momentum ``h0`` as three nuisance parameters (eliminated exactly by
+    removing the segment mean of every column).  Each equation then carries only the white
+    gyro noise of ``w_b`` (``I n_b``) plus the random walk of the integrated torque noise, so
+    nothing is differentiated and no window overlaps.  Weighted by ``(I S_g I)^-1`` (``S_g`` the
+    gyro noise covariance, ``I`` from a first pass) and bias-compensated for the gyro noise in
+    the regressor (errors in variables: ``H = Phi' W Phi - n B``).  The covariance is the
+    sandwich with the exact model of both noises: white gyro noise and piecewise-constant torque
+    noise integrated over each torque interval.
+``integral_ls``
+    The same anchored equations, unweighted and without bias compensation.
+``integral_sliding``
+    Overlapping windows ``I (w_b - w_a) + int_a^b w x I w = int_a^b tau`` of fixed length,
+    ordinary least squares, Newey-West (HAC) covariance for the overlap.
+``differential_fd``
+    ``tau(t_b) = I w_dot_b + w_b x I w_b`` with central finite differences: the baseline.
+``differential_sg``
+    The same with a Savitzky-Golay smoothing differentiator, the same filter on the torque.
+
+Model selection (``model='auto'`` / ``torque_bias='auto'``): Wald tests on the general model
+(full tensor plus bias) with its calibrated covariance; the smallest parameter set the data does
+not reject at level ``alpha`` is used.  Identifiability comes from the standard errors and the
+column-scaled information matrix; torque-free data gives the scale-free (homogeneous) solution.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from scipy import signal, stats
+
+from ..inertia import (
+    THETA_NAMES,
+    check_physical,
+    nearest_physical,
+    principal_axes,
+    theta_to_matrix,
+)
+from .regressors import (
+    cumulative_monomials,
+    cumulative_torque,
+    gyroscopic_matrix,
+    momentum_matrix,
+    monomials,
+    noise_std_from_differences,
+)
+from .result import InertiaEstimate
+
+__all__ = ['HOLDS', 'METHODS', 'MODELS', 'TORQUE_BIAS', 'estimate', 'model_basis']
+
+METHODS: tuple[str, ...] = ('integral', 'integral_ls', 'integral_sliding', 'differential_fd',
+                            'differential_sg')
+MODELS: tuple[str, ...] = ('auto', 'full', 'diagonal', 'axisymmetric')
+TORQUE_BIAS: tuple[str, ...] = ('auto', 'on', 'off')
+HOLDS: tuple[str, ...] = ('zoh', 'linear')
+
+_AXES = {'x': np.array([1.0, 0.0, 0.0]), 'y': np.array([0.0, 1.0, 0.0]),
+         'z': np.array([0.0, 0.0, 1.0])}
+_L_BASIS = momentum_matrix(np.eye(3))          # (3 axes c, 3, 6): L(e_c)
+
+
+# ---------------------------------------------------------------------------------------------
+# validation
+# ---------------------------------------------------------------------------------------------
+def _times(t: Any, name: str) -> np.ndarray:
+    """Validated 1-D strictly increasing finite float times."""
+    arr = np.asarray(t, dtype=float)
+    if arr.ndim != 1:
+        raise ValueError(f'{name}: expected shape (N,), got {arr.shape}')
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f'{name}: contains NaN or inf')
+    if len(arr) > 1 and np.any(np.diff(arr) <= 0):
+        k = int(np.argmax(np.diff(arr) <= 0))
+        raise ValueError(f'{name}: times must be strictly increasing (t[{k + 1}] = '
+                         f'{arr[k + 1]!r} <= t[{k}] = {arr[k]!r})')
+    return arr
+
+
+def _vectors(x: Any, n: int, name: str, tname: str) -> np.ndarray:
+    """Validated (n, 3) finite float array."""
+    arr = np.asarray(x, dtype=float)
+    if arr.ndim != 2 or arr.shape[1] != 3:
+        raise ValueError(f'{name}: expected shape (N, 3), got {arr.shape}')
+    if arr.shape[0] != n:
+        raise ValueError(f'{name}: has {arr.shape[0]} rows but {tname} has {n} samples')
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f'{name}: contains NaN or inf')
+    return arr
+
+
+def _axis(symmetry_axis: Any) -> np.ndarray | None:
+    """Unit symmetry axis from 'x'/'y'/'z' or a 3-vector, or None."""
+    if symmetry_axis is None:
+        return None
+    if isinstance(symmetry_axis, str):
+        if symmetry_axis.lower() not in _AXES:
+            raise ValueError(f"symmetry_axis: must be 'x', 'y', 'z' or a 3-vector, got "
+                             f'{symmetry_axis!r}')
+        return _AXES[symmetry_axis.lower()]
+    v = np.asarray(symmetry_axis, dtype=float)
+    if v.shape != (3,) or not np.all(np.isfinite(v)) or np.linalg.norm(v) == 0:
+        raise ValueError(f'symmetry_axis: must be a finite non-zero 3-vector, got '
+                         f'{symmetry_axis!r}')
+    return v / np.linalg.norm(v)
+
+
+def model_basis(model: str, symmetry_axis: np.ndarray | None = None) -> np.ndarray:
+    """Basis ``T`` (6, k) of a parameter set: ``theta = T @ psi``.
+
+    Parameters
+    ----------
+    model : {'full', 'diagonal', 'axisymmetric'}
+        ``full``: the six elements; ``diagonal``: ixx, iyy, izz; ``axisymmetric``:
+        ``I = a (1 - n n') + b n n'`` with ``psi = [a, b]`` (transverse, axial) [kg m^2].
+    symmetry_axis : ndarray, shape (3,), optional
+        Unit axis ``n``, required for ``axisymmetric``.
+
+    Returns
+    -------
+    ndarray, shape (6, k)
+    """
+    if model == 'full':
+        return np.eye(6)
+    if model == 'diagonal':
+        return np.eye(6)[:, :3]
+    if model == 'axisymmetric':
+        if symmetry_axis is None:
+            raise ValueError("symmetry_axis: required for model='axisymmetric'")
+        nn = np.outer(symmetry_axis, symmetry_axis)
+        def th(m: np.ndarray) -> np.ndarray:
+            return np.array([m[0, 0], m[1, 1], m[2, 2], m[0, 1], m[0, 2], m[1, 2]])
+        return np.column_stack([th(np.eye(3) - nn), th(nn)])
+    raise ValueError(f'model: must be one of {MODELS}, got {model!r}')
+
+
+# ---------------------------------------------------------------------------------------------
+# equations
+# ---------------------------------------------------------------------------------------------
+@dataclass
+class _Equations:
+    """Stacked 3-row equation blocks ``y_b = X6_b theta + Xd_b d + e_b``."""
+
+    X6: np.ndarray                 # (n, 3, 6)
+    Xd: np.ndarray                 # (n, 3, 3) bias columns
+    y: np.ndarray                  # (n, 3)
+    t: np.ndarray                  # (n,) time of each equation [s]
+    starts: np.ndarray | None      # segment start indices (anchored: demeaned per segment)
+    kind: str                      # 'anchored' or 'hac'
+    hac_lag: int = 0
+    eiv_var: np.ndarray | None = None   # gyro noise variance in the regressor, per axis
+    weighted: bool = False
+    info: dict[str, Any] = field(default_factory=dict)
+
+
+def _demean(a: np.ndarray, starts: np.ndarray) -> np.ndarray:
+    """Subtract the per-segment mean along axis 0 (segments begin at ``starts``)."""
+    sums = np.add.reduceat(a, starts, axis=0)
+    counts = np.diff(np.append(starts, len(a)))
+    means = sums / counts.reshape((-1,) + (1,) * (a.ndim - 1))
+    return a - np.repeat(means, counts, axis=0)
+
+
+@dataclass
+class _Fit:
+    """One weighted least-squares fit of a parameter set."""
+
+    beta: np.ndarray               # (p,)
+    cov: np.ndarray                # (p, p)
+    H: np.ndarray                  # (p, p) (bias-compensated) information
+    H0: np.ndarray                 # (p, p) uncompensated, for conditioning
+    basis: np.ndarray              # (6, k)
+    bias: bool
+    resid_rms: np.ndarray          # (3,)
+    n_eq: int
+
+
+def _solve_sym(H: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+    """Solve ``H x = rhs`` with column scaling; least squares if singular."""
+    d = np.sqrt(np.abs(np.diag(H)))
+    d[d == 0] = 1.0
+    Hs = H / d[:, None] / d[None, :]
+    rs = rhs / (d[:, None] if rhs.ndim == 2 else d)
+    try:
+        x = np.linalg.solve(Hs, rs)
+        if not np.all(np.isfinite(x)):
+            raise np.linalg.LinAlgError
+    except np.linalg.LinAlgError:
+        x = np.linalg.lstsq(Hs, rs, rcond=1e-12)[0]
+    return x / (d[:, None] if rhs.ndim == 2 else d)
+
+
+def _fit(eq: _Equations, basis: np.ndarray, bias: bool, W: np.ndarray,
+         gyro_var: np.ndarray, torque_var: np.ndarray, t_tau: np.ndarray,
+         tau_end: float, bias_comp: bool) -> _Fit:
+    """Weighted LS of ``y = X6 T psi (+ Xd d)`` with its covariance."""
+    k = basis.shape[1]
+    X = eq.X6 @ basis                                            # (n, 3, k)
+    if bias:
+        X = np.concatenate([X, eq.Xd], axis=2)
+    y = eq.y
+    if eq.starts is not None:
+        X = _demean(X, eq.starts)
+        y = _demean(y, eq.starts)
+    n, _, p = X.shape
+    U = np.linalg.cholesky(W).T                                  # W = U' U
+    Xw = np.einsum('rc,ncp->nrp', U, X).reshape(-1, p)
+    yw = (y @ U.T).reshape(-1)
+    H0 = Xw.T @ Xw
+    g = Xw.T @ yw
+    H = H0.copy()
+    if bias_comp and eq.eiv_var is not None:
+        B6 = np.einsum('c,crk,rs,csl->kl', eq.eiv_var, _L_BASIS, W, _L_BASIS)
+        n_eff = n - (0 if eq.starts is None else len(eq.starts))
+        H[:k, :k] -= n_eff * (basis.T @ B6 @ basis)
+    beta = _solve_sym(H, g)
+    resid = y - np.einsum('nrp,p->nr', X, beta)
+    Hinv = _solve_sym(H, np.eye(p))
+    if eq.kind == 'anchored':
+        theta = basis @ beta[:k]
+        Im = theta_to_matrix(theta)
+        S = Im @ np.diag(gyro_var) @ Im                           # white part of e_b
+        K = U @ S @ U.T
+        meat = np.einsum('nrp,rs,nsq->pq', Xw.reshape(n, 3, p), K, Xw.reshape(n, 3, p))
+        if np.any(torque_var > 0) and len(t_tau):
+            meat += _torque_walk_meat(X, W, eq.t, t_tau, tau_end, torque_var)
+    else:
+        scores = np.einsum('nrp,rs,ns->np', X, W, resid)
+        meat = scores.T @ scores
+        for lag in range(1, eq.hac_lag + 1):
+            w = 1.0 - lag / (eq.hac_lag + 1.0)
+            G = scores[lag:].T @ scores[:-lag]
+            meat += w * (G + G.T)
+    cov = Hinv @ meat @ Hinv.T
+    cov = 0.5 * (cov + cov.T)
+    dof = max(n - (0 if eq.starts is None else len(eq.starts)), 1)
+    return _Fit(beta=beta, cov=cov, H=H, H0=H0, basis=basis, bias=bias,
+                resid_rms=np.sqrt(np.sum(resid ** 2, axis=0) / dof), n_eq=n)
+
+
+def _torque_walk_meat(X: np.ndarray, W: np.ndarray, t: np.ndarray, t_tau: np.ndarray,
+                      tau_end: float, torque_var: np.ndarray) -> np.ndarray:
+    """Meat ``sum_j g_j diag(var) g_j'`` of the integrated piecewise-constant torque noise.
+
+    Torque sample ``j`` carries white noise ``nu_j`` held over ``[s_j, s_{j+1})``; equation
+    ``b`` contains ``-sum_j o_j(b) nu_j`` with ``o_j(b) = clip(t_b - s_j, 0, h_j)``.  With
+    segment-demeaned regressors, ``g_j = sum_b o_j(b) X_b' W`` covers every segment at once.
+    """
+    n, _, p = X.shape
+    Z = np.einsum('nrp,rs->nps', X, W).reshape(n, p * 3)
+    ends = np.append(t_tau[1:], max(tau_end, t_tau[-1]))
+    h = ends - t_tau
+    cz = np.zeros((n + 1, p * 3))
+    np.cumsum(Z, axis=0, out=cz[1:])
+    ctz = np.zeros((n + 1, p * 3))
+    np.cumsum(Z * t[:, None], axis=0, out=ctz[1:])
+    k0 = np.searchsorted(t, t_tau, side='right')
+    k1 = np.searchsorted(t, ends, side='left')
+    total = cz[n]
+    g = h[:, None] * (total[None, :] - cz[k1])
+    g += (ctz[k1] - ctz[k0]) - t_tau[:, None] * (cz[k1] - cz[k0])
+    g = g.reshape(-1, p, 3)
+    return np.einsum('jpc,c,jqc->pq', g, torque_var, g)
+
+
+# ---------------------------------------------------------------------------------------------
+# builders per method
+# ---------------------------------------------------------------------------------------------
+def _segments(t: np.ndarray, keep_break: np.ndarray, max_len: float | None) -> np.ndarray:
+    """Segment start indices: at ``keep_break`` positions and every ``max_len`` seconds."""
+    starts = [0] + list(np.flatnonzero(keep_break) + 1)
+    if max_len is not None and max_len > 0:
+        out: list[int] = []
+        bounds = starts + [len(t)]
+        for a, b in zip(bounds[:-1], bounds[1:], strict=True):
+            n_sub = max(1, int(np.floor((t[b - 1] - t[a]) / max_len + 0.5)))
+            edges = np.linspace(t[a], t[b - 1], n_sub + 1)[1:-1]
+            out += [a] + list(a + np.searchsorted(t[a:b], edges))
+        starts = out
+    return np.unique(np.asarray(starts, dtype=int))
+
+
+def _build(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.ndarray,
+           mask: np.ndarray, breaks: np.ndarray, hold: str, gyro_var: np.ndarray,
+           segment: float | None, window: float | None) -> _Equations:
+    """Equations of ``method`` from the gyro samples selected by ``mask``."""
+    idx = np.flatnonzero(mask)
+    t = tg[idx]
+    if method in ('integral', 'integral_ls'):
+        comp = method == 'integral'
+        M = cumulative_monomials(tg, w, gyro_var if comp else None)[idx]
+        T = cumulative_torque(ts, tau, t, hold)
+        X6 = momentum_matrix(w[idx]) + gyroscopic_matrix(M)
+        Xd = -t[:, None, None] * np.eye(3)[None]
+        starts = _segments(t, breaks, segment)
+        return _Equations(X6, Xd, T, t, starts, 'anchored',
+                          eiv_var=gyro_var if comp else None, weighted=comp,
+                          info={'segments': len(starts)})
+    if method == 'integral_sliding':
+        dt = float(np.median(np.diff(t)))
+        wl = max(2, round((window or 1.0) / dt))
+        stride = max(1, wl // 4)
+        M = cumulative_monomials(tg, w)[idx]
+        T = cumulative_torque(ts, tau, t, hold)
+        # windows [a, a + wl] inside each segment (no window across a break)
+        seg = np.cumsum(np.append(0, breaks.astype(int)))
+        a = np.arange(0, len(t) - wl, stride)
+        a = a[seg[a] == seg[a + wl]]
+        b = a + wl
+        X6 = momentum_matrix(w[idx][b] - w[idx][a]) + gyroscopic_matrix(M[b] - M[a])
+        Xd = -(t[b] - t[a])[:, None, None] * np.eye(3)[None]
+        return _Equations(X6, Xd, T[b] - T[a], t[b], None, 'hac',
+                          hac_lag=int(np.ceil(wl / stride)),
+                          info={'window_s': wl * dt, 'windows': len(a)})
+    # differential forms: torque value in effect at each gyro time
+    j = np.clip(np.searchsorted(ts, t, side='right') - 1, 0, len(ts) - 1)
+    if hold == 'zoh':
+        tq = tau[j]
+    else:
+        tq = np.column_stack([np.interp(t, ts, tau[:, c]) for c in range(3)])
+    wi = w[idx]
+    if method == 'differential_fd':
+        wd = np.gradient(wi, t, axis=0)
+        X6 = momentum_matrix(wd) + gyroscopic_matrix(monomials(wi))
+        lag = 2
+        info: dict[str, Any] = {}
+    else:
+        dt = float(np.median(np.diff(t)))
+        wl = max(5, round((window or 0.1) / dt))
+        wl += 1 - wl % 2
+        wl = min(wl, len(t) - (1 - len(t) % 2))
+        if wl < 5:
+            raise ValueError('window: too few gyro samples for the Savitzky-Golay filter')
+        ws = signal.savgol_filter(wi, wl, 3, axis=0)
+        wd = signal.savgol_filter(wi, wl, 3, deriv=1, delta=dt, axis=0)
+        tq = signal.savgol_filter(tq, wl, 3, axis=0)
+        X6 = momentum_matrix(wd) + gyroscopic_matrix(monomials(ws))
+        lag = wl
+        info = {'window_s': wl * dt}
+    Xd = -np.ones((len(t), 1, 1)) * np.eye(3)[None]
+    return _Equations(X6, Xd, tq, t, None, 'hac', hac_lag=lag, info=info)
+
+
+# ---------------------------------------------------------------------------------------------
+# result assembly
+# ---------------------------------------------------------------------------------------------
+def _describe(v: np.ndarray, names: list[str]) -> str:
+    """Human readable linear combination, largest coefficients first."""
+    v = v / np.max(np.abs(v))
+    order = np.argsort(-np.abs(v))
+    parts = [f'{v[i]:+.2f} {names[i]}' for i in order if abs(v[i]) >= 0.05]
+    return ' '.join(parts)
+
+
+def _param_names(basis: np.ndarray, bias: bool, model: str) -> list[str]:
+    """Names of the fitted parameters."""
+    if model == 'axisymmetric':
+        names = ['i_transverse', 'i_axial']
+    else:
+        names = [THETA_NAMES[int(np.argmax(basis[:, i]))] for i in range(basis.shape[1])]
+    return names + (['dx', 'dy', 'dz'] if bias else [])
+
+
+def _conditioning(fit: _Fit, names: list[str]) -> dict[str, Any]:
+    """Condition number and weakest direction of the column-scaled information matrix."""
+    d = np.sqrt(np.diag(fit.H0))
+    if np.any(d == 0):
+        k = int(np.argmin(d))
+        return {'condition_number': float('inf'), 'weakest_direction': names[k]}
+    Hs = fit.H0 / d[:, None] / d[None, :]
+    lam, vec = np.linalg.eigh(Hs)
+    cond = float(lam[-1] / lam[0]) if lam[0] > 0 else float('inf')
+    return {'condition_number': cond, 'weakest_direction': _describe(vec[:, 0], names)}
+
+
+def _wald(theta: np.ndarray, cov: np.ndarray, R: np.ndarray) -> tuple[float, int, float]:
+    """Wald statistic, degrees of freedom and p-value of ``R theta = 0``."""
+    r = R @ theta
+    V = R @ cov @ R.T
+    try:
+        stat = float(r @ np.linalg.solve(V, r))
+    except np.linalg.LinAlgError:
+        stat = float(r @ np.linalg.pinv(V) @ r)
+    dof = R.shape[0]
+    return stat, dof, float(stats.chi2.sf(stat, dof))
+
+
+def _complement(basis: np.ndarray) -> np.ndarray:
+    """Rows spanning the orthogonal complement of the columns of ``basis`` (6, k)."""
+    q, _ = np.linalg.qr(basis, mode='complete')
+    return q[:, basis.shape[1]:].T
+
+
+def _moment_std(I: np.ndarray, cov6: np.ndarray) -> np.ndarray:
+    """First-order std of the principal moments from the theta covariance."""
+    _, vec = np.linalg.eigh(I)
+    out = np.empty(3)
+    for i in range(3):
+        v = vec[:, i]
+        grad = np.array([v[0] ** 2, v[1] ** 2, v[2] ** 2, 2 * v[0] * v[1], 2 * v[0] * v[2],
+                         2 * v[1] * v[2]])
+        out[i] = np.sqrt(max(float(grad @ cov6 @ grad), 0.0))
+    return out
+
+
+def _sym(theta: np.ndarray) -> np.ndarray:
+    """theta (6,) -> (3, 3) letting NaN through."""
+    return theta_to_matrix(theta, check_finite=False)
+
+
+# ---------------------------------------------------------------------------------------------
+# public entry point
+# ---------------------------------------------------------------------------------------------
+def estimate(t_gyro: Any, omega: Any, t_torque: Any, torque: Any, *,
+             method: str = 'integral', model: str = 'auto', torque_bias: str = 'auto',
+             symmetry_axis: Any = None, hold: str = 'zoh', alpha: float = 1e-3,
+             gyro_noise: Any = None, torque_noise: Any = None, segment: float | None = None,
+             window: float | None = None, identifiability_tol: float = 0.1,
+             physical: bool = True) -> InertiaEstimate:
+    """Estimate the inertia tensor from gyro and torque samples (Euler's equations).
+
+    Parameters
+    ----------
+    t_gyro : array_like, shape (N,)
+        Gyro sample times [s], strictly increasing.
+    omega : array_like, shape (N, 3)
+        Angular velocity in body axes [rad/s].
+    t_torque : array_like, shape (M,)
+        Torque sample times [s], strictly increasing; M = 0 means torque-free data.
+    torque : array_like, shape (M, 3)
+        Known applied torque about the centre of mass, body axes [N m].
+    method : str
+        One of :data:`METHODS` (default ``integral``).
+    model : {'auto', 'full', 'diagonal', 'axisymmetric'}
+        Parameter set; ``auto`` picks the smallest the data supports (Wald tests at ``alpha``;
+        ``axisymmetric`` is only a candidate when ``symmetry_axis`` is given).
+    torque_bias : {'auto', 'on', 'off'}
+        Estimate a constant unmeasured disturbance torque (3 more parameters).
+    symmetry_axis : {'x', 'y', 'z'} or array_like (3,), optional
+        Body axis of symmetry for the axisymmetric model.
+    hold : {'zoh', 'linear'}
+        Torque between samples: zero-order hold (commands) or linear interpolation.
+    alpha : float
+        Test level of the model-selection Wald tests (0 < alpha < 1).
+    gyro_noise, torque_noise : float or array_like (3,), optional
+        White-noise std per axis [rad/s] and [N m]; estimated from the data when omitted.
+    segment : float, optional
+        Maximum anchored-segment duration [s] for the integral methods (default: whole run,
+        split only at gaps).
+    window : float, optional
+        Window length [s] of ``integral_sliding`` (default 1 s) or ``differential_sg``
+        (default 0.1 s).
+    identifiability_tol : float
+        An element is identifiable when its standard error is below this fraction of the
+        largest well-determined principal-diagonal element.
+    physical : bool
+        Project a physically impossible tensor onto the nearest valid one (reported in
+        ``diagnostics['physical']``).
+
+    Returns
+    -------
+    InertiaEstimate
+        Always returned for well-formed input; the status says what the data allowed.
+
+    Raises
+    ------
+    ValueError
+        Malformed input: wrong shapes, NaN/inf, non-increasing times, fewer gyro samples than
+        parameters, unknown option names.
+    """
+    tg = _times(t_gyro, 't_gyro')
+    w = _vectors(omega, len(tg), 'omega', 't_gyro')
+    ts = _times(t_torque, 't_torque')
+    tau = _vectors(torque, len(ts), 'torque', 't_torque')
+    if method not in METHODS:
+        raise ValueError(f'method: must be one of {METHODS}, got {method!r}')
+    if model not in MODELS:
+        raise ValueError(f'model: must be one of {MODELS}, got {model!r}')
+    if torque_bias not in TORQUE_BIAS:
+        raise ValueError(f'torque_bias: must be one of {TORQUE_BIAS}, got {torque_bias!r}')
+    if hold not in HOLDS:
+        raise ValueError(f'hold: must be one of {HOLDS}, got {hold!r}')
+    if not 0.0 < alpha < 1.0:
+        raise ValueError(f'alpha: must be in (0, 1), got {alpha!r}')
+    if not 0.0 < identifiability_tol:
+        raise ValueError(f'identifiability_tol: must be > 0, got {identifiability_tol!r}')
+    axis = _axis(symmetry_axis)
+    if model == 'axisymmetric' and axis is None:
+        raise ValueError("symmetry_axis: required for model='axisymmetric'")
+    if len(tg) < 6:
+        raise ValueError(f't_gyro: {len(tg)} samples is fewer than the 6 inertia parameters')
+    if len(ts) == 1:
+        raise ValueError('t_torque: a single torque sample covers no time; give at least 2 '
+                         '(or none for torque-free data)')
+    if segment is not None and not segment > 0:
+        raise ValueError(f'segment: must be > 0 s, got {segment!r}')
+    if window is not None and not window > 0:
+        raise ValueError(f'window: must be > 0 s, got {window!r}')
+    gyro_std = (noise_std_from_differences(w) if gyro_noise is None
+                else _noise(gyro_noise, 'gyro_noise'))
+    torque_std = (noise_std_from_differences(tau) if torque_noise is None or len(ts) == 0
+                  else _noise(torque_noise, 'torque_noise'))
+    if len(ts) == 0:
+        torque_std = np.zeros(3)
+    gyro_var, torque_var = gyro_std ** 2, torque_std ** 2
+    diag: dict[str, Any] = {'gyro_noise_std': gyro_std, 'torque_noise_std': torque_std,
+                            'warnings': []}
+
+    # ---- torque coverage and gaps
+    dtg = np.diff(tg)
+    if len(ts):
+        dts = np.diff(ts)
+        med_ts = float(np.median(dts))
+        tau_end = ts[-1] + (med_ts if hold == 'zoh' else 0.0)
+        mask = (tg >= ts[0]) & (tg <= tau_end)
+        gap = dts > 5.0 * med_ts
+        if np.any(gap):
+            j = np.clip(np.searchsorted(ts, tg, side='right') - 1, 0, len(ts) - 1)
+            inside_gap = gap[np.minimum(j, len(dts) - 1)] & (j < len(dts)) & (tg > ts[j])
+            mask &= ~inside_gap
+            diag['warnings'].append(f'{int(np.sum(gap))} torque gap(s) longer than 5 sample '
+                                    f'periods: gyro samples inside them dropped')
+    else:
+        tau_end = float(tg[-1])
+        mask = np.ones(len(tg), dtype=bool)
+    used = int(np.sum(mask))
+    dropped = len(tg) - used
+    idx = np.flatnonzero(mask)
+    base = dict(method=method, samples_used=used, samples_dropped=dropped)
+    if used < 20:
+        diag['reason'] = (f'only {used} gyro samples inside the torque coverage '
+                          f'[{ts[0] if len(ts) else tg[0]:.6g}, {tau_end:.6g}] s')
+        return InertiaEstimate(status='insufficient_data', diagnostics=diag,
+                               **base)   # type: ignore[arg-type]
+    med_g = float(np.median(dtg))
+    breaks = (np.diff(idx) > 1) | (np.diff(tg[idx]) > 5.0 * med_g)
+
+    torque_rms = np.sqrt(np.mean(tau ** 2, axis=0)) if len(ts) else np.zeros(3)
+    diag['torque_rms'] = torque_rms
+    torque_free = len(ts) == 0 or float(np.max(torque_rms)) <= 5.0 * float(
+        np.max(torque_std)) or float(np.max(torque_rms)) == 0.0
+    if torque_free:
+        return _homogeneous(method, tg, w, ts, tau, mask, breaks, hold, gyro_var, segment,
+                            window, diag, base)
+
+    eq = _build(method, tg, w, ts, tau, mask, breaks, hold, gyro_var, segment, window)
+    diag.update(eq.info)
+    n_eq = len(eq.y)
+    if n_eq * 3 < 3 * (6 + 3) + 3 * (len(eq.starts) if eq.starts is not None else 0):
+        diag['reason'] = f'{n_eq} equations are too few for the parameters'
+        return InertiaEstimate(status='insufficient_data', diagnostics=diag,
+                               **base)   # type: ignore[arg-type]
+
+    def fit(basis: np.ndarray, bias: bool) -> _Fit:
+        """Two-pass fit: unweighted, then weighted by the first pass's tensor."""
+        args = (gyro_var, torque_var, ts, tau_end, eq.weighted)
+        f = _fit(eq, basis, bias, np.eye(3), *args)
+        if eq.weighted and np.all(gyro_var > 0):
+            theta = basis @ f.beta[:basis.shape[1]]
+            Im = theta_to_matrix(theta)
+            if not check_physical(Im).valid:
+                Im = nearest_physical(Im, min_moment=1e-3 * max(np.trace(np.abs(Im)), 1e-30))
+            S = Im @ np.diag(gyro_var) @ Im
+            W = np.linalg.inv(S)
+            W = 0.5 * (W + W.T) / np.max(np.abs(W))
+            f = _fit(eq, basis, bias, W, *args)
+        return f
+
+    # ---- identifiability on the general model
+    gen_bias = torque_bias != 'off'
+    free = np.ones(6, dtype=bool)
+    for _ in range(3):
+        basis = np.eye(6)[:, free]
+        f = fit(basis, gen_bias)
+        names = _param_names(basis, gen_bias, 'full')
+        cond = _conditioning(f, names)
+        k = basis.shape[1]
+        theta = basis @ f.beta[:k]
+        se = basis @ np.sqrt(np.maximum(np.diag(f.cov)[:k], 0.0))
+        good_diag = [abs(theta[i]) for i in range(3)
+                     if free[i] and se[i] < 0.2 * abs(theta[i]) and theta[i] > 0]
+        if not good_diag or not np.isfinite(cond['condition_number']) and k == 0:
+            diag.update(cond)
+            diag['reason'] = 'no principal-diagonal element is determined by the data'
+            return InertiaEstimate(status='insufficient_excitation', diagnostics=diag,
+                                   **base)   # type: ignore[arg-type]
+        scale = max(good_diag)
+        new_free = free & (se < identifiability_tol * scale)
+        if np.array_equal(new_free, free):
+            break
+        free = new_free
+    diag.update(cond)
+    if not np.all(free):
+        bias_on = gen_bias if torque_bias == 'on' else False
+        if torque_bias == 'auto' and gen_bias:
+            stat, dof, pval = _wald(f.beta, f.cov, np.eye(len(f.beta))[k:])
+            bias_on = pval < alpha
+            if not bias_on:
+                f = fit(basis, False)
+        return _assemble('partially_identifiable', f, 'full', free, diag, base, physical=False)
+
+    # ---- model selection: bias first, then the parameter set
+    selection: dict[str, Any] = {}
+    bias_on = torque_bias == 'on'
+    if torque_bias == 'auto':
+        stat, dof, pval = _wald(f.beta, f.cov, np.eye(9)[6:])
+        bias_on = pval < alpha
+        selection['bias'] = {'wald': stat, 'dof': dof, 'p_value': pval,
+                             'kept': bool(bias_on)}
+        if not bias_on:
+            f = fit(np.eye(6), False)
+    chosen = model
+    if model == 'auto':
+        candidates = (['axisymmetric'] if axis is not None else []) + ['diagonal']
+        tested = {}
+        chosen = 'full'
+        cov6 = f.cov[:6, :6]
+        for cand in candidates:
+            stat, dof, pval = _wald(f.beta[:6], cov6, _complement(model_basis(cand, axis)))
+            tested[cand] = {'wald': stat, 'dof': dof, 'p_value': pval,
+                            'rejected': bool(pval < alpha)}
+            if pval >= alpha and chosen == 'full':
+                chosen = cand
+        selection['models'] = tested
+        selection['rule'] = (f'smallest parameter set whose restriction of the full model is '
+                             f'not rejected by a Wald test at alpha={alpha:g}')
+        selection['chosen'] = chosen
+    if selection:
+        diag['model_selection'] = selection
+    if chosen != 'full':
+        f = fit(model_basis(chosen, axis), bias_on)
+    return _assemble('ok', f, chosen, free, diag, base, physical=physical)
+
+
+def _noise(x: Any, name: str) -> np.ndarray:
+    """Validated per-axis noise std (scalar or (3,))."""
+    arr = np.broadcast_to(np.asarray(x, dtype=float), (3,)).copy()
+    if not np.all(np.isfinite(arr)) or np.any(arr < 0):
+        raise ValueError(f'{name}: must be finite and >= 0, got {x!r}')
+    return arr
+
+
+def _assemble(status: str, f: _Fit, model: str, free: np.ndarray, diag: dict[str, Any],
+              base: dict[str, Any], physical: bool) -> InertiaEstimate:
+    """Build the :class:`InertiaEstimate` from a fit."""
+    k = f.basis.shape[1]
+    theta = f.basis @ f.beta[:k]
+    cov6 = f.basis @ f.cov[:k, :k] @ f.basis.T
+    se = np.sqrt(np.maximum(np.diag(cov6), 0.0))
+    theta = np.where(free, theta, np.nan)
+    se = np.where(free, se, np.nan)
+    I = _sym(theta)
+    I_std = _sym(se)
+    diag['residual_rms'] = f.resid_rms
+    diag['equations'] = f.n_eq
+    moments = axes = ratios = None
+    if np.all(free):
+        chk = check_physical(I)
+        if not chk.valid:
+            diag['physical'] = {'valid': False, 'failures': list(chk.failures),
+                                'projected': bool(physical)}
+            if physical:
+                I = nearest_physical(I, min_moment=1e-9 * float(np.max(np.abs(chk.moments))))
+        else:
+            diag['physical'] = {'valid': True, 'projected': False}
+        moments, axes = principal_axes(I)
+        diag['principal_moments_std'] = _moment_std(I, cov6)
+        ratios = I / np.trace(I)
+    else:
+        undetermined = [n for n, ok in zip(THETA_NAMES, free, strict=True) if not ok]
+        diag['undetermined'] = undetermined
+        diag['reason'] = ('the excitation does not determine ' + ', '.join(undetermined)
+                          + ' (reported as null)')
+        ratios = I / np.trace(I)
+    bias = f.beta[k:k + 3] if f.bias else None
+    if f.bias:
+        diag['torque_bias_std'] = np.sqrt(np.maximum(np.diag(f.cov)[k:k + 3], 0.0))
+    name = model + ('+bias' if f.bias else '')
+    return InertiaEstimate(status=status, inertia=I, inertia_std=I_std,
+                           principal_moments=moments, principal_axes=axes, ratios=ratios,
+                           identifiable=dict(zip(THETA_NAMES, map(bool, free), strict=True)),
+                           torque_bias=bias, model=name, diagnostics=diag,
+                           **base)   # type: ignore[arg-type]
+
+
+def _homogeneous(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.ndarray,
+                 mask: np.ndarray, breaks: np.ndarray, hold: str, gyro_var: np.ndarray,
+                 segment: float | None, window: float | None, diag: dict[str, Any],
+                 base: dict[str, Any]) -> InertiaEstimate:
+    """Torque-free data: ratios and axes from the null vector of the homogeneous problem."""
+    if len(ts) == 0:
+        ts = np.array([tg[0], tg[-1]])
+        tau = np.zeros((2, 3))
+    meth = method if method != 'integral_ls' else 'integral'
+    eq = _build(meth, tg, w, ts, tau, mask, breaks, hold, gyro_var, segment, window)
+    X = eq.X6
+    if eq.starts is not None:
+        X = _demean(X, eq.starts)
+    Xf = X.reshape(-1, 6)
+    H0 = Xf.T @ Xf
+    H = H0.copy()
+    if eq.eiv_var is not None:
+        B6 = np.einsum('c,crk,csl->kl', eq.eiv_var, _L_BASIS, _L_BASIS)
+        H -= (len(eq.y) - (len(eq.starts) if eq.starts is not None else 0)) * B6
+    d = np.sqrt(np.diag(H0))
+    diag['reason'] = 'no torque excitation: only ratios and principal axes are observable'
+    if np.any(d == 0):
+        diag['reason'] = 'torque-free data without rotation about every axis'
+        return InertiaEstimate(status='insufficient_excitation', diagnostics=diag,
+                               **base)   # type: ignore[arg-type]
+    lam0 = np.linalg.eigvalsh(H0 / d[:, None] / d[None, :])
+    lam, vec = np.linalg.eigh(H / d[:, None] / d[None, :])
+    v = vec[:, 0] / d
+    gap = float(lam0[1] / max(lam0[0], 1e-300))
+    diag['eigenvalue_gap'] = gap
+    diag['condition_number'] = float(lam0[-1] / max(lam0[0], 1e-300))
+    if gap < 10.0:
+        diag['reason'] = ('torque-free data whose motion does not single out the inertia '
+                          'ratios (e.g. a spin about a principal axis)')
+        diag['weakest_direction'] = _describe(vec[:, 1] / d, list(THETA_NAMES))
+        return InertiaEstimate(status='insufficient_excitation', diagnostics=diag,
+                               **base)   # type: ignore[arg-type]
+    R = theta_to_matrix(v)
+    R /= np.trace(R)
+    chk = check_physical(R)
+    if not chk.valid:
+        diag['physical'] = {'valid': False, 'failures': list(chk.failures), 'projected': True}
+        R = nearest_physical(R)
+        R /= np.trace(R)
+    _, axes = principal_axes(R)
+    return InertiaEstimate(status='scale_unobservable', ratios=R, principal_axes=axes,
+                           identifiable=dict.fromkeys(THETA_NAMES, False), model='homogeneous',
+                           diagnostics=diag, **base)   # type: ignore[arg-type]

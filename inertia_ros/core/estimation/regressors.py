@@ -1,0 +1,229 @@
+"""Regressor building blocks for Euler's equations, shared by every estimator.
+
+Euler's equation about the centre of mass in body axes, ``tau = I w_dot + w x (I w)``, is
+linear in ``theta = [ixx, iyy, izz, ixy, ixz, iyz]``:
+
+* ``I v = momentum_matrix(v) @ theta`` for any vector ``v`` (3x6 per sample);
+* ``w x (I w) = gyroscopic_matrix(m) @ theta`` where ``m`` holds the six quadratic monomials
+  ``[wx^2, wy^2, wz^2, wx wy, wx wz, wy wz]`` of ``w`` (3x6, linear in ``m``).
+
+So the integral (momentum) form over ``[a, b]``,
+``I (w_b - w_a) + int_a^b w x (I w) dt = int_a^b tau dt``, only needs ``w`` at the window ends,
+the cumulative integral of the monomials and the cumulative integral of the torque: with
+cumulative sums every window of every length costs O(1) after O(N) preprocessing.
+The differential form uses the same two matrices with ``w_dot`` and the monomials themselves.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..inertia import theta_to_matrix
+
+__all__ = [
+    'MONOMIAL_NAMES',
+    'cumulative_monomials',
+    'cumulative_torque',
+    'gyroscopic_matrix',
+    'momentum_matrix',
+    'monomials',
+    'noise_std_from_differences',
+]
+
+MONOMIAL_NAMES: tuple[str, ...] = ('xx', 'yy', 'zz', 'xy', 'xz', 'yz')
+
+# E[k] = d I / d theta_k, shape (6, 3, 3).
+_E = theta_to_matrix(np.eye(6))
+# Index pairs of the monomials.
+_MONO_I = np.array([0, 1, 2, 0, 0, 1])
+_MONO_J = np.array([0, 1, 2, 1, 2, 2])
+
+
+def _gyro_coefficients() -> np.ndarray:
+    """Coefficients ``A[r, k, m]`` with ``(w x (E_k w))_r = sum_m A[r, k, m] mono_m(w)``."""
+    def f(w: np.ndarray) -> np.ndarray:            # (3, 6): columns w x (E_k w)
+        return np.cross(w, (_E @ w)).T
+
+    eye = np.eye(3)
+    A = np.zeros((3, 6, 6))
+    for m, (i, j) in enumerate(zip(_MONO_I, _MONO_J, strict=True)):
+        if i == j:
+            A[:, :, m] = f(eye[i])
+        else:
+            A[:, :, m] = f(eye[i] + eye[j]) - f(eye[i]) - f(eye[j])
+    return A
+
+
+_A = _gyro_coefficients()
+
+
+def momentum_matrix(v: np.ndarray) -> np.ndarray:
+    """Matrices ``L(v)`` with ``I v = L(v) @ theta``.
+
+    Parameters
+    ----------
+    v : ndarray, shape (..., 3)
+        Vectors (e.g. angular velocity [rad/s] or its increment).
+
+    Returns
+    -------
+    ndarray, shape (..., 3, 6)
+        Linear in ``v``; ``L(v) @ theta`` has the units of ``theta`` times ``v``.
+    """
+    # L[..., r, k] = sum_c E[k, r, c] v_c
+    return np.einsum('krc,...c->...rk', _E, v)
+
+
+def monomials(omega: np.ndarray) -> np.ndarray:
+    """The six quadratic monomials ``[wx^2, wy^2, wz^2, wx wy, wx wz, wy wz]``.
+
+    Parameters
+    ----------
+    omega : ndarray, shape (..., 3)
+        Angular velocity [rad/s].
+
+    Returns
+    -------
+    ndarray, shape (..., 6)
+        [rad^2/s^2].
+    """
+    return omega[..., _MONO_I] * omega[..., _MONO_J]
+
+
+def gyroscopic_matrix(m: np.ndarray) -> np.ndarray:
+    """Matrices ``Q(m)`` with ``w x (I w) = Q(monomials(w)) @ theta`` (linear in ``m``).
+
+    Also valid for integrated monomials: ``int w x (I w) dt = Q(int m dt) @ theta``.
+
+    Parameters
+    ----------
+    m : ndarray, shape (..., 6)
+        Monomials or their integrals (:data:`MONOMIAL_NAMES` order).
+
+    Returns
+    -------
+    ndarray, shape (..., 3, 6)
+    """
+    return np.einsum('rkm,...m->...rk', _A, m)
+
+
+def cumulative_monomials(t: np.ndarray, omega: np.ndarray,
+                         noise_var: np.ndarray | None = None,
+                         end_correction: bool = True) -> np.ndarray:
+    """Cumulative integral of the quadratic monomials from ``t[0]`` to each ``t[i]``.
+
+    Trapezoid rule with the Euler-Maclaurin end correction ``-h^2/12 f'`` (fourth-order for
+    smooth signals on a uniform grid; the constant part of the correction is irrelevant to the
+    estimators, which remove a constant per segment).  When ``noise_var`` is given, the
+    expected contribution of white gyro noise to the squares, ``sigma_c^2 (t - t0)``, is
+    subtracted so that the integrals are unbiased.
+
+    Parameters
+    ----------
+    t : ndarray, shape (N,)
+        Strictly increasing sample times [s].
+    omega : ndarray, shape (N, 3)
+        Angular velocity [rad/s].
+    noise_var : ndarray, shape (3,), optional
+        Gyro white-noise variance per axis [rad^2/s^2].
+    end_correction : bool
+        Apply the ``-h^2/12 f'`` correction.
+
+    Returns
+    -------
+    ndarray, shape (N, 6)
+        ``int_{t0}^{t_i} m(w) dt`` [rad^2/s].
+    """
+    p = monomials(omega)
+    out = np.empty_like(p)
+    out[0] = 0.0
+    if len(t) > 1:
+        dt = np.diff(t)
+        np.cumsum(0.5 * (p[1:] + p[:-1]) * dt[:, None], axis=0, out=out[1:])
+        if end_correction and len(t) > 2:
+            h = np.empty_like(t)
+            h[1:] = dt
+            h[0] = dt[0]
+            dp = np.gradient(p, t, axis=0)
+            out -= (h * h / 12.0)[:, None] * dp
+            out -= out[0]
+    if noise_var is not None:
+        out[:, :3] -= (t - t[0])[:, None] * np.asarray(noise_var, dtype=float)[None, :]
+    return out
+
+
+def cumulative_torque(t_tau: np.ndarray, tau: np.ndarray, t: np.ndarray,
+                      hold: str = 'zoh') -> np.ndarray:
+    """Exact integral of the sampled torque from ``t_tau[0]`` to each query time.
+
+    Parameters
+    ----------
+    t_tau : ndarray, shape (M,)
+        Strictly increasing torque sample times [s].
+    tau : ndarray, shape (M, 3)
+        Torque samples [N m].
+    t : ndarray, shape (K,)
+        Query times [s], each ``>= t_tau[0]``.  Under ``zoh`` a time after the last sample
+        holds the last value; under ``linear`` it extrapolates the last value flat as well.
+    hold : {'zoh', 'linear'}
+        Sampling assumption between samples: zero-order hold of each sample until the next
+        (torque commands), or linear interpolation.
+
+    Returns
+    -------
+    ndarray, shape (K, 3)
+        ``int_{t_tau[0]}^{t_k} tau dt`` [N m s].
+    """
+    dts = np.diff(t_tau)
+    cum = np.zeros_like(tau)
+    if hold == 'zoh':
+        if len(dts):
+            np.cumsum(tau[:-1] * dts[:, None], axis=0, out=cum[1:])
+        j = np.clip(np.searchsorted(t_tau, t, side='right') - 1, 0, len(t_tau) - 1)
+        u = (t - t_tau[j])[:, None]
+        return cum[j] + tau[j] * u
+    if hold != 'linear':
+        raise ValueError(f"hold: must be 'zoh' or 'linear', got {hold!r}")
+    if len(dts):
+        np.cumsum(0.5 * (tau[:-1] + tau[1:]) * dts[:, None], axis=0, out=cum[1:])
+    j = np.clip(np.searchsorted(t_tau, t, side='right') - 1, 0, len(t_tau) - 1)
+    u = (t - t_tau[j])[:, None]
+    inside = j < len(t_tau) - 1
+    slope = np.zeros_like(tau)
+    if len(dts):
+        slope[:-1] = (tau[1:] - tau[:-1]) / dts[:, None]
+    return cum[j] + tau[j] * u + np.where(inside[:, None], 0.5 * slope[j] * u * u, 0.0)
+
+
+def noise_std_from_differences(x: np.ndarray, orders: tuple[int, ...] = (2, 3, 4)) -> np.ndarray:
+    """Robust white-noise standard deviation per column from high-order differences.
+
+    For white noise of variance ``s^2`` the k-th difference has variance ``C(2k, k) s^2``;
+    a smooth signal contributes little to high-order differences.  The median absolute
+    deviation makes the estimate robust to occasional jumps (steps, PRBS); the smallest
+    estimate over ``orders`` is returned (signal only adds variance).
+
+    Parameters
+    ----------
+    x : ndarray, shape (N, C)
+        Uniformly (or nearly) sampled signal.
+    orders : tuple of int
+        Difference orders to try.
+
+    Returns
+    -------
+    ndarray, shape (C,)
+        Noise standard deviation, in the units of ``x`` (0 for fewer than ``max(orders)+2``
+        samples).
+    """
+    from math import comb
+
+    x = np.asarray(x, dtype=float)
+    best = np.full(x.shape[1], np.inf)
+    for k in orders:
+        if len(x) < k + 2:
+            continue
+        d = np.diff(x, n=k, axis=0)
+        mad = np.median(np.abs(d - np.median(d, axis=0)), axis=0)
+        best = np.minimum(best, 1.4826 * mad / np.sqrt(comb(2 * k, k)))
+    best[~np.isfinite(best)] = 0.0
+    return best

@@ -1,0 +1,181 @@
+"""The estimator result type and its JSON contract (DESIGN.md, "Offline command").
+
+:class:`InertiaEstimate` is what every estimator returns, whatever the data allowed: a status
+string (never an exception for a property of the data), the tensor with NaN where an element is
+not identifiable (or ``None`` when the scale is unobservable), one-sigma standard errors, the
+principal moments and axes, ratios, which elements are identifiable, the torque bias, the model
+and method used, sample counts and free-form diagnostics.  :meth:`InertiaEstimate.to_dict`
+gives exactly the JSON object of the contract (NaN -> null, numpy -> plain lists and floats).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from ..inertia import THETA_NAMES
+
+__all__ = ['STATUSES', 'InertiaEstimate', 'to_jsonable']
+
+#: Every status an estimate can carry (DESIGN.md contract), best first.
+STATUSES: tuple[str, ...] = ('ok', 'scale_unobservable', 'partially_identifiable',
+                             'insufficient_excitation', 'insufficient_data')
+
+
+def to_jsonable(value: Any) -> Any:
+    """Convert ``value`` to plain JSON types: NaN/inf -> None, numpy -> lists/floats/ints.
+
+    Parameters
+    ----------
+    value : Any
+        Nested dicts, lists, tuples, numpy arrays and scalars, floats, ints, bools, strings.
+
+    Returns
+    -------
+    Any
+        The same structure made of dict, list, float, int, bool, str and None only.
+    """
+    if value is None or isinstance(value, (bool, str)):
+        return value
+    if isinstance(value, np.bool_):
+        return bool(value)
+    if isinstance(value, (int, np.integer)):
+        return int(value)
+    if isinstance(value, (float, np.floating)):
+        f = float(value)
+        return f if math.isfinite(f) else None
+    if isinstance(value, np.ndarray):
+        return [to_jsonable(v) for v in value.tolist()] if value.ndim else to_jsonable(
+            value.item())
+    if isinstance(value, dict):
+        return {str(k): to_jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [to_jsonable(v) for v in value]
+    return str(value)
+
+
+def _opt_array(x: Any, shape: tuple[int, ...], name: str) -> np.ndarray | None:
+    """``None`` or a read-only float64 copy of ``x`` with the given shape."""
+    if x is None:
+        return None
+    arr = np.array(x, dtype=float)
+    if arr.shape != shape:
+        raise ValueError(f'{name}: expected shape {shape}, got {arr.shape}')
+    arr.setflags(write=False)
+    return arr
+
+
+@dataclass(frozen=True)
+class InertiaEstimate:
+    """Result of an inertia estimation (batch or recursive).
+
+    Attributes
+    ----------
+    status : str
+        One of :data:`STATUSES`: ``ok``; ``scale_unobservable`` (torque-free data: only
+        ``ratios`` and ``principal_axes``); ``partially_identifiable`` (some elements NaN);
+        ``insufficient_excitation``; ``insufficient_data``.
+    inertia : ndarray, shape (3, 3), or None
+        Estimated tensor about the centre of mass in the gyro frame [kg m^2]; NaN where an
+        element is not identifiable; ``None`` when the scale is unobservable or nothing could be
+        estimated.
+    inertia_std : ndarray, shape (3, 3), or None
+        One-sigma standard errors of ``inertia`` [kg m^2], same NaN/None pattern.  Elements the
+        model fixes (products of inertia of the diagonal model) have std 0.
+    principal_moments : ndarray, shape (3,), or None
+        Ascending principal moments [kg m^2]; ``None`` unless every element is identified.
+    principal_axes : ndarray, shape (3, 3), or None
+        Principal axes as columns (proper rotation, DESIGN.md sign convention).  Also given
+        when only the scale is unobservable.
+    ratios : ndarray, shape (3, 3), or None
+        ``inertia / trace(inertia)`` (dimensionless); given also when the scale is unobservable.
+    identifiable : dict of str to bool
+        One entry per name in ``THETA_NAMES``.
+    torque_bias : ndarray, shape (3,), or None
+        Estimated constant disturbance torque [N m] when the model has a bias term.
+    model : str
+        Parameter set used: ``full``, ``diagonal``, ``axisymmetric``, each optionally
+        ``+bias``; ``homogeneous`` for the scale-free torque-free solution; ``none``.
+    method : str
+        Estimator name (one of ``METHODS`` or ``recursive``).
+    samples_used : int
+        Gyro samples that entered the equations.
+    samples_dropped : int
+        Gyro samples left out (outside the torque coverage, across gaps).
+    diagnostics : dict
+        Free-form: condition number, weakest direction, residual RMS, noise estimates, model
+        selection statistics, warnings, ...
+    """
+
+    status: str
+    inertia: np.ndarray | None = None
+    inertia_std: np.ndarray | None = None
+    principal_moments: np.ndarray | None = None
+    principal_axes: np.ndarray | None = None
+    ratios: np.ndarray | None = None
+    identifiable: dict[str, bool] = field(
+        default_factory=lambda: dict.fromkeys(THETA_NAMES, False))
+    torque_bias: np.ndarray | None = None
+    model: str = 'none'
+    method: str = ''
+    samples_used: int = 0
+    samples_dropped: int = 0
+    diagnostics: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        """Validate the status and freeze the arrays (read-only float64 copies)."""
+        if self.status not in STATUSES:
+            raise ValueError(f'status: must be one of {STATUSES}, got {self.status!r}')
+        for name, shape in (('inertia', (3, 3)), ('inertia_std', (3, 3)),
+                            ('principal_moments', (3,)), ('principal_axes', (3, 3)),
+                            ('ratios', (3, 3)), ('torque_bias', (3,))):
+            object.__setattr__(self, name, _opt_array(getattr(self, name), shape, name))
+        ident = {k: bool(self.identifiable.get(k, False)) for k in THETA_NAMES}
+        object.__setattr__(self, 'identifiable', ident)
+
+    @property
+    def ok(self) -> bool:
+        """True when the status is ``ok``."""
+        return self.status == 'ok'
+
+    @property
+    def theta(self) -> np.ndarray | None:
+        """``[ixx, iyy, izz, ixy, ixz, iyz]`` [kg m^2] (NaN where unidentified), or None."""
+        if self.inertia is None:
+            return None
+        i = self.inertia
+        return np.array([i[0, 0], i[1, 1], i[2, 2], i[0, 1], i[0, 2], i[1, 2]])
+
+    @property
+    def theta_std(self) -> np.ndarray | None:
+        """One-sigma standard errors in ``theta`` order [kg m^2], or None."""
+        if self.inertia_std is None:
+            return None
+        s = self.inertia_std
+        return np.array([s[0, 0], s[1, 1], s[2, 2], s[0, 1], s[0, 2], s[1, 2]])
+
+    def to_dict(self) -> dict[str, Any]:
+        """The JSON contract of DESIGN.md as plain Python types.
+
+        Returns
+        -------
+        dict
+            Keys ``status, inertia, inertia_std, principal_moments, principal_axes, ratios,
+            identifiable, torque_bias, model, method, samples, diagnostics``; NaN -> None.
+        """
+        return {
+            'status': self.status,
+            'inertia': to_jsonable(self.inertia),
+            'inertia_std': to_jsonable(self.inertia_std),
+            'principal_moments': to_jsonable(self.principal_moments),
+            'principal_axes': to_jsonable(self.principal_axes),
+            'ratios': to_jsonable(self.ratios),
+            'identifiable': {k: bool(v) for k, v in self.identifiable.items()},
+            'torque_bias': to_jsonable(self.torque_bias),
+            'model': self.model,
+            'method': self.method,
+            'samples': {'used': int(self.samples_used), 'dropped': int(self.samples_dropped)},
+            'diagnostics': to_jsonable(self.diagnostics),
+        }
