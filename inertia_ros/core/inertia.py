@@ -68,7 +68,7 @@ _MATRIX_INDEX = np.array([[0, 3, 4],
 #: Default relative tolerance for "symmetric within tolerance" (relative to max |I_ij|).
 SYMMETRY_RTOL = 1e-9
 #: Relative spread (to the largest |moment|) below which principal moments count as repeated.
-DEGENERACY_RTOL = 1e-12
+DEGENERACY_RTOL = 1e-13
 
 
 # ---------------------------------------------------------------------------------------------
@@ -464,7 +464,8 @@ def nearest_physical(I: Any, *, min_moment: float | None = None) -> np.ndarray:
         Inertia matrix [kg m^2]; asymmetric input is accepted (its symmetric part is used).
     min_moment : float, optional
         Lower bound for every principal moment [kg m^2], making the result positive definite.
-        Default ``1e-9 * max |moment|``.
+        Default ``1e-8 * max |moment|`` (so the result passes :func:`check_physical`
+        at its default tolerance).
 
     Returns
     -------
@@ -490,7 +491,7 @@ def nearest_physical(I: Any, *, min_moment: float | None = None) -> np.ndarray:
         if scale == 0.0:
             raise ValueError('I: all principal moments are zero, so there is no scale for the '
                              'default min_moment; pass min_moment explicitly')
-        eps = 1e-9 * scale
+        eps = 1e-8 * scale
     else:
         eps = float(min_moment)
         if not (np.isfinite(eps) and eps >= 0.0):
