@@ -1,0 +1,719 @@
+"""Recorded logs -> clean numpy arrays for the estimator.
+
+:func:`read_log` reads a single ``.mcap`` file or a rosbag2 directory (``metadata.yaml`` plus
+``.mcap`` files), finds the angular-velocity and torque topics by message type, decodes them
+with the vectorised CDR path, and cleans what real recordings contain:
+
+======================  ===================================================================
+problem                 handling (each counted in :attr:`StreamCounts`)
+======================  ===================================================================
+malformed payload       dropped (``malformed``)
+NaN / Inf sample        dropped (``nonfinite``)
+wrong ``frame_id``      a few stray messages are dropped (``wrong_frame``); two frames in
+                        earnest, or different frames on the two streams, raise
+                        :class:`LogError` unless ``ignore_frames``
+clock jump backwards    a looped or restarted recording: the log is split into pieces at
+                        every backward jump of the merged stamp sequence larger than
+                        ``max_backward_jump``; later pieces are shifted to start after the
+                        previous one (``clock_jumps``)
+out-of-order arrival    sorted by header stamp (``out_of_order`` counts late arrivals)
+duplicate               same header stamp twice on a stream: the first kept (``duplicates``)
+gap                     a stamp step over ``gap_factor`` times the median step splits the
+                        stream; the estimator's windows are the intersections of the two
+                        streams' gap-free runs (``gaps``)
+stream stops early      samples outside the common windows are dropped (``outside``)
+======================  ===================================================================
+
+Times are the messages' header stamps (never MCAP log times), returned as float seconds
+relative to :attr:`LogData.epoch_ns`, the integer-nanosecond stamp of the first sample kept.
+"""
+from __future__ import annotations
+
+import json
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from inertia_ros.io import cdr_decode
+from inertia_ros.io.mcap_reader import Channel, Damage, McapError, McapReader, Schema
+
+#: Angular-velocity message types and the field holding omega [rad/s].
+OMEGA_TYPES: dict[str, str] = {
+    'sensor_msgs/msg/Imu': 'angular_velocity',
+    'geometry_msgs/msg/TwistStamped': 'angular',
+    'geometry_msgs/msg/Vector3Stamped': 'vector',
+}
+#: Torque message types and the field holding the torque [N m].
+TORQUE_TYPES: dict[str, str] = {
+    'geometry_msgs/msg/WrenchStamped': 'torque',
+    'geometry_msgs/msg/Vector3Stamped': 'vector',
+}
+TRUTH_TYPE = 'geometry_msgs/msg/InertiaStamped'
+#: Topic holding the true tensor in simulated logs.
+TRUTH_TOPIC = '/truth/inertia'
+
+_OMEGA_WORDS = ('omega', 'angular', 'gyro', 'rate', 'imu', 'twist')
+_TORQUE_WORDS = ('torque', 'wrench', 'moment', 'tau')
+
+
+class LogError(ValueError):
+    """A problem with the input log that the user can fix; the message is one line."""
+
+
+@dataclass
+class StreamCounts:
+    """What cleaning did to one stream (numbers of messages)."""
+
+    received: int = 0
+    malformed: int = 0
+    nonfinite: int = 0
+    wrong_frame: int = 0
+    duplicates: int = 0
+    out_of_order: int = 0
+    bad_stamps: int = 0
+    outside: int = 0
+    used: int = 0
+    gaps: int = 0
+
+    @property
+    def dropped(self) -> int:
+        """Messages received but not used."""
+        return self.received - self.used
+
+    def as_dict(self) -> dict[str, int]:
+        """Plain dict including ``dropped``."""
+        d = {k: int(getattr(self, k)) for k in self.__dataclass_fields__}
+        d['dropped'] = self.dropped
+        return d
+
+
+@dataclass
+class Stream:
+    """One cleaned stream.
+
+    Attributes
+    ----------
+    topic, msg_type, frame_id : str
+        Where it came from.
+    t : numpy.ndarray
+        (n,) float64 header stamps [s] relative to the log epoch, strictly increasing.
+    values : numpy.ndarray
+        (n, 3) float64 angular velocity [rad/s] or torque [N m].
+    counts : StreamCounts
+        What cleaning did.
+    rate_hz : float
+        Median sample rate [Hz] (NaN with fewer than two samples).
+    """
+
+    topic: str
+    msg_type: str
+    frame_id: str
+    t: np.ndarray
+    values: np.ndarray
+    counts: StreamCounts
+    rate_hz: float = float('nan')
+
+
+@dataclass
+class LogData:
+    """A log ready for estimation.
+
+    Attributes
+    ----------
+    paths : list of Path
+        The MCAP files read.
+    epoch_ns : int
+        Header stamp [ns] that ``t = 0`` stands for.
+    omega, torque : Stream
+        The cleaned angular-velocity and torque streams.
+    windows : list of (float, float)
+        Time windows [s] in which both streams are gap-free; samples outside were dropped.
+        Windows are separated by gaps, so no estimation window should span two of them.
+    clock_jumps : int
+        Backward clock jumps found (each starts a new piece of the log).
+    truth : list of (float, numpy.ndarray)
+        ``(t [s], inertia (3, 3) [kg m^2])`` from ``/truth/inertia``, if the log has it.
+    topics : dict of str to str
+        Every topic in the log and its type.
+    metadata : dict of str to dict
+        MCAP metadata records by name (e.g. ``inertia_ros.scene``).
+    damage : Damage
+        What could not be read from damaged files (summed over files).
+    warnings : list of str
+        One line per thing the user should know.
+    """
+
+    paths: list[Path]
+    epoch_ns: int
+    omega: Stream
+    torque: Stream
+    windows: list[tuple[float, float]]
+    clock_jumps: int = 0
+    truth: list[tuple[float, np.ndarray]] = field(default_factory=list)
+    topics: dict[str, str] = field(default_factory=dict)
+    metadata: dict[str, dict[str, str]] = field(default_factory=dict)
+    damage: Damage = field(default_factory=Damage)
+    warnings: list[str] = field(default_factory=list)
+
+    @property
+    def scene(self) -> dict | None:
+        """The scene dict recorded by our simulator, if present."""
+        md = self.metadata.get('inertia_ros.scene', {})
+        try:
+            return json.loads(md['scene_json']) if 'scene_json' in md else None
+        except ValueError:
+            return None
+
+    def summary(self) -> dict:
+        """Counts and facts for reports (JSON-ready)."""
+        return {
+            'files': [str(p) for p in self.paths],
+            'epoch_ns': int(self.epoch_ns),
+            'omega': {'topic': self.omega.topic, 'type': self.omega.msg_type,
+                      'frame_id': self.omega.frame_id, 'rate_hz': _r(self.omega.rate_hz),
+                      **self.omega.counts.as_dict()},
+            'torque': {'topic': self.torque.topic, 'type': self.torque.msg_type,
+                       'frame_id': self.torque.frame_id, 'rate_hz': _r(self.torque.rate_hz),
+                       **self.torque.counts.as_dict()},
+            'windows': len(self.windows),
+            'clock_jumps': self.clock_jumps,
+            'damage': {'truncated': self.damage.truncated,
+                       'corrupt_chunks': self.damage.corrupt_chunks,
+                       'bytes_lost': self.damage.bytes_lost,
+                       'messages_lost': self.damage.messages_lost},
+        }
+
+
+def _r(x: float) -> float | None:
+    return None if not np.isfinite(x) else round(float(x), 6)
+
+
+# --------------------------------------------------------------------------------------------
+# Reading
+
+
+@dataclass
+class _Raw:
+    """Decoded but uncleaned messages of one topic, accumulated over batches."""
+
+    msg_type: str
+    stamp: list[np.ndarray] = field(default_factory=list)
+    frame: list[np.ndarray] = field(default_factory=list)
+    values: list[np.ndarray] = field(default_factory=list)
+    ok: list[np.ndarray] = field(default_factory=list)
+    ordinal: list[np.ndarray] = field(default_factory=list)
+    frames: dict[str, int] = field(default_factory=dict)
+
+    def add(self, d: cdr_decode.DecodedBatch, field_name: str, ordinal: np.ndarray) -> None:
+        remap = np.array([self.frames.setdefault(f, len(self.frames)) for f in d.frame_ids]
+                         + [-1], dtype=np.int32)
+        self.stamp.append(d.stamp_ns)
+        self.frame.append(remap[d.frame_index])  # -1 indexes the appended -1
+        v = d.fields[field_name]
+        self.values.append(v if v.shape[1] != 1 else v.reshape(-1, 1))
+        self.ok.append(d.ok)
+        self.ordinal.append(ordinal)
+
+    def arrays(self) -> tuple[np.ndarray, ...]:
+        """(stamp, frame, values, ok, ordinal) in arrival (file) order."""
+        if not self.stamp:
+            z = np.zeros(0, np.int64)
+            return z, z.astype(np.int32), np.zeros((0, 3)), z.astype(bool), z
+        order = np.argsort(np.concatenate(self.ordinal), kind='stable')
+        return tuple(np.concatenate(a)[order] for a in
+                     (self.stamp, self.frame, self.values, self.ok, self.ordinal))
+
+
+def log_files(path: str | Path) -> list[Path]:
+    """The MCAP files of a log: the file itself, or a rosbag2 directory's files in order.
+
+    Parameters
+    ----------
+    path : str or Path
+        A ``.mcap`` file or a rosbag2 directory.
+
+    Returns
+    -------
+    list of Path
+
+    Raises
+    ------
+    LogError
+        Missing path, a directory that is not an MCAP rosbag2 bag, or no files.
+    """
+    p = Path(path)
+    if not p.exists():
+        raise LogError(f'{p}: no such file or directory')
+    if p.is_file():
+        return [p]
+    meta = p / 'metadata.yaml'
+    if meta.is_file():
+        import yaml
+
+        try:
+            info = yaml.safe_load(meta.read_text()) or {}
+            info = info.get('rosbag2_bagfile_information', info)
+        except (yaml.YAMLError, AttributeError) as exc:
+            raise LogError(f'{meta}: not valid rosbag2 metadata ({exc.__class__.__name__}); '
+                           'fix or remove it') from None
+        storage = info.get('storage_identifier', 'mcap')
+        if storage != 'mcap':
+            raise LogError(f'{p}: rosbag2 storage {storage!r} is not supported; convert it '
+                           'with "ros2 bag convert" to mcap')
+        if info.get('compression_format'):
+            raise LogError(f'{p}: file-compressed bags ({info["compression_format"]}) are not '
+                           'supported; decompress the files first')
+        rel = info.get('relative_file_paths') or []
+        files = [p / r for r in rel]
+        present = [f for f in files if f.is_file()]
+        if present:
+            return present
+    files = sorted(p.glob('*.mcap'))
+    if not files:
+        raise LogError(f'{p}: directory holds no .mcap files (expected a rosbag2 bag)')
+    return files
+
+
+def read_log(path: str | Path, omega_topic: str | None = None,
+             torque_topic: str | None = None, *, ignore_frames: bool = False,
+             torque_delay: float = 0.0, gap_factor: float = 5.0,
+             max_backward_jump: float = 0.5, min_window: int = 10,
+             progress: Callable[[int, int], None] | None = None) -> LogData:
+    """Read a log into cleaned angular-velocity and torque streams.
+
+    Parameters
+    ----------
+    path : str or Path
+        A ``.mcap`` file or a rosbag2 directory.  Never modified.
+    omega_topic, torque_topic : str, optional
+        Topics to use; found by message type when not given.
+    ignore_frames : bool
+        Accept different ``frame_id`` values (between and within streams).
+    torque_delay : float
+        The torque stream's stamps lag the torque actually applied by this much [s]; it is
+        subtracted from the torque stamps before alignment.
+    gap_factor : float
+        A stamp step larger than this many median steps is a gap (> 1).
+    max_backward_jump : float
+        A backward step of the merged stamps larger than this [s] is a clock jump (a new
+        piece of the log); smaller ones are out-of-order arrival (> 0).
+    min_window : int
+        Windows with fewer gyro samples are dropped (>= 2).
+    progress : callable, optional
+        ``progress(bytes_done, bytes_total)`` while reading.
+
+    Returns
+    -------
+    LogData
+
+    Raises
+    ------
+    LogError
+        Unreadable input, no or ambiguous topics, wrong message types, mismatched frames,
+        empty streams.
+    ValueError
+        Invalid numeric arguments.
+    """
+    if not np.isfinite(torque_delay):
+        raise ValueError(f'torque_delay: must be finite, got {torque_delay}')
+    if not gap_factor > 1:
+        raise ValueError(f'gap_factor: must be > 1, got {gap_factor}')
+    if not max_backward_jump > 0:
+        raise ValueError(f'max_backward_jump: must be > 0, got {max_backward_jump}')
+    if min_window < 2:
+        raise ValueError(f'min_window: must be >= 2, got {min_window}')
+    files = log_files(path)
+    raws, topics, metadata, damage, warnings = _read_files(files, omega_topic, torque_topic,
+                                                           progress)
+    if damage.any:
+        for note in damage.notes:
+            warnings.append(f'damaged log: {note}')
+    om_topic, tq_topic = _choose_topics(path, topics, omega_topic, torque_topic)
+    om_type = topics[om_topic]
+    tq_type = topics[tq_topic]
+
+    om = _prepare(om_topic, om_type, raws.get(om_topic), ignore_frames, warnings)
+    tq = _prepare(tq_topic, tq_type, raws.get(tq_topic), ignore_frames, warnings)
+    if not ignore_frames and om[4] != tq[4]:
+        raise LogError(f'frames differ: {om_topic} is in {om[4]!r} but {tq_topic} is in '
+                       f'{tq[4]!r}; the torque must be expressed in the gyro frame (or pass '
+                       '--ignore-frames if they are the same frame under two names)')
+    if torque_delay:
+        tq = (tq[0] - int(round(torque_delay * 1e9)), *tq[1:])
+    data = _clean(om, tq, gap_factor=gap_factor, max_backward_jump=max_backward_jump,
+                  min_window=min_window, warnings=warnings)
+    epoch, (t_om, v_om, c_om), (t_tq, v_tq, c_tq), windows, jumps = data
+    omega = Stream(om_topic, om_type, om[4], t_om, v_om, c_om, _rate(t_om))
+    torque = Stream(tq_topic, tq_type, tq[4], t_tq, v_tq, c_tq, _rate(t_tq))
+    truth = _truth(raws.get(TRUTH_TOPIC), epoch)
+    return LogData(files, epoch, omega, torque, windows, jumps, truth, topics, metadata,
+                   damage, warnings)
+
+
+def _read_files(files: list[Path], omega_topic: str | None, torque_topic: str | None,
+                progress: Callable[[int, int], None] | None
+                ) -> tuple[dict[str, _Raw], dict[str, str], dict[str, dict[str, str]],
+                           Damage, list[str]]:
+    """One pass over every file: decode every topic of a type we can use."""
+    wanted_types = set(OMEGA_TYPES) | set(TORQUE_TYPES) | {TRUTH_TYPE}
+    named = {t for t in (omega_topic, torque_topic) if t}
+    raws: dict[str, _Raw] = {}
+    topics: dict[str, str] = {}
+    metadata: dict[str, dict[str, str]] = {}
+    damage = Damage()
+    warnings: list[str] = []
+    sizes = [f.stat().st_size for f in files]
+    total = sum(sizes)
+    done = 0
+    ordinal_base = 0
+    for f, size in zip(files, sizes, strict=True):
+        def prog(b: int, _n: int, _done: int = done) -> None:
+            if progress is not None:
+                progress(_done + b, total)
+
+        try:
+            reader = McapReader(f, progress=prog)
+        except McapError as exc:
+            raise LogError(str(exc)) from None
+        with reader:
+            def select(ch: Channel, schema: Schema | None) -> bool:
+                typ = cdr_decode.normalise_type(schema.name) if schema else ''
+                if ch.message_encoding != 'cdr' or typ not in wanted_types:
+                    return False
+                if named and ch.topic not in named and ch.topic != TRUTH_TOPIC:
+                    return False
+                return True
+
+            for b in reader.iter_batches(select):
+                typ = cdr_decode.normalise_type(b.schema.name)
+                raw = raws.setdefault(b.channel.topic, _Raw(typ))
+                if typ != raw.msg_type:
+                    warnings.append(f'{b.channel.topic}: type changed from {raw.msg_type} to '
+                                    f'{typ} in {f.name}; those messages are ignored')
+                    continue
+                fname = _field_for(typ, b.channel.topic)
+                fields = None if typ == TRUTH_TYPE else (fname,)
+                d = cdr_decode.decode_batch(typ, b.buf, b.starts, b.lengths, fields)
+                if typ == TRUTH_TYPE:
+                    vals = np.concatenate([d.fields[k] for k, _ in
+                                           cdr_decode.LAYOUTS[TRUTH_TYPE][2:]], axis=1)
+                    d = cdr_decode.DecodedBatch(d.msg_type, d.stamp_ns, d.frame_index,
+                                                d.frame_ids, {'inertia': vals}, d.ok)
+                    fname = 'inertia'
+                raw.add(d, fname, ordinal_base + b.ordinal)
+            for ch in reader.channels.values():
+                sc = reader.schemas.get(ch.schema_id)
+                topics.setdefault(ch.topic, cdr_decode.normalise_type(sc.name) if sc else '')
+            for md in reader.metadata:
+                metadata[md.name] = md.metadata
+            ordinal_base += reader.messages_read
+            d0 = reader.damage
+            damage.truncated |= d0.truncated
+            damage.corrupt_chunks += d0.corrupt_chunks
+            damage.bytes_lost += d0.bytes_lost
+            damage.messages_lost += d0.messages_lost
+            damage.notes.extend(f'{f.name}: {n}' for n in d0.notes)
+        done += size
+    return raws, topics, metadata, damage, warnings
+
+
+def _field_for(msg_type: str, topic: str) -> str:
+    if msg_type in OMEGA_TYPES and msg_type not in TORQUE_TYPES:
+        return OMEGA_TYPES[msg_type]
+    if msg_type in TORQUE_TYPES:
+        return TORQUE_TYPES[msg_type]
+    return 'inertia'
+
+
+def _list_topics(topics: dict[str, str]) -> str:
+    if not topics:
+        return 'the log has no topics'
+    return 'topics in the log: ' + ', '.join(f'{t} ({ty or "no schema"})'
+                                              for t, ty in sorted(topics.items()))
+
+
+def _choose_topics(path: str | Path, topics: dict[str, str], omega_topic: str | None,
+                   torque_topic: str | None) -> tuple[str, str]:
+    """Pick the angular-velocity and torque topics (given, or by type and name)."""
+    for name, given, types, flag in (('angular velocity', omega_topic, OMEGA_TYPES,
+                                      '--omega-topic'),
+                                     ('torque', torque_topic, TORQUE_TYPES, '--torque-topic')):
+        if given is None:
+            continue
+        if given not in topics:
+            raise LogError(f'{path}: topic {given} ({flag}) is not in the log; '
+                           f'{_list_topics(topics)}')
+        if topics[given] not in types:
+            raise LogError(f'{path}: topic {given} has type {topics[given] or "unknown"}, not '
+                           f'a {name} type ({", ".join(types)})')
+    usable = {t: ty for t, ty in topics.items() if not t.startswith('/truth/')}
+
+    def pick(kind: str, types: dict[str, str], strong: tuple[str, ...],
+             words: tuple[str, ...], other: str | None, flag: str) -> str:
+        cands = [t for t, ty in usable.items() if ty in strong and t != other]
+        if not cands:
+            cands = [t for t, ty in usable.items() if ty in types and t != other
+                     and any(w in t.lower() for w in words)]
+        if not cands:
+            cands = [t for t, ty in usable.items() if ty in types and t != other]
+        if len(cands) == 1:
+            return cands[0]
+        if not cands:
+            raise LogError(f'{path}: no {kind} topic (types {", ".join(types)}); '
+                           f'{_list_topics(topics)}')
+        raise LogError(f'{path}: several {kind} topics ({", ".join(sorted(cands))}); choose '
+                       f'one with {flag}')
+
+    om = omega_topic or pick('angular velocity', OMEGA_TYPES,
+                             ('sensor_msgs/msg/Imu', 'geometry_msgs/msg/TwistStamped'),
+                             _OMEGA_WORDS, torque_topic, '--omega-topic')
+    tq = torque_topic or pick('torque', TORQUE_TYPES, ('geometry_msgs/msg/WrenchStamped',),
+                              _TORQUE_WORDS, om, '--torque-topic')
+    if om == tq:
+        raise LogError(f'{path}: the same topic {om} cannot be both angular velocity and '
+                       'torque; give --omega-topic and --torque-topic')
+    return om, tq
+
+
+# --------------------------------------------------------------------------------------------
+# Cleaning
+
+
+def _prepare(topic: str, msg_type: str, raw: _Raw | None, ignore_frames: bool,
+             warnings: list[str]) -> tuple:
+    """(stamp, values, keep, counts, frame, ordinal-free arrays) with bad messages marked."""
+    if raw is None:
+        raise LogError(f'{topic}: no messages of type {msg_type} in the log (empty stream)')
+    stamp, frame, values, ok, ordinal = raw.arrays()
+    counts = StreamCounts(received=int(stamp.size))
+    if stamp.size == 0:
+        raise LogError(f'{topic}: the stream is empty')
+    keep = ok.copy()
+    counts.malformed = int((~ok).sum())
+    if counts.malformed:
+        warnings.append(f'{topic}: {counts.malformed} malformed messages dropped')
+    finite = np.isfinite(values).all(axis=1)
+    counts.nonfinite = int((keep & ~finite).sum())
+    keep &= finite
+    names = {v: k for k, v in raw.frames.items()}
+    frame_name = ''
+    if keep.any():
+        codes, n = np.unique(frame[keep], return_counts=True)
+        main = int(codes[np.argmax(n)])
+        frame_name = names.get(main, '')
+        if codes.size > 1:
+            stray = keep & (frame != main)
+            n_stray = int(stray.sum())
+            others = ', '.join(repr(names.get(int(c), '?')) for c in codes if c != main)
+            if not ignore_frames and n_stray > max(3, 0.01 * keep.sum()):
+                raise LogError(f'{topic}: messages in several frames ({frame_name!r} and '
+                               f'{others}); record one frame per topic or pass '
+                               '--ignore-frames')
+            if not ignore_frames:
+                keep &= ~stray
+                counts.wrong_frame = n_stray
+                warnings.append(f'{topic}: {n_stray} messages in frame(s) {others} instead of '
+                                f'{frame_name!r} dropped')
+    if counts.nonfinite:
+        warnings.append(f'{topic}: {counts.nonfinite} samples with NaN or Inf dropped')
+    if not keep.any():
+        raise LogError(f'{topic}: no usable messages ({counts.received} received, all '
+                       'malformed or non-finite)')
+    return stamp, values, keep, counts, frame_name, ordinal
+
+
+def _median_step(s: np.ndarray) -> float:
+    d = np.diff(s)
+    d = d[d > 0]
+    return float(np.median(d)) if d.size else float('nan')
+
+
+def _rate(t: np.ndarray) -> float:
+    step = _median_step(t)
+    return 1.0 / step if np.isfinite(step) and step > 0 else float('nan')
+
+
+def _runs(stamps: np.ndarray, limit: float) -> list[tuple[int, int]]:
+    """Index ranges [a, b) of ``stamps`` (sorted) without a step above ``limit``."""
+    if stamps.size == 0:
+        return []
+    cut = np.flatnonzero(np.diff(stamps) > limit) + 1
+    edges = np.concatenate(([0], cut, [stamps.size]))
+    return [(int(a), int(b)) for a, b in zip(edges[:-1], edges[1:], strict=True)]
+
+
+def _clean(om: tuple, tq: tuple, *, gap_factor: float, max_backward_jump: float,
+           min_window: int, warnings: list[str]):
+    """Pieces, sorting, de-duplication, gaps and windows; returns times relative to epoch."""
+    s_om, v_om, k_om, c_om, _, o_om = om
+    s_tq, v_tq, k_tq, c_tq, _, o_tq = tq
+    idx_om = np.flatnonzero(k_om)
+    idx_tq = np.flatnonzero(k_tq)
+    # Pieces: backward clock jumps of the merged stamp sequence in arrival (file) order.
+    which = np.concatenate((np.zeros(idx_om.size, np.int8), np.ones(idx_tq.size, np.int8)))
+    pos = np.concatenate((idx_om, idx_tq))
+    order = np.argsort(np.concatenate((o_om[idx_om], o_tq[idx_tq])), kind='stable')
+    which, pos = which[order], pos[order]
+    merged = np.empty(pos.size, np.int64)
+    m0 = which == 0
+    merged[m0] = s_om[pos[m0]]
+    merged[~m0] = s_tq[pos[~m0]]
+    piece, spikes = _pieces(merged, int(max_backward_jump * 1e9))
+    for w, c, k in ((0, c_om, k_om), (1, c_tq, k_tq)):
+        bad = pos[spikes & (which == w)]
+        c.bad_stamps += int(bad.size)
+        k[bad] = False
+    keep = ~spikes
+    which, pos, piece = which[keep], pos[keep], piece[keep]
+    idx_om, piece_om = pos[which == 0], piece[which == 0]
+    idx_tq, piece_tq = pos[which == 1], piece[which == 1]
+    n_pieces = int(piece.max(initial=0)) + 1
+    jumps = n_pieces - 1
+    if jumps:
+        warnings.append(f'{jumps} backward clock jump(s) (restarted or looped recording): the '
+                        'log is split into pieces estimated as separate segments')
+    for name, c in (('angular velocity', c_om), ('torque', c_tq)):
+        if c.bad_stamps:
+            warnings.append(f'{name}: {c.bad_stamps} messages with a stamp far off its '
+                            'neighbours dropped')
+    out_t_om, out_v_om, out_t_tq, out_v_tq = [], [], [], []
+    windows_ns: list[tuple[int, int]] = []
+    shift = 0
+    last_end: int | None = None
+    epoch: int | None = None
+    for p in range(n_pieces):
+        a = idx_om[piece_om == p]
+        b = idx_tq[piece_tq == p]
+        if a.size == 0 or b.size == 0:
+            c_om.outside += int(a.size)
+            c_tq.outside += int(b.size)
+            continue
+        a, oo_a, dup_a = _sort_dedup(s_om, a)
+        b, oo_b, dup_b = _sort_dedup(s_tq, b)
+        c_om.out_of_order += oo_a
+        c_om.duplicates += dup_a
+        c_tq.out_of_order += oo_b
+        c_tq.duplicates += dup_b
+        sa, sb = s_om[a], s_tq[b]
+        step_a, step_b = _median_step(sa), _median_step(sb)
+        runs_a = _runs(sa, gap_factor * step_a) if np.isfinite(step_a) else [(0, sa.size)]
+        runs_b = _runs(sb, gap_factor * step_b) if np.isfinite(step_b) else [(0, sb.size)]
+        c_om.gaps += len(runs_a) - 1
+        c_tq.gaps += len(runs_b) - 1
+        # windows: intersections of the gap-free runs of the two streams
+        wins = []
+        for ra in runs_a:
+            for rb in runs_b:
+                lo = max(int(sa[ra[0]]), int(sb[rb[0]]))
+                hi = min(int(sa[ra[1] - 1]), int(sb[rb[1] - 1]))
+                if hi > lo:
+                    wins.append((lo, hi))
+        wins.sort()
+        ka = np.zeros(sa.size, bool)
+        kb = np.zeros(sb.size, bool)
+        good = []
+        for lo, hi in wins:
+            ma = (sa >= lo) & (sa <= hi)
+            if ma.sum() < min_window:
+                continue
+            mb = (sb >= lo) & (sb <= hi)
+            ka |= ma
+            kb |= mb
+            good.append((lo, hi))
+        c_om.outside += int((~ka).sum())
+        c_tq.outside += int((~kb).sum())
+        if not good:
+            continue
+        if epoch is None:
+            epoch = good[0][0]
+        if last_end is not None and good[0][0] + shift <= last_end:
+            # a later piece overlapping in time: place it after the previous one, one second on
+            shift = last_end + 1_000_000_000 - good[0][0]
+        out_t_om.append(sa[ka] + shift)
+        out_v_om.append(v_om[a[ka]])
+        out_t_tq.append(sb[kb] + shift)
+        out_v_tq.append(v_tq[b[kb]])
+        windows_ns.extend((lo + shift, hi + shift) for lo, hi in good)
+        last_end = good[-1][1] + shift
+    if epoch is None:
+        raise LogError('the angular-velocity and torque streams never overlap in time (header '
+                       'stamps); check the clocks, or --torque-delay')
+    t_om = (np.concatenate(out_t_om) - epoch) / 1e9
+    t_tq = (np.concatenate(out_t_tq) - epoch) / 1e9
+    c_om.used = int(t_om.size)
+    c_tq.used = int(t_tq.size)
+    windows = [((lo - epoch) / 1e9, (hi - epoch) / 1e9) for lo, hi in windows_ns]
+    for name, c in (('angular velocity', c_om), ('torque', c_tq)):
+        if c.duplicates:
+            warnings.append(f'{name}: {c.duplicates} duplicated messages dropped')
+        if c.out_of_order:
+            warnings.append(f'{name}: {c.out_of_order} messages arrived out of order (sorted)')
+        if c.gaps:
+            warnings.append(f'{name}: {c.gaps} gap(s) in the stream; estimation windows split')
+    frac = c_om.outside / max(c_om.received, 1)
+    if frac > 0.05:
+        warnings.append(f'{100 * frac:.0f}% of the angular-velocity samples lie outside the '
+                        'torque coverage (a stream stops early or starts late) and were dropped')
+    return (epoch, (t_om, np.concatenate(out_v_om), c_om), (t_tq, np.concatenate(out_v_tq),
+            c_tq), windows, jumps)
+
+
+def _pieces(stamps: np.ndarray, jump_ns: int) -> tuple[np.ndarray, np.ndarray]:
+    """Split an arrival-ordered stamp sequence at backward clock jumps.
+
+    A backward step larger than ``jump_ns`` starts a new piece, unless it only ends or is a
+    one-sample spike (the stamps return to where they were): then that sample is flagged.
+
+    Returns
+    -------
+    piece : (n,) int64 piece number of each stamp
+    spike : (n,) bool, samples whose stamp is a lone outlier
+    """
+    n = stamps.size
+    spike = np.zeros(n, bool)
+    jump = np.zeros(n, bool)
+    back = np.flatnonzero(stamps[1:] < stamps[:-1] - jump_ns) + 1
+    for i in back.tolist():
+        if spike[i - 1]:
+            continue  # the step back from a spike already handled
+        if i >= 2 and stamps[i] >= stamps[i - 2] - jump_ns and not jump[i - 1]:
+            spike[i - 1] = True  # forward spike at i-1, back to normal at i
+        elif i + 1 < n and stamps[i + 1] >= stamps[i - 1] - jump_ns:
+            spike[i] = True  # backward spike at i
+        else:
+            jump[i] = True
+    return np.cumsum(jump), spike
+
+
+def _sort_dedup(stamps: np.ndarray, idx: np.ndarray) -> tuple[np.ndarray, int, int]:
+    """Sort indexes ``idx`` by stamp (stable) and drop repeated stamps.
+
+    Returns
+    -------
+    (idx, out_of_order, duplicates)
+    """
+    s = stamps[idx]
+    late = int((s[1:] < np.maximum.accumulate(s)[:-1]).sum()) if s.size > 1 else 0
+    order = np.argsort(s, kind='stable')
+    idx = idx[order]
+    s = s[order]
+    dup = np.zeros(s.size, bool)
+    dup[1:] = s[1:] == s[:-1]
+    return idx[~dup], late, int(dup.sum())
+
+
+def _truth(raw: _Raw | None, epoch: int) -> list[tuple[float, np.ndarray]]:
+    """The true tensors recorded on /truth/inertia, as (t [s], (3, 3)) in stamp order."""
+    if raw is None:
+        return []
+    stamp, _, vals, ok, _ = raw.arrays()
+    out = []
+    for k in np.argsort(stamp, kind='stable'):
+        if not ok[k]:
+            continue
+        ixx, ixy, ixz, iyy, iyz, izz = vals[k]
+        mat = np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]])
+        out.append(((int(stamp[k]) - epoch) / 1e9, mat))
+    return out
