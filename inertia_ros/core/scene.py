@@ -12,7 +12,7 @@ Torque components (``torque:`` list, summed) and their type-specific keys, with 
 ============  ===========================================================================
 type          keys (all components also take ``amplitude``, ``axes``, ``start``, ``end``)
 ============  ===========================================================================
-multisine     ``f_min`` 0.05 Hz, ``f_max`` 1.0 Hz, ``n_freq`` 6 (per axis),
+multisine     ``f_min`` 0.02 Hz, ``f_max`` 0.5 Hz, ``n_freq`` 6 (per axis),
               ``phases`` ``schroeder`` | ``random``; axes get interleaved frequencies
 sine          ``frequency`` Hz (required), ``phase`` rad (scalar or per axis, default 0)
 steps         ``period`` 2.0 s; levels uniform in [-amplitude, amplitude] per axis
@@ -62,7 +62,7 @@ AXIS_NAMES = ('x', 'y', 'z')
 
 #: Type-specific keys of each torque component type, with their defaults (None = required).
 TORQUE_TYPES: Mapping[str, Mapping[str, Any]] = MappingProxyType({
-    'multisine': {'f_min': 0.05, 'f_max': 1.0, 'n_freq': 6, 'phases': 'schroeder'},
+    'multisine': {'f_min': 0.02, 'f_max': 0.5, 'n_freq': 6, 'phases': 'schroeder'},
     'sine': {'frequency': None, 'phase': 0.0},
     'steps': {'period': 2.0},
     'prbs': {'bit_time': 0.5},
