@@ -238,3 +238,22 @@ def test_primitives_reject_bad_input_naming_the_argument(call, match):
     """Bad dimensions or masses raise ValueError naming the argument and the problem."""
     with pytest.raises(ValueError, match=match):
         call()
+
+
+def test_composite_accepts_parts_about_any_reference_point_and_sum():
+    """Parts given about other points (rod about its end) combine as if about their CoMs.
+
+    A dumbbell (two spheres on a rod, about the rod's end) equals the same parts about their
+    centres; ``sum(parts)`` equals ``composite(parts)`` (rtol 1e-12).
+    """
+    rod_end = bodies.thin_rod(1.0, 2.0, about='end')                     # CoM at z = 1
+    rod_mid = bodies.thin_rod(1.0, 2.0).translated([0.0, 0.0, 1.0])
+    s0 = bodies.solid_sphere(2.0, 0.1)
+    s1 = bodies.solid_sphere(2.0, 0.1).translated([0.0, 0.0, 2.0])
+    a = composite([rod_end, s0, s1])
+    b = sum([rod_mid, s0, s1])
+    assert a.allclose(b, rtol=1e-12)
+    np.testing.assert_allclose(a.com, [0.0, 0.0, 1.0], rtol=1e-12)
+    expected_xx = 1.0 * 4 / 12 + 2 * (0.4 * 2.0 * 0.01 + 2.0 * 1.0)
+    np.testing.assert_allclose(np.diag(a.matrix), [expected_xx, expected_xx, 2 * 0.008],
+                               rtol=1e-12)

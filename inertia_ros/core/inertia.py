@@ -309,7 +309,7 @@ def principal_axes(I: Any, *, rtol: float = SYMMETRY_RTOL) -> tuple[np.ndarray, 
 # ---------------------------------------------------------------------------------------------
 # physical validity
 # ---------------------------------------------------------------------------------------------
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class PhysicalCheck:
     """Result of :func:`check_physical`: which physical conditions hold and by how much.
 
@@ -999,7 +999,7 @@ def _vector_from_msg(x: Any, name: str) -> np.ndarray:
     return _as_vector3(x, name)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Ellipsoid:
     """An ellipsoid for drawing a tensor: centre, semi-axes and orientation.
 
@@ -1290,7 +1290,19 @@ class InertiaTensor:
         return bool(np.array_equal(self.point, self.com))
 
     def check(self, rtol: float = 1e-9, *, allow_singular: bool = False) -> PhysicalCheck:
-        """:func:`check_physical` on the matrix (see there)."""
+        """Physical validity of the matrix: :func:`check_physical` (see there).
+
+        Parameters
+        ----------
+        rtol : float
+            Relative tolerance.
+        allow_singular : bool
+            Accept a zero smallest moment (thin rods, point masses).
+
+        Returns
+        -------
+        PhysicalCheck
+        """
         return check_physical(self.matrix, rtol, allow_singular=allow_singular)
 
     def about_axis(self, axis: Any) -> float:
@@ -1540,8 +1552,20 @@ class InertiaTensor:
     def allclose(self, other: InertiaTensor, rtol: float = 1e-9, atol: float = 0.0) -> bool:
         """Whether matrix, mass, com and point agree within ``rtol``/``atol``.
 
-        ``atol`` applies to every field in its own units; the matrix tolerance is relative to
-        its largest element.  Masses must both be known or both be None.
+        Parameters
+        ----------
+        other : InertiaTensor
+            Tensor to compare with.
+        rtol : float
+            Relative tolerance: to the largest matrix element for the matrix, to the mass, and
+            to max(1 m, largest coordinate) for ``com`` and ``point``.
+        atol : float
+            Absolute tolerance, applied to every field in its own units.
+
+        Returns
+        -------
+        bool
+            False also when one mass is known and the other is None.
         """
         if (self.mass is None) != (other.mass is None):
             return False
