@@ -419,33 +419,46 @@ _CONE_A = np.array([[1.0, 0.0, 0.0],
                     [-1.0, 1.0, 1.0],
                     [1.0, -1.0, 1.0],
                     [1.0, 1.0, -1.0]])
-_ACTIVE_SETS = [list(s) for k in range(4) for s in itertools.combinations(range(6), k)]
+_CONE_B = np.array([1.0, 1.0, 1.0, 0.0, 0.0, 0.0])     # b = eps * _CONE_B
+
+
+def _face_projectors() -> tuple[np.ndarray, np.ndarray]:
+    """Affine projectors onto every face of the constraint polyhedron.
+
+    For each set S of at most three linearly independent active rows, the projection of
+    ``lam`` onto {A_S x = eps b_S} is ``M_S lam + eps c_S`` with
+    ``M_S = 1 - A_S^T G^-1 A_S``, ``c_S = A_S^T G^-1 b_S`` and ``G = A_S A_S^T``.
+    """
+    mats, offs = [np.eye(3)], [np.zeros(3)]
+    for k in range(1, 4):
+        for active in itertools.combinations(range(6), k):
+            A = _CONE_A[list(active)]
+            gram = A @ A.T
+            if abs(np.linalg.det(gram)) < 1e-9:
+                continue
+            ginv = np.linalg.inv(gram)
+            mats.append(np.eye(3) - A.T @ ginv @ A)
+            offs.append(A.T @ ginv @ _CONE_B[list(active)])
+    return np.array(mats), np.array(offs)
+
+
+_FACE_M, _FACE_C = _face_projectors()
 
 
 def _project_moments(lam: np.ndarray, eps: float) -> np.ndarray:
     """Euclidean projection of ``lam`` (3,) onto {x_i >= eps, x_i + x_j >= x_k}.
 
     The set is a convex polyhedron, so the projection is the feasible point nearest ``lam``
-    among the projections onto the affine hulls of its faces (at most three active rows).
+    among the projections onto the affine hulls of its faces (at most three active rows);
+    all candidates are evaluated at once.
     """
-    b = np.array([eps, eps, eps, 0.0, 0.0, 0.0])
+    cand = _FACE_M @ lam + eps * _FACE_C                  # (K, 3)
     slack_tol = 1e-12 * max(1.0, float(np.max(np.abs(lam))), eps)
-    best, best_d = None, np.inf
-    for active in _ACTIVE_SETS:
-        if active:
-            A = _CONE_A[active]
-            gram = A @ A.T
-            if abs(np.linalg.det(gram)) < 1e-9:
-                continue
-            x = lam - A.T @ np.linalg.solve(gram, A @ lam - b[active])
-        else:
-            x = lam.copy()
-        if np.all(_CONE_A @ x - b >= -slack_tol):
-            d = float(np.sum((x - lam) ** 2))
-            if d < best_d:
-                best, best_d = x, d
-    assert best is not None  # eps * (1, 1, 1) is always a vertex candidate
-    return best
+    feasible = np.all(cand @ _CONE_A.T - eps * _CONE_B >= -slack_tol, axis=1)
+    dist = np.where(feasible, np.sum((cand - lam) ** 2, axis=1), np.inf)
+    if feasible[0]:                                       # already valid: exactly unchanged
+        return lam
+    return cand[int(np.argmin(dist))]                    # eps * (1, 1, 1) is always feasible
 
 
 def nearest_physical(I: Any, *, min_moment: float | None = None) -> np.ndarray:
@@ -506,6 +519,20 @@ def nearest_physical(I: Any, *, min_moment: float | None = None) -> np.ndarray:
 # ---------------------------------------------------------------------------------------------
 # Euler's equations
 # ---------------------------------------------------------------------------------------------
+def _matvec(m: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """``m @ v`` for m (3, 3) or (..., 3, 3) and v (..., 3), broadcasting leading dims."""
+    if m.ndim == 2:
+        return v @ m.T
+    return np.einsum('...ij,...j->...i', m, v)
+
+
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Cross product over the last axis (faster than np.cross for small arrays)."""
+    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
+    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
+    return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
+
+
 def _as_stack_matrix(I: Any) -> np.ndarray:
     """Validated (3, 3) or (..., 3, 3) inertia for broadcasting in Euler's equations."""
     return as_inertia_matrix(I, 'I', stacked=True)
@@ -540,8 +567,7 @@ def euler_torque(I: Any, omega: Any, omega_dot: Any) -> np.ndarray:
     w = _as_vectors(omega, 'omega')
     wd = _as_vectors(omega_dot, 'omega_dot')
     try:
-        Iw = np.einsum('...ij,...j->...i', m, w)
-        return np.einsum('...ij,...j->...i', m, wd) + np.cross(w, Iw)
+        return _matvec(m, wd) + _cross(w, _matvec(m, w))
     except ValueError as exc:
         raise ValueError(f'omega, omega_dot: shapes {w.shape}, {wd.shape} and I {m.shape} do '
                          f'not broadcast ({exc})') from None
@@ -573,7 +599,7 @@ def euler_omega_dot(I: Any, omega: Any, tau: Any) -> np.ndarray:
     w = _as_vectors(omega, 'omega')
     t = _as_vectors(tau, 'tau')
     try:
-        rhs = t - np.cross(w, np.einsum('...ij,...j->...i', m, w))
+        rhs = t - _cross(w, _matvec(m, w))
     except ValueError as exc:
         raise ValueError(f'omega, tau: shapes {w.shape}, {t.shape} and I {m.shape} do not '
                          f'broadcast ({exc})') from None
@@ -582,6 +608,8 @@ def euler_omega_dot(I: Any, omega: Any, tau: Any) -> np.ndarray:
     if np.any(np.abs(lam).min(axis=-1) <= 1e-14 * scale) or np.any(scale == 0.0):
         raise ValueError('I: singular (a principal moment is zero), so Euler\'s equation cannot '
                          'be solved for omega_dot')
+    if m.ndim == 2:                                    # one inertia: invert once, multiply
+        return _matvec(np.linalg.inv(m), rhs)
     batch = np.broadcast_shapes(m.shape[:-2], rhs.shape[:-1])
     m_b = np.broadcast_to(m, batch + (3, 3))
     rhs_b = np.broadcast_to(rhs, batch + (3,))[..., None]
