@@ -332,7 +332,8 @@ class TorqueComponent:
     axes : tuple of int
         Excited axes (0 = x, 1 = y, 2 = z), in the order given.
     start, end : float
-        Active window [s]; the component is zero outside ``start <= t < end``.
+        Active window [s]; the component is zero outside ``start <= t < end``.  ``end`` is
+        ``inf`` unless given (active to the end of the run, the last command included).
     params : Mapping[str, Any]
         Type-specific parameters with defaults filled in (see the module docstring).
     """
@@ -374,7 +375,11 @@ class TorqueComponent:
         amp[~mask] = 0.0
         amp.setflags(write=False)
         start = _number(d.get('start', 0.0), f'{key}.start', nonneg=True)
-        end = _number(d.get('end', duration), f'{key}.end', nonneg=True)
+        if start >= duration:
+            raise SceneError(f'{key}.start: must be before the end of the run ({duration} s), '
+                             f'got {start}')
+        end = math.inf if d.get('end') is None else _number(d['end'], f'{key}.end',
+                                                              nonneg=True)
         if end <= start:
             raise SceneError(f'{key}.end: must be after start ({start}), got {end}')
         params: dict[str, Any] = {}
@@ -382,7 +387,7 @@ class TorqueComponent:
             if k not in d and default is None:
                 raise SceneError(f'{key}.{k}: missing (required for type {typ})')
             params[k] = d.get(k, default)
-        params = cls._check_params(typ, params, key, end - start)
+        params = cls._check_params(typ, params, key, min(end, duration) - start)
         return cls(typ, amp, tuple(axes), start, end, MappingProxyType(params))
 
     @staticmethod
@@ -433,7 +438,8 @@ class TorqueComponent:
         out = np.zeros((t.size, 3))
         active = (t >= self.start - 1e-12) & (t < self.end - 1e-12)
         tau = t[active] - self.start
-        span = self.end - self.start
+        span = (min(self.end, float(t[-1])) if t.size else self.end) - self.start
+        span = max(span, 1e-12)
         p = self.params
         n_ax = len(self.axes)
         sig = np.zeros((tau.size, 3))
@@ -469,7 +475,7 @@ class TorqueComponent:
                 win = span / n_ax
                 for j, ax in enumerate(self.axes):
                     tl = tau - j * win
-                    on = (tl >= 0.0) & (tl < win)
+                    on = (tl >= 0.0) & ((tl < win) | (j == n_ax - 1))
                     ph = 2.0 * np.pi * (f0 * tl + 0.5 * (f1 - f0) / win * tl ** 2)
                     sig[on, ax] = np.sin(ph[on])
             else:
