@@ -612,3 +612,21 @@ def test_every_public_callable_documents_its_parameters(qualname, obj):
     params = [p for p in inspect.signature(obj).parameters if p not in ('self', 'cls')]
     missing = [p for p in params if not re.search(rf'\b{p}\b', doc)]
     assert not missing, f'{qualname}: parameters {missing} not documented'
+
+
+def test_array_functions_accept_an_inertia_tensor():
+    """Functions taking I accept an InertiaTensor as well as a matrix (exact agreement)."""
+    body = bodies.solid_box(2.0, 0.3, 0.5, 0.7)
+    w, wd = np.array([0.1, -0.4, 0.9]), np.array([1.0, 0.5, -0.2])
+    np.testing.assert_array_equal(ti.euler_torque(body, w, wd),
+                                  ti.euler_torque(body.matrix, w, wd))
+    np.testing.assert_array_equal(ti.principal_axes(body)[1], body.principal_axes)
+    assert ti.check_physical(body).valid
+
+
+def test_axes_to_quaternion_ros_order():
+    """Identity -> [0, 0, 0, 1]; 90 deg about z -> [0, 0, sin 45, cos 45] (atol 1e-15)."""
+    np.testing.assert_allclose(ti.axes_to_quaternion(np.eye(3)), [0, 0, 0, 1], atol=1e-15)
+    rz = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+    s = np.sqrt(0.5)
+    np.testing.assert_allclose(ti.axes_to_quaternion(rz), [0, 0, s, s], atol=1e-15)

@@ -13,9 +13,10 @@ ascending (I1 <= I2 <= I3); principal axes are the columns of a proper rotation 
 first two each with its largest-magnitude component positive, the third their cross product.
 
 Everything here is pure numpy/scipy and vectorised over leading dimensions where the docstring
-says so.  This module holds the array functions, the :class:`InertiaTensor` value type and the
-dynamics helpers; the textbook primitives (point mass, rod, lamina, ... cone) and composite
-bodies are in :mod:`inertia_ros.core.bodies`.
+says so.  This module holds the array functions, the :class:`InertiaTensor` value type,
+composite bodies (:func:`composite`, ``+``, ``-``) and the dynamics helpers (angular momentum,
+kinetic energy, pendulum period, the power identity); the textbook primitives (point mass,
+rod, lamina, ... cone) are in :mod:`inertia_ros.core.bodies`.
 """
 from __future__ import annotations
 
