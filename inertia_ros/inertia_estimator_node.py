@@ -282,7 +282,7 @@ class InertiaEstimatorNode(Node):
         self._pub_markers = self.create_publisher(MarkerArray, '~/markers', 10)
         self._srv_reset = self.create_service(Trigger, '~/reset', self._on_reset)
         self._watchdog = self.create_timer(0.25, self._on_watchdog)
-        self._jump_handle = self.get_clock().create_jump_handler(
+        self._jump_handle = self.get_clock().create_jump_callback(
             JumpThreshold(min_forward=None, min_backward=Duration(nanoseconds=-1_000_000),
                           on_clock_change=True),
             post_callback=self._on_clock_jump)

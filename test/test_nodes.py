@@ -1,0 +1,398 @@
+"""The ROS 2 nodes: in-process rclpy tests over DDS, parameters, and nodes as processes.
+
+Every test process uses its own ROS_DOMAIN_ID (derived from the pid) so parallel runs do not
+cross-talk.  Synthetic streams come from the core simulator, published message by message.
+"""
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from conftest import ROOT
+
+rclpy = pytest.importorskip('rclpy')
+
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus  # noqa: E402
+from geometry_msgs.msg import InertiaStamped, Vector3Stamped, WrenchStamped  # noqa: E402
+from rclpy.executors import SingleThreadedExecutor  # noqa: E402
+from rclpy.node import Node  # noqa: E402
+from rclpy.parameter import Parameter  # noqa: E402
+from rclpy.qos import DurabilityPolicy, QoSProfile  # noqa: E402
+from sensor_msgs.msg import Imu  # noqa: E402
+from std_srvs.srv import Trigger  # noqa: E402
+
+from inertia_ros import inertia_estimator_node as en  # noqa: E402
+from inertia_ros.core.scene import Scene  # noqa: E402
+from inertia_ros.core.simulation import simulate  # noqa: E402
+from inertia_ros.io import ros_msgs  # noqa: E402
+from inertia_ros.io.scene_file import load_scene  # noqa: E402
+from inertia_ros.scene_simulator_node import sensor_qos  # noqa: E402
+
+pytestmark = pytest.mark.ros
+
+DOMAIN_ID = 1 + os.getpid() % 110  # 1..110; process tests use DOMAIN_ID + 110 (<= 220)
+EPOCH_NS = 1_700_000_000_000_000_000
+
+
+@pytest.fixture(scope='module')
+def context():
+    """An rclpy context on this process's private domain."""
+    ctx = rclpy.context.Context()
+    rclpy.init(context=ctx, domain_id=DOMAIN_ID)
+    yield ctx
+    rclpy.try_shutdown(context=ctx)
+
+
+class Harness:
+    """An estimator node plus a test node publishing inputs and collecting outputs."""
+
+    def __init__(self, ctx, overrides=None, omega_type=Imu):
+        params = [Parameter(k, value=v) for k, v in (overrides or {}).items()]
+        self.est = en.InertiaEstimatorNode(context=ctx, parameter_overrides=params)
+        self.node = Node('test_harness', context=ctx)
+        self.exe = SingleThreadedExecutor(context=ctx)
+        self.exe.add_node(self.est)
+        self.exe.add_node(self.node)
+        topic = 'imu' if omega_type is Imu else 'omega'
+        self.pub_gyro = self.node.create_publisher(omega_type, topic, sensor_qos(1000))
+        self.pub_torque = self.node.create_publisher(WrenchStamped, 'torque', sensor_qos(1000))
+        self.inertia: list[InertiaStamped] = []
+        self.moments: list[Vector3Stamped] = []
+        self.diag: list[DiagnosticStatus] = []
+        self.node.create_subscription(InertiaStamped, '/inertia_estimator/inertia',
+                                      self.inertia.append, 100)
+        self.node.create_subscription(Vector3Stamped, '/inertia_estimator/principal_moments',
+                                      self.moments.append, 100)
+        self.node.create_subscription(
+            DiagnosticArray, '/diagnostics',
+            lambda m: self.diag.extend(s for s in m.status if s.name == 'inertia_estimator'),
+            100)
+        self.spin_until(lambda: self.pub_gyro.get_subscription_count() > 0
+                        and self.pub_torque.get_subscription_count() > 0, 5.0)
+
+    def spin_until(self, cond, timeout):
+        end = time.monotonic() + timeout
+        while time.monotonic() < end:
+            if cond():
+                return True
+            self.exe.spin_once(timeout_sec=0.01)
+        return cond()
+
+    def spin_for(self, seconds):
+        end = time.monotonic() + seconds
+        while time.monotonic() < end:
+            self.exe.spin_once(timeout_sec=0.01)
+
+    def received(self):
+        c = self.est.counts()
+        return c['gyro_received'] + c['torque_received']
+
+    def play(self, sim, frame='base_link', gyro_frame=None, chunk=200):
+        """Publish a SimResult's streams in stamp order, spinning so nothing overflows."""
+        t = np.concatenate([sim.t_gyro, sim.t_torque])
+        kind = np.concatenate([np.zeros(sim.t_gyro.size, int), np.ones(sim.t_torque.size, int)])
+        idx = np.concatenate([np.arange(sim.t_gyro.size), np.arange(sim.t_torque.size)])
+        order = np.lexsort((kind, t))
+        sent = self.received()
+        for n, k in enumerate(order):
+            stamp = EPOCH_NS + int(round(t[k] * 1e9))
+            if kind[k] == 0:
+                self.pub_gyro.publish(ros_msgs.imu_msg(stamp, sim.omega[idx[k]],
+                                                       gyro_frame or frame))
+            else:
+                self.pub_torque.publish(ros_msgs.wrench_msg(stamp, sim.torque[idx[k]], frame))
+            sent += 1
+            if n % chunk == chunk - 1:
+                self.spin_until(lambda s=sent: self.received() >= s, 2.0)
+        assert self.spin_until(lambda: self.received() >= sent, 5.0), 'messages were lost'
+
+    def latest_diag(self):
+        self.spin_for(0.2)
+        return self.diag[-1]
+
+    def close(self):
+        self.exe.shutdown()
+        self.est.destroy_node()
+        self.node.destroy_node()
+
+
+@pytest.fixture
+def harness(context):
+    made = []
+
+    def make(**kw):
+        h = Harness(context, **kw)
+        made.append(h)
+        return h
+    yield make
+    for h in made:
+        h.close()
+
+
+def _values(status):
+    return {kv.key: kv.value for kv in status.values}
+
+
+def _short_scene(name='default.yaml', duration=None, **changes):
+    scene = load_scene(ROOT / 'config' / 'scenes' / name)
+    d = dict(scene.source)
+    if duration is not None:
+        d['duration'] = duration
+    d.update(changes)
+    return Scene.from_dict(d)
+
+
+# --------------------------------------------------------------------------- parameters
+def test_parameter_file_documents_every_parameter():
+    """config/inertia_estimator.yaml lists exactly the declared parameters, at their defaults."""
+    text = (ROOT / 'config' / 'inertia_estimator.yaml').read_text()
+    params = yaml.safe_load(text)['inertia_estimator']['ros__parameters']
+    params.pop('use_sim_time')
+    assert set(params) == set(en.PARAMETERS)
+    for name, p in en.PARAMETERS.items():
+        assert params[name] == p.default, name
+        assert f'\n    {name}:' in text and 'Default' in text
+
+
+@pytest.mark.parametrize('node_file', ['scene_simulator', 'bag_player'])
+def test_player_parameter_files_are_node_scoped(node_file):
+    """Each player's parameter file is '<node>: ros__parameters:' with a comment per entry."""
+    text = (ROOT / 'config' / f'{node_file}.yaml').read_text()
+    params = yaml.safe_load(text)[node_file]['ros__parameters']
+    lines = text.splitlines()
+    for name in params:
+        i = next(k for k, ln in enumerate(lines) if ln.strip().startswith(f'{name}:'))
+        assert lines[i - 1].strip().startswith('#'), f'{name} has no comment'
+
+
+def test_every_parameter_has_description_and_range(harness):
+    """Declared parameters carry a description; numeric ones a range, choices a constraint."""
+    est = harness().est
+    for name, p in en.PARAMETERS.items():
+        d = est.describe_parameter(name)
+        assert d.description, name
+        if p.lo is not None and not isinstance(p.default, bool):
+            assert d.floating_point_range or d.integer_range, name
+        if p.choices:
+            assert d.additional_constraints.startswith('one of'), name
+
+
+@pytest.mark.parametrize('name, value, reason', [
+    ('method', 'magic', 'method must be one of'),
+    ('hold', 'cubic', 'hold must be one of'),
+    ('model', 'octagonal', 'rejected by the estimator'),
+    ('forgetting', 1.5, ''),
+    ('publish_rate', 0.0, ''),
+    ('qos_depth', 5, ''),
+    ('omega_msg_type', 'vector3', ''),
+])
+def test_invalid_parameter_changes_are_rejected(harness, name, value, reason):
+    """Out-of-range, unknown or read-only values are refused and the old value stays."""
+    est = harness().est
+    before = est.get_parameter(name).value
+    result = est.set_parameters([Parameter(name, value=value)])[0]
+    assert not result.successful
+    assert reason in result.reason
+    assert est.get_parameter(name).value == before
+
+
+def test_valid_parameter_change_resets(harness):
+    """A valid estimator setting is accepted and resets the estimate."""
+    h = harness()
+    resets = h.est.counts()['resets']
+    assert h.est.set_parameters([Parameter('forgetting', value=0.99)])[0].successful
+    assert h.est.counts()['resets'] == resets + 1
+    assert h.est.set_parameters([Parameter('marker_scale', value=1.0)])[0].successful
+    assert h.est.counts()['resets'] == resets + 1
+
+
+def test_invalid_startup_parameters_raise(context):
+    """A node started with an invalid choice fails at construction with the reason."""
+    with pytest.raises(ValueError, match='method must be one of'):
+        en.InertiaEstimatorNode(context=context,
+                                parameter_overrides=[Parameter('method', value='magic')])
+
+
+# --------------------------------------------------------------------------- estimation
+def test_nominal_scene_converges_within_one_percent(harness):
+    """On the nominal scene the published ~/inertia is within 1% (max|dI|/I3) of the truth."""
+    scene = _short_scene()
+    sim = simulate(scene, seed=3)
+    h = harness(overrides={'publish_rate': 2.0})
+    h.play(sim)
+    h.spin_until(lambda: h.inertia and ros_msgs.stamp_to_ns(h.inertia[-1].header.stamp)
+                 >= EPOCH_NS + int(sim.t_gyro[-1] * 1e9) - 10**9, 3.0)
+    h.est.set_parameters([Parameter('publish_rate', value=1000.0)])
+    h.pub_gyro.publish(ros_msgs.imu_msg(EPOCH_NS + int(sim.t_gyro[-1] * 1e9) + 1,
+                                        sim.omega[-1], 'base_link'))
+    h.spin_for(0.3)
+    assert h.inertia, f'no estimate published; last diagnostics {h.diag[-1].message}'
+    _, est = ros_msgs.inertia_from_msg(h.inertia[-1])
+    err = np.max(np.abs(est - sim.inertia)) / np.linalg.eigvalsh(sim.inertia)[-1]
+    assert err < 0.01, f'error {err:.4f}\n{est}\n{sim.inertia}'
+    st = h.latest_diag()
+    assert st.level == DiagnosticStatus.OK
+    v = _values(st)
+    assert v['status'] == 'ok'
+    assert int(v['gyro_received']) == sim.t_gyro.size + 1
+    assert int(v['torque_received']) == sim.t_torque.size
+    assert h.moments, 'principal moments not published'
+
+
+def test_torque_free_input_reports_failure(harness):
+    """Torque-free data: diagnostics at ERROR with scale_unobservable, no ~/inertia."""
+    sim = simulate(_short_scene('torque_free.yaml', duration=20.0), seed=1)
+    h = harness(overrides={'publish_rate': 5.0})
+    h.play(sim)
+    h.spin_for(0.5)
+    st = h.latest_diag()
+    assert _values(st)['status'] == 'scale_unobservable', st.message
+    assert st.level == DiagnosticStatus.ERROR
+    assert h.inertia == []
+
+
+def test_nan_samples_are_dropped_and_counted(harness):
+    """NaN gyro and torque samples are dropped, counted and reported in the diagnostics."""
+    h = harness(overrides={'publish_rate': 100.0})
+    for k in range(20):
+        w = [np.nan, 0.0, 0.0] if k % 5 == 0 else [0.1, 0.2, 0.3]
+        h.pub_gyro.publish(ros_msgs.imu_msg(EPOCH_NS + k * 5_000_000, w, 'base_link'))
+    h.pub_torque.publish(ros_msgs.wrench_msg(EPOCH_NS, [np.inf, 0, 0], 'base_link'))
+    assert h.spin_until(lambda: h.received() == 21, 3.0)
+    c = h.est.counts()
+    assert (c['gyro_nan_dropped'], c['torque_nan_dropped']) == (4, 1)
+    h.spin_for(0.3)
+    assert _values(h.diag[-1])['gyro_nan_dropped'] == '4'
+
+
+def test_mismatched_frames_are_refused(harness):
+    """Torque in another frame than the gyro is refused, counted and raises an ERROR."""
+    h = harness(overrides={'publish_rate': 100.0})
+    h.pub_gyro.publish(ros_msgs.imu_msg(EPOCH_NS, [0.1, 0.2, 0.3], 'base_link'))
+    h.spin_until(lambda: h.received() == 1, 2.0)
+    for k in range(3):
+        h.pub_torque.publish(ros_msgs.wrench_msg(EPOCH_NS + k, [0.1, 0, 0], 'tool0'))
+    assert h.spin_until(lambda: h.received() == 4, 3.0)
+    assert h.est.counts()['torque_frame_refused'] == 3
+    h.pub_gyro.publish(ros_msgs.imu_msg(EPOCH_NS + 10**8, [0.1, 0.2, 0.3], 'base_link'))
+    h.spin_until(lambda: h.diag and 'tool0' in h.diag[-1].message, 2.0)
+    assert h.diag[-1].level == DiagnosticStatus.ERROR
+    assert "'tool0'" in h.diag[-1].message and "'base_link'" in h.diag[-1].message
+
+
+def test_backward_stamp_jump_resets_and_reset_service(harness):
+    """A bag-loop jump back in stamps resets; a small step back is dropped; ~/reset works."""
+    h = harness(overrides={'publish_rate': 100.0, 'clock_jump_threshold': 0.5})
+    for t_ns in (EPOCH_NS, EPOCH_NS + 10**9, EPOCH_NS + 10**9 - 10**6, EPOCH_NS + 10**7):
+        h.pub_gyro.publish(ros_msgs.imu_msg(t_ns, [0.1, 0.2, 0.3], 'base_link'))
+        h.spin_until(lambda: False, 0.05)
+    h.spin_until(lambda: h.received() == 4, 2.0)
+    c = h.est.counts()
+    assert c['gyro_out_of_order_dropped'] == 1
+    assert c['resets'] == 1 and 'jumped back' in c['last_reset_reason']
+    client = h.node.create_client(Trigger, '/inertia_estimator/reset')
+    assert client.wait_for_service(timeout_sec=2.0)
+    future = client.call_async(Trigger.Request())
+    h.spin_until(future.done, 3.0)
+    assert future.result().success
+    assert h.est.counts()['resets'] == 2
+
+
+def test_stream_timeout_warns(harness):
+    """A stream silent for longer than stream_timeout raises a WARN naming the stream."""
+    h = harness(overrides={'stream_timeout': 0.2})
+    h.pub_gyro.publish(ros_msgs.imu_msg(EPOCH_NS, [0.1, 0.2, 0.3], 'base_link'))
+    assert h.spin_until(lambda: any('gyro stream' in s.message and 'silent' in s.message
+                                    for s in h.diag), 3.0)
+    st = next(s for s in reversed(h.diag) if 'silent' in s.message)
+    assert st.level >= DiagnosticStatus.WARN
+
+
+def test_vector3_gyro_input(harness):
+    """With omega_msg_type vector3 the node listens on 'omega' (Vector3Stamped)."""
+    h = harness(overrides={'omega_msg_type': 'vector3'}, omega_type=Vector3Stamped)
+    assert h.est._sub_omega.topic_name == '/omega'
+    h.pub_gyro.publish(ros_msgs.vector3_stamped(EPOCH_NS, [0.1, 0.2, 0.3], 'base_link'))
+    assert h.spin_until(lambda: h.est.counts()['gyro_received'] == 1, 2.0)
+
+
+# --------------------------------------------------------------------------- processes
+def _env():
+    return dict(os.environ, ROS_DOMAIN_ID=str(DOMAIN_ID + 110),
+                PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get('PYTHONPATH', ''))
+
+
+def wait_for_estimate(node, timeout, ctx):
+    """Spin ``node`` until an InertiaStamped arrives on /inertia_estimator/inertia."""
+    got = []
+    node.create_subscription(InertiaStamped, '/inertia_estimator/inertia', got.append, 10)
+    truth = []
+    node.create_subscription(InertiaStamped, '/scene_simulator/truth', truth.append,
+                             QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL))
+    exe = SingleThreadedExecutor(context=ctx)
+    exe.add_node(node)
+    end = time.monotonic() + timeout
+    while time.monotonic() < end and not got:
+        exe.spin_once(timeout_sec=0.05)
+    exe.shutdown()
+    return got, truth
+
+
+def start_pair(est_cmd, sim_cmd, env, tmp_path: Path):
+    """Start the estimator and simulator processes with logs in tmp_path."""
+    logs = [open(tmp_path / n, 'w') for n in ('est.log', 'sim.log')]
+    procs = [subprocess.Popen(cmd, env=env, stdout=log, stderr=subprocess.STDOUT)
+             for cmd, log in zip((est_cmd, sim_cmd), logs, strict=True)]
+    return procs, logs
+
+
+def stop_all(procs, logs):
+    """SIGINT, then kill, every process; close the logs."""
+    for p in procs:
+        if p.poll() is None:
+            p.send_signal(2)
+    for p in procs:
+        try:
+            p.wait(timeout=5)
+        except subprocess.TimeoutExpired:
+            p.kill()
+            p.wait()
+    for log in logs:
+        log.close()
+
+
+@pytest.mark.slow
+def test_nodes_as_processes_over_dds(tmp_path):
+    """Simulator and estimator as separate processes: an estimate reaches a third process."""
+    scene = tmp_path / 'short.yaml'
+    d = dict(load_scene(ROOT / 'config' / 'scenes' / 'default.yaml').source, duration=20.0)
+    scene.write_text(yaml.safe_dump(d))
+    env = _env()
+    est_cmd = [sys.executable, '-m', 'inertia_ros.inertia_estimator_node', '--ros-args',
+               '--params-file', str(ROOT / 'config' / 'inertia_estimator.yaml')]
+    sim_cmd = [sys.executable, '-m', 'inertia_ros.scene_simulator_node', '--ros-args',
+               '-p', f'scene:={scene}', '-p', 'rate:=4.0', '-p', 'wait_for_subscribers:=1',
+               '-p', 'exit_on_end:=true']
+    procs, logs = start_pair(est_cmd, sim_cmd, env, tmp_path)
+    ctx = rclpy.context.Context()
+    rclpy.init(context=ctx, domain_id=DOMAIN_ID + 110)
+    try:
+        node = Node('test_listener', context=ctx)
+        got, truth = wait_for_estimate(node, 30.0, ctx)
+        node.destroy_node()
+    finally:
+        rclpy.try_shutdown(context=ctx)
+        stop_all(procs, logs)
+    log_text = (tmp_path / 'est.log').read_text() + (tmp_path / 'sim.log').read_text()
+    assert got, 'no estimate published by the estimator process\n' + log_text[-3000:]
+    assert truth, 'no truth from the simulator process'
+    _, est = ros_msgs.inertia_from_msg(got[-1])
+    _, true = ros_msgs.inertia_from_msg(truth[-1])
+    np.testing.assert_allclose(est, true, rtol=0, atol=0.05)
