@@ -64,6 +64,7 @@ HOLDS: tuple[str, ...] = ('zoh', 'linear')
 _AXES = {'x': np.array([1.0, 0.0, 0.0]), 'y': np.array([0.0, 1.0, 0.0]),
          'z': np.array([0.0, 0.0, 1.0])}
 _L_BASIS = momentum_matrix(np.eye(3))          # (3 axes c, 3, 6): L(e_c)
+_SEGMENT_CANDIDATES = (5.0, 10.0, 20.0, 40.0)   # s, anchored-segment lengths tried
 
 
 # ---------------------------------------------------------------------------------------------
@@ -145,18 +146,21 @@ def model_basis(model: str, symmetry_axis: np.ndarray | None = None) -> np.ndarr
 # ---------------------------------------------------------------------------------------------
 @dataclass
 class _Equations:
-    """Stacked 3-row equation blocks ``y_b = X6_b theta + Xd_b d + e_b``."""
+    """Stacked 3-row equation blocks ``y_b = X6_b theta + Xd_b d + e_b`` as ``A = [X6|Xd|y]``."""
 
-    X6: np.ndarray                 # (n, 3, 6)
-    Xd: np.ndarray                 # (n, 3, 3) bias columns
-    y: np.ndarray                  # (n, 3)
+    A: np.ndarray                  # (n, 3, 10)
     t: np.ndarray                  # (n,) time of each equation [s]
-    starts: np.ndarray | None      # segment start indices (anchored: demeaned per segment)
-    kind: str                      # 'anchored' or 'hac'
+    breaks: np.ndarray             # (n-1,) bool: a segment must start after this equation
+    kind: str                      # 'anchored' (segment intercepts, model covariance) or 'hac'
     hac_lag: int = 0
     eiv_var: np.ndarray | None = None   # gyro noise variance in the regressor, per axis
     weighted: bool = False
     info: dict[str, Any] = field(default_factory=dict)
+
+    def head(self, n: int) -> _Equations:
+        """The first ``n`` equations."""
+        return _Equations(self.A[:n], self.t[:n], self.breaks[:max(n - 1, 0)], self.kind,
+                          self.hac_lag, self.eiv_var, self.weighted, dict(self.info))
 
 
 def _demean(a: np.ndarray, starts: np.ndarray) -> np.ndarray:
@@ -165,6 +169,73 @@ def _demean(a: np.ndarray, starts: np.ndarray) -> np.ndarray:
     counts = np.diff(np.append(starts, len(a)))
     means = sums / counts.reshape((-1,) + (1,) * (a.ndim - 1))
     return a - np.repeat(means, counts, axis=0)
+
+
+def _cross(A: np.ndarray) -> np.ndarray:
+    """Cross Gram matrices ``C[r, s] = sum_b A_b[r]' A_b[s]``, shape (3, 3, q, q)."""
+    n, _, q = A.shape
+    A2 = A.reshape(n, 3 * q)
+    G = A2.T @ A2
+    return G.reshape(3, q, 3, q).transpose(0, 2, 1, 3)
+
+
+def _metric(C: np.ndarray, M: np.ndarray) -> np.ndarray:
+    """``sum_b A_b' M A_b`` from the cross Grams."""
+    return np.einsum('rs,rsij->ij', M, C)
+
+
+def _torque_stats(A: np.ndarray, t: np.ndarray, t_tau: np.ndarray,
+                  tau_end: float) -> np.ndarray:
+    """``P_j = sum_b o_j(b) A_b`` for every torque interval ``j``, shape (M, 3, q).
+
+    Torque sample ``j`` carries white noise ``nu_j`` held over ``[s_j, s_{j+1})``; anchored
+    equation ``b`` contains ``-sum_j o_j(b) nu_j`` with ``o_j(b) = clip(t_b - s_j, 0, h_j)``.
+    With segment-demeaned ``A`` the constant part of every segment cancels, so one global sum
+    serves all segments.
+    """
+    n, _, q = A.shape
+    m = len(t_tau)
+    ends = np.append(t_tau[1:], max(tau_end, t_tau[-1]))
+    h = ends - t_tau
+    j = np.clip(np.searchsorted(t_tau, t, side='right') - 1, 0, m - 1)
+    A2 = A.reshape(n, 3 * q)
+    counts = np.bincount(j, minlength=m)
+    nz = counts > 0
+    first = np.cumsum(counts) - counts
+    S = np.zeros((m, 3 * q))
+    St = np.zeros((m, 3 * q))
+    S[nz] = np.add.reduceat(A2, first[nz], axis=0)
+    St[nz] = np.add.reduceat(A2 * (t - t_tau[j])[:, None], first[nz], axis=0)
+    after = np.zeros((m, 3 * q))
+    after[:-1] = np.cumsum(S[::-1], axis=0)[::-1][1:]
+    return (h[:, None] * after + St).reshape(m, 3, q)
+
+
+@dataclass
+class _Stats:
+    """Sufficient statistics of one segmentation of the equations."""
+
+    C: np.ndarray                  # (3, 3, 10, 10) cross Grams of (demeaned) A
+    CP: np.ndarray | None          # (3, 3, 10, 10) cross Grams of the torque-noise sums
+    n: int
+    n_eff: int                     # equations minus segment intercepts
+    n_seg: int
+    eq: _Equations
+    A: np.ndarray | None           # demeaned A, kept for the HAC covariance
+
+
+def _stats(eq: _Equations, segment: float | None, t_tau: np.ndarray, tau_end: float,
+           torque_var: np.ndarray) -> _Stats:
+    """Demean per segment (anchored methods) and reduce to cross Gram matrices."""
+    n = len(eq.t)
+    if eq.kind == 'anchored':
+        starts = _segments(eq.t, eq.breaks, segment)
+        A = _demean(eq.A, starts)
+        CP = None
+        if np.any(torque_var > 0) and len(t_tau) > 1:
+            CP = _cross(_torque_stats(A, eq.t, t_tau, tau_end))
+        return _Stats(_cross(A), CP, n, n - len(starts), len(starts), eq, None)
+    return _Stats(_cross(eq.A), None, n, n, 0, eq, eq.A)
 
 
 @dataclass
@@ -196,77 +267,78 @@ def _solve_sym(H: np.ndarray, rhs: np.ndarray) -> np.ndarray:
     return x / (d[:, None] if rhs.ndim == 2 else d)
 
 
-def _fit(eq: _Equations, basis: np.ndarray, bias: bool, W: np.ndarray,
-         gyro_var: np.ndarray, torque_var: np.ndarray, t_tau: np.ndarray,
-         tau_end: float, bias_comp: bool) -> _Fit:
-    """Weighted LS of ``y = X6 T psi (+ Xd d)`` with its covariance."""
+def _selector(basis: np.ndarray, bias: bool) -> np.ndarray:
+    """Map (10, p + 1) from [psi, d, 1] to the columns [X6 | Xd | y] of ``A``."""
     k = basis.shape[1]
-    X = eq.X6 @ basis                                            # (n, 3, k)
+    p = k + (3 if bias else 0)
+    T = np.zeros((10, p + 1))
+    T[:6, :k] = basis
     if bias:
-        X = np.concatenate([X, eq.Xd], axis=2)
-    y = eq.y
-    if eq.starts is not None:
-        X = _demean(X, eq.starts)
-        y = _demean(y, eq.starts)
-    n, _, p = X.shape
-    U = np.linalg.cholesky(W).T                                  # W = U' U
-    Xw = np.einsum('rc,ncp->nrp', U, X).reshape(-1, p)
-    yw = (y @ U.T).reshape(-1)
-    H0 = Xw.T @ Xw
-    g = Xw.T @ yw
+        T[6:9, k:k + 3] = np.eye(3)
+    T[9, p] = 1.0
+    return T
+
+
+def _fit(st: _Stats, basis: np.ndarray, bias: bool, W: np.ndarray, gyro_var: np.ndarray,
+         torque_var: np.ndarray, bias_comp: bool) -> _Fit:
+    """Weighted LS of ``y = X6 T psi (+ Xd d)`` with its covariance, from the statistics."""
+    k = basis.shape[1]
+    T = _selector(basis, bias)
+    p = T.shape[1] - 1
+    G = T.T @ _metric(st.C, W) @ T
+    H0 = G[:p, :p]
+    g = G[:p, p]
     H = H0.copy()
-    if bias_comp and eq.eiv_var is not None:
-        B6 = np.einsum('c,crk,rs,csl->kl', eq.eiv_var, _L_BASIS, W, _L_BASIS)
-        n_eff = n - (0 if eq.starts is None else len(eq.starts))
-        H[:k, :k] -= n_eff * (basis.T @ B6 @ basis)
+    if bias_comp and st.eq.eiv_var is not None:
+        B6 = np.einsum('c,crk,rs,csl->kl', st.eq.eiv_var, _L_BASIS, W, _L_BASIS)
+        H[:k, :k] -= st.n_eff * (basis.T @ B6 @ basis)
     beta = _solve_sym(H, g)
-    resid = y - np.einsum('nrp,p->nr', X, beta)
     Hinv = _solve_sym(H, np.eye(p))
-    if eq.kind == 'anchored':
+    c = np.append(-beta, 1.0)
+    rss = np.array([c @ (T.T @ st.C[r, r] @ T) @ c for r in range(3)])
+    if st.eq.kind == 'anchored':
         theta = basis @ beta[:k]
         Im = theta_to_matrix(theta)
         S = Im @ np.diag(gyro_var) @ Im                           # white part of e_b
-        K = U @ S @ U.T
-        meat = np.einsum('nrp,rs,nsq->pq', Xw.reshape(n, 3, p), K, Xw.reshape(n, 3, p))
-        if np.any(torque_var > 0) and len(t_tau):
-            meat += _torque_walk_meat(X, W, eq.t, t_tau, tau_end, torque_var)
+        meat = (T.T @ _metric(st.C, W @ S @ W) @ T)[:p, :p]
+        if st.CP is not None:
+            meat += (T.T @ _metric(st.CP, W @ np.diag(torque_var) @ W) @ T)[:p, :p]
     else:
-        scores = np.einsum('nrp,rs,ns->np', X, W, resid)
+        X = st.A @ T                                               # (n, 3, p + 1)
+        e = X @ c                                                  # (n, 3) residuals
+        scores = np.einsum('nrp,rs,ns->np', X[..., :p], W, e)
         meat = scores.T @ scores
-        for lag in range(1, eq.hac_lag + 1):
-            w = 1.0 - lag / (eq.hac_lag + 1.0)
-            G = scores[lag:].T @ scores[:-lag]
-            meat += w * (G + G.T)
+        for lag in range(1, st.eq.hac_lag + 1):
+            wgt = 1.0 - lag / (st.eq.hac_lag + 1.0)
+            Gl = scores[lag:].T @ scores[:-lag]
+            meat += wgt * (Gl + Gl.T)
     cov = Hinv @ meat @ Hinv.T
     cov = 0.5 * (cov + cov.T)
-    dof = max(n - (0 if eq.starts is None else len(eq.starts)), 1)
+    dof = max(st.n_eff - p, 1)
     return _Fit(beta=beta, cov=cov, H=H, H0=H0, basis=basis, bias=bias,
-                resid_rms=np.sqrt(np.sum(resid ** 2, axis=0) / dof), n_eq=n)
+                resid_rms=np.sqrt(np.maximum(rss, 0.0) / dof), n_eq=st.n)
 
 
-def _torque_walk_meat(X: np.ndarray, W: np.ndarray, t: np.ndarray, t_tau: np.ndarray,
-                      tau_end: float, torque_var: np.ndarray) -> np.ndarray:
-    """Meat ``sum_j g_j diag(var) g_j'`` of the integrated piecewise-constant torque noise.
+def _weight(theta: np.ndarray, gyro_var: np.ndarray) -> np.ndarray:
+    """Equation weight ``(I S_g I)^-1`` (scaled to max 1) from a first-pass theta."""
+    Im = theta_to_matrix(theta)
+    if not check_physical(Im).valid:
+        Im = nearest_physical(Im, min_moment=1e-3 * max(float(np.sum(np.abs(Im))), 1e-30))
+    S = Im @ np.diag(gyro_var) @ Im
+    W = np.linalg.inv(S)
+    return 0.5 * (W + W.T) / np.max(np.abs(W))
 
-    Torque sample ``j`` carries white noise ``nu_j`` held over ``[s_j, s_{j+1})``; equation
-    ``b`` contains ``-sum_j o_j(b) nu_j`` with ``o_j(b) = clip(t_b - s_j, 0, h_j)``.  With
-    segment-demeaned regressors, ``g_j = sum_b o_j(b) X_b' W`` covers every segment at once.
-    """
-    n, _, p = X.shape
-    Z = np.einsum('nrp,rs->nps', X, W).reshape(n, p * 3)
-    ends = np.append(t_tau[1:], max(tau_end, t_tau[-1]))
-    h = ends - t_tau
-    cz = np.zeros((n + 1, p * 3))
-    np.cumsum(Z, axis=0, out=cz[1:])
-    ctz = np.zeros((n + 1, p * 3))
-    np.cumsum(Z * t[:, None], axis=0, out=ctz[1:])
-    k0 = np.searchsorted(t, t_tau, side='right')
-    k1 = np.searchsorted(t, ends, side='left')
-    total = cz[n]
-    g = h[:, None] * (total[None, :] - cz[k1])
-    g += (ctz[k1] - ctz[k0]) - t_tau[:, None] * (cz[k1] - cz[k0])
-    g = g.reshape(-1, p, 3)
-    return np.einsum('jpc,c,jqc->pq', g, torque_var, g)
+
+def _fit2(st: _Stats, basis: np.ndarray, bias: bool, gyro_var: np.ndarray,
+          torque_var: np.ndarray) -> _Fit:
+    """Two-pass fit: unweighted, then weighted by the first pass's tensor (weighted methods)."""
+    f = _fit(st, basis, bias, np.eye(3), gyro_var, torque_var, st.eq.weighted)
+    if st.eq.weighted and np.all(gyro_var > 0):
+        theta = basis @ f.beta[:basis.shape[1]]
+        if np.all(np.isfinite(theta)) and np.any(theta[:3] != 0):
+            f = _fit(st, basis, bias, _weight(theta, gyro_var), gyro_var, torque_var,
+                     st.eq.weighted)
+    return f
 
 
 # ---------------------------------------------------------------------------------------------
@@ -274,48 +346,52 @@ def _torque_walk_meat(X: np.ndarray, W: np.ndarray, t: np.ndarray, t_tau: np.nda
 # ---------------------------------------------------------------------------------------------
 def _segments(t: np.ndarray, keep_break: np.ndarray, max_len: float | None) -> np.ndarray:
     """Segment start indices: at ``keep_break`` positions and every ``max_len`` seconds."""
-    starts = [0] + list(np.flatnonzero(keep_break) + 1)
+    starts = [0, *(np.flatnonzero(keep_break) + 1).tolist()]
     if max_len is not None and max_len > 0:
         out: list[int] = []
-        bounds = starts + [len(t)]
+        bounds = [*starts, len(t)]
         for a, b in zip(bounds[:-1], bounds[1:], strict=True):
             n_sub = max(1, int(np.floor((t[b - 1] - t[a]) / max_len + 0.5)))
             edges = np.linspace(t[a], t[b - 1], n_sub + 1)[1:-1]
-            out += [a] + list(a + np.searchsorted(t[a:b], edges))
+            out += [a, *(a + np.searchsorted(t[a:b], edges)).tolist()]
         starts = out
     return np.unique(np.asarray(starts, dtype=int))
 
 
+def _assemble_A(X6: np.ndarray, Xd: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Concatenate ``[X6 | Xd | y]`` into (n, 3, 10)."""
+    return np.concatenate([X6, Xd, y[:, :, None]], axis=2)
+
+
 def _build(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.ndarray,
            mask: np.ndarray, breaks: np.ndarray, hold: str, gyro_var: np.ndarray,
-           segment: float | None, window: float | None) -> _Equations:
+           window: float | None) -> _Equations:
     """Equations of ``method`` from the gyro samples selected by ``mask``."""
     idx = np.flatnonzero(mask)
     t = tg[idx]
+    eye = np.eye(3)[None]
     if method in ('integral', 'integral_ls'):
         comp = method == 'integral'
         M = cumulative_monomials(tg, w, gyro_var if comp else None)[idx]
         T = cumulative_torque(ts, tau, t, hold)
         X6 = momentum_matrix(w[idx]) + gyroscopic_matrix(M)
-        Xd = -t[:, None, None] * np.eye(3)[None]
-        starts = _segments(t, breaks, segment)
-        return _Equations(X6, Xd, T, t, starts, 'anchored',
-                          eiv_var=gyro_var if comp else None, weighted=comp,
-                          info={'segments': len(starts)})
+        Xd = -(t - t[0])[:, None, None] * eye
+        return _Equations(_assemble_A(X6, Xd, T), t, breaks, 'anchored',
+                          eiv_var=gyro_var if comp else None, weighted=comp)
     if method == 'integral_sliding':
         dt = float(np.median(np.diff(t)))
         wl = max(2, round((window or 1.0) / dt))
         stride = max(1, wl // 4)
         M = cumulative_monomials(tg, w)[idx]
         T = cumulative_torque(ts, tau, t, hold)
-        # windows [a, a + wl] inside each segment (no window across a break)
         seg = np.cumsum(np.append(0, breaks.astype(int)))
-        a = np.arange(0, len(t) - wl, stride)
+        a = np.arange(0, max(len(t) - wl, 0), stride)
         a = a[seg[a] == seg[a + wl]]
         b = a + wl
         X6 = momentum_matrix(w[idx][b] - w[idx][a]) + gyroscopic_matrix(M[b] - M[a])
-        Xd = -(t[b] - t[a])[:, None, None] * np.eye(3)[None]
-        return _Equations(X6, Xd, T[b] - T[a], t[b], None, 'hac',
+        Xd = -(t[b] - t[a])[:, None, None] * eye
+        return _Equations(_assemble_A(X6, Xd, T[b] - T[a]), t[b],
+                          np.zeros(max(len(b) - 1, 0), dtype=bool), 'hac',
                           hac_lag=int(np.ceil(wl / stride)),
                           info={'window_s': wl * dt, 'windows': len(a)})
     # differential forms: torque value in effect at each gyro time
@@ -335,16 +411,15 @@ def _build(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.n
         wl = max(5, round((window or 0.1) / dt))
         wl += 1 - wl % 2
         wl = min(wl, len(t) - (1 - len(t) % 2))
-        if wl < 5:
-            raise ValueError('window: too few gyro samples for the Savitzky-Golay filter')
         ws = signal.savgol_filter(wi, wl, 3, axis=0)
         wd = signal.savgol_filter(wi, wl, 3, deriv=1, delta=dt, axis=0)
         tq = signal.savgol_filter(tq, wl, 3, axis=0)
         X6 = momentum_matrix(wd) + gyroscopic_matrix(monomials(ws))
         lag = wl
         info = {'window_s': wl * dt}
-    Xd = -np.ones((len(t), 1, 1)) * np.eye(3)[None]
-    return _Equations(X6, Xd, tq, t, None, 'hac', hac_lag=lag, info=info)
+    Xd = -np.ones((len(t), 1, 1)) * eye
+    return _Equations(_assemble_A(X6, Xd, tq), t, np.zeros(len(t) - 1, dtype=bool), 'hac',
+                      hac_lag=lag, info=info)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -546,34 +621,33 @@ def estimate(t_gyro: Any, omega: Any, t_torque: Any, torque: Any, *,
     torque_free = len(ts) == 0 or float(np.max(torque_rms)) <= 5.0 * float(
         np.max(torque_std)) or float(np.max(torque_rms)) == 0.0
     if torque_free:
-        return _homogeneous(method, tg, w, ts, tau, mask, breaks, hold, gyro_var, segment,
-                            window, diag, base)
+        return _homogeneous(method, tg, w, ts, tau, mask, breaks, hold, gyro_var,
+                            segment or 10.0, window, diag, base)
 
-    eq = _build(method, tg, w, ts, tau, mask, breaks, hold, gyro_var, segment, window)
+    eq = _build(method, tg, w, ts, tau, mask, breaks, hold, gyro_var, window)
     diag.update(eq.info)
-    n_eq = len(eq.y)
-    if n_eq * 3 < 3 * (6 + 3) + 3 * (len(eq.starts) if eq.starts is not None else 0):
-        diag['reason'] = f'{n_eq} equations are too few for the parameters'
+    gen_bias = torque_bias != 'off'
+    if len(eq.t) < 3 * (6 + 3):
+        diag['reason'] = f'{len(eq.t)} equations are too few for the parameters'
         return InertiaEstimate(status='insufficient_data', diagnostics=diag,
                                **base)   # type: ignore[arg-type]
+    if eq.kind == 'anchored' and segment is None:
+        segment, diag['segment_selection'] = _choose_segment(eq, ts, tau_end, gyro_var,
+                                                             torque_var, gen_bias)
+    st = _stats(eq, segment, ts, tau_end, torque_var)
+    if eq.kind == 'anchored':
+        diag['segments'] = st.n_seg
+        diag['segment_s'] = segment
+        if st.n_eff < 3 * (6 + 3):
+            diag['reason'] = f'{st.n_eff} equations are too few for the parameters'
+            return InertiaEstimate(status='insufficient_data', diagnostics=diag,
+                                   **base)   # type: ignore[arg-type]
 
     def fit(basis: np.ndarray, bias: bool) -> _Fit:
-        """Two-pass fit: unweighted, then weighted by the first pass's tensor."""
-        args = (gyro_var, torque_var, ts, tau_end, eq.weighted)
-        f = _fit(eq, basis, bias, np.eye(3), *args)
-        if eq.weighted and np.all(gyro_var > 0):
-            theta = basis @ f.beta[:basis.shape[1]]
-            Im = theta_to_matrix(theta)
-            if not check_physical(Im).valid:
-                Im = nearest_physical(Im, min_moment=1e-3 * max(np.trace(np.abs(Im)), 1e-30))
-            S = Im @ np.diag(gyro_var) @ Im
-            W = np.linalg.inv(S)
-            W = 0.5 * (W + W.T) / np.max(np.abs(W))
-            f = _fit(eq, basis, bias, W, *args)
-        return f
+        """Fit one parameter set on the statistics."""
+        return _fit2(st, basis, bias, gyro_var, torque_var)
 
     # ---- identifiability on the general model
-    gen_bias = torque_bias != 'off'
     free = np.ones(6, dtype=bool)
     for _ in range(3):
         basis = np.eye(6)[:, free]
@@ -638,6 +712,35 @@ def estimate(t_gyro: Any, omega: Any, t_torque: Any, torque: Any, *,
     return _assemble('ok', f, chosen, free, diag, base, physical=physical)
 
 
+def _choose_segment(eq: _Equations, ts: np.ndarray, tau_end: float, gyro_var: np.ndarray,
+                    torque_var: np.ndarray, bias: bool) -> tuple[float | None, dict[str, Any]]:
+    """Anchored-segment length that minimises the predicted relative variance of the tensor.
+
+    Short segments lose the information in slow motion and leave more errors-in-variables
+    bias; long ones let the integrated torque noise (a random walk) grow.  The candidates are
+    evaluated with the calibrated covariance of the full model on at most the first 100 000
+    equations (the optimum depends on the dynamics, not on the record length).
+    """
+    sub = eq.head(min(len(eq.t), 100_000))
+    span = float(sub.t[-1] - sub.t[0])
+    cands: list[float | None] = [s for s in _SEGMENT_CANDIDATES if s < 0.75 * span]
+    cands.append(None)
+    scores: dict[str, float] = {}
+    best, best_score = None, np.inf
+    for cand in cands:
+        st = _stats(sub, cand, ts, tau_end, torque_var)
+        if st.n_eff < 3 * (6 + 3):
+            continue
+        f = _fit2(st, np.eye(6), bias, gyro_var, torque_var)
+        scale = float(np.mean(np.abs(f.beta[:3])))
+        score = float(np.trace(f.cov[:6, :6])) / scale ** 2 if scale > 0 else np.inf
+        scores['whole' if cand is None else f'{cand:g}'] = score
+        if score < best_score:
+            best, best_score = cand, score
+    return best, {'candidates_s': scores, 'chosen_s': 'whole' if best is None else best,
+                  'rule': 'minimum predicted relative variance of theta'}
+
+
 def _noise(x: Any, name: str) -> np.ndarray:
     """Validated per-axis noise std (scalar or (3,))."""
     arr = np.broadcast_to(np.asarray(x, dtype=float), (3,)).copy()
@@ -698,16 +801,12 @@ def _homogeneous(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau
         ts = np.array([tg[0], tg[-1]])
         tau = np.zeros((2, 3))
     meth = method if method != 'integral_ls' else 'integral'
-    eq = _build(meth, tg, w, ts, tau, mask, breaks, hold, gyro_var, segment, window)
-    X = eq.X6
-    if eq.starts is not None:
-        X = _demean(X, eq.starts)
-    Xf = X.reshape(-1, 6)
-    H0 = Xf.T @ Xf
+    eq = _build(meth, tg, w, ts, tau, mask, breaks, hold, gyro_var, window)
+    st = _stats(eq, segment, ts, float(ts[-1]), np.zeros(3))
+    H0 = _metric(st.C, np.eye(3))[:6, :6]
     H = H0.copy()
     if eq.eiv_var is not None:
-        B6 = np.einsum('c,crk,csl->kl', eq.eiv_var, _L_BASIS, _L_BASIS)
-        H -= (len(eq.y) - (len(eq.starts) if eq.starts is not None else 0)) * B6
+        H -= st.n_eff * np.einsum('c,crk,csl->kl', eq.eiv_var, _L_BASIS, _L_BASIS)
     d = np.sqrt(np.diag(H0))
     diag['reason'] = 'no torque excitation: only ratios and principal axes are observable'
     if np.any(d == 0):

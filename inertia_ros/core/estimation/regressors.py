@@ -54,6 +54,8 @@ def _gyro_coefficients() -> np.ndarray:
 
 
 _A = _gyro_coefficients()
+_E_MAT = np.ascontiguousarray(_E.transpose(2, 1, 0).reshape(3, 18))   # (c, r*6 + k)
+_A_MAT = np.ascontiguousarray(_A.transpose(2, 0, 1).reshape(6, 18))   # (m, r*6 + k)
 
 
 def momentum_matrix(v: np.ndarray) -> np.ndarray:
@@ -69,8 +71,9 @@ def momentum_matrix(v: np.ndarray) -> np.ndarray:
     ndarray, shape (..., 3, 6)
         Linear in ``v``; ``L(v) @ theta`` has the units of ``theta`` times ``v``.
     """
-    # L[..., r, k] = sum_c E[k, r, c] v_c
-    return np.einsum('krc,...c->...rk', _E, v)
+    # L[..., r, k] = sum_c E[k, r, c] v_c, as one matrix product
+    v = np.asarray(v, dtype=float)
+    return (v @ _E_MAT).reshape(v.shape[:-1] + (3, 6))
 
 
 def monomials(omega: np.ndarray) -> np.ndarray:
@@ -103,7 +106,8 @@ def gyroscopic_matrix(m: np.ndarray) -> np.ndarray:
     -------
     ndarray, shape (..., 3, 6)
     """
-    return np.einsum('rkm,...m->...rk', _A, m)
+    m = np.asarray(m, dtype=float)
+    return (m @ _A_MAT).reshape(m.shape[:-1] + (3, 6))
 
 
 def cumulative_monomials(t: np.ndarray, omega: np.ndarray,
@@ -194,7 +198,8 @@ def cumulative_torque(t_tau: np.ndarray, tau: np.ndarray, t: np.ndarray,
     return cum[j] + tau[j] * u + np.where(inside[:, None], 0.5 * slope[j] * u * u, 0.0)
 
 
-def noise_std_from_differences(x: np.ndarray, orders: tuple[int, ...] = (2, 3, 4)) -> np.ndarray:
+def noise_std_from_differences(x: np.ndarray, orders: tuple[int, ...] = (2, 3, 4),
+                               max_samples: int = 200_000) -> np.ndarray:
     """Robust white-noise standard deviation per column from high-order differences.
 
     For white noise of variance ``s^2`` the k-th difference has variance ``C(2k, k) s^2``;
@@ -208,6 +213,8 @@ def noise_std_from_differences(x: np.ndarray, orders: tuple[int, ...] = (2, 3, 4
         Uniformly (or nearly) sampled signal.
     orders : tuple of int
         Difference orders to try.
+    max_samples : int
+        Only the first ``max_samples`` rows are used (plenty for a robust estimate).
 
     Returns
     -------
@@ -217,7 +224,7 @@ def noise_std_from_differences(x: np.ndarray, orders: tuple[int, ...] = (2, 3, 4
     """
     from math import comb
 
-    x = np.asarray(x, dtype=float)
+    x = np.asarray(x, dtype=float)[:max_samples]
     best = np.full(x.shape[1], np.inf)
     for k in orders:
         if len(x) < k + 2:
