@@ -10,7 +10,8 @@ Public API::
 ``METHODS`` lists the batch methods, ``STATUSES`` the result statuses (DESIGN.md).
 """
 from .batch import HOLDS, METHODS, MODELS, TORQUE_BIAS, estimate, model_basis
+from .recursive import RecursiveEstimator
 from .result import STATUSES, InertiaEstimate, to_jsonable
 
 __all__ = ['HOLDS', 'METHODS', 'MODELS', 'STATUSES', 'TORQUE_BIAS', 'InertiaEstimate',
-           'estimate', 'model_basis', 'to_jsonable']
+           'RecursiveEstimator', 'estimate', 'model_basis', 'to_jsonable']

@@ -647,6 +647,15 @@ def estimate(t_gyro: Any, omega: Any, t_torque: Any, torque: Any, *,
         """Fit one parameter set on the statistics."""
         return _fit2(st, basis, bias, gyro_var, torque_var)
 
+    return _conclude(fit, model, torque_bias, axis, alpha, identifiability_tol, physical,
+                     diag, base)
+
+
+def _conclude(fit: Any, model: str, torque_bias: str, axis: np.ndarray | None, alpha: float,
+              identifiability_tol: float, physical: bool, diag: dict[str, Any],
+              base: dict[str, Any]) -> InertiaEstimate:
+    """Identifiability, model selection and the result, given ``fit(basis, bias) -> _Fit``."""
+    gen_bias = torque_bias != 'off'
     # ---- identifiability on the general model
     free = np.ones(6, dtype=bool)
     for _ in range(3):

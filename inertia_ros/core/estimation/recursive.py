@@ -1,0 +1,338 @@
+"""Recursive (online) inertia estimation for the ROS node: :class:`RecursiveEstimator`.
+
+The same anchored momentum equations as the batch ``integral`` method,
+``I w_b + int w x (I w) dt - d t_b - h0 = int tau dt``, accumulated in information form:
+exponentially weighted means and centred cross Gram matrices of the equation blocks
+``A_b = [X6_b | Xd_b | y_b]`` (3 x 10).  Removing the weighted mean is the exact elimination of
+the momentum intercept ``h0``; the centred statistics are merged block by block (the parallel
+update of Chan, Golub and LeVeque), so the cost per sample is a few small matrix products
+amortised over the block, and the normal equations of any parameter set are projections of
+the same 10 x 10 statistics.  Forgetting (``window`` time constant or per-sample
+``forgetting`` factor) lets the estimate follow a changing tensor.
+
+The two streams arrive asynchronously: gyro samples are buffered until torque covering them
+has arrived (a torque sample at or after the gyro time), then integrated exactly under the
+zero-order hold (or linear interpolation) of the torque samples.
+"""
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from ..inertia import THETA_NAMES
+from .batch import HOLDS, _axis, _conclude, _cross, _Equations, _Fit, _fit2, _Stats
+from .regressors import (
+    cumulative_torque,
+    gyroscopic_matrix,
+    momentum_matrix,
+    monomials,
+    noise_std_from_differences,
+)
+from .result import InertiaEstimate
+
+__all__ = ['RecursiveEstimator']
+
+_RMODELS = ('auto', 'full', 'diagonal', 'axisymmetric')
+
+
+class RecursiveEstimator:
+    """Online inertia estimator with forgetting, fed sample by sample or in blocks.
+
+    Parameters
+    ----------
+    model : {'full', 'diagonal', 'axisymmetric', 'auto'}
+        Parameter set (``auto``: Wald-test selection as in the batch estimator).
+    torque_bias : bool or {'auto', 'on', 'off'}
+        Estimate a constant disturbance torque [N m].
+    forgetting : float
+        Per-sample forgetting factor ``lambda`` in (0, 1]; 1 keeps everything.
+    window : float, optional
+        Memory time constant [s]: sample weights decay as ``exp(-age / window)``.  Takes
+        precedence over ``forgetting``.
+    hold : {'zoh', 'linear'}
+        Torque between samples.
+    symmetry_axis : {'x', 'y', 'z'} or array_like (3,), optional
+        For the axisymmetric model.
+    gyro_noise : float or array_like (3,), optional
+        Gyro white-noise std [rad/s]; estimated from the stream when omitted.
+    alpha : float
+        Model-selection test level.
+    block : int
+        Gyro samples buffered before an update of the statistics (``estimate`` always flushes).
+    """
+
+    def __init__(self, model: str = 'full', torque_bias: bool | str = False,
+                 forgetting: float = 1.0, window: float | None = None, hold: str = 'zoh',
+                 symmetry_axis: Any = None, gyro_noise: Any = None, alpha: float = 1e-3,
+                 block: int = 256) -> None:
+        if model not in _RMODELS:
+            raise ValueError(f'model: must be one of {_RMODELS}, got {model!r}')
+        if isinstance(torque_bias, bool):
+            torque_bias = 'on' if torque_bias else 'off'
+        if torque_bias not in ('auto', 'on', 'off'):
+            raise ValueError(f"torque_bias: must be a bool or 'auto'/'on'/'off', got "
+                             f'{torque_bias!r}')
+        if not (0.0 < forgetting <= 1.0):
+            raise ValueError(f'forgetting: must be in (0, 1], got {forgetting!r}')
+        if window is not None and not window > 0:
+            raise ValueError(f'window: must be > 0 s, got {window!r}')
+        if hold not in HOLDS:
+            raise ValueError(f'hold: must be one of {HOLDS}, got {hold!r}')
+        if not 0.0 < alpha < 1.0:
+            raise ValueError(f'alpha: must be in (0, 1), got {alpha!r}')
+        if int(block) < 1:
+            raise ValueError(f'block: must be >= 1, got {block!r}')
+        self.model = model
+        self.torque_bias = torque_bias
+        self.forgetting = float(forgetting)
+        self.window = window
+        self.hold = hold
+        self.axis = _axis(symmetry_axis)
+        if model == 'axisymmetric' and self.axis is None:
+            raise ValueError("symmetry_axis: required for model='axisymmetric'")
+        self.alpha = alpha
+        self.block = int(block)
+        self._gyro_noise = None if gyro_noise is None else np.broadcast_to(
+            np.asarray(gyro_noise, dtype=float), (3,)).copy()
+        self.reset()
+
+    # -----------------------------------------------------------------------------------------
+    def reset(self) -> None:
+        """Forget everything (clock jump, new run)."""
+        self._single_t: list[float] = []
+        self._single_w: list[Any] = []
+        self._gt: list[np.ndarray] = []
+        self._gw: list[np.ndarray] = []
+        self._ts = np.empty(0)
+        self._tau = np.empty((0, 3))
+        self._T_base = np.zeros(3)       # torque integral at self._ts[0]
+        self._t0: float | None = None    # time origin of the bias column
+        self._prev: tuple[float, np.ndarray] | None = None   # last processed gyro sample
+        self._M = np.zeros(6)            # monomial integral at the last processed sample
+        self._w0 = 0.0                   # sum of weights
+        self._w00 = 0.0                  # sum of squared weights
+        self._mean = np.zeros((3, 10))
+        self._C = np.zeros((3, 3, 10, 10))
+        self._t_last: float | None = None
+        self._last_t_in: float | None = None
+        self._last_tau_in: float | None = None
+        self._noise_var = None if self._gyro_noise is None else self._gyro_noise ** 2
+        self.samples_used = 0
+        self.samples_dropped = 0
+
+    @staticmethod
+    def _block(t: Any, x: Any, name: str) -> tuple[np.ndarray, np.ndarray]:
+        """Validate one sample or a block of samples."""
+        ta = np.atleast_1d(np.asarray(t, dtype=float))
+        xa = np.asarray(x, dtype=float)
+        if xa.ndim == 1:
+            xa = xa[None, :]
+        if ta.ndim != 1 or xa.ndim != 2 or xa.shape[1] != 3 or len(ta) != len(xa):
+            raise ValueError(f'{name}: expected t (n,) and values (n, 3) or (3,), got '
+                             f'{ta.shape} and {np.shape(x)}')
+        if not (np.all(np.isfinite(ta)) and np.all(np.isfinite(xa))):
+            raise ValueError(f'{name}: contains NaN or inf')
+        if len(ta) > 1 and np.any(np.diff(ta) <= 0):
+            raise ValueError(f'{name}: times must be strictly increasing')
+        return ta, xa
+
+    def add_gyro(self, t: Any, omega: Any) -> None:
+        """Add gyro samples.
+
+        Parameters
+        ----------
+        t : float or array_like, shape (n,)
+            Sample times [s], increasing across calls.
+        omega : array_like, shape (3,) or (n, 3)
+            Angular velocity [rad/s].
+        """
+        if isinstance(t, (float, int)) and len(omega) == 3 and np.ndim(omega) == 1:
+            # fast path for one sample (the node's common case)
+            tf = float(t)
+            if not (math.isfinite(tf) and all(math.isfinite(float(v)) for v in omega)):
+                raise ValueError('omega: contains NaN or inf')
+            if self._last_t_in is not None and tf <= self._last_t_in:
+                raise ValueError(f'omega: time {tf!r} is not after the previous gyro sample '
+                                 f'{self._last_t_in!r} (call reset() after a clock jump)')
+            self._last_t_in = tf
+            self._single_t.append(tf)
+            self._single_w.append(omega)
+            if len(self._single_t) >= self.block:
+                self._process()
+            return
+        self._flush_single()
+        ta, wa = self._block(t, omega, 'omega')
+        if len(ta) == 0:
+            return
+        if self._last_t_in is not None and ta[0] <= self._last_t_in:
+            raise ValueError(f'omega: time {ta[0]!r} is not after the previous gyro sample '
+                             f'{self._last_t_in!r} (call reset() after a clock jump)')
+        self._last_t_in = float(ta[-1])
+        self._gt.append(ta)
+        self._gw.append(wa)
+        if sum(len(a) for a in self._gt) + len(self._single_t) >= self.block:
+            self._process()
+
+    def _flush_single(self) -> None:
+        """Move single gyro samples into the block buffer."""
+        if self._single_t:
+            self._gt.append(np.array(self._single_t, dtype=float))
+            self._gw.append(np.array(self._single_w, dtype=float).reshape(-1, 3))
+            self._single_t, self._single_w = [], []
+
+    def add_torque(self, t: Any, tau: Any) -> None:
+        """Add torque samples.
+
+        Parameters
+        ----------
+        t : float or array_like, shape (n,)
+            Sample times [s], increasing across calls.
+        tau : array_like, shape (3,) or (n, 3)
+            Torque about the centre of mass [N m].
+        """
+        ta, xa = self._block(t, tau, 'torque')
+        if len(ta) == 0:
+            return
+        if self._last_tau_in is not None and ta[0] <= self._last_tau_in:
+            raise ValueError(f'torque: time {ta[0]!r} is not after the previous torque sample '
+                             f'{self._last_tau_in!r} (call reset() after a clock jump)')
+        self._last_tau_in = float(ta[-1])
+        self._ts = np.concatenate([self._ts, ta])
+        self._tau = np.concatenate([self._tau, xa])
+
+    # -----------------------------------------------------------------------------------------
+    def _process(self) -> None:
+        """Turn buffered gyro samples covered by torque into equations and merge them."""
+        self._flush_single()
+        if not self._gt:
+            return
+        t = np.concatenate(self._gt)
+        w = np.concatenate(self._gw)
+        self._gt, self._gw = [], []
+        if len(self._ts) == 0:
+            self._gt, self._gw = [t], [w]
+            return
+        # gyro samples before the first torque sample can never be used
+        early = t < self._ts[0]
+        if np.any(early):
+            self.samples_dropped += int(np.sum(early))
+            t, w = t[~early], w[~early]
+        ready = t <= self._ts[-1]
+        if not np.all(ready):
+            self._gt, self._gw = [t[~ready]], [w[~ready]]
+            t, w = t[ready], w[ready]
+        if len(t) == 0:
+            return
+        if self._noise_var is None and len(t) >= 16:
+            self._noise_var = noise_std_from_differences(w) ** 2
+        nv = self._noise_var if self._noise_var is not None else np.zeros(3)
+        # torque integral at the gyro times, relative to self._ts[0]
+        T = self._T_base + cumulative_torque(self._ts, self._tau, t, self.hold)
+        # monomial integral (trapezoid) continuing from the previous processed sample
+        m = monomials(w)
+        if self._prev is None:
+            tt = t
+            mm = m
+            start = np.zeros(6)
+            self._t0 = float(t[0])
+        else:
+            tt = np.concatenate([[self._prev[0]], t])
+            mm = np.concatenate([monomials(self._prev[1][None, :]), m])
+            start = self._M
+        inc = 0.5 * (mm[1:] + mm[:-1]) * np.diff(tt)[:, None]
+        M = np.empty((len(t), 6))
+        if self._prev is None:
+            M[0] = start
+            np.cumsum(inc, axis=0, out=M[1:])
+            M[1:] += start
+        else:
+            np.cumsum(inc, axis=0, out=M)
+            M += start
+        self._M = M[-1].copy()
+        self._prev = (float(t[-1]), w[-1].copy())
+        Mc = M.copy()
+        Mc[:, :3] -= (t - self._t0)[:, None] * nv[None, :]
+        A = np.empty((len(t), 3, 10))
+        A[:, :, :6] = momentum_matrix(w) + gyroscopic_matrix(Mc)
+        A[:, :, 6:9] = -(t - self._t0)[:, None, None] * np.eye(3)[None]
+        A[:, :, 9] = T
+        self._merge(t, A)
+        self.samples_used += len(t)
+        # keep torque samples from the last one at or before the last processed gyro time
+        j = int(np.searchsorted(self._ts, t[-1], side='right') - 1)
+        if j > 0:
+            self._T_base = self._T_base + cumulative_torque(self._ts, self._tau,
+                                                            self._ts[j:j + 1], self.hold)[0]
+            self._ts = self._ts[j:]
+            self._tau = self._tau[j:]
+
+    def _merge(self, t: np.ndarray, A: np.ndarray) -> None:
+        """Merge a block of equations into the weighted centred statistics."""
+        n = len(t)
+        if self.window:
+            wts = np.exp(-(t[-1] - t) / self.window)
+            old = float(np.exp(-(t[-1] - self._t_last) / self.window)) \
+                if self._t_last is not None else 0.0
+        else:
+            lam = self.forgetting
+            wts = lam ** np.arange(n - 1, -1, -1, dtype=float)
+            old = lam ** n
+        self._t_last = float(t[-1])
+        wb = float(np.sum(wts))
+        mb = np.einsum('n,nrq->rq', wts, A) / wb
+        D = (A - mb[None]) * np.sqrt(wts)[:, None, None]
+        Cb = _cross(D)
+        w_old = old * self._w0
+        total = w_old + wb
+        delta = mb - self._mean
+        self._C = old * self._C + Cb + (w_old * wb / total) * np.einsum(
+            'ri,sj->rsij', delta, delta)
+        self._mean = self._mean + delta * (wb / total)
+        self._w0 = total
+        self._w00 = old * old * self._w00 + float(np.sum(wts * wts))
+
+    # -----------------------------------------------------------------------------------------
+    def estimate(self) -> InertiaEstimate:
+        """Current estimate from everything merged so far (flushes covered samples first).
+
+        Returns
+        -------
+        InertiaEstimate
+            ``method='recursive'``; standard errors from the white gyro noise, scaled up by
+            the residual variance when that is larger (the integrated torque noise is not
+            modelled recursively).
+        """
+        self._process()
+        base = dict(method='recursive', samples_used=self.samples_used,
+                    samples_dropped=self.samples_dropped)
+        nv = self._noise_var if self._noise_var is not None else np.zeros(3)
+        diag: dict[str, Any] = {'gyro_noise_std': np.sqrt(nv), 'warnings': [],
+                                'effective_samples': self._w0}
+        n_eff = self._w0 - self._w00 / self._w0 if self._w0 > 0 else 0.0
+        if self.samples_used < 30 or n_eff < 3 * (6 + 3):
+            diag['reason'] = f'only {self.samples_used} gyro samples covered by torque so far'
+            return InertiaEstimate(status='insufficient_data', diagnostics=diag,
+                                   **base)   # type: ignore[arg-type]
+        eq = _Equations(np.zeros((0, 3, 10)), np.zeros(0), np.zeros(0, dtype=bool),
+                        'anchored', eiv_var=nv, weighted=True)
+        st = _Stats(self._C, None, int(round(self._w0)), int(round(n_eff)), 1, eq, None)
+        ratio = self._w00 / self._w0
+
+        def fit(basis: np.ndarray, bias: bool) -> _Fit:
+            """Fit on the weighted statistics; the meat of weighted sums scales by w^2/w."""
+            f = _fit2(st, basis, bias, nv, np.zeros(3))
+            f.cov = f.cov * ratio
+            return f
+
+        torque_free = float(np.max(np.abs(self._C[0, 0, 9, 9] + self._C[1, 1, 9, 9]
+                                          + self._C[2, 2, 9, 9]))) == 0.0
+        if torque_free:
+            diag['reason'] = 'no torque excitation: the scale is unobservable'
+            return InertiaEstimate(status='scale_unobservable',
+                                   identifiable=dict.fromkeys(THETA_NAMES, False),
+                                   diagnostics=diag, **base)   # type: ignore[arg-type]
+        model = self.model
+        return _conclude(fit, model, self.torque_bias, self.axis, self.alpha, 0.1, True,
+                         diag, base)
