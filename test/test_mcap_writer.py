@@ -24,6 +24,7 @@ from inertia_ros.io.mcap_writer import (
     seconds_to_ns,
     write_simulation,
 )
+from inertia_ros.io.scene_file import load_scene
 
 SCENE = {
     'name': 'writer_test', 'seed': 3, 'duration': 4.0,
@@ -329,3 +330,25 @@ def test_simulate_command_bad_input_is_one_line(tmp_path, capsys, argv, pattern)
     assert main(['simulate'] + [a.format(**fill) for a in argv]) == 2
     err = capsys.readouterr().err
     assert pattern in err and err.count('\n') == 1 and 'Traceback' not in err
+
+
+# --------------------------------------------------------------------------- sample logs
+BAG_NAMES = ['default', 'torque_free', 'single_axis', 'disturbance']
+
+
+@pytest.mark.parametrize('name', BAG_NAMES)
+def test_sample_bag_sits_beside_the_scene_that_made_it(name):
+    """bags/NAME.mcap is < 2 MB, bags/NAME.yaml equals the shipped scene and the log's record."""
+    bag = ROOT / 'bags' / f'{name}.mcap'
+    scene_file = ROOT / 'bags' / f'{name}.yaml'
+    assert bag.stat().st_size < 2 * 1024 * 1024
+    assert scene_file.read_text() == (ROOT / 'config' / 'scenes' / f'{name}.yaml').read_text()
+    with open(bag, 'rb') as f:
+        reader = make_reader(f)
+        meta = {m.name: m.metadata for m in reader.iter_metadata()}
+        truth = [m for _, c, m in reader.iter_messages(topics=['/truth/inertia'])]
+    scene = load_scene(scene_file)
+    assert yaml.safe_load(meta['inertia_ros.scene']['scene_json']) == scene.to_dict()
+    assert meta['inertia_ros.scene']['seed'] == str(scene.seed)
+    assert truth and truth[0].data == cdr_encode.encode_inertia_stamped(
+        [DEFAULT_START_NS], scene.inertia, scene.gyro.frame_id)[0]
