@@ -1,0 +1,408 @@
+"""Cramer-Rao lower bound for the inertia tensor from gyro + known-torque streams.
+
+The physical limit of any unbiased estimator on a scene: the inverse of the Fisher information
+of the measurement model with the scene's true noise.
+
+Model
+-----
+The body obeys Euler's equations about its centre of mass, in body axes,
+
+    I w_dot + w x (I w) = u(t) + d,        w(t0) = w0,
+
+with ``u`` the torque actually applied, held constant (zero-order hold) on every torque
+interval ``[s_j, s_{j+1})``.  The data are
+
+* gyro samples ``y_k = w(t_k) + n_k``, ``n_k ~ N(0, diag(sigma_g^2))`` white;
+* torque samples ``tau_j = u_j + nu_j``, ``nu_j ~ N(0, diag(sigma_t^2))`` white.
+
+Conditioning on the measured torques, the applied torque is ``u_j = tau_j - nu_j``: the torque
+noise enters as *process noise* on the dynamics, constant over each torque interval.  The
+unknowns are ``p = [theta (6), w0 (3)]`` and, when requested, the constant unmeasured
+disturbance ``d (3)`` (``theta = [ixx, iyy, izz, ixy, ixz, iyz]``).
+
+Linearising the dynamics about the noise-free trajectory ``m_k(p)`` (driven by the true held
+torque) gives a linear Gaussian state-space model for the deviation ``x_k = [dw_k, nu]``:
+
+    dw_{k+1} = Phi_k dw_k + Psi_k nu,   nu redrawn at every torque sample,
+    y_k - m_k(p) = dw_k + n_k.
+
+``y`` is then Gaussian with mean ``m(p)`` and a covariance ``R`` that does not depend on ``p``
+to first order, so the Fisher information is ``F = J' R^-1 J`` with ``J = dm/dp``.  ``R^-1/2``
+is applied by a Kalman filter (Gupta & Mehra, 1974): run on the sensitivities ``-dm_k/dp``
+its innovations are ``de_k/dp`` and
+
+    F = sum_k (de_k/dp)' S_k^-1 (de_k/dp),     S_k the innovation covariance.
+
+With no torque noise the filter gain is zero and ``F = sum_k J_k' J_k / sigma_g^2``.
+
+The trajectory, its parameter sensitivities (variational equations) and the per-interval
+transition matrices ``Phi_k`` and input matrices ``Psi_k`` are integrated together with the
+classical Runge-Kutta scheme on the merged grid of gyro and torque times.
+
+Assumptions (what the bound does not cover): sensors sample at their stamps (no jitter, delay
+or dropped samples), no gyro bias, a constant tensor (no inertia change), Gaussian white
+noise with known variances, and the derivative of the noise covariance with respect to ``p``
+neglected (the term ``1/2 tr(S^-1 dS S^-1 dS)``: its relative size is of the order of the
+torque-noise-to-signal ratio squared).  The bound is local: for an unbiased estimator at the
+true parameters.  Nuisance parameters the estimators also estimate (``w0`` always, ``d`` when
+a torque bias is fitted) are part of ``p`` and so inflate the bound on ``theta`` exactly as
+they should.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from .inertia import THETA_NAMES, theta_to_matrix
+
+__all__ = ['FisherResult', 'fisher_information', 'frobenius_weights', 'scene_fisher']
+
+_E = theta_to_matrix(np.eye(6))                 # (6, 3, 3): dI / dtheta_k
+_MAX_STEP_ANGLE = 0.02                          # rad turned per RK4 substep, at most
+_TIME_TOL = 1e-9                                # s: times closer than this are merged
+
+
+@dataclass(frozen=True, eq=False)
+class FisherResult:
+    """Fisher information of one record and the bound it implies.
+
+    Attributes
+    ----------
+    information : numpy.ndarray, shape (p, p)
+        Fisher information of ``p = [theta (6), w0 (3)(, d (3))]`` in SI units
+        (theta [kg m^2], w0 [rad/s], d [N m]).
+    names : tuple of str
+        Parameter names, ``THETA_NAMES`` then ``wx0 wy0 wz0`` (then ``dx dy dz``).
+    omega : numpy.ndarray, shape (N, 3)
+        Noise-free model trajectory at the gyro times [rad/s].
+    sensitivity : numpy.ndarray, shape (N, 3, p)
+        ``d omega_k / d p`` at the gyro times.
+    """
+
+    information: np.ndarray
+    names: tuple[str, ...]
+    omega: np.ndarray
+    sensitivity: np.ndarray
+
+    def covariance(self) -> np.ndarray:
+        """Cramer-Rao bound on the covariance of all parameters, shape (p, p).
+
+        Returns
+        -------
+        numpy.ndarray, shape (p, p)
+            ``F^-1`` (column-scaled inverse); ``inf`` on the diagonal when ``F`` is singular.
+        """
+        F = self.information
+        d = np.sqrt(np.diag(F))
+        if np.any(d <= 0) or not np.all(np.isfinite(F)):
+            return np.full(F.shape, np.inf)
+        Fs = F / d[:, None] / d[None, :]
+        if np.linalg.cond(Fs) > 1e14:
+            return np.full(F.shape, np.inf)
+        return np.linalg.inv(Fs) / d[:, None] / d[None, :]
+
+    def theta_covariance(self) -> np.ndarray:
+        """Bound on the covariance of ``theta`` [kg^2 m^4], shape (6, 6), nuisances included."""
+        return self.covariance()[:6, :6]
+
+    def theta_std(self) -> np.ndarray:
+        """Bound on the standard deviation of each tensor element [kg m^2], shape (6,)."""
+        return np.sqrt(np.diag(self.theta_covariance()))
+
+    def frobenius_mse(self) -> float:
+        """Bound on ``E ||I_hat - I||_F^2`` [kg^2 m^4] (off-diagonal elements count twice)."""
+        return float(frobenius_weights() @ np.diag(self.theta_covariance()))
+
+
+def frobenius_weights() -> np.ndarray:
+    """Weights ``w`` with ``||theta_to_matrix(e)||_F^2 = sum_i w_i e_i^2``, shape (6,)."""
+    return np.array([1.0, 1.0, 1.0, 2.0, 2.0, 2.0])
+
+
+def _as_std(x: Any, name: str) -> np.ndarray:
+    """Validated per-axis std (scalar or (3,)), >= 0."""
+    arr = np.broadcast_to(np.asarray(x, dtype=float), (3,)).copy()
+    if not np.all(np.isfinite(arr)) or np.any(arr < 0):
+        raise ValueError(f'{name}: must be finite and >= 0 (scalar or 3 values), got {x!r}')
+    return arr
+
+
+def _as_times(t: Any, name: str) -> np.ndarray:
+    """Validated strictly increasing finite 1-D times."""
+    arr = np.asarray(t, dtype=float)
+    if arr.ndim != 1 or arr.size < 2:
+        raise ValueError(f'{name}: expected shape (N,) with N >= 2, got {arr.shape}')
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f'{name}: contains NaN or inf')
+    if np.any(np.diff(arr) <= 0):
+        raise ValueError(f'{name}: times must be strictly increasing')
+    return arr
+
+
+_MONO_I = np.array([0, 1, 2, 0, 0, 1])
+_MONO_J = np.array([0, 1, 2, 1, 2, 2])
+
+
+def _linear_maps() -> tuple[np.ndarray, np.ndarray]:
+    """Constant matrices that turn the bilinear terms of Euler's equation into products.
+
+    Returns ``(Y_map (9, 18), gyro_map (6, 3, 6))``: for any ``v`` and ``w``,
+    ``([v, mono(w)] @ Y_map).reshape(3, 6)`` has columns ``E_k v + w x (E_k w)`` and
+    ``w x (I w) = mono(w) @ (gyro_map @ theta)``, with ``mono(w)`` the six quadratic monomials
+    ``[wx^2, wy^2, wz^2, wx wy, wx wz, wy wz]``.
+    """
+    eye = np.eye(3)
+
+    def gyro(w: np.ndarray) -> np.ndarray:            # (3, 6): columns w x (E_k w)
+        return np.cross(w, _E @ w).T
+
+    Y_map = np.zeros((9, 18))
+    for c in range(3):                                 # E_k v, linear in v
+        Y_map[c] = (_E @ eye[c]).T.ravel()
+    for m, (i, j) in enumerate(zip(_MONO_I, _MONO_J, strict=True)):
+        if i == j:
+            g = gyro(eye[i])
+        else:
+            g = gyro(eye[i] + eye[j]) - gyro(eye[i]) - gyro(eye[j])
+        Y_map[3 + m] = g.ravel()
+    return Y_map, Y_map[3:].reshape(6, 3, 6)
+
+
+_Y_MAP, _GYRO_MAP = _linear_maps()
+
+
+class _Dynamics:
+    """Right-hand side of the state, sensitivity, transition and input equations.
+
+    ``w x (I w) = G(mono(w)) theta`` and its Jacobian in ``w`` are linear in ``w`` (or in the
+    monomials), so each evaluation is a handful of small matrix products.
+    """
+
+    def __init__(self, inertia: np.ndarray, n_par: int, bias: bool) -> None:
+        self.I = inertia
+        self.Ii = np.linalg.inv(inertia)
+        theta = np.array([inertia[0, 0], inertia[1, 1], inertia[2, 2], inertia[0, 1],
+                          inertia[0, 2], inertia[1, 2]])
+        # w x (I w) = mono(w) @ gyro_w  (6, 3)
+        self.gyro_w = _GYRO_MAP @ theta
+        # Jacobian of w x (I w) in w: d/dw_c of mono(w) @ gyro_w, linear in w:
+        # dmono_m/dw_c = w_i [c == j] + w_j [c == i]  ->  jac(w)[r, c] = sum_a w_a Jm[a, r, c]
+        Jm = np.zeros((3, 3, 3))
+        for m, (i, j) in enumerate(zip(_MONO_I, _MONO_J, strict=True)):
+            Jm[i, :, j] += self.gyro_w[m]
+            Jm[j, :, i] += self.gyro_w[m]
+        self.jac_w = -np.einsum('rs,asc->arc', self.Ii, Jm).reshape(3, 9)   # Jw = -Ii jac
+        self.gyro_wd = -(self.gyro_w @ self.Ii.T)     # mono @ gyro_wd = -Ii (w x I w)
+        self.n_par = n_par
+        self.forcing = np.zeros((3, n_par + 6))   # constant columns of the linear part
+        if bias:
+            self.forcing[:, 9:12] = self.Ii            # d(w_dot)/dd
+        self.forcing[:, n_par + 3:] = self.Ii          # Psi' = Jw Psi + I^-1
+        self.mIi = -self.Ii
+
+    def __call__(self, w: np.ndarray, Z: np.ndarray, Iiu: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray]:
+        """``(w_dot, Z_dot)`` with ``Z = [S (3, p) | Phi (3, 3) | Psi (3, 3)]``.
+
+        ``Iiu`` is ``I^-1 (u + d)`` for the interval.
+        """
+        mono = w[_MONO_I] * w[_MONO_J]
+        wd = Iiu + mono @ self.gyro_wd
+        Jw = (w @ self.jac_w).reshape(3, 3)
+        # Y[:, k] = E_k wd + w x (E_k w): regressor of Euler's equation in theta
+        Y = (np.concatenate((wd, mono)) @ _Y_MAP).reshape(3, 6)
+        Zd = Jw @ Z + self.forcing
+        Zd[:, :6] += self.mIi @ Y
+        return wd, Zd
+
+
+def fisher_information(t_gyro: Any, t_torque: Any, torque: Any, inertia: Any, omega0: Any, *,
+                       gyro_std: Any, torque_std: Any = 0.0, disturbance: Any = None,
+                       estimate_bias: bool = False) -> FisherResult:
+    """Fisher information of the tensor (and nuisances) for one gyro + torque record.
+
+    Parameters
+    ----------
+    t_gyro : array_like, shape (N,)
+        Gyro sample times [s], strictly increasing; ``omega0`` is the rate at ``t_gyro[0]``.
+    t_torque : array_like, shape (M,)
+        Torque sample times [s], strictly increasing; the torque is held from each sample
+        to the next (and after the last one); zero before the first.
+    torque : array_like, shape (M, 3)
+        True applied (held) torque [N m], body axes (the measured values minus their noise).
+    inertia : array_like, shape (3, 3)
+        True tensor about the centre of mass [kg m^2].
+    omega0 : array_like, shape (3,)
+        True angular velocity at ``t_gyro[0]`` [rad/s].
+    gyro_std : float or array_like (3,)
+        Gyro white-noise std per axis [rad/s], > 0.
+    torque_std : float or array_like (3,)
+        Std of the noise on each torque sample, per axis [N m] (process noise held over the
+        torque interval).
+    disturbance : array_like (3,), optional
+        Constant unmeasured torque acting on the body [N m] (default zero).
+    estimate_bias : bool
+        Treat the disturbance as three unknown nuisance parameters.
+
+    Returns
+    -------
+    FisherResult
+        Information matrix, names, trajectory and sensitivities.
+
+    Raises
+    ------
+    ValueError
+        Malformed shapes, non-finite values, non-increasing times, ``gyro_std`` not positive,
+        or a tensor that is not symmetric positive definite.
+    """
+    tg = _as_times(t_gyro, 't_gyro')
+    ts = np.asarray(t_torque, dtype=float)
+    if ts.ndim != 1 or not np.all(np.isfinite(ts)) or np.any(np.diff(ts) <= 0):
+        raise ValueError('t_torque: expected strictly increasing finite times, shape (M,)')
+    tau = np.asarray(torque, dtype=float)
+    if tau.shape != (ts.size, 3) or not np.all(np.isfinite(tau)):
+        raise ValueError(f'torque: expected finite shape ({ts.size}, 3), got {tau.shape}')
+    I = np.asarray(inertia, dtype=float)
+    if I.shape != (3, 3) or not np.allclose(I, I.T, rtol=1e-9, atol=1e-15) \
+            or np.linalg.eigvalsh(0.5 * (I + I.T))[0] <= 0:
+        raise ValueError('inertia: must be a symmetric positive definite (3, 3) matrix')
+    I = 0.5 * (I + I.T)
+    w0 = np.asarray(omega0, dtype=float)
+    if w0.shape != (3,) or not np.all(np.isfinite(w0)):
+        raise ValueError(f'omega0: expected a finite 3-vector, got shape {w0.shape}')
+    sg = _as_std(gyro_std, 'gyro_std')
+    if np.any(sg <= 0):
+        raise ValueError(f'gyro_std: must be > 0, got {gyro_std!r}')
+    st = _as_std(torque_std, 'torque_std')
+    d = np.zeros(3) if disturbance is None else np.asarray(disturbance, dtype=float)
+    if d.shape != (3,) or not np.all(np.isfinite(d)):
+        raise ValueError(f'disturbance: expected a finite 3-vector, got {disturbance!r}')
+
+    bias = bool(estimate_bias)
+    n_par = 12 if bias else 9
+    names = tuple(THETA_NAMES) + ('wx0', 'wy0', 'wz0') + (('dx', 'dy', 'dz') if bias else ())
+
+    # merged grid: gyro times and the torque samples inside the record
+    inside = ts[(ts > tg[0] + _TIME_TOL) & (ts < tg[-1] - _TIME_TOL)]
+    grid = np.union1d(tg, inside)
+    grid = grid[np.concatenate([[True], np.diff(grid) > _TIME_TOL])]
+    is_gyro = np.zeros(grid.size, dtype=bool)
+    is_gyro[np.clip(np.searchsorted(grid, tg - _TIME_TOL), 0, grid.size - 1)] = True
+    # torque sample index in effect on [grid_i, grid_{i+1}) and where a new one starts
+    j_of = np.searchsorted(ts, grid + _TIME_TOL, side='right') - 1
+    new_tau = np.zeros(grid.size, dtype=bool)
+    new_tau[0] = j_of[0] >= 0
+    new_tau[1:] = (j_of[1:] != j_of[:-1]) & (j_of[1:] >= 0)
+    u_grid = np.where((j_of >= 0)[:, None], tau[np.clip(j_of, 0, None)], 0.0) + d
+
+    dyn = _Dynamics(I, n_par, bias)
+    Ii_norm = float(np.linalg.norm(dyn.Ii, 2))
+    R = np.diag(sg ** 2)
+    Qnu = np.diag(st ** 2)
+    noisy = bool(np.any(st > 0))
+
+    w = w0.copy()
+    S = np.zeros((3, n_par))
+    S[:, 6:9] = np.eye(3)
+    P = np.zeros((6, 6))            # covariance of [dw, nu] (prior)
+    D = np.zeros((6, n_par))        # sensitivity of the predicted deviation state
+    F = np.zeros((n_par, n_par))
+    omega_out = np.empty((tg.size, 3))
+    sens_out = np.empty((tg.size, 3, n_par))
+    g = 0
+    Z = np.zeros((3, n_par + 6))
+    for i in range(grid.size):
+        if is_gyro[i]:
+            omega_out[g] = w
+            sens_out[g] = S
+            g += 1
+            # innovation sensitivities: de = -(S + H D), H = [I 0]
+            de = -(S + D[:3])
+            Sk = P[:3, :3] + R
+            Sinv = np.linalg.inv(Sk)
+            F += de.T @ Sinv @ de
+            if noisy:
+                K = P[:, :3] @ Sinv                   # (6, 3)
+                D = D + K @ de
+                P = P - K @ P[:3, :]
+                P = 0.5 * (P + P.T)
+        if noisy and new_tau[i]:
+            # a new torque sample: its noise is independent of everything before
+            P[3:, :] = 0.0
+            P[:, 3:] = 0.0
+            P[3:, 3:] = Qnu
+            D[3:] = 0.0
+        if i == grid.size - 1:
+            break
+        h_total = grid[i + 1] - grid[i]
+        u = u_grid[i]
+        wmax = float(np.linalg.norm(w)) + Ii_norm * float(np.linalg.norm(u)) * h_total
+        Iiu = dyn.Ii @ u
+        n = max(1, math.ceil(wmax * h_total / _MAX_STEP_ANGLE))
+        h = h_total / n
+        Z[:, :n_par] = S
+        Z[:, n_par:n_par + 3] = np.eye(3)
+        Z[:, n_par + 3:] = 0.0
+        for _ in range(n):
+            k1w, k1 = dyn(w, Z, Iiu)
+            k2w, k2 = dyn(w + 0.5 * h * k1w, Z + 0.5 * h * k1, Iiu)
+            k3w, k3 = dyn(w + 0.5 * h * k2w, Z + 0.5 * h * k2, Iiu)
+            k4w, k4 = dyn(w + h * k3w, Z + h * k3, Iiu)
+            w = w + h / 6.0 * (k1w + 2.0 * (k2w + k3w) + k4w)
+            Z = Z + h / 6.0 * (k1 + 2.0 * (k2 + k3) + k4)
+        S = Z[:, :n_par].copy()
+        if noisy:
+            Phi = Z[:, n_par:n_par + 3]
+            Psi = Z[:, n_par + 3:]
+            A = np.eye(6)
+            A[:3, :3] = Phi
+            A[:3, 3:] = Psi
+            P = A @ P @ A.T
+            D = A @ D
+    F = 0.5 * (F + F.T)
+    return FisherResult(information=F, names=names, omega=omega_out, sensitivity=sens_out)
+
+
+def scene_fisher(sim: Any, *, estimate_bias: bool | None = None) -> FisherResult:
+    """Fisher information of a simulated scene record (``simulation.simulate`` output).
+
+    Uses the true held commands at the torque sample times, the scene's true noise
+    (``gyro.noise_std``; torque noise ``noise_std + noise_rel * rms(command)`` per axis) and
+    its disturbance.  Stamps are taken as exact (the bound ignores jitter, delay and drops).
+
+    Parameters
+    ----------
+    sim : SimResult
+        A simulated record; its scene must have gyro noise and no inertia change.
+    estimate_bias : bool, optional
+        Include the disturbance torque as nuisance parameters; default: when the scene has a
+        non-zero disturbance.
+
+    Returns
+    -------
+    FisherResult
+
+    Raises
+    ------
+    ValueError
+        The record has an inertia change, no gyro noise, or too few samples.
+    """
+    if getattr(sim, 'inertia_changes', ()):
+        raise ValueError('sim: the bound assumes a constant tensor; this record has an inertia '
+                         'change')
+    scene = sim.scene
+    if scene.gyro.noise_std <= 0:
+        raise ValueError('sim: the scene has no gyro noise (the bound would be zero)')
+    cmd = np.asarray(sim.torque_command, dtype=float)
+    rms = np.sqrt(np.mean(cmd ** 2, axis=0)) if cmd.size else np.zeros(3)
+    tstd = scene.torque_sensor.noise_std + scene.torque_sensor.noise_rel * rms
+    dist = np.asarray(sim.torque_bias_true, dtype=float)
+    if estimate_bias is None:
+        estimate_bias = bool(np.any(dist != 0))
+    return fisher_information(sim.t_gyro, sim.t_torque, cmd, sim.inertia,
+                              np.asarray(sim.omega_true[0], dtype=float),
+                              gyro_std=scene.gyro.noise_std, torque_std=tstd,
+                              disturbance=dist, estimate_bias=estimate_bias)
