@@ -352,3 +352,19 @@ def test_sample_bag_sits_beside_the_scene_that_made_it(name):
     assert meta['inertia_ros.scene']['seed'] == str(scene.seed)
     assert truth and truth[0].data == cdr_encode.encode_inertia_stamped(
         [DEFAULT_START_NS], scene.inertia, scene.gyro.frame_id)[0]
+
+
+def test_truth_carries_mass_and_com_of_composite_bodies(tmp_path):
+    """/truth/inertia has m and com when the body (and the changed body) are built from parts."""
+    box = {'shape': 'solid_box', 'mass': 2.0, 'size': [0.2, 0.3, 0.4]}
+    ball = {'shape': 'solid_sphere', 'mass': 1.0, 'radius': 0.1, 'position': [0.3, 0, 0]}
+    s = Scene.from_dict({'duration': 2.0, 'body': {'parts': [box, ball]},
+                         'inertia_change': {'time': 1.0, 'parts': [box]}})
+    path = tmp_path / 'c.mcap'
+    write_simulation(path, simulate(s))
+    with AnyReader([path]) as rd:
+        msgs = [rd.deserialize(raw, c.msgtype).inertia
+                for c, _, raw in rd.messages() if c.topic == '/truth/inertia']
+    assert [m.m for m in msgs] == [3.0, 2.0]
+    assert _vec(msgs[0].com) == pytest.approx([0.1, 0.0, 0.0], abs=1e-15)
+    assert _vec(msgs[1].com) == [0.0, 0.0, 0.0]

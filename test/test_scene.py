@@ -392,5 +392,9 @@ def test_composite_scene_truth_matches_toolkit_composite():
                 [p[k] for k in PART_SHAPES[p['shape']]])
         placed.append(prim(p['mass'], *args).transformed(rpy_matrix(p.get('rpy', [0, 0, 0])),
                                                          p.get('position', [0, 0, 0])))
-    np.testing.assert_allclose(scene.inertia, composite(placed).matrix, rtol=1e-12, atol=0)
+    total = composite(placed)
+    np.testing.assert_allclose(scene.inertia, total.matrix, rtol=1e-12, atol=0)
+    assert scene.mass == pytest.approx(15.6, rel=1e-12)
+    np.testing.assert_allclose(scene.com, total.com, rtol=1e-12, atol=0)
+    assert Scene.from_dict(NOMINAL).mass is None, 'a bare tensor does not fix the mass'
     assert abs(scene.inertia[0, 2]) > 1e-3, 'the composite has products of inertia'

@@ -301,17 +301,20 @@ def parts_inertia(parts: Any, key: str = 'body.parts') -> tuple[np.ndarray, floa
     return np.array(total.matrix), float(total.mass), np.array(total.com)
 
 
-def _body_inertia(body: Any, key: str) -> tuple[np.ndarray, tuple[Mapping[str, Any], ...]]:
+def _body_inertia(body: Any, key: str) -> tuple[np.ndarray, tuple[Mapping[str, Any], ...],
+                                                float | None, np.ndarray | None]:
+    """(tensor, parts, mass or None, centre of mass or None) of a ``body`` mapping."""
     body = _mapping(body, key, ('inertia', 'parts'))
     has_i, has_p = 'inertia' in body, 'parts' in body
     if has_i == has_p:
         raise SceneError(f'{key}: give exactly one of inertia | parts')
     if has_i:
-        return matrix_from_inertia_value(body['inertia'], f'{key}.inertia'), ()
+        return matrix_from_inertia_value(body['inertia'], f'{key}.inertia'), (), None, None
     parts = body['parts']
-    m, _, _ = parts_inertia(parts, f'{key}.parts')
+    m, mass, com = parts_inertia(parts, f'{key}.parts')
     m = matrix_from_inertia_value(m.tolist(), f'{key}.parts (composite)')
-    return m, tuple(MappingProxyType(dict(p)) for p in parts)
+    com.setflags(write=False)
+    return m, tuple(MappingProxyType(dict(p)) for p in parts), mass, com
 
 
 # --------------------------------------------------------------------------------------------
@@ -522,10 +525,15 @@ class Imperfections:
 
 @dataclass(frozen=True, eq=False)
 class InertiaChange:
-    """A step change of the tensor at ``time`` [s] to ``inertia`` (3, 3) [kg m^2]."""
+    """A step change of the tensor at ``time`` [s] to ``inertia`` (3, 3) [kg m^2].
+
+    ``mass`` [kg] and ``com`` (3,) [m] are known only when the new body is given as parts.
+    """
 
     time: float
     inertia: np.ndarray
+    mass: float | None = None
+    com: np.ndarray | None = None
 
 
 _TOP_KEYS = ('name', 'description', 'seed', 'duration', 'body', 'initial_omega', 'torque',
@@ -561,6 +569,10 @@ class Scene:
     torque_sensor : TorqueSensorSpec
     imperfections : Imperfections
     inertia_change : InertiaChange or None
+    mass : float or None
+        Total mass [kg] when the body is given as parts (the tensor alone does not fix it).
+    com : numpy.ndarray, shape (3,), or None
+        Composite centre of mass [m] in the parts' coordinates, when given as parts.
     description : str
         Free text.
     source : Mapping
@@ -580,6 +592,8 @@ class Scene:
     imperfections: Imperfections
     inertia_change: InertiaChange | None = None
     parts: tuple[Mapping[str, Any], ...] = ()
+    mass: float | None = None
+    com: np.ndarray | None = None
     description: str = ''
     source: Mapping[str, Any] = field(default_factory=dict, repr=False)
 
@@ -611,7 +625,7 @@ class Scene:
         duration = _number(d.get('duration', 10.0), 'duration', positive=True)
         if 'body' not in d:
             raise SceneError('body: missing (give body.inertia or body.parts)')
-        inertia, parts = _body_inertia(d['body'], 'body')
+        inertia, parts, mass, com = _body_inertia(d['body'], 'body')
         omega0 = _vector(d.get('initial_omega', [0.0, 0.0, 0.0]), 'initial_omega')
         torque_raw = d.get('torque') or []
         if isinstance(torque_raw, Mapping):
@@ -660,13 +674,14 @@ class Scene:
             if t_c >= duration:
                 raise SceneError(f'inertia_change.time: must be before the end of the run '
                                  f'({duration} s), got {t_c}')
-            i_c, _ = _body_inertia({k: v for k, v in c.items() if k != 'time'},
-                                   'inertia_change')
-            change = InertiaChange(t_c, i_c)
+            i_c, _, m_c, com_c = _body_inertia({k: v for k, v in c.items() if k != 'time'},
+                                               'inertia_change')
+            change = InertiaChange(t_c, i_c, m_c, com_c)
         return cls(name=name, seed=seed, duration=duration, inertia=inertia,
                    initial_omega=omega0, torque=torque, disturbance=disturbance,
                    command_rate=command_rate, gyro=gyro, torque_sensor=torque_sensor,
                    imperfections=imperfections, inertia_change=change, parts=parts,
+                   mass=mass, com=com,
                    description=description, source=MappingProxyType(dict(d)))
 
     def to_dict(self) -> dict[str, Any]:

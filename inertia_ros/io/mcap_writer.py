@@ -361,8 +361,9 @@ def write_simulation(path: str | os.PathLike[str], result: SimResult, *,
     imu_topic, torque_topic, truth_topic : str, optional
         Topic names: ``sensor_msgs/msg/Imu`` (angular velocity, covariance diag(sigma^2)),
         ``geometry_msgs/msg/WrenchStamped`` (torque; zero force) and
-        ``geometry_msgs/msg/InertiaStamped`` (the true tensor at t = 0 and at each change;
-        latched QoS).
+        ``geometry_msgs/msg/InertiaStamped`` (the true tensor at t = 0 and at each change,
+        with mass and centre of mass when the body is built from parts, else 0; latched
+        QoS).
     compression : {'zstd', 'lz4', 'none'}, optional
         Chunk compression.
     extra_metadata : Mapping[str, str], optional
@@ -382,10 +383,15 @@ def write_simulation(path: str | os.PathLike[str], result: SimResult, *,
     sigma = result.scene.gyro.noise_std
     t_g = seconds_to_ns(result.t_gyro, start_ns)
     t_t = seconds_to_ns(result.t_torque, start_ns)
+    scene = result.scene
     truth_t = [0.0] + [t for t, _ in result.inertia_changes]
     truth_i = np.stack([result.inertia] + [m for _, m in result.inertia_changes])
+    bodies = [(scene.mass, scene.com)]
+    if scene.inertia_change is not None and result.inertia_changes:
+        bodies.append((scene.inertia_change.mass, scene.inertia_change.com))
+    truth_m = [0.0 if m is None else m for m, _ in bodies]
+    truth_c = [np.zeros(3) if c is None else c for _, c in bodies]
     t_i = seconds_to_ns(np.array(truth_t), start_ns)
-    scene = result.scene
     meta = {
         'scene_name': scene.name,
         'seed': str(result.seed),
@@ -405,7 +411,8 @@ def write_simulation(path: str | os.PathLike[str], result: SimResult, *,
             angular_velocity_covariance=np.diag([sigma ** 2] * 3).ravel()))
         w.write_many(torque_topic, t_t, cdr_encode.encode_wrench_stamped(
             t_t, result.torque, frame))
-        w.write_many(truth_topic, t_i, cdr_encode.encode_inertia_stamped(t_i, truth_i, frame))
+        w.write_many(truth_topic, t_i, cdr_encode.encode_inertia_stamped(
+            t_i, truth_i, frame, mass=np.array(truth_m), com=np.array(truth_c)))
         w.add_metadata('inertia_ros.scene', meta)
     return {imu_topic: int(t_g.size), torque_topic: int(t_t.size), truth_topic: int(t_i.size)}
 
