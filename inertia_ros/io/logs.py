@@ -216,6 +216,11 @@ class _Raw:
         self.ok.append(d.ok)
         self.ordinal.append(ordinal)
 
+    @property
+    def count(self) -> int:
+        """Messages accumulated."""
+        return int(sum(a.size for a in self.stamp))
+
     def arrays(self) -> tuple[np.ndarray, ...]:
         """(stamp, frame, values, ok, ordinal) in arrival (file) order."""
         if not self.stamp:
@@ -334,6 +339,12 @@ def read_log(path: str | Path, omega_topic: str | None = None,
     om_type = topics[om_topic]
     tq_type = topics[tq_topic]
 
+    expected = _bag_counts(path)
+    for t in (om_topic, tq_topic):
+        got = raws[t].count if t in raws else 0
+        if t in expected and got < expected[t]:
+            warnings.append(f'{t}: metadata.yaml lists {expected[t]} messages, {got} were read '
+                            f'({expected[t] - got} lost)')
     om = _prepare(om_topic, om_type, raws.get(om_topic), ignore_frames, warnings)
     tq = _prepare(tq_topic, tq_type, raws.get(tq_topic), ignore_frames, warnings)
     if not ignore_frames and om[4] != tq[4]:
@@ -352,13 +363,30 @@ def read_log(path: str | Path, omega_topic: str | None = None,
                    damage, warnings)
 
 
+def _bag_counts(path: str | Path) -> dict[str, int]:
+    """Per-topic message counts a rosbag2 directory's metadata.yaml promises ({} if none)."""
+    meta = Path(path) / 'metadata.yaml'
+    if not meta.is_file():
+        return {}
+    import yaml
+
+    try:
+        info = yaml.safe_load(meta.read_text()) or {}
+        info = info.get('rosbag2_bagfile_information', info)
+        return {t['topic_metadata']['name']: int(t['message_count'])
+                for t in info.get('topics_with_message_count') or []}
+    except (yaml.YAMLError, AttributeError, KeyError, TypeError, ValueError):
+        return {}
+
+
 def _read_files(files: list[Path], omega_topic: str | None, torque_topic: str | None,
                 progress: Callable[[int, int], None] | None
                 ) -> tuple[dict[str, _Raw], dict[str, str], dict[str, dict[str, str]],
                            Damage, list[str]]:
     """One pass over every file: decode every topic of a type we can use."""
     wanted_types = set(OMEGA_TYPES) | set(TORQUE_TYPES) | {TRUTH_TYPE}
-    named = {t for t in (omega_topic, torque_topic) if t}
+    # with both topics named only those (and the truth) are decoded; else every candidate
+    named = {omega_topic, torque_topic} if omega_topic and torque_topic else set()
     raws: dict[str, _Raw] = {}
     topics: dict[str, str] = {}
     metadata: dict[str, dict[str, str]] = {}

@@ -702,7 +702,7 @@ class McapReader:
                           f'record at byte {pos} (opcode 0x{op:02x}) runs past the end of '
                           f'the file')
                 if nxt is None:
-                    self._lost(pos, reason)
+                    self._lost(pos, reason, None if op == 0 else 9 + ln)
                     return
                 self.damage.notes.append(f'{reason}: skipped to the next chunk at byte {nxt}')
                 self.damage.bytes_lost += nxt - pos
@@ -719,18 +719,26 @@ class McapReader:
             if op == OP_DATA_END:
                 return
 
-    def _lost(self, pos: int, reason: str) -> None:
-        """Record that everything from byte ``pos`` to the end of the file is lost."""
+    def _lost(self, pos: int, reason: str, declared: int | None = None) -> None:
+        """Record that the file is unreadable from byte ``pos`` on.
+
+        Without an intact summary the size of what followed is unknown: the loss is then
+        estimated from the record cut off (``declared`` bytes long) and is a lower bound.
+        """
         self.damage.truncated = True
         lost = max(self.size - pos, 0)
         self.damage.bytes_lost += lost
-        msgs = 0
+        bound = ''
         if self.statistics is not None:
             msgs = max(self.statistics.message_count - self.messages_read, 0)
-        elif self._bytes_per_message > 0:
-            msgs = int(round(lost / self._bytes_per_message))
+        else:
+            known = max(lost, declared or 0)
+            msgs = (int(round(known / self._bytes_per_message))
+                    if self._bytes_per_message > 0 else 0)
+            bound = 'at least '
         self.damage.messages_lost += msgs
-        self.damage.notes.append(f'{reason}: {lost} bytes (~{msgs} messages) lost')
+        self.damage.notes.append(f'{reason}: {lost} bytes unreadable, {bound}~{msgs} messages '
+                                 'lost')
 
     # bulk batches ---------------------------------------------------------------------------
     def iter_batches(self, select: ChannelFilter | None = None) -> Iterator[MessageBatch]:
@@ -778,6 +786,8 @@ class McapReader:
                 pending_chunk = None
                 yield from self._chunk_batches(off, chunk, indexes, wanted)
                 indexes.clear()
+                if self.messages_read:
+                    self._bytes_per_message = bytes_seen / self.messages_read
 
         for op, off, body in self._top_level():
             if op == OP_MESSAGE_INDEX:
