@@ -129,6 +129,7 @@ BAD = [
     (r'body\.inertia\[2\]: must be finite', _with('body.inertia.2', float('nan'))),
     ('duration: must be a positive number', _with('duration', -1.0)),
     ('duration: must be a number', _with('duration', 'long')),
+    ('duration: .* more than the simulator allows', _with('duration', 1e6)),
     ('seed: must be an integer', _with('seed', 1.5)),
     ('seed: must be >= 0', _with('seed', -3)),
     (r'initial_omega: must be a list of 3', _with('initial_omega', [0, 0])),

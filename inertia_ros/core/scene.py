@@ -72,6 +72,9 @@ TORQUE_TYPES: Mapping[str, Mapping[str, Any]] = MappingProxyType({
 })
 _COMMON_TORQUE_KEYS = ('type', 'amplitude', 'axes', 'start', 'end')
 
+#: Largest number of samples (gyro + torque + command updates) a scene may ask for.
+MAX_EVENTS = 5e7
+
 # --------------------------------------------------------------------------------------------
 # small validators: each raises SceneError naming the key
 # --------------------------------------------------------------------------------------------
@@ -665,6 +668,11 @@ class Scene:
             raise SceneError(f'imperfections.timestamp_jitter: must be <= a quarter of the '
                              f'fastest sample period ({0.25 * min_period:g} s) so stamps stay '
                              f'increasing, got {imperfections.timestamp_jitter}')
+        n_events = duration * (gyro.rate + torque_sensor.rate + command_rate)
+        if n_events > MAX_EVENTS:
+            raise SceneError(f'duration: {duration:g} s at these rates makes about '
+                             f'{n_events:.3g} samples, more than the simulator allows '
+                             f'({MAX_EVENTS:.0e}); shorten the run or lower the rates')
         change = None
         if d.get('inertia_change') is not None:
             c = _mapping(d['inertia_change'], 'inertia_change', ('time', 'inertia', 'parts'))
