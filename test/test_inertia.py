@@ -155,6 +155,24 @@ def test_rotated_sphere_and_axisymmetric_body_get_canonical_axes():
     _assert_convention(mom, ax)
 
 
+@pytest.mark.parametrize(('moments', 'axis'), [
+    ([0.5, 3.0, 3.0], 'x'), ([3.0, 0.5, 3.0], 'y'), ([3.0, 3.0, 0.5], 'z'),
+    ([2.0, 1.0, 1.0], 'x'), ([1.0, 2.0, 1.0], 'y'), ([1.0, 1.0, 2.0], 'z'),
+], ids=['prolate x', 'prolate y', 'prolate z', 'oblate x', 'oblate y', 'oblate z'])
+def test_spinning_an_axisymmetric_tensor_about_its_axis_does_not_change_its_axes(moments, axis):
+    """R diag R^T with R about the symmetry axis (round-off only) gives the same axes as diag.
+
+    The degenerate plane gets the canonical basis, not whatever LAPACK returns (atol 1e-12).
+    """
+    I0 = np.diag(moments)
+    ref_mom, ref_ax = ti.principal_axes(I0)
+    for angle in (0.3, 1.0, 2.2, -0.9):
+        R = Rotation.from_euler(axis, angle).as_matrix()
+        mom, ax = ti.principal_axes(R @ I0 @ R.T)
+        np.testing.assert_allclose(ax, ref_ax, atol=1e-12)
+        np.testing.assert_allclose(mom, ref_mom, rtol=1e-14)
+
+
 # ---------------------------------------------------------------------------------------------
 # physical validity and projection
 # ---------------------------------------------------------------------------------------------
@@ -508,6 +526,10 @@ def test_pendulum_periods():
     g = ti.STANDARD_GRAVITY
     bob = bodies.point_mass(0.7, (0.0, 0.0, -2.0))
     assert bob.pendulum_period([0.0, 0.0, 0.0], [1.0, 0.0, 0.0]) == pytest.approx(
+        2 * np.pi * np.sqrt(2.0 / g), rel=1e-12)
+    # an offset along the pivot axis changes neither I about the axis nor h
+    bob_off = bodies.point_mass(0.7, (0.5, 0.0, -2.0))
+    assert bob_off.pendulum_period([0.0, 0.0, 0.0], [3.0, 0.0, 0.0]) == pytest.approx(
         2 * np.pi * np.sqrt(2.0 / g), rel=1e-12)
     rod = bodies.thin_rod(1.3, 1.5, about='end')
     assert rod.pendulum_period([0.0, 0.0, 0.0], [0.0, 1.0, 0.0], g=9.81) == pytest.approx(
