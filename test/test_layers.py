@@ -41,24 +41,30 @@ def test_core_imports_no_ros_or_mcap_at_runtime():
     assert loaded == [], f'inertia_ros.core pulled in {loaded}'
 
 
+def _absolute(path, node):
+    """The absolute module an ImportFrom names, resolving relative imports from ``path``."""
+    if node.level == 0:
+        return node.module or ''
+    package = list(path.relative_to(ROOT).with_suffix('').parts[:-1])
+    base = package[:len(package) - (node.level - 1)]
+    return '.'.join(base + ([node.module] if node.module else []))
+
+
 def test_core_source_has_no_forbidden_imports():
-    """No core source file names a forbidden module in an import statement (even lazily)."""
+    """No core source file imports ROS, MCAP or inertia_ros outside core, even lazily."""
     offenders = []
     for path in (ROOT / 'inertia_ros' / 'core').rglob('*.py'):
         tree = ast.parse(path.read_text(), filename=str(path))
         for node in ast.walk(tree):
-            names = []
             if isinstance(node, ast.Import):
                 names = [a.name for a in node.names]
-            elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
-                names = [node.module]
-            elif isinstance(node, ast.ImportFrom) and node.level > 0 and node.module:
-                # relative import climbing out of core into io/nodes/cli
-                if node.level >= 2 and not node.module.startswith('core'):
-                    offenders.append(f'{path.name}:{node.lineno}: relative {node.module}')
+            elif isinstance(node, ast.ImportFrom):
+                names = [_absolute(path, node)]
+            else:
+                continue
             for n in names:
-                if n.split('.')[0] in FORBIDDEN:
-                    offenders.append(f'{path.name}:{node.lineno}: {n}')
-                if n.startswith('inertia_ros.') and not n.startswith('inertia_ros.core'):
-                    offenders.append(f'{path.name}:{node.lineno}: {n}')
+                root = n.split('.')[0]
+                inside = n == 'inertia_ros.core' or n.startswith('inertia_ros.core.')
+                if root in FORBIDDEN or (root == 'inertia_ros' and not inside):
+                    offenders.append(f'{path.relative_to(ROOT)}:{node.lineno}: {n}')
     assert offenders == []
