@@ -44,7 +44,9 @@ def write_log(path: Path, s: dict, *, frame: str = 'body', torque_frame: str | N
               chunk_size: int = 1 << 20) -> Path:
     """Write a log with the mcap package's writer; log times default to the header stamps."""
     topics = []
-    if omega_type == ce.IMU:
+    if s['tg'].size == 0:
+        pay = []
+    elif omega_type == ce.IMU:
         pay = ce.encode_imu(s['tg'], s['w'], frame)
     elif omega_type == TWIST:
         pay = ce.encode_stamped_float64(s['tg'], frame,

@@ -375,7 +375,7 @@ def plot_report(path: Path, est: InertiaEstimate, log: LogData,
 
     # convergence: the estimate on growing prefixes of the log, +-2 sigma
     axc = fig.add_subplot(gs[0:2, 1])
-    fracs = np.array([0.1, 0.15, 0.2, 0.3, 0.4, 0.55, 0.7, 0.85, 1.0])
+    fracs = np.array([0.1, 0.2, 0.35, 0.5, 0.75, 1.0])
     span = tg[-1] - tg[0]
     rows = []
     for f in fracs:
