@@ -40,7 +40,7 @@ from inertia_ros.core.scene import Scene
 __all__ = ['MAX_STEP_ANGLE', 'SimResult', 'command_grid', 'integrate_rigid_body', 'simulate']
 
 #: Largest rotation [rad] of the body during one integration substep.
-MAX_STEP_ANGLE = 2.0e-3
+MAX_STEP_ANGLE = 1.0e-2
 
 _EVENT_TOL = 1e-9  # s: event times closer than this are merged
 
@@ -105,54 +105,6 @@ def command_grid(scene: Scene) -> np.ndarray:
     return np.arange(_n_samples(scene.duration, scene.command_rate)) / scene.command_rate
 
 
-def _rk4_segment(s: list[float], tx: float, ty: float, tz: float, I: tuple[float, ...],
-                 Ii: tuple[float, ...], h: float, n: int) -> list[float]:
-    """Advance the state ``[wx, wy, wz, qw, qx, qy, qz]`` by ``n`` RK4 steps of ``h`` s.
-
-    The torque ``(tx, ty, tz)`` [N m] is constant; ``I`` and ``Ii`` are the row-major
-    tensor and its inverse.  Plain float arithmetic: this is the simulator's inner loop.
-    """
-    a00, a01, a02, a10, a11, a12, a20, a21, a22 = I
-    b00, b01, b02, b10, b11, b12, b20, b21, b22 = Ii
-    wx, wy, wz, qw, qx, qy, qz = s
-    h2 = 0.5 * h
-    h6 = h / 6.0
-
-    def f(wx: float, wy: float, wz: float, qw: float, qx: float, qy: float, qz: float
-          ) -> tuple[float, float, float, float, float, float, float]:
-        hx = a00 * wx + a01 * wy + a02 * wz
-        hy = a10 * wx + a11 * wy + a12 * wz
-        hz = a20 * wx + a21 * wy + a22 * wz
-        rx = tx - (wy * hz - wz * hy)
-        ry = ty - (wz * hx - wx * hz)
-        rz = tz - (wx * hy - wy * hx)
-        return (b00 * rx + b01 * ry + b02 * rz,
-                b10 * rx + b11 * ry + b12 * rz,
-                b20 * rx + b21 * ry + b22 * rz,
-                0.5 * (-qx * wx - qy * wy - qz * wz),
-                0.5 * (qw * wx + qy * wz - qz * wy),
-                0.5 * (qw * wy + qz * wx - qx * wz),
-                0.5 * (qw * wz + qx * wy - qy * wx))
-
-    for _ in range(n):
-        k1 = f(wx, wy, wz, qw, qx, qy, qz)
-        k2 = f(wx + h2 * k1[0], wy + h2 * k1[1], wz + h2 * k1[2], qw + h2 * k1[3],
-               qx + h2 * k1[4], qy + h2 * k1[5], qz + h2 * k1[6])
-        k3 = f(wx + h2 * k2[0], wy + h2 * k2[1], wz + h2 * k2[2], qw + h2 * k2[3],
-               qx + h2 * k2[4], qy + h2 * k2[5], qz + h2 * k2[6])
-        k4 = f(wx + h * k3[0], wy + h * k3[1], wz + h * k3[2], qw + h * k3[3],
-               qx + h * k3[4], qy + h * k3[5], qz + h * k3[6])
-        wx += h6 * (k1[0] + 2.0 * (k2[0] + k3[0]) + k4[0])
-        wy += h6 * (k1[1] + 2.0 * (k2[1] + k3[1]) + k4[1])
-        wz += h6 * (k1[2] + 2.0 * (k2[2] + k3[2]) + k4[2])
-        qw += h6 * (k1[3] + 2.0 * (k2[3] + k3[3]) + k4[3])
-        qx += h6 * (k1[4] + 2.0 * (k2[4] + k3[4]) + k4[4])
-        qy += h6 * (k1[5] + 2.0 * (k2[5] + k3[5]) + k4[5])
-        qz += h6 * (k1[6] + 2.0 * (k2[6] + k3[6]) + k4[6])
-    norm = math.sqrt(qw * qw + qx * qx + qy * qy + qz * qz)
-    return [wx, wy, wz, qw / norm, qx / norm, qy / norm, qz / norm]
-
-
 def integrate_rigid_body(t_events: np.ndarray, torque: np.ndarray, inertia: np.ndarray,
                          omega0: np.ndarray, *, max_step_angle: float = MAX_STEP_ANGLE
                          ) -> tuple[np.ndarray, np.ndarray]:
@@ -201,33 +153,109 @@ def integrate_rigid_body(t_events: np.ndarray, torque: np.ndarray, inertia: np.n
     if max_step_angle <= 0.0:
         raise ValueError(f'max_step_angle: must be positive, got {max_step_angle}')
     omega0 = np.asarray(omega0, dtype=float).reshape(3)
-    out = np.empty((k, 7))
-    s = [float(omega0[0]), float(omega0[1]), float(omega0[2]), 1.0, 0.0, 0.0, 0.0]
-    out[0] = s
+    wx, wy, wz = (float(v) for v in omega0)
+    qw, qx, qy, qz = 1.0, 0.0, 0.0, 0.0
+    rows = [(wx, wy, wz, qw, qx, qy, qz)]
     dts = np.diff(t_events).tolist()
     tq = torque.tolist()
-    # Per segment: the tensor and its inverse as flat tuples, changing only at a change.
-    cache_key: bytes | None = None
-    I_t: tuple[float, ...] = ()
-    Ii_t: tuple[float, ...] = ()
-    inv = np.linalg.inv
-    ii_norm = 0.0
-    for j in range(k - 1):
-        key = inertia[j].tobytes()
-        if key != cache_key:
-            cache_key = key
-            I_t = tuple(inertia[j].ravel().tolist())
-            Ii = inv(inertia[j])
-            Ii_t = tuple(Ii.ravel().tolist())
-            ii_norm = float(np.linalg.norm(Ii, 2))
-        dt = dts[j]
-        tx, ty, tz = tq[j]
-        wmag = math.sqrt(s[0] * s[0] + s[1] * s[1] + s[2] * s[2])
-        # rate bound over the segment: current spin plus what the torque can add
-        wmax = wmag + ii_norm * math.sqrt(tx * tx + ty * ty + tz * tz) * dt
-        n = max(1, math.ceil(wmax * dt / max_step_angle))
-        s = _rk4_segment(s, tx, ty, tz, I_t, Ii_t, dt / n, n)
-        out[j + 1] = s
+    # Blocks of segments with the same tensor (usually one; two with an inertia change).
+    changes = np.flatnonzero(np.any(inertia[1:] != inertia[:-1], axis=(1, 2))) + 1
+    edges = [0, *changes.tolist(), k - 1]
+    sqrt, ceil = math.sqrt, math.ceil
+    # Classical RK4, written out in plain floats: this is the simulator's inner loop, and
+    # function calls or small numpy operations would dominate its cost.  State: omega
+    # (wx, wy, wz) and the attitude quaternion (qw, qx, qy, qz).
+    for e0, e1 in zip(edges[:-1], edges[1:], strict=True):
+        if e1 <= e0:
+            continue
+        a00, a01, a02, a10, a11, a12, a20, a21, a22 = inertia[e0].ravel().tolist()
+        Ii = np.linalg.inv(inertia[e0])
+        b00, b01, b02, b10, b11, b12, b20, b21, b22 = Ii.ravel().tolist()
+        ii_norm = float(np.linalg.norm(Ii, 2))
+        for j in range(e0, e1):
+            dt = dts[j]
+            tx, ty, tz = tq[j]
+            # rate bound over the segment: current spin plus what the torque can add
+            wmax = sqrt(wx * wx + wy * wy + wz * wz) \
+                + ii_norm * sqrt(tx * tx + ty * ty + tz * tz) * dt
+            n = max(1, ceil(wmax * dt / max_step_angle))
+            h = dt / n
+            h2 = 0.5 * h
+            h6 = h / 6.0
+            for _ in range(n):
+                # stage 1 at (w, q)
+                hx = a00 * wx + a01 * wy + a02 * wz
+                hy = a10 * wx + a11 * wy + a12 * wz
+                hz = a20 * wx + a21 * wy + a22 * wz
+                rx = tx - (wy * hz - wz * hy)
+                ry = ty - (wz * hx - wx * hz)
+                rz = tz - (wx * hy - wy * hx)
+                k1x = b00 * rx + b01 * ry + b02 * rz
+                k1y = b10 * rx + b11 * ry + b12 * rz
+                k1z = b20 * rx + b21 * ry + b22 * rz
+                k1w = -0.5 * (qx * wx + qy * wy + qz * wz)
+                k1a = 0.5 * (qw * wx + qy * wz - qz * wy)
+                k1b = 0.5 * (qw * wy + qz * wx - qx * wz)
+                k1c = 0.5 * (qw * wz + qx * wy - qy * wx)
+                # stage 2 at (w, q) + h/2 k1
+                ux, uy, uz = wx + h2 * k1x, wy + h2 * k1y, wz + h2 * k1z
+                pw, pa, pb, pc = qw + h2 * k1w, qx + h2 * k1a, qy + h2 * k1b, qz + h2 * k1c
+                hx = a00 * ux + a01 * uy + a02 * uz
+                hy = a10 * ux + a11 * uy + a12 * uz
+                hz = a20 * ux + a21 * uy + a22 * uz
+                rx = tx - (uy * hz - uz * hy)
+                ry = ty - (uz * hx - ux * hz)
+                rz = tz - (ux * hy - uy * hx)
+                k2x = b00 * rx + b01 * ry + b02 * rz
+                k2y = b10 * rx + b11 * ry + b12 * rz
+                k2z = b20 * rx + b21 * ry + b22 * rz
+                k2w = -0.5 * (pa * ux + pb * uy + pc * uz)
+                k2a = 0.5 * (pw * ux + pb * uz - pc * uy)
+                k2b = 0.5 * (pw * uy + pc * ux - pa * uz)
+                k2c = 0.5 * (pw * uz + pa * uy - pb * ux)
+                # stage 3 at (w, q) + h/2 k2
+                ux, uy, uz = wx + h2 * k2x, wy + h2 * k2y, wz + h2 * k2z
+                pw, pa, pb, pc = qw + h2 * k2w, qx + h2 * k2a, qy + h2 * k2b, qz + h2 * k2c
+                hx = a00 * ux + a01 * uy + a02 * uz
+                hy = a10 * ux + a11 * uy + a12 * uz
+                hz = a20 * ux + a21 * uy + a22 * uz
+                rx = tx - (uy * hz - uz * hy)
+                ry = ty - (uz * hx - ux * hz)
+                rz = tz - (ux * hy - uy * hx)
+                k3x = b00 * rx + b01 * ry + b02 * rz
+                k3y = b10 * rx + b11 * ry + b12 * rz
+                k3z = b20 * rx + b21 * ry + b22 * rz
+                k3w = -0.5 * (pa * ux + pb * uy + pc * uz)
+                k3a = 0.5 * (pw * ux + pb * uz - pc * uy)
+                k3b = 0.5 * (pw * uy + pc * ux - pa * uz)
+                k3c = 0.5 * (pw * uz + pa * uy - pb * ux)
+                # stage 4 at (w, q) + h k3
+                ux, uy, uz = wx + h * k3x, wy + h * k3y, wz + h * k3z
+                pw, pa, pb, pc = qw + h * k3w, qx + h * k3a, qy + h * k3b, qz + h * k3c
+                hx = a00 * ux + a01 * uy + a02 * uz
+                hy = a10 * ux + a11 * uy + a12 * uz
+                hz = a20 * ux + a21 * uy + a22 * uz
+                rx = tx - (uy * hz - uz * hy)
+                ry = ty - (uz * hx - ux * hz)
+                rz = tz - (ux * hy - uy * hx)
+                k4x = b00 * rx + b01 * ry + b02 * rz
+                k4y = b10 * rx + b11 * ry + b12 * rz
+                k4z = b20 * rx + b21 * ry + b22 * rz
+                k4w = -0.5 * (pa * ux + pb * uy + pc * uz)
+                k4a = 0.5 * (pw * ux + pb * uz - pc * uy)
+                k4b = 0.5 * (pw * uy + pc * ux - pa * uz)
+                k4c = 0.5 * (pw * uz + pa * uy - pb * ux)
+                wx += h6 * (k1x + 2.0 * (k2x + k3x) + k4x)
+                wy += h6 * (k1y + 2.0 * (k2y + k3y) + k4y)
+                wz += h6 * (k1z + 2.0 * (k2z + k3z) + k4z)
+                qw += h6 * (k1w + 2.0 * (k2w + k3w) + k4w)
+                qx += h6 * (k1a + 2.0 * (k2a + k3a) + k4a)
+                qy += h6 * (k1b + 2.0 * (k2b + k3b) + k4b)
+                qz += h6 * (k1c + 2.0 * (k2c + k3c) + k4c)
+            norm = sqrt(qw * qw + qx * qx + qy * qy + qz * qz)
+            qw, qx, qy, qz = qw / norm, qx / norm, qy / norm, qz / norm
+            rows.append((wx, wy, wz, qw, qx, qy, qz))
+    out = np.array(rows, dtype=float).reshape(k, 7)
     return out[:, :3].copy(), out[:, 3:].copy()
 
 
