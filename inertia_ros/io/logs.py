@@ -515,6 +515,7 @@ def _prepare(topic: str, msg_type: str, raw: _Raw | None, ignore_frames: bool,
     if raw is None:
         raise LogError(f'{topic}: no messages of type {msg_type} in the log (empty stream)')
     stamp, frame, values, ok, ordinal = raw.arrays()
+    raw.stamp, raw.frame, raw.values, raw.ok, raw.ordinal = [], [], [], [], []  # free
     counts = StreamCounts(received=int(stamp.size))
     if stamp.size == 0:
         raise LogError(f'{topic}: the stream is empty')
@@ -598,6 +599,7 @@ def _clean(om: tuple, tq: tuple, *, gap_factor: float, max_backward_jump: float,
     idx_om, piece_om = pos[which == 0], piece[which == 0]
     idx_tq, piece_tq = pos[which == 1], piece[which == 1]
     n_pieces = int(piece.max(initial=0)) + 1
+    del which, pos, order, merged, piece, spikes, keep, m0
     jumps = n_pieces - 1
     if jumps:
         warnings.append(f'{jumps} backward clock jump(s) (restarted or looped recording): the '
@@ -650,6 +652,7 @@ def _clean(om: tuple, tq: tuple, *, gap_factor: float, max_backward_jump: float,
             ka |= ma
             kb |= mb
             good.append((lo, hi))
+            del ma, mb
         c_om.outside += int((~ka).sum())
         c_tq.outside += int((~kb).sum())
         if not good:
@@ -665,11 +668,13 @@ def _clean(om: tuple, tq: tuple, *, gap_factor: float, max_backward_jump: float,
         out_v_tq.append(v_tq[b[kb]])
         windows_ns.extend((lo + shift, hi + shift) for lo, hi in good)
         last_end = good[-1][1] + shift
+        del a, b, sa, sb, ka, kb
     if epoch is None:
         raise LogError('the angular-velocity and torque streams never overlap in time (header '
                        'stamps); check the clocks, or --torque-delay')
-    t_om = (np.concatenate(out_t_om) - epoch) / 1e9
-    t_tq = (np.concatenate(out_t_tq) - epoch) / 1e9
+    del s_om, v_om, s_tq, v_tq, om, tq
+    t_om = (_cat(out_t_om) - epoch) / 1e9
+    t_tq = (_cat(out_t_tq) - epoch) / 1e9
     c_om.used = int(t_om.size)
     c_tq.used = int(t_tq.size)
     windows = [((lo - epoch) / 1e9, (hi - epoch) / 1e9) for lo, hi in windows_ns]
@@ -684,8 +689,14 @@ def _clean(om: tuple, tq: tuple, *, gap_factor: float, max_backward_jump: float,
     if frac > 0.05:
         warnings.append(f'{100 * frac:.0f}% of the angular-velocity samples lie outside the '
                         'torque coverage (a stream stops early or starts late) and were dropped')
-    return (epoch, (t_om, np.concatenate(out_v_om), c_om), (t_tq, np.concatenate(out_v_tq),
-            c_tq), windows, jumps)
+    return (epoch, (t_om, _cat(out_v_om), c_om), (t_tq, _cat(out_v_tq), c_tq), windows, jumps)
+
+
+def _cat(parts: list[np.ndarray]) -> np.ndarray:
+    """Concatenate, without a copy when there is one part (and emptying the list)."""
+    out = parts[0] if len(parts) == 1 else np.concatenate(parts)
+    parts.clear()
+    return out
 
 
 def _pieces(stamps: np.ndarray, jump_ns: int) -> tuple[np.ndarray, np.ndarray]:
