@@ -246,6 +246,16 @@ def test_refuses_to_overwrite_unless_told(tmp_path):
     assert path.read_bytes()[:8] == b'\x89MCAP0\r\n'
 
 
+def test_file_created_meanwhile_is_not_replaced(tmp_path):
+    """A file that appears at the target while writing is kept, and the write fails."""
+    path = tmp_path / 'race.mcap'
+    with pytest.raises(FileExistsError, match='appeared while writing'), McapWriter(path) as w:
+        w.add_topic('/t', cdr_encode.WRENCH_STAMPED)
+        path.write_bytes(b'other')
+    assert path.read_bytes() == b'other'
+    assert sorted(p.name for p in tmp_path.iterdir()) == ['race.mcap']
+
+
 def test_error_inside_context_leaves_no_file(tmp_path):
     """An exception inside the with-block discards the partial output."""
     path = tmp_path / 'y.mcap'

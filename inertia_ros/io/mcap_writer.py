@@ -151,6 +151,7 @@ class McapWriter:
             raise FileExistsError(f'{self.path} exists (pass overwrite=True to replace it)')
         if not self.path.parent.is_dir():
             raise McapWriterError(f'path: directory {self.path.parent} does not exist')
+        self._overwrite = overwrite
         self._compression = _COMPRESSION[compression]
         self._chunk_size = chunk_size
         self._ros_distro = ros_distro
@@ -313,6 +314,9 @@ class McapWriter:
                 'serialized_metadata': self._bag_metadata(start, end, count)})
             self._writer.finish()
             self._stream.close()
+            if not self._overwrite and self.path.exists():
+                raise FileExistsError(f'{self.path} appeared while writing '
+                                      f'(pass overwrite=True to replace it)')
             os.replace(self._tmp, self.path)
         except BaseException:
             self.abort()
