@@ -1,0 +1,155 @@
+"""The benchmark charts (matplotlib, Agg backend): speed against accuracy, the stability map."""
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use('Agg')
+import matplotlib.pyplot as plt
+import numpy as np
+from matplotlib.colors import LogNorm
+from matplotlib.ticker import NullFormatter
+
+from .methods import DEFAULT_METHOD, MethodSpec
+from .montecarlo import Bound, Summary, pareto_front
+from .stability import SILENT_THRESHOLD, Cell
+
+__all__ = ['plot_speed_vs_accuracy', 'plot_stability_map']
+
+_FAMILY_COLOURS = {'integral': 'tab:blue', 'sliding': 'tab:green', 'differential': 'tab:orange',
+                   'baseline': 'tab:red', 'recursive': 'tab:purple'}
+_MARKERS = 'osD^v<>pP*Xhd8H'
+
+
+def plot_speed_vs_accuracy(summaries: Sequence[Summary], specs: Sequence[MethodSpec],
+                           bounds: dict[str, Bound], path: Path) -> None:
+    """One panel per scene: median time (log x) against error (log y), Pareto front marked.
+
+    Each setting is a marker at its median relative Frobenius error with a bar up to the
+    90th percentile; the dashed line is the Cramer-Rao bound (RMS relative Frobenius error);
+    the grey step line joins the Pareto-optimal settings (median error vs median time).
+    Settings with no ok result are listed under the panel.
+
+    Parameters
+    ----------
+    summaries : sequence of Summary
+    specs : sequence of MethodSpec
+        For the families (colours) and the legend order.
+    bounds : dict of str to Bound
+    path : Path
+        PNG file to write.
+    """
+    scenes = list(dict.fromkeys(s.scene for s in summaries))
+    family = {s.name: s.family for s in specs}
+    marker = {s.name: _MARKERS[i % len(_MARKERS)] for i, s in enumerate(specs)}
+    n = len(scenes)
+    cols = min(3, n)
+    rows = int(np.ceil(n / cols))
+    fig, axes = plt.subplots(rows, cols, figsize=(5.2 * cols, 4.3 * rows + 1.2), squeeze=False)
+    handles = {}
+    for ax, scene in zip(axes.ravel(), scenes, strict=False):
+        rows_s = [s for s in summaries if s.scene == scene]
+        pts = [(s.median_seconds, s.median_error) for s in rows_s]
+        failed = []
+        for s in rows_s:
+            if not np.isfinite(s.median_error):
+                failed.append(s.method)
+                continue
+            c = _FAMILY_COLOURS.get(family.get(s.method, ''), 'k')
+            lo = s.median_error
+            hi = s.p90_error
+            ax.plot([s.median_seconds] * 2, [lo, hi], color=c, lw=1.2, alpha=0.7)
+            h = ax.scatter(s.median_seconds, s.median_error, color=c,
+                           marker=marker.get(s.method, 'o'), s=70 if s.method == DEFAULT_METHOD
+                           else 40, edgecolor='k' if s.method == DEFAULT_METHOD else 'none',
+                           zorder=3, label=s.method)
+            handles.setdefault(s.method, h)
+        front = pareto_front(pts)
+        if front:
+            ft = [pts[i][0] for i in front]
+            fe = [pts[i][1] for i in front]
+            ax.step(ft, fe, where='post', color='0.4', lw=1.0, ls='-', zorder=1)
+            ax.scatter(ft, fe, s=160, facecolor='none', edgecolor='0.3', lw=1.0, zorder=2)
+        b = bounds.get(scene)
+        if b is not None and np.isfinite(b.rel_frobenius):
+            ax.axhline(b.rel_frobenius, color='k', ls='--', lw=1.0)
+            ax.text(0.99, b.rel_frobenius, 'CRLB', va='top', ha='right', fontsize=8,
+                    transform=ax.get_yaxis_transform())
+        ax.axhline(SILENT_THRESHOLD, color='tab:red', ls=':', lw=0.8)
+        ax.set_xscale('log')
+        ax.set_yscale('log')
+        ax.xaxis.set_minor_formatter(NullFormatter())
+        ax.set_title(scene)
+        ax.set_xlabel('compute time per estimate [s] (median)')
+        ax.set_ylabel('relative Frobenius error (median, bar to p90)')
+        ax.grid(True, which='both', alpha=0.25)
+        if failed:
+            ax.text(0.02, 0.02, 'no ok result: ' + ', '.join(failed), transform=ax.transAxes,
+                    fontsize=7, color='tab:red')
+    for ax in axes.ravel()[n:]:
+        ax.axis('off')
+    fig.legend(list(handles.values()), list(handles.keys()), loc='lower center',
+               ncol=min(8, len(handles)), fontsize=8, frameon=False)
+    fig.suptitle('Speed against accuracy (grey circles and steps: Pareto front; dashed: '
+                 'Cramer-Rao bound; dotted red: 10 % error)', fontsize=11)
+    fig.tight_layout(rect=(0, 0.07, 1, 0.97))
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def plot_stability_map(cells: Sequence[Cell], path: Path) -> None:
+    """Per method and duration: median error over gyro noise x amplitude, failures marked.
+
+    Colour: log10 of the median relative Frobenius error over the seeds (ok and silent
+    results).  A black ``x`` marks a cell where the method reported a failure status on at
+    least one seed; a red square marks a silent failure (status ok, error > 10 %).
+
+    Parameters
+    ----------
+    cells : sequence of Cell
+    path : Path
+        PNG file to write.
+    """
+    methods = list(dict.fromkeys(c.method for c in cells))
+    durations = sorted({c.duration for c in cells})
+    noises = sorted({c.gyro_noise for c in cells})
+    amps = sorted({c.amplitude for c in cells})
+    fig, axes = plt.subplots(len(durations), len(methods),
+                             figsize=(2.9 * len(methods) + 1.2, 2.8 * len(durations) + 0.8),
+                             squeeze=False)
+    norm = LogNorm(vmin=1e-4, vmax=1.0)
+    im = None
+    for r, dur in enumerate(durations):
+        for c, m in enumerate(methods):
+            ax = axes[r, c]
+            Z = np.full((len(amps), len(noises)), np.nan)
+            for i, a in enumerate(amps):
+                for j, nz in enumerate(noises):
+                    sel = [x for x in cells if x.method == m and x.duration == dur
+                           and x.amplitude == a and x.gyro_noise == nz]
+                    errs = [x.error for x in sel if x.status == 'ok' and np.isfinite(x.error)]
+                    if errs:
+                        Z[i, j] = np.clip(np.median(errs), 1e-4, 1.0)
+                    if any(x.outcome == 'reported' for x in sel):
+                        ax.plot(j, i, 'x', color='k', ms=9, mew=2)
+                    if any(x.outcome == 'silent' for x in sel):
+                        ax.plot(j, i, 's', mfc='none', mec='red', ms=15, mew=2)
+            im = ax.imshow(Z, origin='lower', cmap='viridis', norm=norm, aspect='auto')
+            ax.set_xticks(range(len(noises)), [f'{v:g}' for v in noises], fontsize=7,
+                          rotation=45)
+            ax.set_yticks(range(len(amps)), [f'{v:g}' for v in amps], fontsize=7)
+            if r == 0:
+                ax.set_title(m, fontsize=10)
+            if r == len(durations) - 1:
+                ax.set_xlabel('gyro noise [rad/s]', fontsize=8)
+            if c == 0:
+                ax.set_ylabel(f'{dur:g} s record\ntorque amplitude [N m]', fontsize=8)
+    if im is not None:
+        fig.colorbar(im, ax=axes.ravel().tolist(), shrink=0.8,
+                     label='median relative Frobenius error')
+    fig.suptitle('Stability map (nominal body; x: failure status reported; red square: silent '
+                 'failure, status ok with error > 10 %)', fontsize=10)
+    fig.savefig(path, dpi=100, bbox_inches='tight')
+    plt.close(fig)
