@@ -13,7 +13,7 @@ import sys
 
 #: Command modules, in the order ``--help`` lists them.  A module is listed here only once
 #: the command it implements is real.
-COMMANDS: tuple[str, ...] = ('simulate', 'estimate')
+COMMANDS: tuple[str, ...] = ('simulate', 'estimate', 'bench')
 
 
 class UserError(Exception):
