@@ -64,6 +64,7 @@ HOLDS: tuple[str, ...] = ('zoh', 'linear')
 _AXES = {'x': np.array([1.0, 0.0, 0.0]), 'y': np.array([0.0, 1.0, 0.0]),
          'z': np.array([0.0, 0.0, 1.0])}
 _L_BASIS = momentum_matrix(np.eye(3))          # (3 axes c, 3, 6): L(e_c)
+_NULL_FRACTION = 0.03                          # signal fraction of an undetermined direction
 _SEGMENT_CANDIDATES = (5.0, 10.0, 20.0, 40.0)   # s, anchored-segment lengths tried
 
 
@@ -222,6 +223,8 @@ class _Stats:
     n_seg: int
     eq: _Equations
     A: np.ndarray | None           # demeaned A, kept for the HAC covariance
+    walk_time: float = 0.0         # sum over segments of n_s * duration_s / 6 [s]
+    torque_dt: float = 0.0         # median torque sample interval [s]
 
 
 def _stats(eq: _Equations, segment: float | None, t_tau: np.ndarray, tau_end: float,
@@ -234,7 +237,12 @@ def _stats(eq: _Equations, segment: float | None, t_tau: np.ndarray, tau_end: fl
         CP = None
         if np.any(torque_var > 0) and len(t_tau) > 1:
             CP = _cross(_torque_stats(A, eq.t, t_tau, tau_end))
-        return _Stats(_cross(A), CP, n, n - len(starts), len(starts), eq, None)
+        bounds = np.append(starts, n)
+        ns = np.diff(bounds)
+        dur = eq.t[bounds[1:] - 1] - eq.t[starts]
+        tdt = float(np.median(np.diff(t_tau))) if len(t_tau) > 1 else 0.0
+        return _Stats(_cross(A), CP, n, n - len(starts), len(starts), eq, None,
+                      walk_time=float(np.sum(ns * dur)) / 6.0, torque_dt=tdt)
     return _Stats(_cross(eq.A), None, n, n, 0, eq, eq.A)
 
 
@@ -250,6 +258,10 @@ class _Fit:
     bias: bool
     resid_rms: np.ndarray          # (3,)
     n_eq: int
+    excess: float = 1.0            # residual variance / noise-model prediction
+    offset: np.ndarray | None = None  # (6,) fixed part of theta
+    g: np.ndarray | None = None    # (p,) right-hand side of H beta = g
+    meat: np.ndarray | None = None  # (p, p) middle of the sandwich (inflation included)
 
 
 def _solve_sym(H: np.ndarray, rhs: np.ndarray) -> np.ndarray:
@@ -267,8 +279,11 @@ def _solve_sym(H: np.ndarray, rhs: np.ndarray) -> np.ndarray:
     return x / (d[:, None] if rhs.ndim == 2 else d)
 
 
-def _selector(basis: np.ndarray, bias: bool) -> np.ndarray:
-    """Map (10, p + 1) from [psi, d, 1] to the columns [X6 | Xd | y] of ``A``."""
+def _selector(basis: np.ndarray, bias: bool, offset: np.ndarray | None = None) -> np.ndarray:
+    """Map (10, p + 1) from [psi, d, 1] to the columns [X6 | Xd | y] of ``A``.
+
+    ``offset`` (6,) is a fixed part of theta moved to the right-hand side.
+    """
     k = basis.shape[1]
     p = k + (3 if bias else 0)
     T = np.zeros((10, p + 1))
@@ -276,14 +291,16 @@ def _selector(basis: np.ndarray, bias: bool) -> np.ndarray:
     if bias:
         T[6:9, k:k + 3] = np.eye(3)
     T[9, p] = 1.0
+    if offset is not None:
+        T[:6, p] = -offset
     return T
 
 
 def _fit(st: _Stats, basis: np.ndarray, bias: bool, W: np.ndarray, gyro_var: np.ndarray,
-         torque_var: np.ndarray, bias_comp: bool) -> _Fit:
-    """Weighted LS of ``y = X6 T psi (+ Xd d)`` with its covariance, from the statistics."""
+         torque_var: np.ndarray, bias_comp: bool, offset: np.ndarray | None = None) -> _Fit:
+    """Weighted LS of ``y = X6 (T psi + offset) (+ Xd d)`` with its covariance."""
     k = basis.shape[1]
-    T = _selector(basis, bias)
+    T = _selector(basis, bias, offset)
     p = T.shape[1] - 1
     G = T.T @ _metric(st.C, W) @ T
     H0 = G[:p, :p]
@@ -297,13 +314,20 @@ def _fit(st: _Stats, basis: np.ndarray, bias: bool, W: np.ndarray, gyro_var: np.
     c = np.append(-beta, 1.0)
     rss = np.array([c @ (T.T @ st.C[r, r] @ T) @ c for r in range(3)])
     if st.eq.kind == 'anchored':
-        theta = basis @ beta[:k]
+        theta = basis @ beta[:k] + (0.0 if offset is None else offset)
         Im = theta_to_matrix(theta)
         S = Im @ np.diag(gyro_var) @ Im                           # white part of e_b
         meat = (T.T @ _metric(st.C, W @ S @ W) @ T)[:p, :p]
         if st.CP is not None:
             meat += (T.T @ _metric(st.CP, W @ np.diag(torque_var) @ W) @ T)[:p, :p]
+        # residuals larger than the noise model predicts (misfit, unmodelled effects):
+        # inflate the covariance by the excess, never deflate it
+        rss_w = float(c @ G @ c)
+        expected = st.n_eff * float(np.trace(W @ S)) + st.walk_time * st.torque_dt * float(
+            np.trace(W @ np.diag(torque_var)))
+        excess = rss_w / expected if expected > 0 else 1.0
     else:
+        excess = 1.0
         X = st.A @ T                                               # (n, 3, p + 1)
         e = X @ c                                                  # (n, 3) residuals
         scores = np.einsum('nrp,rs,ns->np', X[..., :p], W, e)
@@ -313,10 +337,11 @@ def _fit(st: _Stats, basis: np.ndarray, bias: bool, W: np.ndarray, gyro_var: np.
             Gl = scores[lag:].T @ scores[:-lag]
             meat += wgt * (Gl + Gl.T)
     cov = Hinv @ meat @ Hinv.T
-    cov = 0.5 * (cov + cov.T)
+    cov = 0.5 * (cov + cov.T) * max(excess, 1.0)
     dof = max(st.n_eff - p, 1)
-    return _Fit(beta=beta, cov=cov, H=H, H0=H0, basis=basis, bias=bias,
-                resid_rms=np.sqrt(np.maximum(rss, 0.0) / dof), n_eq=st.n)
+    return _Fit(beta=beta, cov=cov, H=H, H0=H0, basis=basis, bias=bias, offset=offset,
+                resid_rms=np.sqrt(np.maximum(rss, 0.0) / dof), n_eq=st.n, excess=excess,
+                g=g, meat=meat * max(excess, 1.0))
 
 
 def _weight(theta: np.ndarray, gyro_var: np.ndarray) -> np.ndarray:
@@ -330,14 +355,14 @@ def _weight(theta: np.ndarray, gyro_var: np.ndarray) -> np.ndarray:
 
 
 def _fit2(st: _Stats, basis: np.ndarray, bias: bool, gyro_var: np.ndarray,
-          torque_var: np.ndarray) -> _Fit:
+          torque_var: np.ndarray, offset: np.ndarray | None = None) -> _Fit:
     """Two-pass fit: unweighted, then weighted by the first pass's tensor (weighted methods)."""
-    f = _fit(st, basis, bias, np.eye(3), gyro_var, torque_var, st.eq.weighted)
+    f = _fit(st, basis, bias, np.eye(3), gyro_var, torque_var, st.eq.weighted, offset)
     if st.eq.weighted and np.all(gyro_var > 0):
-        theta = basis @ f.beta[:basis.shape[1]]
+        theta = basis @ f.beta[:basis.shape[1]] + (0.0 if offset is None else offset)
         if np.all(np.isfinite(theta)) and np.any(theta[:3] != 0):
             f = _fit(st, basis, bias, _weight(theta, gyro_var), gyro_var, torque_var,
-                     st.eq.weighted)
+                     st.eq.weighted, offset)
     return f
 
 
@@ -452,6 +477,44 @@ def _conditioning(fit: _Fit, names: list[str]) -> dict[str, Any]:
     lam, vec = np.linalg.eigh(Hs)
     cond = float(lam[-1] / lam[0]) if lam[0] > 0 else float('inf')
     return {'condition_number': cond, 'weakest_direction': _describe(vec[:, 0], names)}
+
+
+def _undetermined(f: _Fit) -> tuple[np.ndarray, bool]:
+    """Elements (6,) of a full-model fit that the data does not determine; is the bias?
+
+    Returns the mask and False when the weakest direction is a torque-bias component (the
+    bias is then not determined and must be left out).
+
+    The information ``H`` (gyro-noise contribution removed) is scaled by the total column
+    energy ``diag(H0)``, so its eigenvalues are the fraction of regressor energy that is signal
+    in each direction.  While the smallest is below ``_NULL_FRACTION`` (noise or collinearity),
+    the element loading most on that direction is declared undetermined and removed.  Then
+    every remaining element whose estimate would move by more than ``_LEAK_FRACTION`` of the
+    tensor scale if the undetermined ones took any value up to that scale (sensitivity
+    ``H_FF^-1 H_FU``) is undetermined as well.
+    """
+    out = np.zeros(6, dtype=bool)
+    p = len(f.beta)
+    h0 = np.diag(f.H0)
+    if np.any(h0[:6] <= 0):
+        out[:6] = h0[:6] <= 0
+        return out, True
+    d = 1.0 / np.sqrt(h0)
+    Hs = f.H * d[:, None] * d[None, :]
+    Hs = 0.5 * (Hs + Hs.T)
+    keep = list(range(p))
+    while len(keep) > 1:
+        sub = Hs[np.ix_(keep, keep)]
+        lam, V = np.linalg.eigh(sub)
+        if lam[0] >= _NULL_FRACTION:
+            break
+        worst = keep[int(np.argmax(np.abs(V[:, 0])))]
+        if worst >= 6:
+            out[:] = False
+            return out, False                      # the bias is the weak direction
+        keep.remove(worst)
+    out[sorted(set(range(6)) - set(keep))] = True
+    return out, True
 
 
 def _wald(theta: np.ndarray, cov: np.ndarray, R: np.ndarray) -> tuple[float, int, float]:
@@ -577,8 +640,11 @@ def estimate(t_gyro: Any, omega: Any, t_torque: Any, torque: Any, *,
         raise ValueError(f'segment: must be > 0 s, got {segment!r}')
     if window is not None and not window > 0:
         raise ValueError(f'window: must be > 0 s, got {window!r}')
-    gyro_std = (noise_std_from_differences(w) if gyro_noise is None
-                else _noise(gyro_noise, 'gyro_noise'))
+    if gyro_noise is None:
+        gyro_std = noise_std_from_differences(w)
+        gyro_std = np.maximum(gyro_std, 0.1 * float(np.max(gyro_std)))   # isotropy floor
+    else:
+        gyro_std = _noise(gyro_noise, 'gyro_noise')
     torque_std = (noise_std_from_differences(tau) if torque_noise is None or len(ts) == 0
                   else _noise(torque_noise, 'torque_noise'))
     if len(ts) == 0:
@@ -643,9 +709,9 @@ def estimate(t_gyro: Any, omega: Any, t_torque: Any, torque: Any, *,
             return InertiaEstimate(status='insufficient_data', diagnostics=diag,
                                    **base)   # type: ignore[arg-type]
 
-    def fit(basis: np.ndarray, bias: bool) -> _Fit:
+    def fit(basis: np.ndarray, bias: bool, offset: np.ndarray | None = None) -> _Fit:
         """Fit one parameter set on the statistics."""
-        return _fit2(st, basis, bias, gyro_var, torque_var)
+        return _fit2(st, basis, bias, gyro_var, torque_var, offset)
 
     return _conclude(fit, model, torque_bias, axis, alpha, identifiability_tol, physical,
                      diag, base)
@@ -657,35 +723,46 @@ def _conclude(fit: Any, model: str, torque_bias: str, axis: np.ndarray | None, a
     """Identifiability, model selection and the result, given ``fit(basis, bias) -> _Fit``."""
     gen_bias = torque_bias != 'off'
     # ---- identifiability on the general model
-    free = np.ones(6, dtype=bool)
-    for _ in range(3):
-        basis = np.eye(6)[:, free]
-        f = fit(basis, gen_bias)
-        names = _param_names(basis, gen_bias, 'full')
-        cond = _conditioning(f, names)
-        k = basis.shape[1]
-        theta = basis @ f.beta[:k]
-        se = basis @ np.sqrt(np.maximum(np.diag(f.cov)[:k], 0.0))
-        good_diag = [abs(theta[i]) for i in range(3)
-                     if free[i] and se[i] < 0.2 * abs(theta[i]) and theta[i] > 0]
-        if not good_diag or not np.isfinite(cond['condition_number']) and k == 0:
-            diag.update(cond)
-            diag['reason'] = 'no principal-diagonal element is determined by the data'
-            return InertiaEstimate(status='insufficient_excitation', diagnostics=diag,
-                                   **base)   # type: ignore[arg-type]
-        scale = max(good_diag)
-        new_free = free & (se < identifiability_tol * scale)
-        if np.array_equal(new_free, free):
-            break
-        free = new_free
-    diag.update(cond)
+    f = fit(np.eye(6), gen_bias)
+    names = _param_names(np.eye(6), gen_bias, 'full')
+    diag.update(_conditioning(f, names))
+    und, bias_ok = _undetermined(f)
+    if not bias_ok:
+        gen_bias = False
+        torque_bias = 'off'
+        diag['warnings'].append('the torque bias is not determined by this excitation: '
+                                'estimated without it')
+        f = fit(np.eye(6), False)
+        und, _ = _undetermined(f)
+    se = np.sqrt(np.maximum(np.diag(f.cov)[:6], 0.0))
+    good = [abs(float(f.beta[i])) for i in range(3)
+            if not und[i] and se[i] < 0.2 * abs(f.beta[i]) and f.beta[i] > 0]
+    if not good:
+        diag['reason'] = 'no principal-diagonal element is determined by the data'
+        return InertiaEstimate(status='insufficient_excitation', diagnostics=diag,
+                               **base)   # type: ignore[arg-type]
+    scale = max(good)
+    free = ~und
+    if np.any(und):
+        # undetermined elements held at a plausible value (mean determined moment, zero
+        # products) so that the weights and the other elements see a physical tensor
+        offset = np.zeros(6)
+        offset[:3][und[:3]] = float(np.mean(good))
+        diag['undetermined_held_at'] = dict(zip(
+            [n for n, u in zip(THETA_NAMES, und, strict=True) if u], offset[und], strict=True))
+        f = fit(np.eye(6)[:, free], gen_bias, offset)
+    k = int(np.sum(free))
+    se = np.eye(6)[:, free] @ np.sqrt(np.maximum(np.diag(f.cov)[:k], 0.0))
+    free = free & (se < identifiability_tol * scale)
+    if not np.any(free[:3]):
+        diag['reason'] = 'no principal-diagonal element is determined by the data'
+        return InertiaEstimate(status='insufficient_excitation', diagnostics=diag,
+                               **base)   # type: ignore[arg-type]
     if not np.all(free):
-        bias_on = gen_bias if torque_bias == 'on' else False
         if torque_bias == 'auto' and gen_bias:
             stat, dof, pval = _wald(f.beta, f.cov, np.eye(len(f.beta))[k:])
-            bias_on = pval < alpha
-            if not bias_on:
-                f = fit(basis, False)
+            diag['model_selection'] = {'bias': {'wald': stat, 'dof': dof, 'p_value': pval,
+                                                'kept': bool(pval < alpha)}}
         return _assemble('partially_identifiable', f, 'full', free, diag, base, physical=False)
 
     # ---- model selection: bias first, then the parameter set
@@ -770,6 +847,10 @@ def _assemble(status: str, f: _Fit, model: str, free: np.ndarray, diag: dict[str
     I = _sym(theta)
     I_std = _sym(se)
     diag['residual_rms'] = f.resid_rms
+    diag['residual_excess'] = f.excess
+    if f.excess > 1.5:
+        diag['warnings'].append(f'residuals are {f.excess:.3g} times the noise model: '
+                                'standard errors inflated accordingly')
     diag['equations'] = f.n_eq
     moments = axes = ratios = None
     if np.all(free):

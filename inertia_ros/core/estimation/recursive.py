@@ -320,9 +320,9 @@ class RecursiveEstimator:
         st = _Stats(self._C, None, int(round(self._w0)), int(round(n_eff)), 1, eq, None)
         ratio = self._w00 / self._w0
 
-        def fit(basis: np.ndarray, bias: bool) -> _Fit:
+        def fit(basis: np.ndarray, bias: bool, offset: np.ndarray | None = None) -> _Fit:
             """Fit on the weighted statistics; the meat of weighted sums scales by w^2/w."""
-            f = _fit2(st, basis, bias, nv, np.zeros(3))
+            f = _fit2(st, basis, bias, nv, np.zeros(3), offset)
             f.cov = f.cov * ratio
             return f
 
