@@ -65,6 +65,7 @@ _AXES = {'x': np.array([1.0, 0.0, 0.0]), 'y': np.array([0.0, 1.0, 0.0]),
          'z': np.array([0.0, 0.0, 1.0])}
 _L_BASIS = momentum_matrix(np.eye(3))          # (3 axes c, 3, 6): L(e_c)
 _NULL_FRACTION = 0.03                          # signal fraction of an undetermined direction
+_NOISE_SHARE = 0.01                            # gyro-noise share of a noise-dominated column
 _SEGMENT_CANDIDATES = (5.0, 10.0, 20.0, 40.0)   # s, anchored-segment lengths tried
 
 
@@ -502,17 +503,25 @@ def _undetermined(f: _Fit) -> tuple[np.ndarray, bool]:
     d = 1.0 / np.sqrt(h0)
     Hs = f.H * d[:, None] * d[None, :]
     Hs = 0.5 * (Hs + Hs.T)
+    share = np.zeros(p)
+    share[:6] = np.clip((h0[:6] - np.diag(f.H)[:6]) / h0[:6], 0.0, 1.0)   # gyro-noise share
     keep = list(range(p))
     while len(keep) > 1:
         sub = Hs[np.ix_(keep, keep)]
         lam, V = np.linalg.eigh(sub)
         if lam[0] >= _NULL_FRACTION:
             break
-        worst = keep[int(np.argmax(np.abs(V[:, 0])))]
-        if worst >= 6:
+        v = np.abs(V[:, 0])
+        theta_pos = [i for i in range(len(keep)) if keep[i] < 6]
+        if not theta_pos:
+            break
+        worst_theta = keep[theta_pos[int(np.argmax(v[theta_pos]))]]
+        if share[worst_theta] < _NOISE_SHARE:
+            break                       # collinear but noise-free enough: the SEs tell
+        if keep[int(np.argmax(v))] >= 6:
             out[:] = False
-            return out, False                      # the bias is the weak direction
-        keep.remove(worst)
+            return out, False           # the bias is the weak direction
+        keep.remove(worst_theta)
     out[sorted(set(range(6)) - set(keep))] = True
     return out, True
 
