@@ -191,6 +191,18 @@ def test_unusable_inputs_give_one_line(tmp_path: Path, capsys: pytest.CaptureFix
                     '/imu: no messages of type sensor_msgs/msg/Imu in the log (empty stream)')
 
 
+@pytest.mark.skipif(not (ROOT / 'bags' / 'torque_free.mcap').exists(),
+                    reason='bags/torque_free.mcap absent')
+def test_torque_topic_none_on_torque_free_bag(capsys: pytest.CaptureFixture) -> None:
+    """Ignoring the (zero) torque stream still gives scale_unobservable with the right ratios."""
+    code, rep, err = run_json(capsys, str(ROOT / 'bags' / 'torque_free.mcap'),
+                              '--torque-topic', 'none')
+    assert code == 0, err
+    assert rep['status'] == 'scale_unobservable'
+    truth = np.array(rep['diagnostics']['truth']['inertia'])
+    np.testing.assert_allclose(rep['ratios'], truth / np.trace(truth), rtol=0, atol=0.01)
+
+
 def test_too_little_data_is_a_report_not_an_error(tmp_path: Path,
                                                   capsys: pytest.CaptureFixture) -> None:
     """A short but valid log produces a report (exit 0) whose status says so."""
@@ -256,3 +268,19 @@ def test_process_exit_status_and_stderr(tmp_path: Path) -> None:
     assert proc.stdout == ''
     assert len(proc.stderr.strip().splitlines()) == 1
     assert proc.stderr.startswith('inertia_ros estimate: error: ')
+
+
+def test_progress_bar_only_when_enabled(capsys: pytest.CaptureFixture) -> None:
+    """The progress bar draws on stderr when enabled (a TTY) and stays silent otherwise."""
+    from inertia_ros.cli.estimate import _Progress
+
+    bar = _Progress(True)
+    bar(50, 100)
+    bar(100, 100)
+    bar.close()
+    err = capsys.readouterr().err
+    assert 'reading [' in err and '100.0%' in err
+    quiet = _Progress(False)
+    quiet(50, 100)
+    quiet.close()
+    assert capsys.readouterr().err == ''

@@ -393,3 +393,18 @@ def test_bad_arguments() -> None:
         read_log('x.mcap', max_backward_jump=0.0)
     with pytest.raises(ValueError, match='torque_delay'):
         read_log('x.mcap', torque_delay=float('nan'))
+
+
+def test_torque_topic_none_reads_torque_free_data(tmp_path: Path) -> None:
+    """--torque-topic none: a gyro-only log gives empty torque arrays and gyro windows."""
+    s = streams(1000, 250)
+    gyro_only = tmp_path / 'g.mcap'
+    with McapWriter(gyro_only) as w:
+        w.add_topic('/imu', ce.IMU)
+        w.write_many('/imu', s['tg'], ce.encode_imu(s['tg'], s['w'], 'body'))
+    with pytest.raises(LogError, match='no torque topic.*--torque-topic none'):
+        read_log(gyro_only)
+    log = read_log(gyro_only, torque_topic='none')
+    assert log.torque.t.shape == (0,) and log.torque.values.shape == (0, 3)
+    assert log.omega.counts.used == 1000
+    assert log.windows == [(0.0, pytest.approx(4.995, abs=1e-12))]

@@ -48,7 +48,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         'by type when omitted')
     p.add_argument('--torque-topic', metavar='T',
                    help='torque topic (WrenchStamped or Vector3Stamped); found by type when '
-                        'omitted')
+                        'omitted; "none" for torque-free data (no torque stream)')
     p.add_argument('--model', choices=MODELS, default='auto',
                    help='parameter set (default auto: the smallest the data supports)')
     p.add_argument('--symmetry-axis', choices=('x', 'y', 'z'),

@@ -293,7 +293,8 @@ def read_log(path: str | Path, omega_topic: str | None = None,
     path : str or Path
         A ``.mcap`` file or a rosbag2 directory.  Never modified.
     omega_topic, torque_topic : str, optional
-        Topics to use; found by message type when not given.
+        Topics to use; found by message type when not given.  ``torque_topic='none'`` reads
+        torque-free data (no torque stream; the torque arrays are empty).
     ignore_frames : bool
         Accept different ``frame_id`` values (between and within streams).
     torque_delay : float
@@ -335,9 +336,12 @@ def read_log(path: str | Path, omega_topic: str | None = None,
     if damage.any:
         for note in damage.notes:
             warnings.append(f'damaged log: {note}')
-    om_topic, tq_topic = _choose_topics(path, topics, omega_topic, torque_topic)
+    no_torque = torque_topic is not None and torque_topic.lower() == 'none'
+    om_topic, tq_topic = _choose_topics(path, topics, omega_topic,
+                                        None if no_torque else torque_topic,
+                                        need_torque=not no_torque)
     om_type = topics[om_topic]
-    tq_type = topics[tq_topic]
+    tq_type = topics.get(tq_topic, '')
 
     expected = _bag_counts(path)
     for t in (om_topic, tq_topic):
@@ -346,7 +350,13 @@ def read_log(path: str | Path, omega_topic: str | None = None,
             warnings.append(f'{t}: metadata.yaml lists {expected[t]} messages, {got} were read '
                             f'({expected[t] - got} lost)')
     om = _prepare(om_topic, om_type, raws.get(om_topic), ignore_frames, warnings)
-    tq = _prepare(tq_topic, tq_type, raws.get(tq_topic), ignore_frames, warnings)
+    if no_torque:
+        z = np.zeros(0, np.int64)
+        tq = (z, np.zeros((0, 3)), z.astype(bool), StreamCounts(), om[4], z)
+        warnings.append('no torque stream (--torque-topic none): torque-free data, only the '
+                        'ratios and principal axes are observable')
+    else:
+        tq = _prepare(tq_topic, tq_type, raws.get(tq_topic), ignore_frames, warnings)
     if not ignore_frames and om[4] != tq[4]:
         raise LogError(f'frames differ: {om_topic} is in {om[4]!r} but {tq_topic} is in '
                        f'{tq[4]!r}; the torque must be expressed in the gyro frame (or pass '
@@ -463,8 +473,11 @@ def _list_topics(topics: dict[str, str]) -> str:
 
 
 def _choose_topics(path: str | Path, topics: dict[str, str], omega_topic: str | None,
-                   torque_topic: str | None) -> tuple[str, str]:
-    """Pick the angular-velocity and torque topics (given, or by type and name)."""
+                   torque_topic: str | None, *, need_torque: bool = True) -> tuple[str, str]:
+    """Pick the angular-velocity and torque topics (given, or by type and name).
+
+    With ``need_torque`` False the torque topic returned is ``''``.
+    """
     for name, given, types, flag in (('angular velocity', omega_topic, OMEGA_TYPES,
                                       '--omega-topic'),
                                      ('torque', torque_topic, TORQUE_TYPES, '--torque-topic')):
@@ -489,14 +502,17 @@ def _choose_topics(path: str | Path, topics: dict[str, str], omega_topic: str | 
         if len(cands) == 1:
             return cands[0]
         if not cands:
+            hint = ' (for torque-free data pass --torque-topic none)' if kind == 'torque' else ''
             raise LogError(f'{path}: no {kind} topic (types {", ".join(types)}); '
-                           f'{_list_topics(topics)}')
+                           f'{_list_topics(topics)}{hint}')
         raise LogError(f'{path}: several {kind} topics ({", ".join(sorted(cands))}); choose '
                        f'one with {flag}')
 
     om = omega_topic or pick('angular velocity', OMEGA_TYPES,
                              ('sensor_msgs/msg/Imu', 'geometry_msgs/msg/TwistStamped'),
                              _OMEGA_WORDS, torque_topic, '--omega-topic')
+    if not need_torque:
+        return om, ''
     tq = torque_topic or pick('torque', TORQUE_TYPES, ('geometry_msgs/msg/WrenchStamped',),
                               _TORQUE_WORDS, om, '--torque-topic')
     if om == tq:
@@ -580,6 +596,7 @@ def _clean(om: tuple, tq: tuple, *, gap_factor: float, max_backward_jump: float,
     s_tq, v_tq, k_tq, c_tq, _, o_tq = tq
     idx_om = np.flatnonzero(k_om)
     idx_tq = np.flatnonzero(k_tq)
+    free = s_tq.size == 0  # no torque stream: torque-free data
     # Pieces: backward clock jumps of the merged stamp sequence in arrival (file) order.
     which = np.concatenate((np.zeros(idx_om.size, np.int8), np.ones(idx_tq.size, np.int8)))
     pos = np.concatenate((idx_om, idx_tq))
@@ -616,7 +633,7 @@ def _clean(om: tuple, tq: tuple, *, gap_factor: float, max_backward_jump: float,
     for p in range(n_pieces):
         a = idx_om[piece_om == p]
         b = idx_tq[piece_tq == p]
-        if a.size == 0 or b.size == 0:
+        if a.size == 0 or (b.size == 0 and not free):
             c_om.outside += int(a.size)
             c_tq.outside += int(b.size)
             continue
@@ -629,17 +646,26 @@ def _clean(om: tuple, tq: tuple, *, gap_factor: float, max_backward_jump: float,
         sa, sb = s_om[a], s_tq[b]
         step_a, step_b = _median_step(sa), _median_step(sb)
         runs_a = _runs(sa, gap_factor * step_a) if np.isfinite(step_a) else [(0, sa.size)]
-        runs_b = _runs(sb, gap_factor * step_b) if np.isfinite(step_b) else [(0, sb.size)]
+        runs_b = (_runs(sb, gap_factor * step_b) if np.isfinite(step_b) else [(0, sb.size)]
+                  ) if not free else [(0, 0)]
         c_om.gaps += len(runs_a) - 1
         c_tq.gaps += len(runs_b) - 1
-        # windows: intersections of the gap-free runs of the two streams
-        wins = []
-        for ra in runs_a:
-            for rb in runs_b:
-                lo = max(int(sa[ra[0]]), int(sb[rb[0]]))
-                hi = min(int(sa[ra[1] - 1]), int(sb[rb[1] - 1]))
+        # windows: intersections of the gap-free runs of the two streams (a merge sweep)
+        ia = [(int(sa[r0]), int(sa[r1 - 1])) for r0, r1 in runs_a]
+        if free:
+            wins = ia
+        else:
+            ib = [(int(sb[r0]), int(sb[r1 - 1])) for r0, r1 in runs_b]
+            wins = []
+            i = j = 0
+            while i < len(ia) and j < len(ib):
+                lo, hi = max(ia[i][0], ib[j][0]), min(ia[i][1], ib[j][1])
                 if hi > lo:
                     wins.append((lo, hi))
+                if ia[i][1] < ib[j][1]:
+                    i += 1
+                else:
+                    j += 1
         wins.sort()
         ka = np.zeros(sa.size, bool)
         kb = np.zeros(sb.size, bool)
@@ -670,11 +696,14 @@ def _clean(om: tuple, tq: tuple, *, gap_factor: float, max_backward_jump: float,
         last_end = good[-1][1] + shift
         del a, b, sa, sb, ka, kb
     if epoch is None:
+        if free:
+            raise LogError('the angular-velocity stream has no window of at least '
+                           f'{min_window} samples without a gap')
         raise LogError('the angular-velocity and torque streams never overlap in time (header '
                        'stamps); check the clocks, or --torque-delay')
     del s_om, v_om, s_tq, v_tq, om, tq
     t_om = (_cat(out_t_om) - epoch) / 1e9
-    t_tq = (_cat(out_t_tq) - epoch) / 1e9
+    t_tq = (_cat(out_t_tq) - epoch) / 1e9 if out_t_tq else np.zeros(0)
     c_om.used = int(t_om.size)
     c_tq.used = int(t_tq.size)
     windows = [((lo - epoch) / 1e9, (hi - epoch) / 1e9) for lo, hi in windows_ns]
@@ -689,7 +718,8 @@ def _clean(om: tuple, tq: tuple, *, gap_factor: float, max_backward_jump: float,
     if frac > 0.05:
         warnings.append(f'{100 * frac:.0f}% of the angular-velocity samples lie outside the '
                         'torque coverage (a stream stops early or starts late) and were dropped')
-    return (epoch, (t_om, _cat(out_v_om), c_om), (t_tq, _cat(out_v_tq), c_tq), windows, jumps)
+    v_tq = _cat(out_v_tq) if out_v_tq else np.zeros((0, 3))
+    return (epoch, (t_om, _cat(out_v_om), c_om), (t_tq, v_tq, c_tq), windows, jumps)
 
 
 def _cat(parts: list[np.ndarray]) -> np.ndarray:
