@@ -408,3 +408,22 @@ def test_torque_topic_none_reads_torque_free_data(tmp_path: Path) -> None:
     assert log.torque.t.shape == (0,) and log.torque.values.shape == (0, 3)
     assert log.omega.counts.used == 1000
     assert log.windows == [(0.0, pytest.approx(4.995, abs=1e-12))]
+
+
+def test_damaged_chunk_header_uses_the_chunk_index(tmp_path: Path) -> None:
+    """A chunk whose opcode and length are overwritten is still read whole via the index."""
+    from inertia_ros.io.mcap_reader import McapReader
+
+    s = streams(20000, 5000)
+    path = write_log(tmp_path / 'h.mcap', s, compression='none', chunk_size=64 * 1024)
+    with McapReader(path) as r:
+        starts = sorted(ci.chunk_start_offset for ci in r.chunk_indexes)
+    data = bytearray(path.read_bytes())
+    k = starts[len(starts) // 2]
+    data[k:k + 9] = b'\x00' + (1234).to_bytes(8, 'little')  # bogus opcode and length
+    bad = tmp_path / 'hbad.mcap'
+    bad.write_bytes(bytes(data))
+    log = read_log(bad)
+    assert log.damage.corrupt_chunks == 0
+    assert log.omega.counts.received == 20000 and log.torque.counts.received == 5000
+    assert any(f'chunk header at byte {k} damaged' in m for m in log.warnings)

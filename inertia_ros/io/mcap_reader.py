@@ -689,12 +689,18 @@ class McapReader:
         if self.footer is not None and self.footer.summary_start:
             end = self.footer.summary_start
         chunk_starts = sorted(ci.chunk_start_offset for ci in self.chunk_indexes)
+        chunk_len = {ci.chunk_start_offset: ci.chunk_length for ci in self.chunk_indexes}
         while pos < end:
             head = fh.read(9)
             if len(head) < 9:
                 self._lost(pos, 'file ends inside a record header')
                 return
             op, ln = _REC.unpack(head)
+            if pos in chunk_len and (op != OP_CHUNK or 9 + ln != chunk_len[pos]):
+                # a damaged chunk header: the chunk index knows where the chunk ends
+                self.damage.notes.append(f'chunk header at byte {pos} damaged: its extent '
+                                         'is taken from the chunk index')
+                op, ln = OP_CHUNK, chunk_len[pos] - 9
             if op == 0 or pos + 9 + ln > self.size:
                 # Garbage or a cut-off record: jump to the next indexed chunk if there is one.
                 nxt = next((s for s in chunk_starts if s > pos), None)
