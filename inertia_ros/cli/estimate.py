@@ -98,6 +98,13 @@ class _Progress:
         sys.stderr.flush()
         self.shown = True
 
+    def note(self, text: str) -> None:
+        """Show a one-line status (e.g. while estimating)."""
+        if self.enabled:
+            sys.stderr.write('\r' + text[:72].ljust(72))
+            sys.stderr.flush()
+            self.shown = True
+
     def close(self) -> None:
         if self.shown:
             sys.stderr.write('\r' + ' ' * 72 + '\r')
@@ -132,17 +139,20 @@ def run(args: argparse.Namespace) -> int:
                        ignore_frames=args.ignore_frames, torque_delay=args.torque_delay,
                        progress=progress)
     except (LogError, ValueError) as exc:
-        raise UserError(str(exc)) from None
-    finally:
         progress.close()
+        raise UserError(str(exc)) from None
     if args.model == 'axisymmetric' and args.symmetry_axis is None:
+        progress.close()
         raise UserError('--model axisymmetric needs --symmetry-axis x|y|z')
+    progress.note(f'estimating ({log.omega.t.size} gyro, {log.torque.t.size} torque samples)')
     try:
         est = estimate(log.omega.t, log.omega.values, log.torque.t, log.torque.values,
                        method=args.method, model=args.model, torque_bias=args.torque_bias,
                        hold=args.hold, symmetry_axis=args.symmetry_axis)
     except ValueError as exc:
         raise UserError(f'{args.path}: cannot estimate: {exc}') from None
+    finally:
+        progress.close()
     report = build_report(est, log, args)
     text = (json.dumps(report, indent=2, allow_nan=False) + '\n' if args.format == 'json'
             else format_text(report, log))
