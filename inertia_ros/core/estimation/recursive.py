@@ -61,12 +61,15 @@ class RecursiveEstimator:
         Model-selection test level.
     block : int
         Gyro samples buffered before an update of the statistics (``estimate`` always flushes).
+    segment : float, optional
+        Anchored-segment length [s]: each segment has its own momentum intercept, so a
+        momentum jump (payload change) only affects one segment.  Default ``window`` or 10 s.
     """
 
     def __init__(self, model: str = 'full', torque_bias: bool | str = False,
                  forgetting: float = 1.0, window: float | None = None, hold: str = 'zoh',
                  symmetry_axis: Any = None, gyro_noise: Any = None, alpha: float = 1e-3,
-                 block: int = 256) -> None:
+                 block: int = 256, segment: float | None = None) -> None:
         if model not in _RMODELS:
             raise ValueError(f'model: must be one of {_RMODELS}, got {model!r}')
         if isinstance(torque_bias, bool):
@@ -82,6 +85,9 @@ class RecursiveEstimator:
             raise ValueError(f'hold: must be one of {HOLDS}, got {hold!r}')
         if not 0.0 < alpha < 1.0:
             raise ValueError(f'alpha: must be in (0, 1), got {alpha!r}')
+        if segment is not None and not segment > 0:
+            raise ValueError(f'segment: must be > 0 s, got {segment!r}')
+        self.segment = float(segment if segment is not None else (window or 10.0))
         if int(block) < 1:
             raise ValueError(f'block: must be >= 1, got {block!r}')
         self.model = model
@@ -115,6 +121,9 @@ class RecursiveEstimator:
         self._w00 = 0.0                  # sum of squared weights
         self._mean = np.zeros((3, 10))
         self._C = np.zeros((3, 3, 10, 10))
+        self._Cc = np.zeros((3, 3, 10, 10))  # closed segments
+        self._wc = self._w00c = self._neffc = 0.0
+        self._seg_start: float | None = None
         self._t_last: float | None = None
         self._last_t_in: float | None = None
         self._last_tau_in: float | None = None
@@ -269,7 +278,34 @@ class RecursiveEstimator:
             self._tau = self._tau[j:]
 
     def _merge(self, t: np.ndarray, A: np.ndarray) -> None:
-        """Merge a block of equations into the weighted centred statistics."""
+        """Merge a block of equations, closing anchored segments at their boundaries."""
+        while len(t):
+            if self._seg_start is None:
+                self._seg_start = float(t[0])
+            k = int(np.searchsorted(t, self._seg_start + self.segment, side='left'))
+            if k == 0:
+                self._close_segment()
+                self._seg_start = float(t[0])
+                continue
+            self._merge_piece(t[:k], A[:k])
+            t, A = t[k:], A[k:]
+            if len(t):
+                self._close_segment()
+                self._seg_start = float(t[0])
+
+    def _close_segment(self) -> None:
+        """Fold the current segment's centred statistics into the closed ones."""
+        if self._w0 > 0:
+            self._Cc = self._Cc + self._C
+            self._wc += self._w0
+            self._w00c += self._w00
+            self._neffc += self._w0 - self._w00 / self._w0
+        self._w0 = self._w00 = 0.0
+        self._mean = np.zeros((3, 10))
+        self._C = np.zeros((3, 3, 10, 10))
+
+    def _merge_piece(self, t: np.ndarray, A: np.ndarray) -> None:
+        """Merge equations of one segment into the weighted centred statistics."""
         n = len(t)
         if self.window:
             wts = np.exp(-(t[-1] - t) / self.window)
@@ -292,6 +328,10 @@ class RecursiveEstimator:
         self._mean = self._mean + delta * (wb / total)
         self._w0 = total
         self._w00 = old * old * self._w00 + float(np.sum(wts * wts))
+        self._Cc = old * self._Cc
+        self._wc *= old
+        self._w00c *= old * old
+        self._neffc *= old
 
     # -----------------------------------------------------------------------------------------
     def estimate(self) -> InertiaEstimate:
@@ -309,16 +349,18 @@ class RecursiveEstimator:
                     samples_dropped=self.samples_dropped)
         nv = self._noise_var if self._noise_var is not None else np.zeros(3)
         diag: dict[str, Any] = {'gyro_noise_std': np.sqrt(nv), 'warnings': [],
-                                'effective_samples': self._w0}
-        n_eff = self._w0 - self._w00 / self._w0 if self._w0 > 0 else 0.0
+                                'effective_samples': self._w0 + self._wc}
+        n_eff = self._neffc + (self._w0 - self._w00 / self._w0 if self._w0 > 0 else 0.0)
+        w_all = self._w0 + self._wc
+        C_all = self._C + self._Cc
         if self.samples_used < 30 or n_eff < 3 * (6 + 3):
             diag['reason'] = f'only {self.samples_used} gyro samples covered by torque so far'
             return InertiaEstimate(status='insufficient_data', diagnostics=diag,
                                    **base)   # type: ignore[arg-type]
         eq = _Equations(np.zeros((0, 3, 10)), np.zeros(0), np.zeros(0, dtype=bool),
                         'anchored', eiv_var=nv, weighted=True)
-        st = _Stats(self._C, None, int(round(self._w0)), int(round(n_eff)), 1, eq, None)
-        ratio = self._w00 / self._w0
+        st = _Stats(C_all, None, int(round(w_all)), int(round(n_eff)), 1, eq, None)
+        ratio = (self._w00 + self._w00c) / w_all
 
         def fit(basis: np.ndarray, bias: bool, offset: np.ndarray | None = None) -> _Fit:
             """Fit on the weighted statistics; the meat of weighted sums scales by w^2/w."""
@@ -326,8 +368,7 @@ class RecursiveEstimator:
             f.cov = f.cov * ratio
             return f
 
-        torque_free = float(np.max(np.abs(self._C[0, 0, 9, 9] + self._C[1, 1, 9, 9]
-                                          + self._C[2, 2, 9, 9]))) == 0.0
+        torque_free = float(C_all[0, 0, 9, 9] + C_all[1, 1, 9, 9] + C_all[2, 2, 9, 9]) == 0.0
         if torque_free:
             diag['reason'] = 'no torque excitation: the scale is unobservable'
             return InertiaEstimate(status='scale_unobservable',

@@ -147,7 +147,7 @@ def cumulative_monomials(t: np.ndarray, omega: np.ndarray,
             h = np.empty_like(t)
             h[1:] = dt
             h[0] = dt[0]
-            dp = np.gradient(p, t, axis=0)
+            dp = np.gradient(p, t, axis=0, edge_order=2)
             out -= (h * h / 12.0)[:, None] * dp
             out -= out[0]
     if noise_var is not None:

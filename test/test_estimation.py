@@ -1,0 +1,400 @@
+"""Estimators on Euler's equations: regressors, API contract, statuses, recursive estimator.
+
+Scenes are simulated once per module without sensor noise (``noise-free trajectory``) and
+noise is added here from seeded generators, so each test is fast and deterministic.
+"""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+import yaml
+
+from conftest import ROOT
+from inertia_ros.core.estimation import (
+    METHODS,
+    STATUSES,
+    InertiaEstimate,
+    RecursiveEstimator,
+    estimate,
+)
+from inertia_ros.core.estimation.regressors import (
+    cumulative_monomials,
+    cumulative_torque,
+    gyroscopic_matrix,
+    momentum_matrix,
+    monomials,
+    noise_std_from_differences,
+)
+from inertia_ros.core.inertia import THETA_NAMES, matrix_to_theta, principal_axes, theta_to_matrix
+from inertia_ros.core.scene import Scene
+from inertia_ros.core.simulation import simulate
+
+SCENES = ROOT / 'config' / 'scenes'
+
+
+def scene_dict(name: str, **changes: object) -> dict:
+    """Scene dict from config/scenes with top-level keys replaced."""
+    d = yaml.safe_load((SCENES / f'{name}.yaml').read_text())
+    d.update(changes)
+    return d
+
+
+def noise_free(name: str, **changes: object):
+    """Simulate a scene with all sensor noise switched off."""
+    d = scene_dict(name, **changes)
+    d['gyro'] = dict(d.get('gyro', {}), noise_std=0.0)
+    d['torque_sensor'] = dict(d.get('torque_sensor', {}), noise_std=0.0, noise_rel=0.0)
+    return simulate(Scene.from_dict(d))
+
+
+def add_noise(sim, seed: int, gyro_std: float = 0.002, torque_rel: float = 0.02):
+    """Measured streams: truth + white gyro noise, held command + relative torque noise."""
+    rng = np.random.default_rng(seed)
+    omega = sim.omega_true + rng.normal(0.0, gyro_std, sim.omega_true.shape)
+    rms = np.sqrt(np.mean(sim.torque_command ** 2, axis=0))
+    torque = sim.torque_command + rng.normal(0.0, 1.0, sim.torque_command.shape) * (
+        torque_rel * rms)
+    return sim.t_gyro, omega, sim.t_torque, torque
+
+
+def rel_error(est: InertiaEstimate, truth: np.ndarray) -> float:
+    """Relative Frobenius error of the estimated tensor."""
+    return float(np.linalg.norm(est.inertia - truth) / np.linalg.norm(truth))
+
+
+@pytest.fixture(scope='module')
+def nominal20():
+    """Nominal scene, 20 s, noise-free."""
+    return noise_free('default', duration=20.0)
+
+
+# ---------------------------------------------------------------------------------------------
+# regressors
+# ---------------------------------------------------------------------------------------------
+def test_regressor_matrices_reproduce_euler_terms():
+    """L(v) theta = I v and Q(m(w)) theta = w x (I w) for random tensors and vectors."""
+    rng = np.random.default_rng(1)
+    theta = rng.normal(size=6)
+    I = theta_to_matrix(theta)
+    v = rng.normal(size=(50, 3))
+    np.testing.assert_allclose(momentum_matrix(v) @ theta, v @ I.T, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(gyroscopic_matrix(monomials(v)) @ theta,
+                               np.cross(v, v @ I.T), rtol=1e-12, atol=1e-12)
+
+
+def test_cumulative_torque_is_exact_for_held_and_linear_signals():
+    """ZOH integral of held samples and linear-hold integral of a ramp are exact."""
+    ts = np.array([0.0, 0.3, 0.5, 1.2])
+    tau = np.array([[1.0, 0, 0], [2.0, 0, 0], [-1.0, 0, 0], [4.0, 0, 0]])
+    q = np.array([0.0, 0.1, 0.3, 0.4, 1.0, 1.2])
+    expected = [0.0, 0.1, 0.3, 0.3 + 0.2, 0.3 + 0.4 - 0.5, 0.3 + 0.4 - 0.7]
+    np.testing.assert_allclose(cumulative_torque(ts, tau, q, 'zoh')[:, 0], expected,
+                               rtol=0, atol=1e-14)
+    ramp = np.column_stack([2.0 * ts, -ts, ts * 0])
+    lin = cumulative_torque(ts, ramp, q, 'linear')
+    np.testing.assert_allclose(lin[:, 0], q ** 2, rtol=0, atol=1e-14)
+    np.testing.assert_allclose(lin[:, 1], -0.5 * q ** 2, rtol=0, atol=1e-14)
+
+
+def test_cumulative_monomials_fourth_order():
+    """Trapezoid + end correction integrates w^2 of a smooth signal to ~1e-9 relative."""
+    t = np.linspace(0.0, 10.0, 2001)
+    w = np.column_stack([np.sin(t), np.cos(0.5 * t), 0.2 + 0.0 * t])
+    got = cumulative_monomials(t, w)
+    exact_xx = 0.5 * t - np.sin(2 * t) / 4
+    exact_xy = 4.0 / 3.0 - np.cos(1.5 * t) / 3.0 - np.cos(0.5 * t)
+    np.testing.assert_allclose(got[:, 0], exact_xx, rtol=0, atol=1e-8)
+    np.testing.assert_allclose(got[:, 3], exact_xy, rtol=0, atol=1e-8)
+
+
+def test_noise_std_from_differences_recovers_white_noise():
+    """Noise std of a smooth signal plus white noise is recovered within 5 %."""
+    rng = np.random.default_rng(2)
+    t = np.arange(20000) * 0.005
+    x = np.column_stack([np.sin(t), 0.1 * t, np.cos(3 * t)])
+    sig = np.array([0.002, 0.01, 0.0005])
+    est = noise_std_from_differences(x + rng.normal(0, 1, x.shape) * sig)
+    np.testing.assert_allclose(est, sig, rtol=0.05)
+
+
+# ---------------------------------------------------------------------------------------------
+# batch estimator: contract and statuses
+# ---------------------------------------------------------------------------------------------
+def test_noise_free_recovers_tensor(nominal20):
+    """Noise-free nominal data: the integral method returns the true tensor within 1e-4."""
+    s = nominal20
+    est = estimate(s.t_gyro, s.omega_true, s.t_torque, s.torque_command, model='full',
+                   torque_bias='off')
+    assert est.status == 'ok'
+    assert rel_error(est, s.inertia) < 1e-4
+
+
+@pytest.mark.parametrize('method', METHODS)
+def test_every_method_runs_and_reports(nominal20, method):
+    """Every method returns an InertiaEstimate with the method name and a finite tensor."""
+    t_g, w, t_t, tau = add_noise(nominal20, seed=3)
+    est = estimate(t_g, w, t_t, tau, method=method, model='full', torque_bias='off')
+    assert est.method == method
+    assert est.status in STATUSES
+    assert est.inertia is not None and np.all(np.isfinite(est.inertia))
+
+
+def test_default_beats_finite_difference_baseline(nominal20):
+    """On noisy nominal data the default method is >= 20x more accurate than finite differences."""
+    t_g, w, t_t, tau = add_noise(nominal20, seed=4)
+    good = estimate(t_g, w, t_t, tau, model='full', torque_bias='off')
+    base = estimate(t_g, w, t_t, tau, method='differential_fd', model='full',
+                    torque_bias='off')
+    assert rel_error(base, nominal20.inertia) > 20 * rel_error(good, nominal20.inertia)
+
+
+def test_to_dict_is_the_json_contract(nominal20):
+    """to_dict has exactly the contract keys, plain JSON types, and survives json.dumps."""
+    t_g, w, t_t, tau = add_noise(nominal20, seed=5)
+    d = estimate(t_g, w, t_t, tau).to_dict()
+    assert set(d) == {'status', 'inertia', 'inertia_std', 'principal_moments',
+                      'principal_axes', 'ratios', 'identifiable', 'torque_bias', 'model',
+                      'method', 'samples', 'diagnostics'}
+    assert set(d['identifiable']) == set(THETA_NAMES)
+    assert set(d['samples']) == {'used', 'dropped'}
+    text = json.dumps(d, allow_nan=False)
+    assert json.loads(text)['status'] == 'ok'
+    assert isinstance(d['inertia'][0][0], float)
+
+
+def test_principal_output_follows_convention(nominal20):
+    """Principal moments ascending, axes a proper rotation diagonalising the tensor."""
+    t_g, w, t_t, tau = add_noise(nominal20, seed=6)
+    est = estimate(t_g, w, t_t, tau)
+    m, R = est.principal_moments, est.principal_axes
+    assert np.all(np.diff(m) >= 0)
+    np.testing.assert_allclose(np.linalg.det(R), 1.0, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(R @ np.diag(m) @ R.T, est.inertia, rtol=0, atol=1e-12)
+    m2, R2 = principal_axes(est.inertia)
+    np.testing.assert_allclose(R, R2, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(est.ratios, est.inertia / np.trace(est.inertia), rtol=1e-12)
+
+
+def test_torque_free_gives_ratios_and_axes_only():
+    """Torque-free tumble: scale_unobservable, ratios within 2 % and axes within 2 degrees."""
+    s = noise_free('torque_free', duration=30.0)
+    t_g, w, _, _ = add_noise(s, seed=7)
+    est = estimate(t_g, w, s.t_torque, np.zeros_like(s.torque_command))
+    assert est.status == 'scale_unobservable'
+    assert est.inertia is None and est.principal_moments is None
+    truth = s.inertia / np.trace(s.inertia)
+    np.testing.assert_allclose(est.ratios, truth, rtol=0, atol=0.02 * np.max(np.abs(truth)))
+    _, R_true = principal_axes(s.inertia)
+    cosines = np.abs(np.sum(est.principal_axes * R_true, axis=0))
+    assert np.all(cosines > np.cos(np.radians(2.0)))
+    assert est.to_dict()['inertia'] is None
+
+
+def test_no_torque_samples_at_all_is_torque_free():
+    """An empty torque stream is accepted as torque-free data."""
+    s = noise_free('torque_free', duration=10.0)
+    est = estimate(s.t_gyro, s.omega_true, np.empty(0), np.empty((0, 3)))
+    assert est.status == 'scale_unobservable'
+
+
+def test_single_axis_is_partially_identifiable():
+    """Torque about z only: partially_identifiable, ixx/iyy/ixy null, izz within 1 %."""
+    s = noise_free('single_axis')
+    t_g, w, t_t, tau = add_noise(s, seed=8)
+    est = estimate(t_g, w, t_t, tau)
+    assert est.status == 'partially_identifiable'
+    assert not est.identifiable['ixx'] and not est.identifiable['iyy']
+    assert est.identifiable['izz']
+    d = est.to_dict()
+    assert d['inertia'][0][0] is None and d['principal_moments'] is None
+    assert 'ixx' in est.diagnostics['undetermined']
+    np.testing.assert_allclose(est.inertia[2, 2], s.inertia[2, 2], rtol=0.01)
+
+
+def test_spin_about_principal_axis_without_torque_is_insufficient():
+    """A pure spin about a principal axis with no torque: insufficient_excitation."""
+    s = noise_free('torque_free', duration=10.0, initial_omega=[0.0, 0.0, 0.0])
+    t = s.t_gyro
+    w = np.zeros((len(t), 3))
+    w[:, 2] = 0.3
+    w += np.random.default_rng(9).normal(0, 0.002, w.shape)
+    est = estimate(t, w, s.t_torque, np.zeros((len(s.t_torque), 3)))
+    assert est.status == 'insufficient_excitation'
+    assert 'reason' in est.diagnostics
+
+
+def test_too_little_overlap_is_insufficient_data(nominal20):
+    """Torque covering only 50 ms of the gyro record: insufficient_data, counts reported."""
+    s = nominal20
+    est = estimate(s.t_gyro, s.omega_true, s.t_torque[:3], s.torque_command[:3])
+    assert est.status == 'insufficient_data'
+    assert est.samples_used + est.samples_dropped == len(s.t_gyro)
+    assert est.samples_dropped > 0
+
+
+def _bad_inputs():
+    t = np.arange(100) * 0.01
+    w = np.zeros((100, 3))
+    tau = np.ones((100, 3))
+    w_nan = w.copy()
+    w_nan[5, 1] = np.nan
+    t_back = t.copy()
+    t_back[10] = t_back[9]
+    return [
+        ((t, w_nan, t, tau), {}, 'omega: contains NaN'),
+        ((t, w[:50], t, tau), {}, 'omega: has 50 rows'),
+        ((t, w[:, :2], t, tau), {}, r'omega: expected shape \(N, 3\)'),
+        ((t_back, w, t, tau), {}, 't_gyro: times must be strictly increasing'),
+        ((t[:4], w[:4], t, tau), {}, 'fewer than the 6 inertia parameters'),
+        ((t, w, t[:1], tau[:1]), {}, 'single torque sample'),
+        ((t, w, t, tau), {'method': 'magic'}, 'method: must be one of'),
+        ((t, w, t, tau), {'model': 'cube'}, 'model: must be one of'),
+        ((t, w, t, tau), {'torque_bias': 'maybe'}, 'torque_bias: must be one of'),
+        ((t, w, t, tau), {'hold': 'cubic'}, 'hold: must be one of'),
+        ((t, w, t, tau), {'model': 'axisymmetric'}, 'symmetry_axis: required'),
+        ((t, w, t, tau), {'symmetry_axis': 'q'}, 'symmetry_axis: must be'),
+        ((t, w, t, tau), {'alpha': 2.0}, r'alpha: must be in \(0, 1\)'),
+    ]
+
+
+@pytest.mark.parametrize(('args', 'kwargs', 'match'), _bad_inputs())
+def test_bad_input_raises_value_error(args, kwargs, match):
+    """Malformed input raises ValueError naming the argument and the problem."""
+    with pytest.raises(ValueError, match=match):
+        estimate(*args, **kwargs)
+
+
+def test_physical_projection_reported():
+    """A non-physical unconstrained solution is projected and the failure is reported."""
+    from inertia_ros.core.estimation.batch import _assemble, _Fit
+    theta = np.array([1.0, 1.0, 3.0, 0.0, 0.0, 0.0])        # violates I1 + I2 >= I3
+    f = _Fit(beta=theta, cov=np.eye(6) * 1e-6, H=np.eye(6), H0=np.eye(6), basis=np.eye(6),
+             bias=False, resid_rms=np.zeros(3), n_eq=100)
+    est = _assemble('ok', f, 'full', np.ones(6, dtype=bool), {'warnings': []},
+                    {'method': 'integral', 'samples_used': 100, 'samples_dropped': 0},
+                    physical=True)
+    assert est.diagnostics['physical']['projected'] is True
+    assert est.diagnostics['physical']['failures']
+    m = est.principal_moments
+    assert m[0] + m[1] >= m[2] - 1e-9
+
+
+def test_estimate_is_deterministic(nominal20):
+    """The same input gives bit-identical output."""
+    args = add_noise(nominal20, seed=10)
+    a = estimate(*args).to_dict()
+    b = estimate(*args).to_dict()
+    assert json.dumps(a) == json.dumps(b)
+
+
+def test_linear_hold_option_runs(nominal20):
+    """hold='linear' integrates the torque by interpolation and still estimates well (1 %)."""
+    args = add_noise(nominal20, seed=11)
+    est = estimate(*args, hold='linear', model='full', torque_bias='off')
+    assert rel_error(est, nominal20.inertia) < 0.01
+
+
+def test_axisymmetric_model_with_axis():
+    """Axisymmetric truth about z: auto picks the axisymmetric model and recovers both moments."""
+    s = noise_free('default', duration=20.0,
+                   body={'inertia': [1.0, 1.0, 0.6, 0.0, 0.0, 0.0]})
+    args = add_noise(s, seed=12)
+    est = estimate(*args, symmetry_axis='z', torque_bias='off')
+    assert est.model == 'axisymmetric'
+    np.testing.assert_allclose(matrix_to_theta(est.inertia), [1.0, 1.0, 0.6, 0, 0, 0],
+                               rtol=0, atol=0.005)
+
+
+# ---------------------------------------------------------------------------------------------
+# recursive estimator
+# ---------------------------------------------------------------------------------------------
+def _interleaved(rec: RecursiveEstimator, t_g, w, t_t, tau, chunk: float = 0.1) -> None:
+    """Feed both streams in time order, ``chunk`` seconds at a time."""
+    edges = np.arange(0.0, t_g[-1] + chunk, chunk)
+    ig = np.searchsorted(t_g, edges)
+    it = np.searchsorted(t_t, edges)
+    for k in range(len(edges) - 1):
+        rec.add_torque(t_t[it[k]:it[k + 1]], tau[it[k]:it[k + 1]])
+        rec.add_gyro(t_g[ig[k]:ig[k + 1]], w[ig[k]:ig[k + 1]])
+
+
+def test_recursive_matches_batch_on_stationary_data(nominal20):
+    """Recursive without forgetting equals the batch integral estimate within 1 %."""
+    args = add_noise(nominal20, seed=13)
+    rec = RecursiveEstimator(model='full')
+    _interleaved(rec, *args)
+    r = rec.estimate()
+    b = estimate(*args, model='full', torque_bias='off')
+    assert r.status == 'ok' and r.method == 'recursive'
+    assert np.linalg.norm(r.inertia - b.inertia) / np.linalg.norm(b.inertia) < 0.01
+    assert rel_error(r, nominal20.inertia) < 0.01
+
+
+def test_recursive_single_samples_equal_blocks(nominal20):
+    """Feeding one sample at a time gives the same estimate as blocks (rtol 1e-9)."""
+    t_g, w, t_t, tau = add_noise(nominal20, seed=14)
+    n = 2000
+    t_g, w = t_g[:n], w[:n]
+    a = RecursiveEstimator(model='full', gyro_noise=0.002)
+    _interleaved(a, t_g, w, t_t, tau)
+    b = RecursiveEstimator(model='full', gyro_noise=0.002)
+    j = 0
+    for i in range(n):
+        while j < len(t_t) and t_t[j] <= t_g[i]:
+            b.add_torque(float(t_t[j]), tau[j])
+            j += 1
+        b.add_gyro(float(t_g[i]), w[i])
+    b.add_torque(float(t_t[j]), tau[j])
+    a.add_torque(t_t[j:j + 1], tau[j:j + 1])
+    ea, eb = a.estimate(), b.estimate()
+    np.testing.assert_allclose(ea.inertia, eb.inertia, rtol=1e-9)
+    assert ea.samples_used == eb.samples_used == n
+
+
+def test_recursive_tracks_a_step_change():
+    """With a 5 s memory the estimate follows the payload release within 2 % after 20 s."""
+    s = noise_free('payload_change', duration=50.0)
+    args = add_noise(s, seed=15)
+    rec = RecursiveEstimator(model='full', window=5.0)
+    t_g, w, t_t, tau = args
+    k = np.searchsorted(t_g, 29.0)
+    kt = np.searchsorted(t_t, 29.0)
+    _interleaved(rec, t_g[:k], w[:k], t_t[:kt + 1], tau[:kt + 1])
+    before = rec.estimate()
+    assert rel_error(before, s.inertia) < 0.02
+    rest = RecursiveEstimator(model='full', window=5.0)
+    _interleaved(rest, *args)
+    after = rest.estimate()
+    new = s.inertia_changes[0][1]
+    assert rel_error(after, new) < 0.02
+
+
+def test_recursive_insufficient_then_reset(nominal20):
+    """Before data: insufficient_data; reset() forgets everything; bad input raises."""
+    rec = RecursiveEstimator()
+    assert rec.estimate().status == 'insufficient_data'
+    args = add_noise(nominal20, seed=16)
+    _interleaved(rec, *args)
+    assert rec.estimate().status == 'ok'
+    rec.reset()
+    assert rec.estimate().status == 'insufficient_data'
+    assert rec.samples_used == 0
+    with pytest.raises(ValueError, match='omega: contains NaN'):
+        rec.add_gyro(1.0, [np.nan, 0.0, 0.0])
+    rec.add_gyro(2.0, [0.0, 0.0, 0.0])
+    with pytest.raises(ValueError, match='not after the previous gyro sample'):
+        rec.add_gyro(1.5, [0.0, 0.0, 0.0])
+    with pytest.raises(ValueError, match='forgetting: must be in'):
+        RecursiveEstimator(forgetting=0.0)
+    with pytest.raises(ValueError, match='model: must be one of'):
+        RecursiveEstimator(model='sphere')
+
+
+def test_recursive_torque_free_is_scale_unobservable():
+    """Recursive on a torque stream of zeros reports scale_unobservable."""
+    s = noise_free('torque_free', duration=10.0)
+    rec = RecursiveEstimator()
+    _interleaved(rec, s.t_gyro, s.omega_true, s.t_torque, np.zeros((len(s.t_torque), 3)))
+    assert rec.estimate().status == 'scale_unobservable'
