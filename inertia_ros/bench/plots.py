@@ -19,7 +19,8 @@ from .stability import SILENT_THRESHOLD, Cell
 __all__ = ['plot_speed_vs_accuracy', 'plot_stability_map']
 
 _FAMILY_COLOURS = {'integral': 'tab:blue', 'sliding': 'tab:green', 'differential': 'tab:orange',
-                   'baseline': 'tab:red', 'recursive': 'tab:purple'}
+                   'baseline': 'tab:red', 'recursive': 'tab:purple',
+                   'prototype': 'tab:brown'}
 _MARKERS = 'osD^v<>pP*Xhd8H'
 
 

@@ -64,13 +64,13 @@ FULL = BenchConfig(
     scenes=(('nominal', 'default.yaml'), ('satellite', 'satellite.yaml'),
             ('cubesat', 'cubesat.yaml'), ('disturbance', 'disturbance.yaml'),
             ('chirp_steps', 'chirp_steps.yaml')),
-    runs={'nominal': 40, 'satellite': 12, 'cubesat': 12, 'disturbance': 12,
-          'chirp_steps': 12},
+    runs={'nominal': 30, 'satellite': 10, 'cubesat': 10, 'disturbance': 10,
+          'chirp_steps': 10},
     bound_seeds=3,
     noises=(3e-4, 1e-3, 3e-3, 1e-2, 3e-2),
     amplitudes=(0.003, 0.01, 0.03, 0.1, 0.3),
     durations=(20.0, 60.0),
-    grid_seeds=(1, 2),
+    grid_seeds=(1,),
     grid_methods=_GRID_METHODS,
     quick=False)
 

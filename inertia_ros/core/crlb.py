@@ -58,7 +58,8 @@ import numpy as np
 
 from .inertia import THETA_NAMES, theta_to_matrix
 
-__all__ = ['FisherResult', 'fisher_information', 'frobenius_weights', 'scene_fisher']
+__all__ = ['FisherResult', 'PredictionErrorStep', 'fisher_information', 'frobenius_weights',
+           'prediction_error_step', 'scene_fisher']
 
 _E = theta_to_matrix(np.eye(6))                 # (6, 3, 3): dI / dtheta_k
 _MAX_STEP_ANGLE = 0.02                          # rad turned per RK4 substep, at most
@@ -219,6 +220,151 @@ class _Dynamics:
         return wd, Zd
 
 
+def _validated(t_gyro: Any, t_torque: Any, torque: Any, inertia: Any, omega0: Any,
+               gyro_std: Any, torque_std: Any, disturbance: Any) -> tuple[Any, ...]:
+    """Validate the common arguments; return ``(tg, ts, tau, I, w0, sg, st, d)``."""
+    tg = _as_times(t_gyro, 't_gyro')
+    ts = np.asarray(t_torque, dtype=float)
+    if ts.ndim != 1 or not np.all(np.isfinite(ts)) or np.any(np.diff(ts) <= 0):
+        raise ValueError('t_torque: expected strictly increasing finite times, shape (M,)')
+    tau = np.asarray(torque, dtype=float)
+    if tau.shape != (ts.size, 3) or not np.all(np.isfinite(tau)):
+        raise ValueError(f'torque: expected finite shape ({ts.size}, 3), got {tau.shape}')
+    I = np.asarray(inertia, dtype=float)
+    if I.shape != (3, 3) or not np.allclose(I, I.T, rtol=1e-9, atol=1e-15) \
+            or np.linalg.eigvalsh(0.5 * (I + I.T))[0] <= 0:
+        raise ValueError('inertia: must be a symmetric positive definite (3, 3) matrix')
+    I = 0.5 * (I + I.T)
+    w0 = np.asarray(omega0, dtype=float)
+    if w0.shape != (3,) or not np.all(np.isfinite(w0)):
+        raise ValueError(f'omega0: expected a finite 3-vector, got shape {w0.shape}')
+    sg = _as_std(gyro_std, 'gyro_std')
+    if np.any(sg <= 0):
+        raise ValueError(f'gyro_std: must be > 0, got {gyro_std!r}')
+    st = _as_std(torque_std, 'torque_std')
+    d = np.zeros(3) if disturbance is None else np.asarray(disturbance, dtype=float)
+    if d.shape != (3,) or not np.all(np.isfinite(d)):
+        raise ValueError(f'disturbance: expected a finite 3-vector, got {disturbance!r}')
+
+    return tg, ts, tau, I, w0, sg, st, d
+
+
+@dataclass(frozen=True, eq=False)
+class _Pass:
+    """Output of one filter pass."""
+
+    information: np.ndarray
+    names: tuple[str, ...]
+    omega: np.ndarray
+    sensitivity: np.ndarray
+    gradient: np.ndarray | None
+    cost: float
+
+
+def _kalman_pass(tg: np.ndarray, ts: np.ndarray, tau: np.ndarray, I: np.ndarray,
+                 w0: np.ndarray, sg: np.ndarray, st: np.ndarray, d: np.ndarray, *, bias: bool,
+                 y: np.ndarray | None) -> _Pass:
+    """Trajectory, sensitivities and the Kalman filter; with data ``y`` also the innovations.
+
+    ``F = sum de' S^-1 de``; with ``y`` the gradient ``sum de' S^-1 e`` and the cost
+    ``1/2 sum e' S^-1 e`` of the prediction-error criterion at these parameters.
+    """
+    n_par = 12 if bias else 9
+    names = tuple(THETA_NAMES) + ('wx0', 'wy0', 'wz0') + (('dx', 'dy', 'dz') if bias else ())
+
+    # merged grid: gyro times and the torque samples inside the record
+    inside = ts[(ts > tg[0] + _TIME_TOL) & (ts < tg[-1] - _TIME_TOL)]
+    grid = np.union1d(tg, inside)
+    grid = grid[np.concatenate([[True], np.diff(grid) > _TIME_TOL])]
+    is_gyro = np.zeros(grid.size, dtype=bool)
+    is_gyro[np.clip(np.searchsorted(grid, tg - _TIME_TOL), 0, grid.size - 1)] = True
+    # torque sample index in effect on [grid_i, grid_{i+1}) and where a new one starts
+    j_of = np.searchsorted(ts, grid + _TIME_TOL, side='right') - 1
+    new_tau = np.zeros(grid.size, dtype=bool)
+    new_tau[0] = j_of[0] >= 0
+    new_tau[1:] = (j_of[1:] != j_of[:-1]) & (j_of[1:] >= 0)
+    u_grid = np.where((j_of >= 0)[:, None], tau[np.clip(j_of, 0, None)], 0.0) + d
+
+    dyn = _Dynamics(I, n_par, bias)
+    Ii_norm = float(np.linalg.norm(dyn.Ii, 2))
+    R = np.diag(sg ** 2)
+    Qnu = np.diag(st ** 2)
+    noisy = bool(np.any(st > 0))
+
+    w = w0.copy()
+    S = np.zeros((3, n_par))
+    S[:, 6:9] = np.eye(3)
+    P = np.zeros((6, 6))            # covariance of [dw, nu] (prior)
+    D = np.zeros((6, n_par))        # sensitivity of the predicted deviation state
+    F = np.zeros((n_par, n_par))
+    grad = np.zeros(n_par)
+    cost = 0.0
+    xhat = np.zeros(6)              # predicted deviation state (data pass only)
+    omega_out = np.empty((tg.size, 3))
+    sens_out = np.empty((tg.size, 3, n_par))
+    g = 0
+    Z = np.zeros((3, n_par + 6))
+    for i in range(grid.size):
+        if is_gyro[i]:
+            omega_out[g] = w
+            sens_out[g] = S
+            g += 1
+            # innovation sensitivities: de = -(S + H D), H = [I 0]
+            de = -(S + D[:3])
+            Sk = P[:3, :3] + R
+            Sinv = np.linalg.inv(Sk)
+            F += de.T @ Sinv @ de
+            if y is not None:
+                e = y[g - 1] - w - xhat[:3]
+                Se = Sinv @ e
+                grad += de.T @ Se
+                cost += 0.5 * float(e @ Se)
+            if noisy:
+                K = P[:, :3] @ Sinv                   # (6, 3)
+                D = D + K @ de
+                if y is not None:
+                    xhat = xhat + K @ e
+                P = P - K @ P[:3, :]
+                P = 0.5 * (P + P.T)
+        if noisy and new_tau[i]:
+            # a new torque sample: its noise is independent of everything before
+            P[3:, :] = 0.0
+            P[:, 3:] = 0.0
+            P[3:, 3:] = Qnu
+            D[3:] = 0.0
+            xhat[3:] = 0.0
+        if i == grid.size - 1:
+            break
+        h_total = grid[i + 1] - grid[i]
+        u = u_grid[i]
+        wmax = float(np.linalg.norm(w)) + Ii_norm * float(np.linalg.norm(u)) * h_total
+        Iiu = dyn.Ii @ u
+        n = max(1, math.ceil(wmax * h_total / _MAX_STEP_ANGLE))
+        h = h_total / n
+        Z[:, :n_par] = S
+        Z[:, n_par:n_par + 3] = np.eye(3)
+        Z[:, n_par + 3:] = 0.0
+        for _ in range(n):
+            k1w, k1 = dyn(w, Z, Iiu)
+            k2w, k2 = dyn(w + 0.5 * h * k1w, Z + 0.5 * h * k1, Iiu)
+            k3w, k3 = dyn(w + 0.5 * h * k2w, Z + 0.5 * h * k2, Iiu)
+            k4w, k4 = dyn(w + h * k3w, Z + h * k3, Iiu)
+            w = w + h / 6.0 * (k1w + 2.0 * (k2w + k3w) + k4w)
+            Z = Z + h / 6.0 * (k1 + 2.0 * (k2 + k3) + k4)
+        S = Z[:, :n_par].copy()
+        if noisy:
+            Phi = Z[:, n_par:n_par + 3]
+            Psi = Z[:, n_par + 3:]
+            A = np.eye(6)
+            A[:3, :3] = Phi
+            A[:3, 3:] = Psi
+            P = A @ P @ A.T
+            D = A @ D
+            xhat = A @ xhat
+    F = 0.5 * (F + F.T)
+    return _Pass(F, names, omega_out, sens_out, grad if y is not None else None, cost)
+
+
 def fisher_information(t_gyro: Any, t_torque: Any, torque: Any, inertia: Any, omega0: Any, *,
                        gyro_std: Any, torque_std: Any = 0.0, disturbance: Any = None,
                        estimate_bias: bool = False) -> FisherResult:
@@ -258,112 +404,11 @@ def fisher_information(t_gyro: Any, t_torque: Any, torque: Any, inertia: Any, om
         Malformed shapes, non-finite values, non-increasing times, ``gyro_std`` not positive,
         or a tensor that is not symmetric positive definite.
     """
-    tg = _as_times(t_gyro, 't_gyro')
-    ts = np.asarray(t_torque, dtype=float)
-    if ts.ndim != 1 or not np.all(np.isfinite(ts)) or np.any(np.diff(ts) <= 0):
-        raise ValueError('t_torque: expected strictly increasing finite times, shape (M,)')
-    tau = np.asarray(torque, dtype=float)
-    if tau.shape != (ts.size, 3) or not np.all(np.isfinite(tau)):
-        raise ValueError(f'torque: expected finite shape ({ts.size}, 3), got {tau.shape}')
-    I = np.asarray(inertia, dtype=float)
-    if I.shape != (3, 3) or not np.allclose(I, I.T, rtol=1e-9, atol=1e-15) \
-            or np.linalg.eigvalsh(0.5 * (I + I.T))[0] <= 0:
-        raise ValueError('inertia: must be a symmetric positive definite (3, 3) matrix')
-    I = 0.5 * (I + I.T)
-    w0 = np.asarray(omega0, dtype=float)
-    if w0.shape != (3,) or not np.all(np.isfinite(w0)):
-        raise ValueError(f'omega0: expected a finite 3-vector, got shape {w0.shape}')
-    sg = _as_std(gyro_std, 'gyro_std')
-    if np.any(sg <= 0):
-        raise ValueError(f'gyro_std: must be > 0, got {gyro_std!r}')
-    st = _as_std(torque_std, 'torque_std')
-    d = np.zeros(3) if disturbance is None else np.asarray(disturbance, dtype=float)
-    if d.shape != (3,) or not np.all(np.isfinite(d)):
-        raise ValueError(f'disturbance: expected a finite 3-vector, got {disturbance!r}')
-
-    bias = bool(estimate_bias)
-    n_par = 12 if bias else 9
-    names = tuple(THETA_NAMES) + ('wx0', 'wy0', 'wz0') + (('dx', 'dy', 'dz') if bias else ())
-
-    # merged grid: gyro times and the torque samples inside the record
-    inside = ts[(ts > tg[0] + _TIME_TOL) & (ts < tg[-1] - _TIME_TOL)]
-    grid = np.union1d(tg, inside)
-    grid = grid[np.concatenate([[True], np.diff(grid) > _TIME_TOL])]
-    is_gyro = np.zeros(grid.size, dtype=bool)
-    is_gyro[np.clip(np.searchsorted(grid, tg - _TIME_TOL), 0, grid.size - 1)] = True
-    # torque sample index in effect on [grid_i, grid_{i+1}) and where a new one starts
-    j_of = np.searchsorted(ts, grid + _TIME_TOL, side='right') - 1
-    new_tau = np.zeros(grid.size, dtype=bool)
-    new_tau[0] = j_of[0] >= 0
-    new_tau[1:] = (j_of[1:] != j_of[:-1]) & (j_of[1:] >= 0)
-    u_grid = np.where((j_of >= 0)[:, None], tau[np.clip(j_of, 0, None)], 0.0) + d
-
-    dyn = _Dynamics(I, n_par, bias)
-    Ii_norm = float(np.linalg.norm(dyn.Ii, 2))
-    R = np.diag(sg ** 2)
-    Qnu = np.diag(st ** 2)
-    noisy = bool(np.any(st > 0))
-
-    w = w0.copy()
-    S = np.zeros((3, n_par))
-    S[:, 6:9] = np.eye(3)
-    P = np.zeros((6, 6))            # covariance of [dw, nu] (prior)
-    D = np.zeros((6, n_par))        # sensitivity of the predicted deviation state
-    F = np.zeros((n_par, n_par))
-    omega_out = np.empty((tg.size, 3))
-    sens_out = np.empty((tg.size, 3, n_par))
-    g = 0
-    Z = np.zeros((3, n_par + 6))
-    for i in range(grid.size):
-        if is_gyro[i]:
-            omega_out[g] = w
-            sens_out[g] = S
-            g += 1
-            # innovation sensitivities: de = -(S + H D), H = [I 0]
-            de = -(S + D[:3])
-            Sk = P[:3, :3] + R
-            Sinv = np.linalg.inv(Sk)
-            F += de.T @ Sinv @ de
-            if noisy:
-                K = P[:, :3] @ Sinv                   # (6, 3)
-                D = D + K @ de
-                P = P - K @ P[:3, :]
-                P = 0.5 * (P + P.T)
-        if noisy and new_tau[i]:
-            # a new torque sample: its noise is independent of everything before
-            P[3:, :] = 0.0
-            P[:, 3:] = 0.0
-            P[3:, 3:] = Qnu
-            D[3:] = 0.0
-        if i == grid.size - 1:
-            break
-        h_total = grid[i + 1] - grid[i]
-        u = u_grid[i]
-        wmax = float(np.linalg.norm(w)) + Ii_norm * float(np.linalg.norm(u)) * h_total
-        Iiu = dyn.Ii @ u
-        n = max(1, math.ceil(wmax * h_total / _MAX_STEP_ANGLE))
-        h = h_total / n
-        Z[:, :n_par] = S
-        Z[:, n_par:n_par + 3] = np.eye(3)
-        Z[:, n_par + 3:] = 0.0
-        for _ in range(n):
-            k1w, k1 = dyn(w, Z, Iiu)
-            k2w, k2 = dyn(w + 0.5 * h * k1w, Z + 0.5 * h * k1, Iiu)
-            k3w, k3 = dyn(w + 0.5 * h * k2w, Z + 0.5 * h * k2, Iiu)
-            k4w, k4 = dyn(w + h * k3w, Z + h * k3, Iiu)
-            w = w + h / 6.0 * (k1w + 2.0 * (k2w + k3w) + k4w)
-            Z = Z + h / 6.0 * (k1 + 2.0 * (k2 + k3) + k4)
-        S = Z[:, :n_par].copy()
-        if noisy:
-            Phi = Z[:, n_par:n_par + 3]
-            Psi = Z[:, n_par + 3:]
-            A = np.eye(6)
-            A[:3, :3] = Phi
-            A[:3, 3:] = Psi
-            P = A @ P @ A.T
-            D = A @ D
-    F = 0.5 * (F + F.T)
-    return FisherResult(information=F, names=names, omega=omega_out, sensitivity=sens_out)
+    args = _validated(t_gyro, t_torque, torque, inertia, omega0, gyro_std, torque_std,
+                      disturbance)
+    p = _kalman_pass(*args, bias=bool(estimate_bias), y=None)
+    return FisherResult(information=p.information, names=p.names, omega=p.omega,
+                        sensitivity=p.sensitivity)
 
 
 def scene_fisher(sim: Any, *, estimate_bias: bool | None = None) -> FisherResult:
@@ -406,3 +451,83 @@ def scene_fisher(sim: Any, *, estimate_bias: bool | None = None) -> FisherResult
                               np.asarray(sim.omega_true[0], dtype=float),
                               gyro_std=scene.gyro.noise_std, torque_std=tstd,
                               disturbance=dist, estimate_bias=estimate_bias)
+
+
+@dataclass(frozen=True, eq=False)
+class PredictionErrorStep:
+    """One Gauss-Newton step of the prediction-error (maximum-likelihood) criterion.
+
+    Attributes
+    ----------
+    step : numpy.ndarray, shape (p,)
+        ``-F^-1 g``: the parameter update, same order as ``names``.
+    information : numpy.ndarray, shape (p, p)
+        ``F`` at the current parameters (Gauss-Newton Hessian = Fisher information).
+    gradient : numpy.ndarray, shape (p,)
+        ``g = sum_k (de_k/dp)' S_k^-1 e_k``.
+    cost : float
+        ``1/2 sum_k e_k' S_k^-1 e_k`` (dimensionless).
+    names : tuple of str
+        Parameter names.
+    """
+
+    step: np.ndarray
+    information: np.ndarray
+    gradient: np.ndarray
+    cost: float
+    names: tuple[str, ...]
+
+
+def prediction_error_step(t_gyro: Any, omega: Any, t_torque: Any, torque: Any, inertia: Any,
+                          omega0: Any, *, gyro_std: Any, torque_std: Any = 0.0,
+                          disturbance: Any = None, estimate_bias: bool = False
+                          ) -> PredictionErrorStep:
+    """Gauss-Newton step of the maximum-likelihood criterion of the same model as the bound.
+
+    The innovations ``e_k`` of the Kalman filter of :func:`fisher_information`, run on the
+    measured gyro ``omega`` with the trajectory driven by the *measured* torque, are white
+    with covariance ``S_k`` when the parameters are right; minimising
+    ``1/2 sum e_k' S_k^-1 e_k`` is maximum likelihood, asymptotically efficient (it attains
+    the bound).  A prototype refinement used by the benchmark (``pem_refine``), started from
+    a consistent estimate; not a full estimator (no status, no model selection).
+
+    Parameters
+    ----------
+    t_gyro, omega : array_like, shapes (N,), (N, 3)
+        Gyro times [s] and measured angular velocity [rad/s].
+    t_torque, torque : array_like, shapes (M,), (M, 3)
+        Torque times [s] and measured torque [N m] (held).
+    inertia : array_like, shape (3, 3)
+        Current tensor [kg m^2].
+    omega0 : array_like, shape (3,)
+        Current initial angular velocity [rad/s] at ``t_gyro[0]``.
+    gyro_std, torque_std : float or array_like (3,)
+        Noise std per axis [rad/s], [N m].
+    disturbance : array_like (3,), optional
+        Current disturbance torque [N m].
+    estimate_bias : bool
+        Include the disturbance in the parameters.
+
+    Returns
+    -------
+    PredictionErrorStep
+
+    Raises
+    ------
+    ValueError
+        As :func:`fisher_information`, and ``omega`` not of shape (N, 3) finite.
+    """
+    args = _validated(t_gyro, t_torque, torque, inertia, omega0, gyro_std, torque_std,
+                      disturbance)
+    y = np.asarray(omega, dtype=float)
+    if y.shape != (args[0].size, 3) or not np.all(np.isfinite(y)):
+        raise ValueError(f'omega: expected finite shape ({args[0].size}, 3), got {y.shape}')
+    p = _kalman_pass(*args, bias=bool(estimate_bias), y=y)
+    assert p.gradient is not None
+    F = p.information
+    dsc = np.sqrt(np.diag(F))
+    dsc[dsc == 0] = 1.0
+    step = -np.linalg.lstsq(F / dsc[:, None] / dsc[None, :], p.gradient / dsc,
+                            rcond=1e-12)[0] / dsc
+    return PredictionErrorStep(step=step, information=F, gradient=p.gradient, cost=p.cost,
+                               names=p.names)
