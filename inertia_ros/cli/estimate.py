@@ -370,10 +370,13 @@ def plot_report(path: Path, est: InertiaEstimate, log: LogData,
             st = max(1, len(tt) // 20000)
             ax.plot(tt[::st], tau[::st, k], lw=0.8, label='measured')
         ax.set_ylabel(f'torque {name} [N m]')
-        if k == 0:
+        if k == 0 and have_model:
             ax.set_title(f'torque, {width:.3g} s window means: measured vs model '
                          '(I dw/dt + w x I w' + (' - bias' if est.torque_bias is not None
                                                   else '') + ') and residual')
+        elif k == 0:
+            ax.set_title(f'measured torque (no model torque: status {est.status})')
+        if k == 0 and (have_model or len(tt)):
             ax.legend(loc='upper right', fontsize=8)
     ax = fig.add_subplot(gs[3, 0], sharex=ax0)
     step = max(1, len(tg) // 20000)
@@ -391,7 +394,7 @@ def plot_report(path: Path, est: InertiaEstimate, log: LogData,
     for f in fracs:
         t_end = tg[0] + f * span
         mg, mt = tg <= t_end, tt <= t_end
-        if mg.sum() < 20 or mt.sum() < 2:
+        if mg.sum() < 20 or (len(tt) and mt.sum() < 2):
             continue
         try:
             e = est if f == 1.0 else estimate(
@@ -400,10 +403,15 @@ def plot_report(path: Path, est: InertiaEstimate, log: LogData,
                 symmetry_axis=args.symmetry_axis)
         except ValueError:
             continue
-        if e.inertia is None:
+        if e.inertia is not None:
+            th = e.theta
+            sd = e.theta_std if e.theta_std is not None else np.full(6, np.nan)
+        elif e.ratios is not None:  # scale unobservable: the ratios converge instead
+            r = e.ratios
+            th = np.array([r[0, 0], r[1, 1], r[2, 2], r[0, 1], r[0, 2], r[1, 2]])
+            sd = np.full(6, np.nan)
+        else:
             continue
-        th = e.theta
-        sd = e.theta_std if e.theta_std is not None else np.full(6, np.nan)
         rows.append((t_end - tg[0], th, sd))
     names = ('ixx', 'iyy', 'izz', 'ixy', 'ixz', 'iyz')
     if rows:
@@ -415,16 +423,19 @@ def plot_report(path: Path, est: InertiaEstimate, log: LogData,
             axc.fill_between(tx, th[:, k] - 2 * sd[:, k], th[:, k] + 2 * sd[:, k],
                              color=line.get_color(), alpha=0.2)
         if log.truth:
-            tr = log.truth[0][1]
+            tr = log.truth[0][1] if est.inertia is not None else (
+                log.truth[0][1] / np.trace(log.truth[0][1]))
             for i, j in ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)):
                 axc.axhline(tr[i, j], color='k', lw=0.5, ls=':')
         axc.legend(fontsize=7, ncol=3)
     else:
         axc.text(0.5, 0.5, f'no tensor estimate (status {est.status})', ha='center',
                  transform=axc.transAxes)
-    axc.set_title('convergence over the log (band: ±2 sigma)')
+    ratios_only = est.inertia is None
+    axc.set_title('convergence over the log' + (' (inertia / trace)'
+                                                if ratios_only else ' (band: ±2 sigma)'))
     axc.set_xlabel('data used [s]')
-    axc.set_ylabel('[kg m^2]')
+    axc.set_ylabel('[-]' if ratios_only else '[kg m^2]')
 
     # principal axes
     ax3 = fig.add_subplot(gs[2:4, 1], projection='3d')
