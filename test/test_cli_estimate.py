@@ -116,6 +116,16 @@ def _messy(kind: str, s: dict, rng: np.random.Generator) -> dict:
                 tg, w = a2, v2
             else:
                 tt, tau = a2, v2
+    elif kind == 'looped':  # the clock restarts half way (stamps jump back 30 s)
+        kw['log_g'], kw['log_t'] = tg.copy(), tt.copy()
+        mid = tg[0] + (tg[-1] - tg[0]) // 2
+        tg = np.where(tg > mid, tg - 30_000_000_000, tg)
+        tt = np.where(tt > mid, tt - 30_000_000_000, tt)
+    elif kind == 'gap':  # 2 s missing from both streams
+        mid = tg[0] + (tg[-1] - tg[0]) // 2
+        kg = (tg < mid) | (tg > mid + 2_000_000_000)
+        kt = (tt < mid) | (tt > mid + 2_000_000_000)
+        tg, w, tt, tau = tg[kg], w[kg], tt[kt], tau[kt]
     elif kind == 'nan':  # 3 per mille NaN / Inf samples
         w[rng.choice(tg.size, tg.size * 3 // 1000, replace=False), rng.integers(0, 3)] = np.nan
         tau[rng.choice(tt.size, tt.size * 3 // 1000, replace=False), 0] = np.inf
@@ -123,10 +133,11 @@ def _messy(kind: str, s: dict, rng: np.random.Generator) -> dict:
 
 
 @needs_default
-@pytest.mark.parametrize('kind', ['reordered', 'duplicated', 'nan', 'truncated'])
+@pytest.mark.parametrize('kind', ['reordered', 'duplicated', 'nan', 'truncated', 'looped',
+                                  'gap'])
 def test_messy_variants_still_estimate(kind: str, tmp_path: Path,
                                        capsys: pytest.CaptureFixture) -> None:
-    """Reordered, duplicated, NaN and truncated copies of the default bag: ok and accurate."""
+    """Reordered, duplicated, NaN, truncated, looped and gapped copies: ok and accurate."""
     rng = np.random.default_rng(11)
     s = load_streams(DEFAULT_BAG)
     path = tmp_path / f'{kind}.mcap'
@@ -153,6 +164,10 @@ def test_messy_variants_still_estimate(kind: str, tmp_path: Path,
     if kind == 'nan':
         assert log['omega']['nonfinite'] == n_g * 3 // 1000
         assert log['torque']['nonfinite'] == n_t * 3 // 1000
+    if kind == 'looped':
+        assert log['clock_jumps'] == 1 and log['windows'] == 2
+    if kind == 'gap':
+        assert log['omega']['gaps'] == 1 and log['windows'] == 2
     if kind == 'truncated':
         assert log['damage']['truncated']
         assert any('damaged log' in w for w in rep['diagnostics']['warnings'])
