@@ -66,6 +66,7 @@ _AXES = {'x': np.array([1.0, 0.0, 0.0]), 'y': np.array([0.0, 1.0, 0.0]),
 _L_BASIS = momentum_matrix(np.eye(3))          # (3 axes c, 3, 6): L(e_c)
 _NULL_FRACTION = 0.03                          # signal fraction of an undetermined direction
 _NOISE_SHARE = 0.01                            # gyro-noise share of a noise-dominated column
+_BLAS_MIN_ROWS = 200_000                       # rows from which a Gram goes to BLAS
 _SEGMENT_CANDIDATES = (5.0, 10.0, 20.0, 40.0)   # s, anchored-segment lengths tried
 
 
@@ -158,6 +159,7 @@ class _Equations:
     eiv_var: np.ndarray | None = None   # gyro noise variance in the regressor, per axis
     weighted: bool = False
     info: dict[str, Any] = field(default_factory=dict)
+    raw: dict[str, Any] | None = None    # shared statistics, see _raw
 
     def head(self, n: int) -> _Equations:
         """The first ``n`` equations."""
@@ -177,7 +179,12 @@ def _cross(A: np.ndarray) -> np.ndarray:
     """Cross Gram matrices ``C[r, s] = sum_b A_b[r]' A_b[s]``, shape (3, 3, q, q)."""
     n, _, q = A.shape
     A2 = A.reshape(n, 3 * q)
-    G = A2.T @ A2
+    if n >= _BLAS_MIN_ROWS:
+        G = A2.T @ A2
+    else:
+        # small problems: numpy's own loop; multithreaded BLAS on a thin matrix costs more in
+        # thread start-up than it saves, badly so on a loaded machine
+        G = np.einsum('ni,nj->ij', A2, A2)
     return G.reshape(3, q, 3, q).transpose(0, 2, 1, 3)
 
 
@@ -228,23 +235,69 @@ class _Stats:
     torque_dt: float = 0.0         # median torque sample interval [s]
 
 
+def _raw(eq: _Equations, t_tau: np.ndarray, tau_end: float,
+         torque_var: np.ndarray) -> dict[str, Any]:
+    """Statistics of the (globally centred) equations that every segmentation shares."""
+    if eq.raw is not None:
+        return eq.raw
+    n = len(eq.t)
+    eq.A -= eq.A.mean(axis=0)[None]           # a constant shift cancels in segment demeaning
+    raw: dict[str, Any] = {'C': _cross(eq.A), 'A2': eq.A.reshape(n, 30),
+                           'CT': np.concatenate([[0.0], np.cumsum(eq.t)])}
+    if np.any(torque_var > 0) and len(t_tau) > 1:
+        ends = np.append(t_tau[1:], max(tau_end, t_tau[-1]))
+        raw.update(P=_torque_stats(eq.A, eq.t, t_tau, tau_end).reshape(len(t_tau), 30),
+                   s=t_tau, h=ends - t_tau, k0=np.searchsorted(eq.t, t_tau, side='right'),
+                   k1=np.searchsorted(eq.t, ends, side='left'))
+    eq.raw = raw
+    return raw
+
+
 def _stats(eq: _Equations, segment: float | None, t_tau: np.ndarray, tau_end: float,
            torque_var: np.ndarray) -> _Stats:
-    """Demean per segment (anchored methods) and reduce to cross Gram matrices."""
+    """Reduce the equations of one segmentation to cross Gram matrices.
+
+    Anchored methods: the per-segment demeaning is applied to shared raw statistics
+    (``C - sum_s n_s m_s' m_s``; the torque-noise sums corrected with prefix sums of the
+    segment means), so trying several segment lengths costs O(segments + torque samples).
+    """
     n = len(eq.t)
-    if eq.kind == 'anchored':
-        starts = _segments(eq.t, eq.breaks, segment)
-        A = _demean(eq.A, starts)
-        CP = None
-        if np.any(torque_var > 0) and len(t_tau) > 1:
-            CP = _cross(_torque_stats(A, eq.t, t_tau, tau_end))
-        bounds = np.append(starts, n)
-        ns = np.diff(bounds)
-        dur = eq.t[bounds[1:] - 1] - eq.t[starts]
-        tdt = float(np.median(np.diff(t_tau))) if len(t_tau) > 1 else 0.0
-        return _Stats(_cross(A), CP, n, n - len(starts), len(starts), eq, None,
-                      walk_time=float(np.sum(ns * dur)) / 6.0, torque_dt=tdt)
-    return _Stats(_cross(eq.A), None, n, n, 0, eq, eq.A)
+    if eq.kind != 'anchored':
+        return _Stats(_cross(eq.A), None, n, n, 0, eq, eq.A)
+    raw = _raw(eq, t_tau, tau_end, torque_var)
+    starts = _segments(eq.t, eq.breaks, segment)
+    bounds = np.append(starts, n)
+    ns = np.diff(bounds).astype(float)
+    S = np.add.reduceat(raw['A2'], starts, axis=0)            # (nseg, 30) segment sums
+    m = S / ns[:, None]
+    C = raw['C'] - np.einsum('s,si,sj->ij', ns, m, m).reshape(3, 10, 3, 10).transpose(
+        0, 2, 1, 3)
+    CP = None
+    if 'P' in raw:
+        CT = raw['CT']
+        Sp = np.vstack([np.zeros(30), np.cumsum(S, axis=0)])
+        TS = CT[bounds[1:]] - CT[starts]
+        MTp = np.vstack([np.zeros(30), np.cumsum(m * TS[:, None], axis=0)])
+
+        def Z(k: np.ndarray) -> np.ndarray:
+            """sum_{b<k} m_seg(b)."""
+            sk = np.searchsorted(starts, k, side='right') - 1
+            return Sp[sk] + (k - starts[sk])[:, None] * m[sk]
+
+        def Q(k: np.ndarray) -> np.ndarray:
+            """sum_{b<k} t_b m_seg(b)."""
+            sk = np.searchsorted(starts, k, side='right') - 1
+            return MTp[sk] + (CT[k] - CT[starts[sk]])[:, None] * m[sk]
+
+        k0, k1 = raw['k0'], raw['k1']
+        z1 = Z(k1)
+        adj = raw['h'][:, None] * (Sp[-1][None] - z1) + (Q(k1) - Q(k0)) \
+            - raw['s'][:, None] * (z1 - Z(k0))
+        CP = _cross((raw['P'] - adj).reshape(-1, 3, 10))
+    dur = eq.t[bounds[1:] - 1] - eq.t[starts]
+    tdt = float(np.median(np.diff(t_tau))) if len(t_tau) > 1 else 0.0
+    return _Stats(C, CP, n, n - len(starts), len(starts), eq, None,
+                  walk_time=float(np.sum(ns * dur)) / 6.0, torque_dt=tdt)
 
 
 @dataclass
@@ -813,10 +866,10 @@ def _choose_segment(eq: _Equations, ts: np.ndarray, tau_end: float, gyro_var: np
 
     Short segments lose the information in slow motion and leave more errors-in-variables
     bias; long ones let the integrated torque noise (a random walk) grow.  The candidates are
-    evaluated with the calibrated covariance of the full model on at most the first 100 000
-    equations (the optimum depends on the dynamics, not on the record length).
+    evaluated with the calibrated covariance of the full model; all candidates share the raw
+    statistics (see :func:`_stats`), so the search costs little.
     """
-    sub = eq.head(min(len(eq.t), 100_000))
+    sub = eq
     span = float(sub.t[-1] - sub.t[0])
     cands: list[float | None] = [s for s in _SEGMENT_CANDIDATES if s < 0.75 * span]
     cands.append(None)
