@@ -17,14 +17,17 @@ stage in a fresh subprocess so that peak memory (ru_maxrss) belongs to that stag
 Usage::
 
     .venv/bin/python scripts/bench_offline.py [--minutes 60] [--compression zstd|none]
-        [--skip-slow] [--json FILE]
+        [--skip-slow] [--json FILE] [--blas-threads N]
 
 ``--skip-slow`` leaves out the mcap_ros2 decode (about a minute per hour of log).
+``--blas-threads 1`` pins BLAS to one thread: on a loaded 2-core machine OpenBLAS's own
+threads can make the estimator's Gram products tens of times slower.
 """
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import subprocess
 import sys
 import tempfile
@@ -140,11 +143,15 @@ print(json.dumps(dict(stage=stage, messages=n, seconds=dt, msg_per_s=n / dt,
 '''
 
 
-def run_stage(path: Path, stage: str) -> dict:
+def run_stage(path: Path, stage: str, blas_threads: int | None = None) -> dict:
     """Run one stage in a fresh interpreter; return its JSON result."""
     code = _STAGE_CODE.format(root=str(ROOT), path=str(path), stage=stage)
+    env = dict(os.environ)
+    if blas_threads is not None:
+        for var in ('OPENBLAS_NUM_THREADS', 'OMP_NUM_THREADS', 'MKL_NUM_THREADS'):
+            env[var] = str(blas_threads)
     proc = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
-                          check=False)
+                          check=False, env=env)
     if proc.returncode != 0:
         return {'stage': stage, 'error': proc.stderr.strip().splitlines()[-1:]}
     return json.loads(proc.stdout.strip().splitlines()[-1])
@@ -157,6 +164,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument('--compression', choices=('zstd', 'lz4', 'none'), default='zstd')
     ap.add_argument('--skip-slow', action='store_true', help='skip the mcap_ros2 decode')
     ap.add_argument('--json', type=Path, help='also write the results here')
+    ap.add_argument('--blas-threads', type=int, default=None,
+                    help='set OPENBLAS/OMP_NUM_THREADS for the stages (default: inherit)')
     args = ap.parse_args(argv)
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / 'bench.mcap'
@@ -168,7 +177,7 @@ def main(argv: list[str] | None = None) -> int:
         for stage in STAGES:
             if stage == 'mcap_ros2' and args.skip_slow:
                 continue
-            r = run_stage(path, stage)
+            r = run_stage(path, stage, args.blas_threads)
             results.append(r)
             if 'error' in r:
                 print(f'{stage:16s} FAILED: {r["error"]}', flush=True)
@@ -187,6 +196,7 @@ def main(argv: list[str] | None = None) -> int:
         if args.json:
             args.json.write_text(json.dumps({'messages': n, 'minutes': args.minutes,
                                              'compression': args.compression,
+                                             'blas_threads': args.blas_threads,
                                              'results': results}, indent=2))
     return 0
 
