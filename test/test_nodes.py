@@ -188,6 +188,8 @@ def test_every_parameter_has_description_and_range(harness):
     ('method', 'magic', 'method must be one of'),
     ('hold', 'cubic', 'hold must be one of'),
     ('model', 'octagonal', 'rejected by the estimator'),
+    ('model', 'axisymmetric', 'symmetry_axis'),
+    ('torque_bias', 'maybe', 'torque_bias must be one of'),
     ('forgetting', 1.5, ''),
     ('publish_rate', 0.0, ''),
     ('qos_depth', 5, ''),
@@ -246,14 +248,23 @@ def test_nominal_scene_converges_within_one_percent(harness):
     assert h.moments, 'principal moments not published'
 
 
-def test_torque_free_input_reports_failure(harness):
-    """Torque-free data: diagnostics at ERROR with scale_unobservable, no ~/inertia."""
+@pytest.mark.parametrize('method, statuses', [
+    # The recursive core reports the rank loss as insufficient_excitation, the batch core
+    # identifies the homogeneous problem (scale_unobservable); both are failures (ERROR).
+    ('recursive', ('scale_unobservable', 'insufficient_excitation')),
+    ('batch', ('scale_unobservable',)),
+])
+def test_torque_free_input_reports_failure(harness, method, statuses):
+    """Torque-free data: diagnostics at ERROR (scale not observable), no ~/inertia."""
     sim = simulate(_short_scene('torque_free.yaml', duration=20.0), seed=1)
-    h = harness(overrides={'publish_rate': 5.0})
+    h = harness(overrides={'publish_rate': 2.0, 'method': method})
     h.play(sim)
-    h.spin_for(0.5)
+    h.est.set_parameters([Parameter('publish_rate', value=1000.0)])
+    h.pub_gyro.publish(ros_msgs.imu_msg(EPOCH_NS + int(sim.t_gyro[-1] * 1e9) + 1,
+                                        sim.omega[-1], 'base_link'))
+    h.spin_for(0.3)
     st = h.latest_diag()
-    assert _values(st)['status'] == 'scale_unobservable', st.message
+    assert _values(st)['status'] in statuses, st.message
     assert st.level == DiagnosticStatus.ERROR
     assert h.inertia == []
 
@@ -329,18 +340,22 @@ def _env():
                 PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get('PYTHONPATH', ''))
 
 
-def wait_for_estimate(node, timeout, ctx):
-    """Spin ``node`` until an InertiaStamped arrives on /inertia_estimator/inertia."""
-    got = []
-    node.create_subscription(InertiaStamped, '/inertia_estimator/inertia', got.append, 10)
-    truth = []
+def collect_estimates(node, ctx, done, timeout):
+    """Spin ``node`` collecting ~/inertia and ~/truth until ``done()`` (+1 s) or timeout."""
+    got, truth = [], []
+    node.create_subscription(InertiaStamped, '/inertia_estimator/inertia', got.append, 100)
     node.create_subscription(InertiaStamped, '/scene_simulator/truth', truth.append,
                              QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL))
     exe = SingleThreadedExecutor(context=ctx)
     exe.add_node(node)
     end = time.monotonic() + timeout
-    while time.monotonic() < end and not got:
+    finished = None
+    while time.monotonic() < end:
         exe.spin_once(timeout_sec=0.05)
+        if finished is None and done():
+            finished = time.monotonic()
+        if finished is not None and time.monotonic() - finished > 1.0:
+            break
     exe.shutdown()
     return got, truth
 
@@ -385,7 +400,7 @@ def test_nodes_as_processes_over_dds(tmp_path):
     rclpy.init(context=ctx, domain_id=DOMAIN_ID + 110)
     try:
         node = Node('test_listener', context=ctx)
-        got, truth = wait_for_estimate(node, 30.0, ctx)
+        got, truth = collect_estimates(node, ctx, lambda: procs[1].poll() is not None, 40.0)
         node.destroy_node()
     finally:
         rclpy.try_shutdown(context=ctx)
@@ -395,4 +410,5 @@ def test_nodes_as_processes_over_dds(tmp_path):
     assert truth, 'no truth from the simulator process'
     _, est = ros_msgs.inertia_from_msg(got[-1])
     _, true = ros_msgs.inertia_from_msg(truth[-1])
-    np.testing.assert_allclose(est, true, rtol=0, atol=0.05)
+    # 20 s of the nominal scene: the last estimate is within 2% of I3 (atol 0.024 kg m^2).
+    np.testing.assert_allclose(est, true, rtol=0, atol=0.02 * np.linalg.eigvalsh(true)[-1])
