@@ -30,6 +30,9 @@ setup(
     entry_points={
         'console_scripts': [
             # Executables are registered here as the issue that builds each one lands.
+            'inertia_estimator = inertia_ros.inertia_estimator_node:main',
+            'scene_simulator = inertia_ros.scene_simulator_node:main',
+            'bag_player = inertia_ros.bag_player_node:main',
         ],
     },
 )
