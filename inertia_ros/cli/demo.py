@@ -312,16 +312,17 @@ def _plot(path: Path, run: _Run, name: str) -> None:
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
 
-    fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(9, 7), sharex=True)
+    fig, (ax_d, ax_p, ax2) = plt.subplots(3, 1, figsize=(9, 9), sharex=True)
     t0 = run.truth[0][0] if run.truth else (run.est[0][0] if run.est else 0)
     idx = [(0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)]
     names = ['ixx', 'iyy', 'izz', 'ixy', 'ixz', 'iyz']
     colors = plt.rcParams['axes.prop_cycle'].by_key()['color']
+    axes = [ax_d] * 3 + [ax_p] * 3
     if run.est:
         t = (np.array([e[0] for e in run.est]) - t0) * 1e-9
         mats = np.array([e[1] for e in run.est])
         for k, (i, j) in enumerate(idx):
-            ax1.plot(t, mats[:, i, j], color=colors[k], label=names[k])
+            axes[k].plot(t, mats[:, i, j], color=colors[k], label=names[k])
         truths = [_truth_at(run, e[0]) for e in run.est]
         if all(x is not None for x in truths):
             err = [100 * _error(e[1], tr) for e, tr in zip(run.est, truths, strict=True)]
@@ -331,10 +332,12 @@ def _plot(path: Path, run: _Run, name: str) -> None:
         for n, (tt, mat) in enumerate(run.truth):
             t_a = (tt - t0) * 1e-9
             t_b = (run.truth[n + 1][0] - t0) * 1e-9 if n + 1 < len(run.truth) else t_end
-            ax1.hlines(mat[i, j], t_a, max(t_b, t_a), colors=colors[k], linestyles='--')
-    ax1.set_ylabel('tensor element [kg m^2]')
-    ax1.set_title(f'inertia_ros demo, scene {name!r}: estimate (solid) vs truth (dashed)')
-    ax1.legend(ncol=6, fontsize='small')
+            axes[k].hlines(mat[i, j], t_a, max(t_b, t_a), colors=colors[k], linestyles='--')
+    ax_d.set_ylabel('moments of inertia [kg m^2]')
+    ax_p.set_ylabel('products of inertia [kg m^2]')
+    ax_d.set_title(f'inertia_ros demo, scene {name!r}: estimate (solid) vs truth (dashed)')
+    ax_d.legend(ncol=3, fontsize='small')
+    ax_p.legend(ncol=3, fontsize='small')
     ax2.set_ylabel('max |I_est - I_true| / I3 [%]')
     ax2.set_xlabel('data time [s]')
     ax2.grid(True, which='both', alpha=0.3)
