@@ -66,6 +66,7 @@ _AXES = {'x': np.array([1.0, 0.0, 0.0]), 'y': np.array([0.0, 1.0, 0.0]),
 _L_BASIS = momentum_matrix(np.eye(3))          # (3 axes c, 3, 6): L(e_c)
 _NULL_FRACTION = 0.03                          # signal fraction of an undetermined direction
 _NOISE_SHARE = 0.01                            # gyro-noise share of a noise-dominated column
+_SELECT_MAX_ROWS = 100_000                     # equations used by the segment-length search
 _BLAS_MIN_ROWS = 200_000                       # rows from which a Gram goes to BLAS
 _SEGMENT_CANDIDATES = (5.0, 10.0, 20.0, 40.0)   # s, anchored-segment lengths tried
 
@@ -163,7 +164,7 @@ class _Equations:
 
     def head(self, n: int) -> _Equations:
         """The first ``n`` equations."""
-        return _Equations(self.A[:n], self.t[:n], self.breaks[:max(n - 1, 0)], self.kind,
+        return _Equations(self.A[:n].copy(), self.t[:n], self.breaks[:max(n - 1, 0)], self.kind,
                           self.hac_lag, self.eiv_var, self.weighted, dict(self.info))
 
 
@@ -867,9 +868,16 @@ def _choose_segment(eq: _Equations, ts: np.ndarray, tau_end: float, gyro_var: np
     Short segments lose the information in slow motion and leave more errors-in-variables
     bias; long ones let the integrated torque noise (a random walk) grow.  The candidates are
     evaluated with the calibrated covariance of the full model; all candidates share the raw
-    statistics (see :func:`_stats`), so the search costs little.
+    statistics (see :func:`_stats`), so the search costs little.  Long records are searched on
+    their first ``_SELECT_MAX_ROWS`` equations (the optimum depends on the dynamics, not on the
+    record length).
     """
-    sub = eq
+    if len(eq.t) > _SELECT_MAX_ROWS:
+        sub = eq.head(_SELECT_MAX_ROWS)
+        ts = ts[:max(int(np.searchsorted(ts, sub.t[-1], side='right')), 2)]
+        tau_end = max(float(sub.t[-1]), float(ts[-1]))
+    else:
+        sub = eq
     span = float(sub.t[-1] - sub.t[0])
     cands: list[float | None] = [s for s in _SEGMENT_CANDIDATES if s < 0.75 * span]
     cands.append(None)
