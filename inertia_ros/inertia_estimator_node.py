@@ -298,13 +298,15 @@ class InertiaEstimatorNode(Node):
         # The input subscriptions live on a companion node that no executor waits on: a timer
         # takes every queued message each poll_period and decodes the batch at once.  At
         # kHz rates this costs a few times less CPU than one executor wake-up per message.
+        # Topic names are resolved (namespace, remaps) by this node; the companion ignores the
+        # global arguments so that a __node remap does not give it this node's name.
         self._input = Node(f'{self.get_name()}_input', namespace=self.get_namespace(),
                            context=self.context, start_parameter_services=False,
-                           enable_rosout=False)
+                           enable_rosout=False, use_global_arguments=False)
         self._gyro.sub = self._input.create_subscription(
-            om_type, om_topic, _never_called, qos, raw=True)
+            om_type, self.resolve_topic_name(om_topic), _never_called, qos, raw=True)
         self._torque.sub = self._input.create_subscription(
-            tq_type, tq_topic, _never_called, qos, raw=True)
+            tq_type, self.resolve_topic_name(tq_topic), _never_called, qos, raw=True)
         self._sub_omega, self._sub_torque = self._gyro.sub, self._torque.sub
         self._poll_timer = self.create_timer(float(cfg['poll_period']), self._on_poll)
 

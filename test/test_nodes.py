@@ -334,6 +334,110 @@ def test_vector3_gyro_input(harness):
     assert h.spin_until(lambda: h.est.counts()['gyro_received'] == 1, 2.0)
 
 
+def test_remaps_resolve_for_the_polled_inputs(context):
+    """Topic remaps and a __node rename apply to the polled input subscriptions."""
+    node = en.InertiaEstimatorNode(context=context, cli_args=[
+        '--ros-args', '-r', 'imu:=/robot/imu', '-r', '__node:=est_b', '-r', '__ns:=/r2'])
+    try:
+        assert node._sub_omega.topic_name == '/robot/imu'
+        assert node._sub_torque.topic_name == '/r2/torque'
+        assert node._input.get_name() == 'est_b_input'
+        assert node._input.get_namespace() == '/r2'
+    finally:
+        node.destroy_node()
+
+
+def test_sim_time_clock_jump_resets(harness):
+    """With use_sim_time, /clock jumping back (a bag loop) resets the estimator."""
+    from rosgraph_msgs.msg import Clock
+
+    h = harness(overrides={'use_sim_time': True})
+    pub = h.node.create_publisher(Clock, '/clock', 10)
+    h.spin_until(lambda: pub.get_subscription_count() > 0, 3.0)
+    for sec in (100, 101, 50):
+        pub.publish(Clock(clock=ros_msgs.ns_to_stamp(sec * 10**9)))
+        h.spin_for(0.1)
+    assert h.spin_until(lambda: 'ROS clock jumped back 51.000 s'
+                        in h.est.counts()['last_reset_reason'], 2.0)
+
+
+def _player_harness(harness, tmp_path, kind, **params):
+    """An estimator harness plus a scene_simulator or bag_player node in its executor."""
+    from inertia_ros.bag_player_node import BagPlayerNode
+    from inertia_ros.io.mcap_writer import write_simulation
+    from inertia_ros.scene_simulator_node import SceneSimulatorNode
+
+    scene = tmp_path / 'short.yaml'
+    d = dict(load_scene(ROOT / 'config' / 'scenes' / 'default.yaml').source, duration=4.0)
+    scene.write_text(yaml.safe_dump(d))
+    h = harness(overrides={'publish_rate': 50.0})
+    base = {'rate': 20.0, 'wait_for_subscribers': 1, **params}
+    if kind == 'simulator':
+        base['scene'] = str(scene)
+        player = SceneSimulatorNode(context=h.est.context, parameter_overrides=[
+            Parameter(k, value=v) for k, v in base.items()])
+    else:
+        log = tmp_path / 'short.mcap'
+        write_simulation(log, simulate(Scene.from_dict(d)))
+        base['path'] = str(log)
+        player = BagPlayerNode(context=h.est.context, parameter_overrides=[
+            Parameter(k, value=v) for k, v in base.items()])
+    h.exe.add_node(player)
+    truth = []
+    h.node.create_subscription(InertiaStamped, f'/{player.get_name()}/truth', truth.append,
+                               QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL))
+    return h, player, truth
+
+
+@pytest.mark.parametrize('kind', ['simulator', 'bag_player'])
+def test_player_publishes_streams_and_truth(harness, tmp_path, kind):
+    """The players publish every sample (no drop into the estimator) and the truth."""
+    h, player, truth = _player_harness(harness, tmp_path, kind, exit_on_end=True)
+    try:
+        assert h.spin_until(lambda: player.done, 10.0)
+        n_g, n_q = player.player.published
+        assert h.spin_until(lambda: h.received() == n_g + n_q, 3.0)
+        assert (n_g, n_q) == (801, 201)
+        assert truth, 'no truth published'
+        _, mat = ros_msgs.inertia_from_msg(truth[0])
+        np.testing.assert_allclose(mat[0, 1], 0.05, rtol=0, atol=1e-12)
+    finally:
+        player.destroy_node()
+
+
+def test_bag_player_loop_resets_the_estimator(harness, tmp_path):
+    """A looping bag_player replays the same stamps; the estimator resets on the jump back."""
+    h, player, _ = _player_harness(harness, tmp_path, 'bag_player', loop=True, rate=40.0)
+    try:
+        assert h.spin_until(lambda: player.player.loops >= 1
+                            and h.est.counts()['resets'] >= 1, 10.0)
+        assert 'stamps jumped back' in h.est.counts()['last_reset_reason']
+    finally:
+        player.destroy_node()
+
+
+@pytest.mark.parametrize('kwargs, match', [
+    ({'t_gyro': [0.0, 2.0, 1.0]}, 't_gyro must be non-decreasing'),
+    ({'omega': np.zeros((2, 3))}, r'omega must have shape \(3, 3\)'),
+    ({'rate': 0.0}, 'rate must be a positive'),
+    ({'omega_msg_type': 'twist'}, 'omega_msg_type must be'),
+])
+def test_stream_player_rejects_bad_input(context, kwargs, match):
+    """StreamPlayer refuses unsorted stamps, wrong shapes, bad rates and unknown types."""
+    from inertia_ros.scene_simulator_node import StreamPlayer
+
+    node = Node('player_args', context=context)
+    args = {'t_gyro': [0.0, 1.0, 2.0], 'omega': np.zeros((3, 3)), 't_torque': [0.0],
+            'torque': np.zeros((1, 3))}
+    args.update(kwargs)
+    try:
+        with pytest.raises(ValueError, match=match):
+            StreamPlayer(node, args.pop('t_gyro'), args.pop('omega'), args.pop('t_torque'),
+                         args.pop('torque'), 'base_link', **args)
+    finally:
+        node.destroy_node()
+
+
 # --------------------------------------------------------------------------- processes
 def _env():
     return dict(os.environ, ROS_DOMAIN_ID=str(DOMAIN_ID + 110),
@@ -393,7 +497,7 @@ def test_nodes_as_processes_over_dds(tmp_path):
     est_cmd = [sys.executable, '-m', 'inertia_ros.inertia_estimator_node', '--ros-args',
                '--params-file', str(ROOT / 'config' / 'inertia_estimator.yaml')]
     sim_cmd = [sys.executable, '-m', 'inertia_ros.scene_simulator_node', '--ros-args',
-               '-p', f'scene:={scene}', '-p', 'rate:=4.0', '-p', 'wait_for_subscribers:=1',
+               '-p', f'scene:={scene}', '-p', 'rate:=8.0', '-p', 'wait_for_subscribers:=1',
                '-p', 'exit_on_end:=true']
     procs, logs = start_pair(est_cmd, sim_cmd, env, tmp_path)
     ctx = rclpy.context.Context()
