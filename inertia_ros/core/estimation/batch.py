@@ -67,7 +67,7 @@ _L_BASIS = momentum_matrix(np.eye(3))          # (3 axes c, 3, 6): L(e_c)
 _NULL_FRACTION = 0.03                          # signal fraction of an undetermined direction
 _NOISE_SHARE = 0.01                            # gyro-noise share of a noise-dominated column
 _SELECT_MAX_ROWS = 100_000                     # equations used by the segment-length search
-_BLAS_MIN_ROWS = 200_000                       # rows from which a Gram goes to BLAS
+_BLAS_MIN_ROWS = 400_000                       # rows from which a Gram goes to BLAS
 _SEGMENT_CANDIDATES = (5.0, 10.0, 20.0, 40.0)   # s, anchored-segment lengths tried
 
 
@@ -148,11 +148,47 @@ def model_basis(model: str, symmetry_axis: np.ndarray | None = None) -> np.ndarr
 # ---------------------------------------------------------------------------------------------
 # equations
 # ---------------------------------------------------------------------------------------------
+def _variable_map() -> np.ndarray:
+    """``E`` (13, 3, 10): equation block ``A_b = [X6 | Xd | y]`` from 13 per-sample variables.
+
+    ``v_b = [w (3), m (6), s (1), y (3)]``: ``X6 = L(w) + Q(m)``, ``Xd = -s * 1``, ``y``.  Every
+    statistic of the equations is a quadratic form in ``v``, so the batch estimator only ever
+    reduces the 13 columns of ``V``.
+    """
+    E = np.zeros((13, 3, 10))
+    E[:3, :, :6] = momentum_matrix(np.eye(3))
+    E[3:9, :, :6] = gyroscopic_matrix(np.eye(6))
+    for r in range(3):
+        E[9, r, 6 + r] = -1.0
+        E[10 + r, r, 9] = 1.0
+    return E
+
+
+_VMAP = _variable_map()
+
+
+def _gram(V: np.ndarray) -> np.ndarray:
+    """``V' V`` (thin matrices: numpy's loop below ``_BLAS_MIN_ROWS`` rows, else BLAS)."""
+    if len(V) >= _BLAS_MIN_ROWS:
+        return V.T @ V
+    # multithreaded BLAS on a thin matrix costs more in thread start-up than it saves,
+    # badly so on a loaded machine
+    return np.einsum('ni,nj->ij', V, V)
+
+
+def _lift(G13: np.ndarray) -> np.ndarray:
+    """Cross Grams (3, 3, 10, 10) of the equation blocks from a 13 x 13 Gram of ``V``."""
+    return np.einsum('irq,ij,jsp->rsqp', _VMAP, G13, _VMAP)
+
+
 @dataclass
 class _Equations:
-    """Stacked 3-row equation blocks ``y_b = X6_b theta + Xd_b d + e_b`` as ``A = [X6|Xd|y]``."""
+    """Stacked 3-row equation blocks ``y_b = X6_b theta + Xd_b d + e_b``.
 
-    A: np.ndarray                  # (n, 3, 10)
+    Stored as the per-sample variables ``V`` (n, 13); ``A = V @ E`` (n, 3, 10) on demand.
+    """
+
+    V: np.ndarray                  # (n, 13)
     t: np.ndarray                  # (n,) time of each equation [s]
     breaks: np.ndarray             # (n-1,) bool: a segment must start after this equation
     kind: str                      # 'anchored' (segment intercepts, model covariance) or 'hac'
@@ -164,8 +200,13 @@ class _Equations:
 
     def head(self, n: int) -> _Equations:
         """The first ``n`` equations."""
-        return _Equations(self.A[:n].copy(), self.t[:n], self.breaks[:max(n - 1, 0)], self.kind,
+        return _Equations(self.V[:n].copy(), self.t[:n], self.breaks[:max(n - 1, 0)], self.kind,
                           self.hac_lag, self.eiv_var, self.weighted, dict(self.info))
+
+    @property
+    def A(self) -> np.ndarray:
+        """Equation blocks (n, 3, 10)."""
+        return (self.V @ _VMAP.reshape(13, 30)).reshape(-1, 3, 10)
 
 
 def _demean(a: np.ndarray, starts: np.ndarray) -> np.ndarray:
@@ -194,31 +235,30 @@ def _metric(C: np.ndarray, M: np.ndarray) -> np.ndarray:
     return np.einsum('rs,rsij->ij', M, C)
 
 
-def _torque_stats(A: np.ndarray, t: np.ndarray, t_tau: np.ndarray,
+def _torque_stats(V: np.ndarray, t: np.ndarray, t_tau: np.ndarray,
                   tau_end: float) -> np.ndarray:
-    """``P_j = sum_b o_j(b) A_b`` for every torque interval ``j``, shape (M, 3, q).
+    """``P_j = sum_b o_j(b) V_b`` for every torque interval ``j``, shape (M, q).
 
     Torque sample ``j`` carries white noise ``nu_j`` held over ``[s_j, s_{j+1})``; anchored
     equation ``b`` contains ``-sum_j o_j(b) nu_j`` with ``o_j(b) = clip(t_b - s_j, 0, h_j)``.
-    With segment-demeaned ``A`` the constant part of every segment cancels, so one global sum
-    serves all segments.
+    With segment-demeaned variables the constant part of every segment cancels, so one global
+    sum serves all segments.
     """
-    n, _, q = A.shape
+    n, q = V.shape
     m = len(t_tau)
     ends = np.append(t_tau[1:], max(tau_end, t_tau[-1]))
     h = ends - t_tau
     j = np.clip(np.searchsorted(t_tau, t, side='right') - 1, 0, m - 1)
-    A2 = A.reshape(n, 3 * q)
     counts = np.bincount(j, minlength=m)
     nz = counts > 0
     first = np.cumsum(counts) - counts
-    S = np.zeros((m, 3 * q))
-    St = np.zeros((m, 3 * q))
-    S[nz] = np.add.reduceat(A2, first[nz], axis=0)
-    St[nz] = np.add.reduceat(A2 * (t - t_tau[j])[:, None], first[nz], axis=0)
-    after = np.zeros((m, 3 * q))
+    S = np.zeros((m, q))
+    St = np.zeros((m, q))
+    S[nz] = np.add.reduceat(V, first[nz], axis=0)
+    St[nz] = np.add.reduceat(V * (t - t_tau[j])[:, None], first[nz], axis=0)
+    after = np.zeros((m, q))
     after[:-1] = np.cumsum(S[::-1], axis=0)[::-1][1:]
-    return (h[:, None] * after + St).reshape(m, 3, q)
+    return h[:, None] * after + St
 
 
 @dataclass
@@ -238,16 +278,14 @@ class _Stats:
 
 def _raw(eq: _Equations, t_tau: np.ndarray, tau_end: float,
          torque_var: np.ndarray) -> dict[str, Any]:
-    """Statistics of the (globally centred) equations that every segmentation shares."""
+    """Statistics of the (globally centred) variables that every segmentation shares."""
     if eq.raw is not None:
         return eq.raw
-    n = len(eq.t)
-    eq.A -= eq.A.mean(axis=0)[None]           # a constant shift cancels in segment demeaning
-    raw: dict[str, Any] = {'C': _cross(eq.A), 'A2': eq.A.reshape(n, 30),
-                           'CT': np.concatenate([[0.0], np.cumsum(eq.t)])}
+    eq.V -= eq.V.mean(axis=0)[None]           # a constant shift cancels in segment demeaning
+    raw: dict[str, Any] = {'G': _gram(eq.V), 'CT': np.concatenate([[0.0], np.cumsum(eq.t)])}
     if np.any(torque_var > 0) and len(t_tau) > 1:
         ends = np.append(t_tau[1:], max(tau_end, t_tau[-1]))
-        raw.update(P=_torque_stats(eq.A, eq.t, t_tau, tau_end).reshape(len(t_tau), 30),
+        raw.update(P=_torque_stats(eq.V, eq.t, t_tau, tau_end),
                    s=t_tau, h=ends - t_tau, k0=np.searchsorted(eq.t, t_tau, side='right'),
                    k1=np.searchsorted(eq.t, ends, side='left'))
     eq.raw = raw
@@ -264,21 +302,21 @@ def _stats(eq: _Equations, segment: float | None, t_tau: np.ndarray, tau_end: fl
     """
     n = len(eq.t)
     if eq.kind != 'anchored':
-        return _Stats(_cross(eq.A), None, n, n, 0, eq, eq.A)
+        return _Stats(_lift(_gram(eq.V)), None, n, n, 0, eq, eq.A)
     raw = _raw(eq, t_tau, tau_end, torque_var)
     starts = _segments(eq.t, eq.breaks, segment)
     bounds = np.append(starts, n)
     ns = np.diff(bounds).astype(float)
-    S = np.add.reduceat(raw['A2'], starts, axis=0)            # (nseg, 30) segment sums
+    S = np.add.reduceat(eq.V, starts, axis=0)                 # (nseg, 13) segment sums
     m = S / ns[:, None]
-    C = raw['C'] - np.einsum('s,si,sj->ij', ns, m, m).reshape(3, 10, 3, 10).transpose(
-        0, 2, 1, 3)
+    C = _lift(raw['G'] - np.einsum('s,si,sj->ij', ns, m, m))
     CP = None
     if 'P' in raw:
         CT = raw['CT']
-        Sp = np.vstack([np.zeros(30), np.cumsum(S, axis=0)])
+        q = S.shape[1]
+        Sp = np.vstack([np.zeros(q), np.cumsum(S, axis=0)])
         TS = CT[bounds[1:]] - CT[starts]
-        MTp = np.vstack([np.zeros(30), np.cumsum(m * TS[:, None], axis=0)])
+        MTp = np.vstack([np.zeros(q), np.cumsum(m * TS[:, None], axis=0)])
 
         def Z(k: np.ndarray) -> np.ndarray:
             """sum_{b<k} m_seg(b)."""
@@ -294,7 +332,7 @@ def _stats(eq: _Equations, segment: float | None, t_tau: np.ndarray, tau_end: fl
         z1 = Z(k1)
         adj = raw['h'][:, None] * (Sp[-1][None] - z1) + (Q(k1) - Q(k0)) \
             - raw['s'][:, None] * (z1 - Z(k0))
-        CP = _cross((raw['P'] - adj).reshape(-1, 3, 10))
+        CP = _lift(_gram(raw['P'] - adj))
     dur = eq.t[bounds[1:] - 1] - eq.t[starts]
     tdt = float(np.median(np.diff(t_tau))) if len(t_tau) > 1 else 0.0
     return _Stats(C, CP, n, n - len(starts), len(starts), eq, None,
@@ -438,9 +476,9 @@ def _segments(t: np.ndarray, keep_break: np.ndarray, max_len: float | None) -> n
     return np.unique(np.asarray(starts, dtype=int))
 
 
-def _assemble_A(X6: np.ndarray, Xd: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """Concatenate ``[X6 | Xd | y]`` into (n, 3, 10)."""
-    return np.concatenate([X6, Xd, y[:, :, None]], axis=2)
+def _variables(w: np.ndarray, m: np.ndarray, s: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Stack the 13 per-sample variables ``[w, m, s, y]`` (see :func:`_variable_map`)."""
+    return np.concatenate([w, m, s[:, None], y], axis=1)
 
 
 def _build(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.ndarray,
@@ -449,14 +487,11 @@ def _build(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.n
     """Equations of ``method`` from the gyro samples selected by ``mask``."""
     idx = np.flatnonzero(mask)
     t = tg[idx]
-    eye = np.eye(3)[None]
     if method in ('integral', 'integral_ls'):
         comp = method == 'integral'
         M = cumulative_monomials(tg, w, gyro_var if comp else None)[idx]
         T = cumulative_torque(ts, tau, t, hold)
-        X6 = momentum_matrix(w[idx]) + gyroscopic_matrix(M)
-        Xd = -(t - t[0])[:, None, None] * eye
-        return _Equations(_assemble_A(X6, Xd, T), t, breaks, 'anchored',
+        return _Equations(_variables(w[idx], M, t - t[0], T), t, breaks, 'anchored',
                           eiv_var=gyro_var if comp else None, weighted=comp)
     if method == 'integral_sliding':
         dt = float(np.median(np.diff(t)))
@@ -468,10 +503,9 @@ def _build(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.n
         a = np.arange(0, max(len(t) - wl, 0), stride)
         a = a[seg[a] == seg[a + wl]]
         b = a + wl
-        X6 = momentum_matrix(w[idx][b] - w[idx][a]) + gyroscopic_matrix(M[b] - M[a])
-        Xd = -(t[b] - t[a])[:, None, None] * eye
-        return _Equations(_assemble_A(X6, Xd, T[b] - T[a]), t[b],
-                          np.zeros(max(len(b) - 1, 0), dtype=bool), 'hac',
+        wi = w[idx]
+        V = _variables(wi[b] - wi[a], M[b] - M[a], t[b] - t[a], T[b] - T[a])
+        return _Equations(V, t[b], np.zeros(max(len(b) - 1, 0), dtype=bool), 'hac',
                           hac_lag=int(np.ceil(wl / stride)),
                           info={'window_s': wl * dt, 'windows': len(a)})
     # differential forms: torque value in effect at each gyro time
@@ -483,7 +517,7 @@ def _build(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.n
     wi = w[idx]
     if method == 'differential_fd':
         wd = np.gradient(wi, t, axis=0)
-        X6 = momentum_matrix(wd) + gyroscopic_matrix(monomials(wi))
+        m = monomials(wi)
         lag = 2
         info: dict[str, Any] = {}
     else:
@@ -494,12 +528,11 @@ def _build(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.n
         ws = signal.savgol_filter(wi, wl, 3, axis=0)
         wd = signal.savgol_filter(wi, wl, 3, deriv=1, delta=dt, axis=0)
         tq = signal.savgol_filter(tq, wl, 3, axis=0)
-        X6 = momentum_matrix(wd) + gyroscopic_matrix(monomials(ws))
+        m = monomials(ws)
         lag = wl
         info = {'window_s': wl * dt}
-    Xd = -np.ones((len(t), 1, 1)) * eye
-    return _Equations(_assemble_A(X6, Xd, tq), t, np.zeros(len(t) - 1, dtype=bool), 'hac',
-                      hac_lag=lag, info=info)
+    V = _variables(wd, m, np.ones(len(t)), tq)
+    return _Equations(V, t, np.zeros(len(t) - 1, dtype=bool), 'hac', hac_lag=lag, info=info)
 
 
 # ---------------------------------------------------------------------------------------------

@@ -357,7 +357,7 @@ class RecursiveEstimator:
             diag['reason'] = f'only {self.samples_used} gyro samples covered by torque so far'
             return InertiaEstimate(status='insufficient_data', diagnostics=diag,
                                    **base)   # type: ignore[arg-type]
-        eq = _Equations(np.zeros((0, 3, 10)), np.zeros(0), np.zeros(0, dtype=bool),
+        eq = _Equations(np.zeros((0, 13)), np.zeros(0), np.zeros(0, dtype=bool),
                         'anchored', eiv_var=nv, weighted=True)
         st = _Stats(C_all, None, int(round(w_all)), int(round(n_eff)), 1, eq, None)
         ratio = (self._w00 + self._w00c) / w_all

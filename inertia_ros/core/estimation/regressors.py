@@ -199,7 +199,7 @@ def cumulative_torque(t_tau: np.ndarray, tau: np.ndarray, t: np.ndarray,
 
 
 def noise_std_from_differences(x: np.ndarray, orders: tuple[int, ...] = (2, 3, 4),
-                               max_samples: int = 200_000) -> np.ndarray:
+                               max_samples: int = 50_000) -> np.ndarray:
     """Robust white-noise standard deviation per column from high-order differences.
 
     For white noise of variance ``s^2`` the k-th difference has variance ``C(2k, k) s^2``;
