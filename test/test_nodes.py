@@ -516,3 +516,54 @@ def test_nodes_as_processes_over_dds(tmp_path):
     _, true = ros_msgs.inertia_from_msg(truth[-1])
     # 20 s of the nominal scene: the last estimate is within 2% of I3 (atol 0.024 kg m^2).
     np.testing.assert_allclose(est, true, rtol=0, atol=0.02 * np.linalg.eigvalsh(true)[-1])
+
+
+# --------------------------------------------------------------------------- demo
+def test_demo_never_overwrites(tmp_path):
+    """The demo's output names get a numeric suffix instead of replacing a file."""
+    from inertia_ros.cli.demo import _unique
+
+    first = tmp_path / 'demo_x.png'
+    assert _unique(first) == first
+    first.write_text('user file')
+    second = _unique(first)
+    assert second == tmp_path / 'demo_x-1.png'
+    second.write_text('x')
+    assert _unique(first) == tmp_path / 'demo_x-2.png'
+    assert first.read_text() == 'user file'
+
+
+@pytest.mark.parametrize('argv, match', [
+    (['--rate', '0'], '--rate: must be in'),
+    (['--scene', 'no/such.yaml'], '--scene: no such file'),
+    (['--domain-id', '300'], '--domain-id: must be in'),
+])
+def test_demo_rejects_bad_arguments(argv, match, capsys):
+    """Bad demo arguments give exit status 2 and a one-line error, no traceback."""
+    from inertia_ros.cli import main
+
+    assert main(['demo', *argv]) == 2
+    err = capsys.readouterr().err
+    assert match in err and 'Traceback' not in err
+
+
+@pytest.mark.slow
+def test_demo_runs_end_to_end(tmp_path):
+    """`python -m inertia_ros demo` on a short scene: exit 0, MCAP + PNG written, small error."""
+    from inertia_ros.io.logs import read_log
+
+    scene = tmp_path / 'short.yaml'
+    d = dict(load_scene(ROOT / 'config' / 'scenes' / 'default.yaml').source, duration=15.0)
+    scene.write_text(yaml.safe_dump(d))
+    out = tmp_path / 'out'
+    proc = subprocess.run(
+        [sys.executable, '-m', 'inertia_ros', 'demo', '--scene', str(scene), '--rate', '10',
+         '--out', str(out), '--domain-id', str(DOMAIN_ID + 110), '--quiet'],
+        env=_env(), capture_output=True, text=True, timeout=90, cwd=tmp_path)
+    assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
+    mcaps, pngs = list(out.glob('*.mcap')), list(out.glob('*.png'))
+    assert len(mcaps) == 1 and len(pngs) == 1 and pngs[0].stat().st_size > 10_000
+    log = read_log(mcaps[0])
+    assert log.omega.t.size > 2000 and log.torque.t.size > 500
+    err = float(proc.stdout.split('final error max|I_est - I_true| / I3 = ')[1].split('%')[0])
+    assert err < 2.0, proc.stdout
