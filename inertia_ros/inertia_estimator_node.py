@@ -51,7 +51,8 @@ from rcl_interfaces.msg import (
     ParameterType,
     SetParametersResult,
 )
-from rclpy.clock import ClockChange, JumpThreshold, TimeJump
+from rclpy.clock import Clock, ClockChange, JumpThreshold, TimeJump
+from rclpy.clock_type import ClockType
 from rclpy.duration import Duration
 from rclpy.event_handler import PublisherEventCallbacks
 from rclpy.executors import ExternalShutdownException
@@ -308,7 +309,11 @@ class InertiaEstimatorNode(Node):
         self._torque.sub = self._input.create_subscription(
             tq_type, self.resolve_topic_name(tq_topic), _never_called, qos, raw=True)
         self._sub_omega, self._sub_torque = self._gyro.sub, self._torque.sub
-        self._poll_timer = self.create_timer(float(cfg['poll_period']), self._on_poll)
+        # Polling and the watchdog run on the steady clock: with use_sim_time they must not
+        # stop when /clock pauses, nor speed up with a fast bag.
+        self._steady = Clock(clock_type=ClockType.STEADY_TIME)
+        self._poll_timer = self.create_timer(float(cfg['poll_period']), self._on_poll,
+                                             clock=self._steady)
 
         # No QoS-event handlers on the outputs: each would be one more entity in every
         # executor wait-set, i.e. CPU at every poll.
@@ -321,7 +326,7 @@ class InertiaEstimatorNode(Node):
         self._pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics', 10, **quiet)
         self._pub_markers = self.create_publisher(MarkerArray, '~/markers', 10, **quiet)
         self._srv_reset = self.create_service(Trigger, '~/reset', self._on_reset)
-        self._watchdog = self.create_timer(0.25, self._on_watchdog)
+        self._watchdog = self.create_timer(0.25, self._on_watchdog, clock=self._steady)
         self._jump_handle = self.get_clock().create_jump_callback(
             JumpThreshold(min_forward=None, min_backward=Duration(nanoseconds=-1_000_000),
                           on_clock_change=True),

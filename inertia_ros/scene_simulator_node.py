@@ -31,6 +31,8 @@ from rcl_interfaces.msg import (
     ParameterDescriptor,
     SetParametersResult,
 )
+from rclpy.clock import Clock
+from rclpy.clock_type import ClockType
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -157,6 +159,7 @@ class StreamPlayer:
         self.loops = 0
         self.finished = False
         self._timer = None
+        self._steady = Clock(clock_type=ClockType.STEADY_TIME)
 
     @property
     def gyro_publisher(self) -> Any:
@@ -183,7 +186,7 @@ class StreamPlayer:
         self._t0 = time.monotonic()
         self._next = 0
         self._next_truth = 0
-        self._timer = self.node.create_timer(self.tick, self._on_tick)
+        self._timer = self.node.create_timer(self.tick, self._on_tick, clock=self._steady)
         self._on_tick()
 
     def stop(self) -> None:
@@ -313,7 +316,8 @@ class PlaybackNode(Node):
             omega_msg_type=self.param('omega_msg_type'), rate=self.param('rate'),
             loop=self.param('loop'), tick=self.param('tick'), truth=truth,
             qos_depth=self.param('qos_depth'), on_finish=self._finished)
-        self._gate = self.create_timer(0.05, self._try_start)
+        self._gate = self.create_timer(0.05, self._try_start,
+                                       clock=Clock(clock_type=ClockType.STEADY_TIME))
         return self.player
 
     def _try_start(self) -> None:
