@@ -45,11 +45,14 @@ class Outcome:
         Estimated tensor [kg m^2]; None when the estimator returned none.
     seconds : float
         Wall-clock compute time of the estimator call [s].
+    inertia_std : numpy.ndarray, shape (3, 3), or None
+        The estimator's own one-sigma standard errors [kg m^2], when it gives them.
     """
 
     status: str
     inertia: np.ndarray | None
     seconds: float
+    inertia_std: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -88,7 +91,8 @@ def _package(**kwargs: Any) -> Callable[[Any], Outcome]:
         res, dt = _timed(lambda: estimation.estimate(sim.t_gyro, sim.omega, sim.t_torque,
                                                      sim.torque, **kwargs))
         I = None if res.inertia is None else np.array(res.inertia, dtype=float)
-        return Outcome(res.status, I, dt)
+        S = None if res.inertia_std is None else np.array(res.inertia_std, dtype=float)
+        return Outcome(res.status, I, dt, S)
     return run
 
 
@@ -230,15 +234,15 @@ def _run_pem(sim: Any) -> Outcome:
     return Outcome(status, I, dt)
 
 
-def _recursive_runner() -> tuple[Callable[[Any], Outcome] | None, str]:
-    """A runner for ``RecursiveEstimator``: the record streamed in 1 s blocks, then estimate."""
+def _recursive_runner(**kwargs: Any) -> tuple[Callable[[Any], Outcome] | None, str]:
+    """A runner for ``RecursiveEstimator(**kwargs)``: the record in 1 s blocks, then estimate."""
     cls = getattr(estimation, 'RecursiveEstimator', None)
     if cls is None:
         return None, 'RecursiveEstimator is not in inertia_ros.core.estimation yet'
 
     def run(sim: Any) -> Outcome:
         def go() -> Any:
-            est = cls(model='full', torque_bias=False)
+            est = cls(**kwargs)
             tg, ts = sim.t_gyro, sim.t_torque
             edges = np.arange(np.floor(tg[0]), tg[-1] + 1.0, 1.0)
             ig = np.searchsorted(tg, edges)
@@ -317,10 +321,15 @@ def method_specs(*, include_pinocchio: bool = True, quick: bool = False
                             'estimate + 2 Gauss-Newton steps of the Kalman prediction-error '
                             '(maximum-likelihood) criterion', _run_pem))
     notes: list[str] = []
-    rec, why = _recursive_runner()
+    rec, why = _recursive_runner(model='full', torque_bias='off')
     if rec is not None:
         specs.append(MethodSpec('recursive', 'recursive', 'RecursiveEstimator fed the whole '
-                                'record in 1 s blocks (full model, no bias)', rec))
+                                'record in 1 s blocks, node defaults (full model, bias off)',
+                                rec))
+        rec_b, _ = _recursive_runner(model='full', torque_bias='auto')
+        assert rec_b is not None
+        specs.append(MethodSpec('recursive_bias', 'recursive', 'RecursiveEstimator as above '
+                                "with torque_bias='auto'", rec_b))
     else:
         notes.append(f'recursive: skipped ({why})')
     if include_pinocchio:

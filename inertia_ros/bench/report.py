@@ -154,12 +154,12 @@ def render_markdown(ctx: BenchContext) -> str:
           'and the disturbance torque where the scene has one. Stamps are taken as exact and '
           'the tensor as constant.', '',
           '| scene | RMS rel. Frobenius bound | ' + ' | '.join(f'std {n}' for n in THETA_NAMES)
-          + ' | nuisances | spread over seeds |',
-          '|---|---|' + '---|' * 6 + '---|---|']
+          + ' | nuisances | records averaged | spread over them |',
+          '|---|---|' + '---|' * 6 + '---|---|---|']
     for name, b in ctx.bounds.items():
         L.append(f'| {name} | {b.rel_frobenius:.2e} | '
                  + ' | '.join(f'{v:.2e}' for v in np.sqrt(b.theta_var))
-                 + f' | {", ".join(b.nuisances)} | {b.spread:.1%} |')
+                 + f' | {", ".join(b.nuisances)} | {b.seeds} | {b.spread:.1%} |')
     L += ['', 'Standard deviations in kg m^2.', '']
     # ---- chart and table
     L += ['## Speed against accuracy', '', '![speed vs accuracy](speed_vs_accuracy.png)', '',
@@ -220,7 +220,8 @@ def render_markdown(ctx: BenchContext) -> str:
         L += ['', f'Silent failures of `{DEFAULT_METHOD}`:', '']
         for c in silent_default:
             L.append(f'- noise {c.gyro_noise:g} rad/s, amplitude {c.amplitude:g} N m, '
-                     f'{c.duration:g} s, seed {c.seed}: error {_f(c.error, ".3f")}')
+                     f'{c.duration:g} s, seed {c.seed}: error {_f(c.error, ".3f")}, its own '
+                     f'reported relative standard error {_f(c.reported_std, ".3f")}')
     L += ['']
     L += _advice(ctx, nominal)
     return '\n'.join(L) + '\n'

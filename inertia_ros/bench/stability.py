@@ -112,6 +112,8 @@ class Cell:
         Relative Frobenius error (NaN when no complete tensor).
     outcome : str
         :func:`classify` of the cell.
+    reported_std : float
+        The method's own relative standard error ``||I_std||_F / ||I||_F`` (NaN if none).
     """
 
     method: str
@@ -122,6 +124,7 @@ class Cell:
     status: str
     error: float
     outcome: str
+    reported_std: float = float('nan')
 
 
 def run_grid(specs: Sequence[MethodSpec], noises: Sequence[float], amplitudes: Sequence[float],
@@ -160,8 +163,11 @@ def run_grid(specs: Sequence[MethodSpec], noises: Sequence[float], amplitudes: S
                     for spec in specs:
                         o = spec.run(sim)
                         err = relative_error(o.inertia, sim.inertia)
+                        rstd = (float(np.linalg.norm(o.inertia_std) / np.linalg.norm(
+                            sim.inertia)) if o.inertia_std is not None else float('nan'))
                         out.append(Cell(spec.name, float(noise), float(amp), float(dur),
-                                        int(seed), o.status, err, classify(o.status, err)))
+                                        int(seed), o.status, err, classify(o.status, err),
+                                        rstd))
                         if progress is not None:
                             progress(f'stability {spec.name}')
     return out
