@@ -495,7 +495,7 @@ def _build(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.n
                           eiv_var=gyro_var if comp else None, weighted=comp)
     if method == 'integral_sliding':
         dt = float(np.median(np.diff(t)))
-        wl = max(2, round((window or 1.0) / dt))
+        wl = max(2, round((window or 2.0) / dt))
         stride = max(1, wl // 4)
         M = cumulative_monomials(tg, w)[idx]
         T = cumulative_torque(ts, tau, t, hold)
@@ -522,7 +522,7 @@ def _build(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.n
         info: dict[str, Any] = {}
     else:
         dt = float(np.median(np.diff(t)))
-        wl = max(5, round((window or 0.1) / dt))
+        wl = max(5, round((window or 1.0) / dt))
         wl += 1 - wl % 2
         wl = min(wl, len(t) - (1 - len(t) % 2))
         ws = signal.savgol_filter(wi, wl, 3, axis=0)
@@ -688,8 +688,8 @@ def estimate(t_gyro: Any, omega: Any, t_torque: Any, torque: Any, *,
         Maximum anchored-segment duration [s] for the integral methods (default: whole run,
         split only at gaps).
     window : float, optional
-        Window length [s] of ``integral_sliding`` (default 1 s) or ``differential_sg``
-        (default 0.1 s).
+        Window length [s] of ``integral_sliding`` (default 2 s) or ``differential_sg``
+        (default 1 s; the same Savitzky-Golay filter is applied to the torque).
     identifiability_tol : float
         An element is identifiable when its standard error is below this fraction of the
         largest well-determined principal-diagonal element.

@@ -35,6 +35,7 @@ from .result import InertiaEstimate
 __all__ = ['RecursiveEstimator']
 
 _RMODELS = ('auto', 'full', 'diagonal', 'axisymmetric')
+_MAX_BUFFER = 400_000                      # gyro samples kept waiting for torque
 
 
 class RecursiveEstimator:
@@ -107,8 +108,12 @@ class RecursiveEstimator:
     # -----------------------------------------------------------------------------------------
     def reset(self) -> None:
         """Forget everything (clock jump, new run)."""
+        self._pt: list[np.ndarray] = []      # pending torque blocks
+        self._ptau: list[np.ndarray] = []
         self._single_t: list[float] = []
         self._single_w: list[Any] = []
+        self._n_buf = 0                     # samples in self._gt
+        self._new_torque = False            # torque arrived since the last _process
         self._gt: list[np.ndarray] = []
         self._gw: list[np.ndarray] = []
         self._ts = np.empty(0)
@@ -141,9 +146,9 @@ class RecursiveEstimator:
         if ta.ndim != 1 or xa.ndim != 2 or xa.shape[1] != 3 or len(ta) != len(xa):
             raise ValueError(f'{name}: expected t (n,) and values (n, 3) or (3,), got '
                              f'{ta.shape} and {np.shape(x)}')
-        if not (np.all(np.isfinite(ta)) and np.all(np.isfinite(xa))):
+        if not (np.isfinite(ta).all() and np.isfinite(xa).all()):
             raise ValueError(f'{name}: contains NaN or inf')
-        if len(ta) > 1 and np.any(np.diff(ta) <= 0):
+        if len(ta) > 1 and (ta[1:] <= ta[:-1]).any():
             raise ValueError(f'{name}: times must be strictly increasing')
         return ta, xa
 
@@ -168,7 +173,7 @@ class RecursiveEstimator:
             self._last_t_in = tf
             self._single_t.append(tf)
             self._single_w.append(omega)
-            if len(self._single_t) >= self.block:
+            if len(self._single_t) + self._n_buf >= self.block and self._new_torque:
                 self._process()
             return
         self._flush_single()
@@ -181,14 +186,24 @@ class RecursiveEstimator:
         self._last_t_in = float(ta[-1])
         self._gt.append(ta)
         self._gw.append(wa)
-        if sum(len(a) for a in self._gt) + len(self._single_t) >= self.block:
+        self._n_buf += len(ta)
+        if self._n_buf + len(self._single_t) >= self.block and self._new_torque:
             self._process()
+        elif self._n_buf > _MAX_BUFFER:
+            # torque stream stalled: keep the newest samples only
+            self._flush_single()
+            t = np.concatenate(self._gt)
+            w = np.concatenate(self._gw)
+            self.samples_dropped += len(t) - _MAX_BUFFER // 2
+            self._gt, self._gw = [t[-(_MAX_BUFFER // 2):]], [w[-(_MAX_BUFFER // 2):]]
+            self._n_buf = len(self._gt[0])
 
     def _flush_single(self) -> None:
         """Move single gyro samples into the block buffer."""
         if self._single_t:
             self._gt.append(np.array(self._single_t, dtype=float))
             self._gw.append(np.array(self._single_w, dtype=float).reshape(-1, 3))
+            self._n_buf += len(self._single_t)
             self._single_t, self._single_w = [], []
 
     def add_torque(self, t: Any, tau: Any) -> None:
@@ -201,6 +216,19 @@ class RecursiveEstimator:
         tau : array_like, shape (3,) or (n, 3)
             Torque about the centre of mass [N m].
         """
+        if isinstance(t, (float, int)) and len(tau) == 3 and np.ndim(tau) == 1:
+            tf = float(t)
+            if not (math.isfinite(tf) and all(math.isfinite(float(v)) for v in tau)):
+                raise ValueError('torque: contains NaN or inf')
+            if self._last_tau_in is not None and tf <= self._last_tau_in:
+                raise ValueError(f'torque: time {tf!r} is not after the previous torque '
+                                 f'sample {self._last_tau_in!r} (call reset() after a clock '
+                                 'jump)')
+            self._last_tau_in = tf
+            self._new_torque = True
+            self._pt.append(np.array([tf]))
+            self._ptau.append(np.asarray(tau, dtype=float).reshape(1, 3))
+            return
         ta, xa = self._block(t, tau, 'torque')
         if len(ta) == 0:
             return
@@ -208,20 +236,28 @@ class RecursiveEstimator:
             raise ValueError(f'torque: time {ta[0]!r} is not after the previous torque sample '
                              f'{self._last_tau_in!r} (call reset() after a clock jump)')
         self._last_tau_in = float(ta[-1])
-        self._ts = np.concatenate([self._ts, ta])
-        self._tau = np.concatenate([self._tau, xa])
+        self._new_torque = True
+        self._pt.append(ta)
+        self._ptau.append(xa)
 
     # -----------------------------------------------------------------------------------------
     def _process(self) -> None:
         """Turn buffered gyro samples covered by torque into equations and merge them."""
         self._flush_single()
+        self._new_torque = False
+        if self._pt:
+            self._ts = np.concatenate([self._ts, *self._pt])
+            self._tau = np.concatenate([self._tau, *self._ptau])
+            self._pt, self._ptau = [], []
         if not self._gt:
             return
         t = np.concatenate(self._gt)
         w = np.concatenate(self._gw)
         self._gt, self._gw = [], []
+        self._n_buf = 0
         if len(self._ts) == 0:
             self._gt, self._gw = [t], [w]
+            self._n_buf = len(t)
             return
         # gyro samples before the first torque sample can never be used
         early = t < self._ts[0]
@@ -231,6 +267,7 @@ class RecursiveEstimator:
         ready = t <= self._ts[-1]
         if not np.all(ready):
             self._gt, self._gw = [t[~ready]], [w[~ready]]
+            self._n_buf = int(np.sum(~ready))
             t, w = t[ready], w[ready]
         if len(t) == 0:
             return
