@@ -241,3 +241,69 @@ def test_markers_reject_bad_scale(scale):
     """A non-positive or NaN display scale is refused."""
     with pytest.raises(ValueError, match='scale must be'):
         rm.inertia_markers(0, 'body', scale=scale)
+
+
+@pytest.mark.parametrize('msgtype', ['visualization_msgs/msg/MarkerArray',
+                                     'diagnostic_msgs/msg/DiagnosticArray',
+                                     'geometry_msgs/msg/QuaternionStamped',
+                                     'geometry_msgs/msg/Vector3Stamped'])
+def test_schema_from_share_decodes_with_independent_readers(msgtype):
+    """Schema text from the installed .msg files lets mcap_ros2 and rosbags decode our CDR."""
+    from mcap.records import Schema
+    from mcap_ros2.decoder import DecoderFactory
+    from rclpy.serialization import serialize_message
+    from rosbags.typesys import get_types_from_msg, get_typestore
+    from rosbags.typesys.stores import Stores
+
+    moments, axes = np.linalg.eigh(I_NOM)
+    axes[:, 2] = np.cross(axes[:, 0], axes[:, 1])
+    msgs = {
+        'visualization_msgs/msg/MarkerArray': rm.inertia_markers(
+            5, 'body', inertia=I_NOM, moments=moments, axes=axes, omega=[0.1, 0.2, 0.3],
+            label='ok'),
+        'diagnostic_msgs/msg/DiagnosticArray': rm.diagnostic_array(
+            [rm.diagnostic_status(_result(), name='est', extra={'n': 3})], 7),
+        'geometry_msgs/msg/QuaternionStamped': rm.principal_axes_msg(axes, 9, 'body'),
+        'geometry_msgs/msg/Vector3Stamped': rm.principal_moments_msg(moments, 9, 'body'),
+    }
+    msg = msgs[msgtype]
+    data = serialize_message(msg)
+    text = rm.schema_text_from_share(msgtype)
+    decoder = DecoderFactory().decoder_for(
+        'cdr', Schema(id=1, name=msgtype, encoding='ros2msg', data=text.encode()))
+    a = decoder(data)
+    store = get_typestore(Stores.EMPTY)
+    types = {}
+    for block in text.split('=' * 80 + '\n'):
+        if block.startswith('MSG: '):
+            head, body = block.split('\n', 1)
+            types.update(get_types_from_msg(body, head[5:].replace('/', '/msg/')))
+        else:
+            types.update(get_types_from_msg(block, msgtype))
+    store.register(types)
+    b = store.deserialize_cdr(data, msgtype)
+    if msgtype.endswith('MarkerArray'):
+        assert [m.id for m in a.markers] == [m.id for m in b.markers] \
+            == [m.id for m in msg.markers]
+        assert a.markers[1].scale.x == b.markers[1].scale.x == msg.markers[1].scale.x
+        assert b.markers[-1].text == 'ok'
+    elif msgtype.endswith('DiagnosticArray'):
+        assert [kv.key for kv in a.status[0].values] == [kv.key for kv in b.status[0].values] \
+            == [kv.key for kv in msg.status[0].values]
+        assert b.status[0].level == 0 and a.status[0].name == 'est'
+    elif msgtype.endswith('QuaternionStamped'):
+        assert (a.quaternion.w, b.quaternion.w) == (msg.quaternion.w, msg.quaternion.w)
+    else:
+        assert (a.vector.z, b.vector.z) == (msg.vector.z, msg.vector.z)
+    if hasattr(msg, 'header'):
+        assert a.header.frame_id == b.header.frame_id == msg.header.frame_id
+
+
+@pytest.mark.parametrize('bad, match', [
+    ('MarkerArray', 'expected'),
+    ('nosuch_msgs/msg/Thing', r'no nosuch_msgs/msg/Thing\.msg'),
+])
+def test_schema_from_share_rejects(bad, match):
+    """A malformed type name or a type with no installed .msg file is refused."""
+    with pytest.raises(ValueError, match=match):
+        rm.schema_text_from_share(bad)

@@ -290,18 +290,29 @@ def _final(run: _Run) -> str | None:
 
 
 def _write_mcap(path: Path, run: _Run) -> list[str]:
-    """Write the recorded topics; return the topics skipped for want of a schema."""
+    """Write the recorded topics; return the topics skipped for want of a schema.
+
+    Types the MCAP writer knows use its schemas; the others get the schema text built from
+    the installed ``.msg`` files, when the writer accepts an explicit ``schema_text``.
+    """
+    import inspect
+
     from inertia_ros.io.mcap_writer import McapWriter
+    from inertia_ros.io.ros_msgs import schema_text_from_share
 
     skipped = []
     with McapWriter(path) as w:
+        takes_schema = 'schema_text' in inspect.signature(w.add_topic).parameters
         for topic, rows in run.records.items():
             msgtype, _, _, kind = TOPICS[topic]
             try:
                 w.add_topic(topic, msgtype, qos=kind)
             except ValueError:
-                skipped.append(topic)
-                continue
+                if not takes_schema:
+                    skipped.append(topic)
+                    continue
+                w.add_topic(topic, msgtype, qos=kind,
+                            schema_text=schema_text_from_share(msgtype))
             w.write_many(topic, np.array([r[0] for r in rows], dtype=np.int64),
                          [r[1] for r in rows])
     return skipped

@@ -20,7 +20,11 @@ from __future__ import annotations
 
 import json
 import math
+import os
+import re
+import sys
 from collections.abc import Iterable, Mapping, Sequence
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -55,6 +59,7 @@ __all__ = [
     'principal_axes_msg',
     'principal_moments_msg',
     'quaternion_to_axes',
+    'schema_text_from_share',
     'stamp_to_ns',
     'vector3_sample',
     'vector3_stamped',
@@ -550,3 +555,85 @@ def inertia_markers(t_ns: int, frame_id: str, *, inertia: Any = None, moments: A
     for m in out[1:]:
         m.lifetime = Duration(sec=0, nanosec=0)
     return MarkerArray(markers=out)
+
+
+# --------------------------------------------------------------------------- schemas
+_PRIMITIVES = frozenset({
+    'bool', 'byte', 'char', 'float32', 'float64', 'int8', 'uint8', 'int16', 'uint16', 'int32',
+    'uint32', 'int64', 'uint64', 'string', 'wstring'})
+
+
+def _msg_file(pkg: str, name: str) -> Path:
+    """Locate ``<share>/<pkg>/msg/<name>.msg`` via AMENT_PREFIX_PATH, then ``sys.prefix``."""
+    prefixes = [p for p in os.environ.get('AMENT_PREFIX_PATH', '').split(os.pathsep) if p]
+    prefixes.append(sys.prefix)
+    for prefix in prefixes:
+        path = Path(prefix) / 'share' / pkg / 'msg' / f'{name}.msg'
+        if path.is_file():
+            return path
+    raise ValueError(f'msgtype: no {pkg}/msg/{name}.msg under the share/ of {prefixes}')
+
+
+def _field_types(text: str, pkg: str) -> list[str]:
+    """The complex types ``pkg/Type`` used by the fields of a .msg text, in order."""
+    out: list[str] = []
+    for line in text.splitlines():
+        line = line.split('#', 1)[0].strip()
+        if not line or '=' in line:
+            continue  # blank, comment or constant (NAME=value)
+        ftype = re.sub(r'\[.*\]$', '', line.split()[0])
+        base = ftype.split('<=')[0]
+        if base in _PRIMITIVES:
+            continue
+        if '/' not in base:
+            base = 'std_msgs/Header' if base == 'Header' else f'{pkg}/{base}'
+        else:
+            parts = base.split('/')
+            base = f'{parts[0]}/{parts[-1]}'
+        if base not in out:
+            out.append(base)
+    return out
+
+
+def schema_text_from_share(msgtype: str) -> str:
+    """The ``ros2msg`` schema text of any installed message type, as rosbag2 stores it.
+
+    The type's own ``.msg`` text, then for every (transitive) dependency a line of 80 ``=``,
+    ``MSG: pkg/Type`` and that type's ``.msg`` text.  The ``.msg`` files are read from the
+    ``share/`` directories of ``AMENT_PREFIX_PATH`` (a sourced ROS install) or of
+    ``sys.prefix`` (the PyPI wheels).
+
+    Parameters
+    ----------
+    msgtype : str
+        ``pkg/msg/Type`` or ``pkg/Type``, e.g. ``visualization_msgs/msg/MarkerArray``.
+
+    Returns
+    -------
+    str
+
+    Raises
+    ------
+    ValueError
+        If the name is malformed or a ``.msg`` file cannot be found.
+    """
+    parts = msgtype.split('/')
+    if len(parts) not in (2, 3) or (len(parts) == 3 and parts[1] != 'msg') or not all(parts):
+        raise ValueError(f"msgtype: expected 'pkg/msg/Type', got {msgtype!r}")
+    pkg, name = parts[0], parts[-1]
+    texts: dict[str, str] = {}
+    order: list[str] = []
+
+    def visit(full: str) -> None:
+        p, n = full.split('/')
+        text = _msg_file(p, n).read_text()
+        texts[full] = text
+        for dep in _field_types(text, p):
+            if dep not in texts:
+                order.append(dep)
+                visit(dep)
+
+    visit(f'{pkg}/{name}')
+    blocks = [texts[f'{pkg}/{name}'].rstrip('\n')]
+    blocks += [f"{'=' * 80}\nMSG: {dep}\n{texts[dep].rstrip(chr(10))}" for dep in order]
+    return '\n'.join(blocks) + '\n'
