@@ -25,6 +25,7 @@ import struct
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.lib.stride_tricks import sliding_window_view
 
 #: Float64 fields after the header, per message type: (name, number of float64).
 LAYOUTS: dict[str, tuple[tuple[str, int], ...]] = {
@@ -197,6 +198,8 @@ class DecodedBatch:
 
 def _gather(buf: np.ndarray, starts: np.ndarray, offset: int, nbytes: int) -> np.ndarray:
     """Bytes ``buf[s + offset : s + offset + nbytes]`` for every s, as a (n, nbytes) array."""
+    if nbytes >= 8:  # rows of a sliding-window view: one index per message, not per byte
+        return sliding_window_view(buf, nbytes)[starts + offset]
     idx = starts[:, None] + (offset + np.arange(nbytes, dtype=np.int64))
     return buf[idx]
 
@@ -265,9 +268,12 @@ def decode_batch(msg_type: str, buf: np.ndarray, starts: np.ndarray, lengths: np
     frame_table: dict[bytes, int] = {}
     if cand.size:
         key = kind.astype(np.int64) << 40 | flen
-        ukeys, inv = np.unique(key, return_inverse=True)
-        for g, k in enumerate(ukeys.tolist()):
-            rows = cand[inv == g]
+        if key.min() == key.max():  # the usual case: one layout for the whole batch
+            groups = [(int(key[0]), cand)]
+        else:
+            ukeys, inv = np.unique(key, return_inverse=True)
+            groups = [(k, cand[inv == g]) for g, k in enumerate(ukeys.tolist())]
+        for k, rows in groups:
             little = (k >> 40) == 1
             L = k & ((1 << 40) - 1)
             e = '<' if little else '>'

@@ -33,6 +33,7 @@ from pathlib import Path
 from typing import BinaryIO
 
 import numpy as np
+from numpy.lib.stride_tricks import sliding_window_view
 
 MAGIC = b'\x89MCAP0\r\n'
 
@@ -566,8 +567,7 @@ class MessageBatch:
 
 def _gather_u64(arr: np.ndarray, offs: np.ndarray) -> np.ndarray:
     """Little-endian uint64 at (unaligned) byte offsets ``offs`` of uint8 array ``arr``."""
-    idx = offs[:, None] + np.arange(8, dtype=np.int64)
-    return np.ascontiguousarray(arr[idx]).view('<u8').ravel()
+    return sliding_window_view(arr, 8)[offs].view('<u8').ravel()
 
 
 def _gather_u16(arr: np.ndarray, offs: np.ndarray) -> np.ndarray:
