@@ -926,6 +926,8 @@ def _choose_segment(eq: _Equations, ts: np.ndarray, tau_end: float, gyro_var: np
         scores['whole' if cand is None else f'{cand:g}'] = score
         if score < best_score:
             best, best_score = cand, score
+    if best is None and sub is not eq:
+        best = span                     # 'whole' of the searched part, not of the record
     return best, {'candidates_s': scores, 'chosen_s': 'whole' if best is None else best,
                   'rule': 'minimum predicted relative variance of theta'}
 
