@@ -398,3 +398,18 @@ def test_recursive_torque_free_is_scale_unobservable():
     rec = RecursiveEstimator()
     _interleaved(rec, s.t_gyro, s.omega_true, s.t_torque, np.zeros((len(s.t_torque), 3)))
     assert rec.estimate().status == 'scale_unobservable'
+
+
+def test_recursive_auto_model_and_stalled_torque(nominal20):
+    """Recursive 'auto' selects a model; gyro without torque waits, then is used."""
+    t_g, w, t_t, tau = add_noise(nominal20, seed=17)
+    rec = RecursiveEstimator(model='auto', torque_bias='auto')
+    rec.add_gyro(t_g[:2000], w[:2000])               # torque not yet arrived
+    assert rec.estimate().status == 'insufficient_data'
+    rec.add_torque(t_t, tau)
+    rec.add_gyro(t_g[2000:], w[2000:])
+    est = rec.estimate()
+    assert est.status == 'ok'
+    assert est.model == 'full'
+    assert est.samples_used == len(t_g)
+    assert rel_error(est, nominal20.inertia) < 0.01
