@@ -71,6 +71,9 @@ def main() -> int:
     ap.add_argument('--seed', type=int, default=1)
     args = ap.parse_args()
 
+    # The listener thread must not wait up to the default 5 ms GIL switch interval behind the
+    # publishing loop: that would be the benchmark's latency, not the estimator's.
+    sys.setswitchinterval(2e-4)
     domain = 150 + os.getpid() % 70
     os.environ['ROS_DOMAIN_ID'] = str(domain)
     sim, n = make_streams(args.rate, args.duration, args.seed)
@@ -169,6 +172,8 @@ def main() -> int:
     ok = (k >= 0) & (k < n) & ((offset % period_ns) % (period_ns // 2) == 0)
     lat_ms = (recv[ok] - send_mono[2 * k[ok] + j[ok]]) * 1e-6
     last = diags[-1] if diags else {}
+    # Estimator-side core time per update (hand buffered samples to the core, estimate) [ms].
+    upd = np.array([float(d['update_ms']) for d in diags if 'update_ms' in d])
     got_g = int(last.get('gyro_received', -1))
     got_q = int(last.get('torque_received', -1))
     cpu_pct = 100.0 * (cpu1 - cpu0) / (wall1 - wall0)
@@ -185,7 +190,8 @@ def main() -> int:
                        'p95': round(float(np.percentile(lat_ms, 95)), 3) if lat_ms.size
                        else None,
                        'max': round(float(lat_ms.max()), 3) if lat_ms.size else None},
-        'last_status': last.get('status'), 'update_ms_last': last.get('update_ms'),
+        'last_status': last.get('status'),
+        'update_ms_median': round(float(np.median(upd)), 3) if upd.size else None,
     }
     passed = (result['dropped'] == 0 and cpu_pct < 30.0 and lat_ms.size > 0
               and result['latency_ms']['median'] < 5.0)
@@ -197,7 +203,8 @@ def main() -> int:
     print(f'estimator CPU: {cpu_pct:.1f} % of one core (target < 30 %)')
     print(f"estimates: {len(received)}; latency newest input -> estimate: median "
           f"{result['latency_ms']['median']} ms, p95 {result['latency_ms']['p95']} ms, "
-          f"max {result['latency_ms']['max']} ms (target median < 5 ms)")
+          f"max {result['latency_ms']['max']} ms (target median < 5 ms); core flush + estimate "
+          f"per update: median {result['update_ms_median']} ms")
     print(json.dumps(result))
     return 0 if passed else 1
 
