@@ -38,7 +38,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     """Register ``demo`` on the CLI's sub-parsers."""
     p = sub.add_parser(
         'demo', help='live demo: simulator + estimator over DDS, table, MCAP and PNG',
-        description=__doc__.split('\n\n')[0] + ' Runs the scene at --rate times real time.')
+        description='Live demo over DDS: starts the scene simulator and the inertia estimator '
+                    'as separate processes, prints estimate vs truth while the scene plays at '
+                    '--rate times real time, then writes an MCAP of the run, a PNG of the '
+                    'convergence and the nodes\' log into --out (never overwriting a file) '
+                    'and prints the final error.')
     p.add_argument('--scene', default=None,
                    help='scene YAML (default: config/scenes/default.yaml)')
     p.add_argument('--rate', type=float, default=DEFAULT_RATE,

@@ -417,6 +417,8 @@ def diagnostic_status(result: Mapping[str, Any] | None, *, name: str, hardware_i
         values.append(('torque_bias', result['torque_bias']))
     if 'identifiable' in result:
         values.append(('identifiable', result['identifiable']))
+    if result.get('ratios') is not None and status != 'ok':
+        values.append(('ratios', result['ratios']))  # what torque-free data still gives
     values.append(('reason', reason))
     seen = {k for k, _ in values}
     for key, val in diag.items():
