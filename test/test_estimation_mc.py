@@ -99,3 +99,20 @@ def test_auto_picks_full_for_small_products():
     p = 0.02 * 3.1
     counts = _selection_counts([1.0, 1.2, 0.9, p, -p, p])
     assert counts.get('full', 0) >= 95, counts
+
+
+@pytest.mark.slow
+def test_recursive_standard_errors_are_calibrated(nominal60):
+    """50 noise resamplings: the recursive estimator's RMS of (est - truth)/sigma in [0.7, 1.5]."""
+    from inertia_ros.core.estimation import RecursiveEstimator
+    truth = matrix_to_theta(nominal60.inertia)
+    z = []
+    for seed in range(50):
+        t_g, w, t_t, tau = add_noise(nominal60, seed=3000 + seed)
+        rec = RecursiveEstimator(model='full')
+        rec.add_torque(t_t, tau)
+        rec.add_gyro(t_g, w)
+        est = rec.estimate()
+        z.append((est.theta - truth) / est.theta_std)
+    rms = np.sqrt(np.mean(np.square(z), axis=0))
+    assert np.all(rms >= 0.7) and np.all(rms <= 1.5), rms

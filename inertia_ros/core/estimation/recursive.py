@@ -22,11 +22,22 @@ from typing import Any
 import numpy as np
 
 from ..inertia import THETA_NAMES
-from .batch import HOLDS, _axis, _conclude, _cross, _Equations, _Fit, _fit2, _Stats
+from .batch import (
+    _VMAP,
+    HOLDS,
+    _axis,
+    _conclude,
+    _cross,
+    _Equations,
+    _Fit,
+    _fit2,
+    _gram,
+    _lift,
+    _Stats,
+    _torque_stats,
+)
 from .regressors import (
     cumulative_torque,
-    gyroscopic_matrix,
-    momentum_matrix,
     monomials,
     noise_std_from_differences,
 )
@@ -129,6 +140,13 @@ class RecursiveEstimator:
         self._Cc = np.zeros((3, 3, 10, 10))  # closed segments
         self._wc = self._w00c = self._neffc = 0.0
         self._seg_start: float | None = None
+        self._seg_t: list[np.ndarray] = []   # open segment: times, variables, torque times
+        self._seg_V: list[np.ndarray] = []
+        self._seg_tt: list[np.ndarray] = []
+        self._GPc = np.zeros((13, 13))        # closed segments' torque-noise Gram
+        self._walkc = 0.0
+        self._tau_var: np.ndarray | None = None
+        self._tau_dt = 0.0
         self._t_last: float | None = None
         self._last_t_in: float | None = None
         self._last_tau_in: float | None = None
@@ -246,9 +264,17 @@ class RecursiveEstimator:
         self._flush_single()
         self._new_torque = False
         if self._pt:
-            self._ts = np.concatenate([self._ts, *self._pt])
-            self._tau = np.concatenate([self._tau, *self._ptau])
+            new_t = np.concatenate(self._pt)
+            new_tau = np.concatenate(self._ptau)
+            self._ts = np.concatenate([self._ts, new_t])
+            self._tau = np.concatenate([self._tau, new_tau])
             self._pt, self._ptau = [], []
+            self._seg_tt.append(new_t)
+            if len(new_t) >= 16:
+                v = noise_std_from_differences(new_tau) ** 2
+                self._tau_var = v if self._tau_var is None else 0.8 * self._tau_var + 0.2 * v
+                dt = float(np.median(np.diff(new_t)))
+                self._tau_dt = dt if self._tau_dt == 0.0 else 0.8 * self._tau_dt + 0.2 * dt
         if not self._gt:
             return
         t = np.concatenate(self._gt)
@@ -300,11 +326,8 @@ class RecursiveEstimator:
         self._prev = (float(t[-1]), w[-1].copy())
         Mc = M.copy()
         Mc[:, :3] -= (t - self._t0)[:, None] * nv[None, :]
-        A = np.empty((len(t), 3, 10))
-        A[:, :, :6] = momentum_matrix(w) + gyroscopic_matrix(Mc)
-        A[:, :, 6:9] = -(t - self._t0)[:, None, None] * np.eye(3)[None]
-        A[:, :, 9] = T
-        self._merge(t, A)
+        V = np.concatenate([w, Mc, (t - self._t0)[:, None], T], axis=1)
+        self._merge(t, V)
         self.samples_used += len(t)
         # keep torque samples from the last one at or before the last processed gyro time
         j = int(np.searchsorted(self._ts, t[-1], side='right') - 1)
@@ -314,36 +337,60 @@ class RecursiveEstimator:
             self._ts = self._ts[j:]
             self._tau = self._tau[j:]
 
-    def _merge(self, t: np.ndarray, A: np.ndarray) -> None:
+    def _merge(self, t: np.ndarray, V: np.ndarray) -> None:
         """Merge a block of equations, closing anchored segments at their boundaries."""
         while len(t):
             if self._seg_start is None:
                 self._seg_start = float(t[0])
             k = int(np.searchsorted(t, self._seg_start + self.segment, side='left'))
             if k == 0:
-                self._close_segment()
-                self._seg_start = float(t[0])
+                self._close_segment(float(t[0]))
                 continue
-            self._merge_piece(t[:k], A[:k])
-            t, A = t[k:], A[k:]
+            self._merge_piece(t[:k], V[:k])
+            t, V = t[k:], V[k:]
             if len(t):
-                self._close_segment()
-                self._seg_start = float(t[0])
+                self._close_segment(float(t[0]))
 
-    def _close_segment(self) -> None:
-        """Fold the current segment's centred statistics into the closed ones."""
+    def _segment_walk(self) -> tuple[np.ndarray, float]:
+        """Torque-noise Gram (13 x 13) and walk time of the open segment (see batch)."""
+        if not self._seg_t or self._tau_var is None:
+            return np.zeros((13, 13)), 0.0
+        t = np.concatenate(self._seg_t)
+        V = np.concatenate(self._seg_V)
+        V = V - V.mean(axis=0)[None]
+        tt = np.concatenate(self._seg_tt) if self._seg_tt else np.empty(0)
+        tt = tt[tt <= t[-1]]
+        if len(tt) < 2 or tt[0] > t[0]:
+            return np.zeros((13, 13)), 0.0
+        P = _torque_stats(V, t, tt, float(t[-1]))
+        return _gram(P), len(t) * float(t[-1] - t[0]) / 6.0
+
+    def _close_segment(self, new_start: float) -> None:
+        """Fold the current segment's statistics into the closed ones; start a new one."""
         if self._w0 > 0:
             self._Cc = self._Cc + self._C
             self._wc += self._w0
             self._w00c += self._w00
             self._neffc += self._w0 - self._w00 / self._w0
+            gp, walk = self._segment_walk()
+            self._GPc = self._GPc + gp
+            self._walkc += walk
         self._w0 = self._w00 = 0.0
         self._mean = np.zeros((3, 10))
         self._C = np.zeros((3, 3, 10, 10))
+        self._seg_t, self._seg_V = [], []
+        if self._seg_tt:
+            tt = np.concatenate(self._seg_tt)
+            keep = max(int(np.searchsorted(tt, new_start, side='right')) - 1, 0)
+            self._seg_tt = [tt[keep:]]
+        self._seg_start = new_start
 
-    def _merge_piece(self, t: np.ndarray, A: np.ndarray) -> None:
+    def _merge_piece(self, t: np.ndarray, V: np.ndarray) -> None:
         """Merge equations of one segment into the weighted centred statistics."""
         n = len(t)
+        self._seg_t.append(t)
+        self._seg_V.append(V)
+        A = (V @ _VMAP.reshape(13, 30)).reshape(n, 3, 10)
         if self.window:
             wts = np.exp(-(t[-1] - t) / self.window)
             old = float(np.exp(-(t[-1] - self._t_last) / self.window)) \
@@ -366,6 +413,8 @@ class RecursiveEstimator:
         self._w0 = total
         self._w00 = old * old * self._w00 + float(np.sum(wts * wts))
         self._Cc = old * self._Cc
+        self._GPc = old * old * self._GPc
+        self._walkc *= old
         self._wc *= old
         self._w00c *= old * old
         self._neffc *= old
@@ -377,9 +426,9 @@ class RecursiveEstimator:
         Returns
         -------
         InertiaEstimate
-            ``method='recursive'``; standard errors from the white gyro noise, scaled up by
-            the residual variance when that is larger (the integrated torque noise is not
-            modelled recursively).
+            ``method='recursive'``; standard errors from the same noise model as the batch
+            method (white gyro noise, integrated torque noise per segment), scaled up by the
+            residual variance when that is larger.
         """
         self._process()
         base = dict(method='recursive', samples_used=self.samples_used,
@@ -396,12 +445,16 @@ class RecursiveEstimator:
                                    **base)   # type: ignore[arg-type]
         eq = _Equations(np.zeros((0, 13)), np.zeros(0), np.zeros(0, dtype=bool),
                         'anchored', eiv_var=nv, weighted=True)
-        st = _Stats(C_all, None, int(round(w_all)), int(round(n_eff)), 1, eq, None)
+        gp, walk = self._segment_walk()
+        tv = self._tau_var if self._tau_var is not None else np.zeros(3)
+        CP = _lift(self._GPc + gp) if self._tau_var is not None else None
+        st = _Stats(C_all, CP, int(round(w_all)), int(round(n_eff)), 1, eq, None,
+                    walk_time=self._walkc + walk, torque_dt=self._tau_dt)
         ratio = (self._w00 + self._w00c) / w_all
 
         def fit(basis: np.ndarray, bias: bool, offset: np.ndarray | None = None) -> _Fit:
             """Fit on the weighted statistics; the meat of weighted sums scales by w^2/w."""
-            f = _fit2(st, basis, bias, nv, np.zeros(3), offset)
+            f = _fit2(st, basis, bias, nv, tv, offset)
             f.cov = f.cov * ratio
             return f
 
