@@ -140,16 +140,28 @@ def cumulative_monomials(t: np.ndarray, omega: np.ndarray,
     p = monomials(omega)
     out = np.empty_like(p)
     out[0] = 0.0
-    if len(t) > 1:
+    n = len(t)
+    if n > 1:
         dt = np.diff(t)
-        np.cumsum(0.5 * (p[1:] + p[:-1]) * dt[:, None], axis=0, out=out[1:])
-        if end_correction and len(t) > 2:
-            h = np.empty_like(t)
+        inc = p[1:] + p[:-1]
+        inc *= (0.5 * dt)[:, None]
+        np.cumsum(inc, axis=0, out=out[1:])
+        if end_correction and n > 2:
+            # -h^2/12 f'(t_i), f' by central differences (ends: extrapolated)
+            dp = np.empty_like(p)
+            np.subtract(p[2:], p[:-2], out=dp[1:-1])
+            dp[1:-1] /= (t[2:] - t[:-2])[:, None]
+            if n > 3:
+                dp[0] = 2.0 * dp[1] - dp[2]          # linear extrapolation: second order
+                dp[-1] = 2.0 * dp[-2] - dp[-3]
+            else:
+                dp[0] = dp[-1] = dp[1]
+            h = np.empty(n)
             h[1:] = dt
             h[0] = dt[0]
-            dp = np.gradient(p, t, axis=0, edge_order=2)
-            out -= (h * h / 12.0)[:, None] * dp
-            out -= out[0]
+            dp *= (h * h / 12.0)[:, None]
+            out -= dp
+            out -= out[0].copy()
     if noise_var is not None:
         out[:, :3] -= (t - t[0])[:, None] * np.asarray(noise_var, dtype=float)[None, :]
     return out
