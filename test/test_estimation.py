@@ -310,9 +310,10 @@ def test_axisymmetric_model_with_axis():
 # ---------------------------------------------------------------------------------------------
 # recursive estimator
 # ---------------------------------------------------------------------------------------------
-def _interleaved(rec: RecursiveEstimator, t_g, w, t_t, tau, chunk: float = 0.1) -> None:
+def _interleaved(rec: RecursiveEstimator, t_g, w, t_t, tau, chunk: float = 0.1,
+                 start: float = 0.0) -> None:
     """Feed both streams in time order, ``chunk`` seconds at a time."""
-    edges = np.arange(0.0, t_g[-1] + chunk, chunk)
+    edges = start + np.arange(0.0, t_g[-1] - start + chunk, chunk)
     ig = np.searchsorted(t_g, edges)
     it = np.searchsorted(t_t, edges)
     for k in range(len(edges) - 1):
@@ -413,3 +414,17 @@ def test_recursive_auto_model_and_stalled_torque(nominal20):
     assert est.model == 'full'
     assert est.samples_used == len(t_g)
     assert rel_error(est, nominal20.inertia) < 0.01
+
+
+def test_epoch_timestamps_give_the_same_answer(nominal20):
+    """Times offset by 1.7e9 s (ROS epoch stamps) give the same estimate (rtol 1e-6)."""
+    t_g, w, t_t, tau = add_noise(nominal20, seed=18)
+    a = estimate(t_g, w, t_t, tau)
+    b = estimate(t_g + 1.7e9, w, t_t + 1.7e9, tau)
+    np.testing.assert_allclose(b.inertia, a.inertia, rtol=1e-6)
+    np.testing.assert_allclose(b.inertia_std, a.inertia_std, rtol=1e-3)
+    rec_a = RecursiveEstimator()
+    _interleaved(rec_a, t_g, w, t_t, tau)
+    rec_b = RecursiveEstimator()
+    _interleaved(rec_b, t_g + 1.7e9, w, t_t + 1.7e9, tau, start=1.7e9)
+    np.testing.assert_allclose(rec_b.estimate().inertia, rec_a.estimate().inertia, rtol=1e-6)

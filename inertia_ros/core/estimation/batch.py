@@ -738,6 +738,11 @@ def estimate(t_gyro: Any, omega: Any, t_torque: Any, torque: Any, *,
     if len(ts) == 1:
         raise ValueError('t_torque: a single torque sample covers no time; give at least 2 '
                          '(or none for torque-free data)')
+    # work relative to the first stamp: ROS times are ~1.7e9 s, and prefix sums of absolute
+    # times would lose the sub-millisecond differences everything depends on
+    t_origin = float(min(tg[0], ts[0])) if len(ts) else float(tg[0])
+    tg = tg - t_origin
+    ts = ts - t_origin
     if segment is not None and not segment > 0:
         raise ValueError(f'segment: must be > 0 s, got {segment!r}')
     if window is not None and not window > 0:
