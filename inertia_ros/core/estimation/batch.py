@@ -44,6 +44,7 @@ by the nearest valid one and the violation is reported in ``diagnostics['physica
 """
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -81,6 +82,7 @@ _L_BASIS = momentum_matrix(np.eye(3))          # (3 axes c, 3, 6): L(e_c)
 _NULL_FRACTION = 0.03                          # signal fraction of an undetermined direction
 _NOISE_SHARE = 0.01                            # gyro-noise share of a noise-dominated column
 _SELECT_MAX_ROWS = 100_000                     # equations used by the segment-length search
+_THREAD_MIN_ROWS = 200_000                     # rows from which _raw uses two threads
 _BLAS_MIN_ROWS = 400_000                       # rows from which a Gram goes to BLAS
 _SEGMENT_CANDIDATES = (5.0, 10.0, 20.0, 40.0)   # s, anchored-segment lengths tried
 
@@ -288,11 +290,20 @@ def _raw(eq: _Equations, t_tau: np.ndarray, tau_end: float,
     if eq.raw is not None:
         return eq.raw
     eq.V -= eq.V.mean(axis=0)[None]           # a constant shift cancels in segment demeaning
-    raw: dict[str, Any] = {'G': _gram(eq.V), 'CT': np.concatenate([[0.0], np.cumsum(eq.t)])}
-    if np.any(torque_var > 0) and len(t_tau) > 1:
+    walk = np.any(torque_var > 0) and len(t_tau) > 1
+    if walk and len(eq.t) >= _THREAD_MIN_ROWS:
+        # the two big reductions are independent and numpy releases the GIL: overlap them
+        with ThreadPoolExecutor(max_workers=2) as pool:
+            fut = pool.submit(_torque_stats, eq.V, eq.t, t_tau, tau_end)
+            G = _gram(eq.V)
+            P = fut.result()
+    else:
+        G = _gram(eq.V)
+        P = _torque_stats(eq.V, eq.t, t_tau, tau_end) if walk else None
+    raw: dict[str, Any] = {'G': G, 'CT': np.concatenate([[0.0], np.cumsum(eq.t)])}
+    if P is not None:
         ends = np.append(t_tau[1:], max(tau_end, t_tau[-1]))
-        raw.update(P=_torque_stats(eq.V, eq.t, t_tau, tau_end),
-                   s=t_tau, h=ends - t_tau, k0=np.searchsorted(eq.t, t_tau, side='right'),
+        raw.update(P=P, s=t_tau, h=ends - t_tau, k0=np.searchsorted(eq.t, t_tau, side='right'),
                    k1=np.searchsorted(eq.t, ends, side='left'))
     eq.raw = raw
     return raw
