@@ -15,6 +15,7 @@ answers with a clean reset.
 """
 from __future__ import annotations
 
+import sys
 from typing import Any
 
 import rclpy
@@ -45,7 +46,7 @@ class BagPlayerNode(PlaybackNode):
 
         path = self.param('path')
         if not path:
-            raise ValueError("bag_player: parameter 'path' is required (a .mcap file or a "
+            raise ValueError("parameter 'path' is required (a .mcap file or a "
                              'rosbag2 directory)')
         log = read_log(path, omega_topic=self.param('omega_topic') or None,
                        torque_topic=self.param('torque_topic') or None)
@@ -69,15 +70,21 @@ def main(args: list[str] | None = None) -> None:
     """Run the node (``ros2 run inertia_ros bag_player --ros-args -p path:=LOG.mcap``)."""
     rclpy.init(args=args)
     node = None
+    status = 0
     try:
         node = BagPlayerNode()
         spin_until_done(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
+    except ValueError as exc:  # bad parameters, scene or log: one line, no traceback
+        print(f'{NODE_NAME}: error: {exc}', file=sys.stderr)
+        status = 2
     finally:
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
+    if status:
+        sys.exit(status)
 
 
 if __name__ == '__main__':

@@ -34,6 +34,7 @@ All numerics live in :mod:`inertia_ros.core`; messages in :mod:`inertia_ros.io`.
 from __future__ import annotations
 
 import math
+import sys
 import threading
 import time
 from collections.abc import Callable
@@ -269,7 +270,7 @@ class InertiaEstimatorNode(Node):
         cfg = {name: self.get_parameter(name).value for name in PARAMETERS}
         problem = self._validate(cfg)
         if problem:
-            raise ValueError(f'{NODE_NAME}: {problem}')
+            raise ValueError(problem)
         self._cfg = cfg
         self._lock = threading.RLock()
         self._factory = make_estimator(cfg)
@@ -616,15 +617,21 @@ def main(args: list[str] | None = None) -> None:
     """Run the node until Ctrl-C or shutdown (``ros2 run inertia_ros inertia_estimator``)."""
     rclpy.init(args=args)
     node = None
+    status = 0
     try:
         node = InertiaEstimatorNode()
         rclpy.spin(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
+    except ValueError as exc:  # bad parameters, scene or log: one line, no traceback
+        print(f'{NODE_NAME}: error: {exc}', file=sys.stderr)
+        status = 2
     finally:
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
+    if status:
+        sys.exit(status)
 
 
 if __name__ == '__main__':

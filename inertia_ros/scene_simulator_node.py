@@ -17,6 +17,7 @@ does the timed playback.
 """
 from __future__ import annotations
 
+import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -167,6 +168,11 @@ class StreamPlayer:
         return self._pub_gyro
 
     @property
+    def torque_publisher(self) -> Any:
+        """The torque publisher (for subscription counts)."""
+        return self._pub_torque
+
+    @property
     def duration(self) -> float:
         """Time span of the data [s]."""
         return float(self._times[-1]) if self._times.size else 0.0
@@ -259,7 +265,8 @@ def declare_playback_parameters(node: Node) -> None:
     node.declare_parameter('qos_depth', 1000, _integer(
         'history depth of the sensor publishers [messages]', 1, 100000, read_only=True))
     node.declare_parameter('wait_for_subscribers', 0, _integer(
-        'subscribers to wait for on the gyro topic before playback starts', 0, 1000))
+        'subscribers to wait for on both the gyro and the torque topic before playback '
+        'starts', 0, 1000))
     node.declare_parameter('start_delay', 0.0, _double(
         'extra wait before playback starts [s]', 0.0, 3600.0, read_only=True))
     node.declare_parameter('exit_on_end', False, ParameterDescriptor(
@@ -323,8 +330,9 @@ class PlaybackNode(Node):
     def _try_start(self) -> None:
         assert self.player is not None
         want = self.param('wait_for_subscribers')
-        if self.player.gyro_publisher.get_subscription_count() < want:
-            return
+        if min(self.player.gyro_publisher.get_subscription_count(),
+               self.player.torque_publisher.get_subscription_count()) < want:
+            return  # discovery is per topic: wait until both streams are matched
         if time.monotonic() - self._created < self.param('start_delay'):
             return
         self._gate.cancel()
@@ -383,15 +391,21 @@ def main(args: list[str] | None = None) -> None:
     """Run the node (``ros2 run inertia_ros scene_simulator``)."""
     rclpy.init(args=args)
     node = None
+    status = 0
     try:
         node = SceneSimulatorNode()
         spin_until_done(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
+    except ValueError as exc:  # bad parameters, scene or log: one line, no traceback
+        print(f'{NODE_NAME}: error: {exc}', file=sys.stderr)
+        status = 2
     finally:
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
+    if status:
+        sys.exit(status)
 
 
 if __name__ == '__main__':
