@@ -250,6 +250,7 @@ class _Stream:
     nan_dropped: int = 0
     out_of_order: int = 0
     refused: int = 0
+    before_gyro: int = 0
     last_ns: int | None = None
     last_rx: float | None = None  # steady clock [s]
     t_ns: list[np.ndarray] = field(default_factory=list)
@@ -404,10 +405,16 @@ class InertiaEstimatorNode(Node):
             s.last_rx = now
             ok = batch.ok.copy()
             s.malformed += int(np.count_nonzero(~ok))
-            if self._frame is None and s is self._gyro and ok.any():
-                self._frame = batch.frame_ids[batch.frame_index[np.argmax(ok)]]
-                self.get_logger().info(f'estimating in frame {self._frame!r} '
-                                       '(first gyro message)')
+            if self._frame is None:
+                if s is not self._gyro:
+                    # The estimation frame is the gyro's: torque before the first gyro
+                    # message cannot be checked yet (and covers no gyro sample).
+                    s.before_gyro += int(np.count_nonzero(ok))
+                    return
+                if ok.any():
+                    self._frame = batch.frame_ids[batch.frame_index[np.argmax(ok)]]
+                    self.get_logger().info(f'estimating in frame {self._frame!r} '
+                                           '(first gyro message)')
             for k, frame in enumerate(batch.frame_ids):
                 if frame != self._frame:
                     bad = ok & (batch.frame_index == k)
@@ -588,6 +595,8 @@ class InertiaEstimatorNode(Node):
             out[f'{s.name}_nan_dropped'] = s.nan_dropped
             out[f'{s.name}_out_of_order_dropped'] = s.out_of_order
             out[f'{s.name}_frame_refused'] = s.refused
+        out['torque_before_gyro_dropped'] = self._torque.before_gyro
+        for s in (self._gyro, self._torque):
             out[f'{s.name}_age_s'] = None if s.last_rx is None else now - s.last_rx
         out['resets'] = self._resets
         out['last_reset_reason'] = self._reset_reason or ''

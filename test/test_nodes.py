@@ -298,6 +298,20 @@ def test_mismatched_frames_are_refused(harness):
     assert "'tool0'" in h.diag[-1].message and "'base_link'" in h.diag[-1].message
 
 
+def test_torque_before_first_gyro_is_not_a_frame_error(harness):
+    """Torque arriving before any gyro message is dropped and counted, not refused."""
+    h = harness(overrides={'publish_rate': 100.0})
+    h.pub_torque.publish(ros_msgs.wrench_msg(EPOCH_NS, [0.1, 0, 0], 'base_link'))
+    assert h.spin_until(lambda: h.received() == 1, 2.0)
+    h.pub_gyro.publish(ros_msgs.imu_msg(EPOCH_NS + 10**6, [0.1, 0.2, 0.3], 'base_link'))
+    h.pub_torque.publish(ros_msgs.wrench_msg(EPOCH_NS + 2 * 10**6, [0.1, 0, 0], 'base_link'))
+    assert h.spin_until(lambda: h.received() == 3, 2.0)
+    c = h.est.counts()
+    assert (c['torque_before_gyro_dropped'], c['torque_frame_refused']) == (1, 0)
+    h.spin_for(0.2)
+    assert all("differs from the estimation frame" not in st.message for st in h.diag)
+
+
 def test_backward_stamp_jump_resets_and_reset_service(harness):
     """A bag-loop jump back in stamps resets; a small step back is dropped; ~/reset works."""
     h = harness(overrides={'publish_rate': 100.0, 'clock_jump_threshold': 0.5})
