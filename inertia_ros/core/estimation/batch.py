@@ -79,8 +79,7 @@ HOLDS: tuple[str, ...] = ('zoh', 'linear')
 _AXES = {'x': np.array([1.0, 0.0, 0.0]), 'y': np.array([0.0, 1.0, 0.0]),
          'z': np.array([0.0, 0.0, 1.0])}
 _L_BASIS = momentum_matrix(np.eye(3))          # (3 axes c, 3, 6): L(e_c)
-_NULL_FRACTION = 0.03                          # signal fraction of an undetermined direction
-_NOISE_SHARE = 0.01                            # gyro-noise share of a noise-dominated column
+_SIGNAL_SHARE = 0.5                            # conditional signal share of a determined element
 _SELECT_MAX_ROWS = 100_000                     # equations used by the segment-length search
 _THREAD_MIN_ROWS = 200_000                     # rows from which _raw uses two threads
 _BLAS_MIN_ROWS = 400_000                       # rows from which a Gram goes to BLAS
@@ -372,6 +371,7 @@ class _Fit:
     offset: np.ndarray | None = None  # (6,) fixed part of theta
     g: np.ndarray | None = None    # (p,) right-hand side of H beta = g
     meat: np.ndarray | None = None  # (p, p) middle of the sandwich (inflation included)
+    H_full: np.ndarray | None = None  # information of the full model (fits with an offset)
 
 
 def _solve_sym(H: np.ndarray, rhs: np.ndarray) -> np.ndarray:
@@ -449,9 +449,18 @@ def _fit(st: _Stats, basis: np.ndarray, bias: bool, W: np.ndarray, gyro_var: np.
     cov = Hinv @ meat @ Hinv.T
     cov = 0.5 * (cov + cov.T) * max(excess, 1.0)
     dof = max(st.n_eff - p, 1)
+    H_full = None
+    if offset is not None:
+        # information of all six elements under the same weights: how the held elements
+        # leak into the estimated ones (see _conclude)
+        Tf = _selector(np.eye(6), bias)
+        pf = Tf.shape[1] - 1
+        H_full = (Tf.T @ _metric(st.C, W) @ Tf)[:pf, :pf]
+        if bias_comp and st.eq.eiv_var is not None:
+            H_full[:6, :6] -= st.n_eff * B6
     return _Fit(beta=beta, cov=cov, H=H, H0=H0, basis=basis, bias=bias, offset=offset,
                 resid_rms=np.sqrt(np.maximum(rss, 0.0) / dof), n_eq=st.n, excess=excess,
-                g=g, meat=meat * max(excess, 1.0))
+                g=g, meat=meat * max(excess, 1.0), H_full=H_full)
 
 
 def _weight(theta: np.ndarray, gyro_var: np.ndarray) -> np.ndarray:
@@ -585,18 +594,18 @@ def _conditioning(fit: _Fit, names: list[str]) -> dict[str, Any]:
 
 
 def _undetermined(f: _Fit) -> tuple[np.ndarray, bool]:
-    """Elements (6,) of a full-model fit that the data does not determine; is the bias?
+    """Elements (6,) of a full-model fit that the data does not determine.
 
-    Returns the mask and False when the weakest direction is a torque-bias component (the
-    bias is then not determined and must be left out).
+    For each element, the conditional information (the other parameters partialled out) with
+    the gyro-noise contribution removed, ``1 / (H^-1)_kk``, is compared with the same
+    information including the noise, ``1 / (H0^-1)_kk``.  Their ratio is the share of what the
+    data says about the element that is signal rather than gyro noise; collinear but clean
+    columns keep a ratio near 1 (their standard errors say the rest), noise-dominated ones fall
+    towards 0 or below.  The element with the smallest ratio under ``_SIGNAL_SHARE`` is
+    declared undetermined and removed, and the test is repeated on the rest.
 
-    The information ``H`` (gyro-noise contribution removed) is scaled by the total column
-    energy ``diag(H0)``, so its eigenvalues are the fraction of regressor energy that is signal
-    in each direction.  While the smallest is below ``_NULL_FRACTION`` (noise or collinearity),
-    the element loading most on that direction is declared undetermined and removed.  Then
-    every remaining element whose estimate would move by more than ``_LEAK_FRACTION`` of the
-    tensor scale if the undetermined ones took any value up to that scale (sensitivity
-    ``H_FF^-1 H_FU``) is undetermined as well.
+    Returns the mask and True (kept for the caller's interface: the bias is judged by its
+    standard error and Wald test).
     """
     out = np.zeros(6, dtype=bool)
     p = len(f.beta)
@@ -605,29 +614,41 @@ def _undetermined(f: _Fit) -> tuple[np.ndarray, bool]:
         out[:6] = h0[:6] <= 0
         return out, True
     d = 1.0 / np.sqrt(h0)
-    Hs = f.H * d[:, None] * d[None, :]
-    Hs = 0.5 * (Hs + Hs.T)
-    share = np.zeros(p)
-    share[:6] = np.clip((h0[:6] - np.diag(f.H)[:6]) / h0[:6], 0.0, 1.0)   # gyro-noise share
+    Hs = 0.5 * (f.H + f.H.T) * d[:, None] * d[None, :]
+    H0s = 0.5 * (f.H0 + f.H0.T) * d[:, None] * d[None, :]
     keep = list(range(p))
-    while len(keep) > 1:
-        sub = Hs[np.ix_(keep, keep)]
-        lam, V = np.linalg.eigh(sub)
-        if lam[0] >= _NULL_FRACTION:
+    while any(k < 6 for k in keep):
+        idx = np.ix_(keep, keep)
+        try:
+            inv0 = np.diag(np.linalg.inv(H0s[idx]))
+            inv = np.diag(np.linalg.pinv(Hs[idx]))
+        except np.linalg.LinAlgError:
             break
-        v = np.abs(V[:, 0])
+        ratio = np.where(inv > 0, inv0 / np.where(inv > 0, inv, 1.0), -1.0)
         theta_pos = [i for i in range(len(keep)) if keep[i] < 6]
-        if not theta_pos:
+        worst = min(theta_pos, key=lambda i: ratio[i])
+        if ratio[worst] >= _SIGNAL_SHARE:
             break
-        worst_theta = keep[theta_pos[int(np.argmax(v[theta_pos]))]]
-        if share[worst_theta] < _NOISE_SHARE:
-            break                       # collinear but noise-free enough: the SEs tell
-        if keep[int(np.argmax(v))] >= 6:
-            out[:] = False
-            return out, False           # the bias is the weak direction
-        keep.remove(worst_theta)
+        keep.remove(keep[worst])
     out[sorted(set(range(6)) - set(keep))] = True
     return out, True
+
+
+def _held_leak(f: _Fit, free: np.ndarray, scale: float) -> np.ndarray:
+    """Covariance the estimated elements inherit from the held (undetermined) ones.
+
+    The held elements are uncertain by a plausible spread (diagonal: +-scale/2, products:
+    +-scale/4, uniform); through the coupling ``H_FF^-1 H_FU`` of the full-model information
+    that uncertainty moves the estimated elements.
+    """
+    p = len(f.beta)
+    if f.H_full is None:
+        return np.zeros((p, p))
+    Fi = [*np.flatnonzero(free).tolist(), *range(6, f.H_full.shape[0])]
+    Ui = np.flatnonzero(~free)
+    sens = np.linalg.lstsq(f.H_full[np.ix_(Fi, Fi)], f.H_full[np.ix_(Fi, Ui)], rcond=None)[0]
+    spread = np.where(Ui < 3, 0.5 * scale, 0.25 * scale) / np.sqrt(3.0)
+    return (sens * spread ** 2) @ sens.T              # (p, p): estimated elements + bias
 
 
 def _wald(theta: np.ndarray, cov: np.ndarray, R: np.ndarray) -> tuple[float, int, float]:
@@ -869,6 +890,7 @@ def _conclude(fit: Any, model: str, torque_bias: str, axis: np.ndarray | None, a
         diag['undetermined_held_at'] = dict(zip(
             [n for n, u in zip(THETA_NAMES, und, strict=True) if u], offset[und], strict=True))
         f = fit(np.eye(6)[:, free], gen_bias, offset)
+        f.cov = f.cov + _held_leak(f, free, scale)
     k = int(np.sum(free))
     se = np.eye(6)[:, free] @ np.sqrt(np.maximum(np.diag(f.cov)[:k], 0.0))
     free = free & (se < identifiability_tol * scale)
@@ -881,6 +903,10 @@ def _conclude(fit: Any, model: str, torque_bias: str, axis: np.ndarray | None, a
             stat, dof, pval = _wald(f.beta, f.cov, np.eye(len(f.beta))[k:])
             diag['model_selection'] = {'bias': {'wald': stat, 'dof': dof, 'p_value': pval,
                                                 'kept': bool(pval < alpha)}}
+            if pval >= alpha:
+                held = f.offset if f.offset is not None else np.zeros(6)
+                f = fit(np.eye(6)[:, free], False, held)
+                f.cov = f.cov + _held_leak(f, free, scale)
         return _assemble('partially_identifiable', f, 'full', free, diag, base, physical=False)
 
     # ---- model selection: bias first, then the parameter set
