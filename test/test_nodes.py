@@ -269,6 +269,24 @@ def test_torque_free_input_reports_failure(harness, method, statuses):
     assert h.inertia == []
 
 
+@pytest.mark.parametrize('partial', [False, True])
+def test_publish_partial(harness, partial):
+    """Single-axis data: ~/inertia (with NaN elements) only when publish_partial is set."""
+    sim = simulate(_short_scene('single_axis.yaml', duration=20.0), seed=1)
+    # Frequent updates, as a live node at 1 kHz sees them (small blocks into the core).
+    h = harness(overrides={'publish_rate': 1000.0, 'publish_partial': partial})
+    h.play(sim, chunk=50)
+    h.spin_for(0.3)
+    st = h.latest_diag()
+    assert _values(st)['status'] == 'partially_identifiable', st.message
+    assert st.level == DiagnosticStatus.WARN
+    assert bool(h.inertia) == partial
+    if partial:
+        _, mat = ros_msgs.inertia_from_msg(h.inertia[-1])
+        assert np.isnan(mat[0, 0]) and np.isfinite(mat[2, 2])
+        np.testing.assert_allclose(mat[2, 2], sim.inertia[2, 2], rtol=0.02)
+
+
 def test_nan_samples_are_dropped_and_counted(harness):
     """NaN gyro and torque samples are dropped, counted and reported in the diagnostics."""
     h = harness(overrides={'publish_rate': 100.0})
