@@ -23,11 +23,9 @@ import numpy as np
 
 from ..inertia import THETA_NAMES
 from .batch import (
-    _VMAP,
     HOLDS,
     _axis,
     _conclude,
-    _cross,
     _Equations,
     _Fit,
     _fit2,
@@ -135,9 +133,9 @@ class RecursiveEstimator:
         self._M = np.zeros(6)            # monomial integral at the last processed sample
         self._w0 = 0.0                   # sum of weights
         self._w00 = 0.0                  # sum of squared weights
-        self._mean = np.zeros((3, 10))
-        self._C = np.zeros((3, 3, 10, 10))
-        self._Cc = np.zeros((3, 3, 10, 10))  # closed segments
+        self._mean = np.zeros(13)          # open segment: weighted mean and centred Gram of V
+        self._C = np.zeros((13, 13))
+        self._Cc = np.zeros((13, 13))      # closed segments
         self._wc = self._w00c = self._neffc = 0.0
         self._seg_start: float | None = None
         self._seg_t: list[np.ndarray] = []   # open segment: times, variables, torque times
@@ -150,7 +148,9 @@ class RecursiveEstimator:
         self._t_last: float | None = None
         self._last_t_in: float | None = None
         self._last_tau_in: float | None = None
-        self._noise_var = None if self._gyro_noise is None else self._gyro_noise ** 2
+        self._nv_sum = np.zeros(3)
+        self._nv_n = 0
+        self._wtail = np.empty((0, 3))
         self.samples_used = 0
         self.samples_dropped = 0
 
@@ -297,9 +297,15 @@ class RecursiveEstimator:
             t, w = t[ready], w[ready]
         if len(t) == 0:
             return
-        if self._noise_var is None and len(t) >= 16:
-            self._noise_var = noise_std_from_differences(w) ** 2
-        nv = self._noise_var if self._noise_var is not None else np.zeros(3)
+        if self._gyro_noise is None:
+            # running mean square of third differences across blocks (white noise:
+            # variance 20 sigma^2; independent of how the stream was cut into blocks)
+            ww = np.concatenate([self._wtail, w]) if len(self._wtail) else w
+            if len(ww) >= 4:
+                d3 = ww[3:] - 3.0 * ww[2:-1] + 3.0 * ww[1:-2] - ww[:-3]
+                self._nv_sum = self._nv_sum + np.sum(d3 * d3, axis=0) / 20.0
+                self._nv_n += len(d3)
+            self._wtail = ww[-3:].copy()
         # torque integral at the gyro times, relative to self._ts[0]
         T = self._T_base + cumulative_torque(self._ts, self._tau, t, self.hold)
         # monomial integral (trapezoid) continuing from the previous processed sample
@@ -324,9 +330,9 @@ class RecursiveEstimator:
             M += start
         self._M = M[-1].copy()
         self._prev = (float(t[-1]), w[-1].copy())
-        Mc = M.copy()
-        Mc[:, :3] -= (t - self._t0)[:, None] * nv[None, :]
-        V = np.concatenate([w, Mc, (t - self._t0)[:, None], T], axis=1)
+        # raw monomial integrals: the gyro-noise correction m - s sigma^2 is linear in the
+        # variables, applied to the statistics at estimate() with the final noise estimate
+        V = np.concatenate([w, M, (t - self._t0)[:, None], T], axis=1)
         self._merge(t, V)
         self.samples_used += len(t)
         # keep torque samples from the last one at or before the last processed gyro time
@@ -376,8 +382,8 @@ class RecursiveEstimator:
             self._GPc = self._GPc + gp
             self._walkc += walk
         self._w0 = self._w00 = 0.0
-        self._mean = np.zeros((3, 10))
-        self._C = np.zeros((3, 3, 10, 10))
+        self._mean = np.zeros(13)
+        self._C = np.zeros((13, 13))
         self._seg_t, self._seg_V = [], []
         if self._seg_tt:
             tt = np.concatenate(self._seg_tt)
@@ -390,7 +396,6 @@ class RecursiveEstimator:
         n = len(t)
         self._seg_t.append(t)
         self._seg_V.append(V)
-        A = (V @ _VMAP.reshape(13, 30)).reshape(n, 3, 10)
         if self.window:
             wts = np.exp(-(t[-1] - t) / self.window)
             old = float(np.exp(-(t[-1] - self._t_last) / self.window)) \
@@ -401,14 +406,12 @@ class RecursiveEstimator:
             old = lam ** n
         self._t_last = float(t[-1])
         wb = float(np.sum(wts))
-        mb = np.einsum('n,nrq->rq', wts, A) / wb
-        D = (A - mb[None]) * np.sqrt(wts)[:, None, None]
-        Cb = _cross(D)
+        mb = wts @ V / wb
+        D = (V - mb[None]) * np.sqrt(wts)[:, None]
         w_old = old * self._w0
         total = w_old + wb
         delta = mb - self._mean
-        self._C = old * self._C + Cb + (w_old * wb / total) * np.einsum(
-            'ri,sj->rsij', delta, delta)
+        self._C = old * self._C + _gram(D) + (w_old * wb / total) * np.outer(delta, delta)
         self._mean = self._mean + delta * (wb / total)
         self._w0 = total
         self._w00 = old * old * self._w00 + float(np.sum(wts * wts))
@@ -433,12 +436,21 @@ class RecursiveEstimator:
         self._process()
         base = dict(method='recursive', samples_used=self.samples_used,
                     samples_dropped=self.samples_dropped)
-        nv = self._noise_var if self._noise_var is not None else np.zeros(3)
+        if self._gyro_noise is not None:
+            nv = self._gyro_noise ** 2
+        elif self._nv_n:
+            nv = self._nv_sum / self._nv_n
+            nv = np.maximum(nv, 0.01 * float(np.max(nv)))         # isotropy floor (as batch)
+        else:
+            nv = np.zeros(3)
+        # gyro-noise correction of the squared-rate integrals: m_c -> m_c - sigma_c^2 s
+        K = np.eye(13)
+        K[9, 3:6] = -nv
         diag: dict[str, Any] = {'gyro_noise_std': np.sqrt(nv), 'warnings': [],
                                 'effective_samples': self._w0 + self._wc}
         n_eff = self._neffc + (self._w0 - self._w00 / self._w0 if self._w0 > 0 else 0.0)
         w_all = self._w0 + self._wc
-        C_all = self._C + self._Cc
+        C_all = _lift(K.T @ (self._C + self._Cc) @ K)
         if self.samples_used < 30 or n_eff < 3 * (6 + 3):
             diag['reason'] = f'only {self.samples_used} gyro samples covered by torque so far'
             return InertiaEstimate(status='insufficient_data', diagnostics=diag,
@@ -447,7 +459,7 @@ class RecursiveEstimator:
                         'anchored', eiv_var=nv, weighted=True)
         gp, walk = self._segment_walk()
         tv = self._tau_var if self._tau_var is not None else np.zeros(3)
-        CP = _lift(self._GPc + gp) if self._tau_var is not None else None
+        CP = _lift(K.T @ (self._GPc + gp) @ K) if self._tau_var is not None else None
         st = _Stats(C_all, CP, int(round(w_all)), int(round(n_eff)), 1, eq, None,
                     walk_time=self._walkc + walk, torque_dt=self._tau_dt)
         ratio = (self._w00 + self._w00c) / w_all
