@@ -432,3 +432,23 @@ def test_epoch_timestamps_give_the_same_answer(nominal20):
     rec_b = RecursiveEstimator()
     _interleaved(rec_b, t_g + 1.7e9, w, t_t + 1.7e9, tau, start=1.7e9)
     np.testing.assert_allclose(rec_b.estimate().inertia, rec_a.estimate().inertia, rtol=1e-6)
+
+
+def test_recursive_independent_of_how_streams_are_cut(nominal20):
+    """Random block boundaries and estimate() calls give the all-at-once answer (rtol 1e-8)."""
+    t_g, w, t_t, tau = add_noise(nominal20, seed=19)
+    ref = RecursiveEstimator()
+    ref.add_torque(t_t, tau)
+    ref.add_gyro(t_g, w)
+    expected = ref.estimate().inertia
+    rng = np.random.default_rng(20)
+    edges = np.concatenate([[0.0], np.sort(rng.uniform(0.0, 20.0, 150)), [21.0]])
+    ig = np.searchsorted(t_g, edges)
+    it = np.searchsorted(t_t, edges)
+    rec = RecursiveEstimator()
+    for k in range(len(edges) - 1):
+        rec.add_gyro(t_g[ig[k]:ig[k + 1]], w[ig[k]:ig[k + 1]])
+        rec.add_torque(t_t[it[k]:it[k + 1]], tau[it[k]:it[k + 1]])
+        if k % 7 == 0:
+            rec.estimate()
+    np.testing.assert_allclose(rec.estimate().inertia, expected, rtol=1e-8)
