@@ -516,10 +516,10 @@ class InertiaEstimatorNode(Node):
             self._flush(self._gyro, self._estimator.add_gyro)
             self._flush(self._torque, self._estimator.add_torque)
             est = self._estimate()
-            self._last_result = est.to_dict()
-            stamp = max(x for x in (self._gyro.last_ns, self._torque.last_ns) if x is not None)
             self._update_ms = (time.monotonic() - now) * 1e3
+            stamp = max(x for x in (self._gyro.last_ns, self._torque.last_ns) if x is not None)
             self._publish(est, stamp)
+
 
     def _estimate(self) -> Any:
         """The core's estimate; a core error becomes ``insufficient_data`` with its reason.
@@ -543,12 +543,14 @@ class InertiaEstimatorNode(Node):
                                           diagnostics={'reason': reason})
 
     def _publish(self, est: Any, stamp: int) -> None:
+        """Publish every output of one estimate, all stamped ``stamp`` [ns]."""
         frame = self._frame or ''
         status = est.status
         valid = status == 'ok' or (status == 'partially_identifiable'
                                    and self._cfg['publish_partial'])
-        if valid and est.inertia is not None:
+        if valid and est.inertia is not None:  # the main output first: lowest latency
             self._pub_inertia.publish(ros_msgs.inertia_stamped(est.inertia, stamp, frame))
+        self._last_result = est.to_dict()
         have_axes = est.principal_moments is not None and est.principal_axes is not None \
             and np.all(np.isfinite(est.principal_moments)) \
             and np.all(np.isfinite(est.principal_axes))
