@@ -80,6 +80,8 @@ _AXES = {'x': np.array([1.0, 0.0, 0.0]), 'y': np.array([0.0, 1.0, 0.0]),
          'z': np.array([0.0, 0.0, 1.0])}
 _L_BASIS = momentum_matrix(np.eye(3))          # (3 axes c, 3, 6): L(e_c)
 _SIGNAL_SHARE = 0.5                            # conditional signal share of a determined element
+_NULL_FRACTION = 0.01                          # signal fraction of an empty direction
+_NOISE_SHARE = 0.01                            # gyro-noise share that makes a column suspect
 _SELECT_MAX_ROWS = 100_000                     # equations used by the segment-length search
 _THREAD_MIN_ROWS = 200_000                     # rows from which _raw uses two threads
 _BLAS_MIN_ROWS = 400_000                       # rows from which a Gram goes to BLAS
@@ -602,7 +604,9 @@ def _undetermined(f: _Fit) -> tuple[np.ndarray, bool]:
     data says about the element that is signal rather than gyro noise; collinear but clean
     columns keep a ratio near 1 (their standard errors say the rest), noise-dominated ones fall
     towards 0 or below.  The element with the smallest ratio under ``_SIGNAL_SHARE`` is
-    declared undetermined and removed, and the test is repeated on the rest.
+    declared undetermined and removed, and the test is repeated on the rest.  Also, while the
+    scaled noise-free information has a direction with less than ``_NULL_FRACTION`` signal,
+    the gyro-noise-carrying element loading most on it is removed.
 
     Returns the mask and True (kept for the caller's interface: the bias is judged by its
     standard error and Wald test).
@@ -616,16 +620,28 @@ def _undetermined(f: _Fit) -> tuple[np.ndarray, bool]:
     d = 1.0 / np.sqrt(h0)
     Hs = 0.5 * (f.H + f.H.T) * d[:, None] * d[None, :]
     H0s = 0.5 * (f.H0 + f.H0.T) * d[:, None] * d[None, :]
+    share = np.zeros(p)                                # gyro-noise share of each column
+    share[:6] = 1.0 - np.diag(f.H)[:6] / h0[:6]
     keep = list(range(p))
     while any(k < 6 for k in keep):
         idx = np.ix_(keep, keep)
+        theta_pos = [i for i in range(len(keep)) if keep[i] < 6]
+        # first: a direction with (almost) no signal once the noise is removed, loaded by
+        # columns that carry gyro noise (errors in variables, not mere collinearity)
+        lam, vec = np.linalg.eigh(Hs[idx])
+        if lam[0] < _NULL_FRACTION:
+            v = np.abs(vec[:, 0])
+            cand = [i for i in theta_pos if share[keep[i]] >= _NOISE_SHARE]
+            if cand:
+                keep.remove(keep[max(cand, key=lambda i: v[i])])
+                continue
+        # then: each element's conditional signal share
         try:
             inv0 = np.diag(np.linalg.inv(H0s[idx]))
             inv = np.diag(np.linalg.pinv(Hs[idx]))
         except np.linalg.LinAlgError:
             break
         ratio = np.where(inv > 0, inv0 / np.where(inv > 0, inv, 1.0), -1.0)
-        theta_pos = [i for i in range(len(keep)) if keep[i] < 6]
         worst = min(theta_pos, key=lambda i: ratio[i])
         if ratio[worst] >= _SIGNAL_SHARE:
             break
@@ -873,26 +889,39 @@ def _conclude(fit: Any, model: str, torque_bias: str, axis: np.ndarray | None, a
                                 'estimated without it')
         f = fit(np.eye(6), False)
         und, _ = _undetermined(f)
-    se = np.sqrt(np.maximum(np.diag(f.cov)[:6], 0.0))
-    good = [abs(float(f.beta[i])) for i in range(3)
-            if not und[i] and se[i] < 0.2 * abs(f.beta[i]) and f.beta[i] > 0]
-    if not good:
-        diag['reason'] = 'no principal-diagonal element is determined by the data'
-        return InertiaEstimate(status='insufficient_excitation', diagnostics=diag,
-                               **base)   # type: ignore[arg-type]
-    scale = max(good)
     free = ~und
+    insufficient = InertiaEstimate(
+        status='insufficient_excitation', diagnostics=dict(
+            diag, reason='no principal-diagonal element is determined by the data'),
+        **base)   # type: ignore[arg-type]
+    if not np.any(free[:3]):
+        return insufficient
     if np.any(und):
-        # undetermined elements held at a plausible value (mean determined moment, zero
+        # undetermined elements held at a plausible value (the mean determined moment, zero
         # products) so that the weights and the other elements see a physical tensor
+        det = [abs(float(f.beta[i])) for i in range(3) if free[i]]
+        hold = float(np.median(det))
         offset = np.zeros(6)
-        offset[:3][und[:3]] = float(np.mean(good))
+        for _ in range(2):
+            offset = np.zeros(6)
+            offset[:3][und[:3]] = hold
+            f = fit(np.eye(6)[:, free], gen_bias, offset)
+            theta_f = np.eye(6)[:, free] @ f.beta[:int(np.sum(free))]
+            hold = float(np.mean([abs(theta_f[i]) for i in range(3) if free[i]]))
         diag['undetermined_held_at'] = dict(zip(
             [n for n, u in zip(THETA_NAMES, und, strict=True) if u], offset[und], strict=True))
-        f = fit(np.eye(6)[:, free], gen_bias, offset)
-        f.cov = f.cov + _held_leak(f, free, scale)
     k = int(np.sum(free))
-    se = np.eye(6)[:, free] @ np.sqrt(np.maximum(np.diag(f.cov)[:k], 0.0))
+    basis = np.eye(6)[:, free]
+    theta = basis @ f.beta[:k]
+    se = basis @ np.sqrt(np.maximum(np.diag(f.cov)[:k], 0.0))
+    good = [float(theta[i]) for i in range(3)
+            if free[i] and theta[i] > 0 and se[i] < 0.2 * theta[i]]
+    if not good:
+        return insufficient
+    scale = max(good)
+    if np.any(und):
+        f.cov = f.cov + _held_leak(f, free, scale)
+        se = basis @ np.sqrt(np.maximum(np.diag(f.cov)[:k], 0.0))
     free = free & (se < identifiability_tol * scale)
     if not np.any(free[:3]):
         diag['reason'] = 'no principal-diagonal element is determined by the data'
