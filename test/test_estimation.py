@@ -452,3 +452,20 @@ def test_recursive_independent_of_how_streams_are_cut(nominal20):
         if k % 7 == 0:
             rec.estimate()
     np.testing.assert_allclose(rec.estimate().inertia, expected, rtol=1e-8)
+
+
+def test_recursive_single_axis_never_claims_ok():
+    """Growing single-axis record (estimate every 0.25 s): never 'ok', partial at the end."""
+    s = noise_free('single_axis', duration=20.0)
+    t_g, w, t_t, tau = add_noise(s, seed=21)
+    rec = RecursiveEstimator()
+    edges = np.arange(0.0, 20.26, 0.25)
+    ig = np.searchsorted(t_g, edges)
+    it = np.searchsorted(t_t, edges)
+    statuses = []
+    for k in range(len(edges) - 1):
+        rec.add_gyro(t_g[ig[k]:ig[k + 1]], w[ig[k]:ig[k + 1]])
+        rec.add_torque(t_t[it[k]:it[k + 1]], tau[it[k]:it[k + 1]])
+        statuses.append(rec.estimate().status)
+    assert 'ok' not in statuses
+    assert statuses[-1] == 'partially_identifiable'
