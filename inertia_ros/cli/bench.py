@@ -28,6 +28,9 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
                    help='few runs and a coarse grid (a smoke test of the pipeline)')
     p.add_argument('--out', default='docs', metavar='DIR',
                    help='output directory (default: docs)')
+    p.add_argument('--scenes', default=None, metavar='DIR',
+                   help='directory of the standard scene files (default: the repository\'s '
+                        'config/scenes)')
     p.add_argument('--no-progress', action='store_true', help='never draw the progress bar')
     p.set_defaults(func=run)
     return p
@@ -35,12 +38,18 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
 
 def run(args: argparse.Namespace) -> int:
     """Run the command; an unusable output directory raises :class:`UserError`."""
-    from inertia_ros.bench.run import FULL, QUICK, run_bench
+    from inertia_ros.bench.run import FULL, QUICK, SCENE_DIR, run_bench
 
     out = Path(args.out)
     if out.exists() and not out.is_dir():
         raise UserError(f'--out: {out} exists and is not a directory')
-    head = run_bench(out, QUICK if args.quick else FULL,
+    config = QUICK if args.quick else FULL
+    scenes = Path(args.scenes) if args.scenes else SCENE_DIR
+    missing = [f for _, f in config.scenes if not (scenes / f).is_file()]
+    if missing:
+        raise UserError(f'--scenes: {scenes} lacks {", ".join(missing)} (give the '
+                        f'config/scenes directory of the source tree)')
+    head = run_bench(out, config, scene_dir=scenes,
                      show_progress=False if args.no_progress else None)
     ratio = head.get('default_mse_over_crlb_nominal_raw')
     print(f'wrote {out}/speed_vs_accuracy.png, {out}/stability_map.png, {out}/BENCHMARKS.md '
