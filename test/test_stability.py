@@ -137,3 +137,14 @@ def test_progress_draws_only_when_enabled() -> None:
     assert loud.getvalue().startswith('\r[') and '2/2' in loud.getvalue()
     with pytest.raises(ValueError, match='total: must be >= 1'):
         Progress(0)
+
+
+def test_bench_command_registered_and_checks_scenes(tmp_path, capsys) -> None:
+    """`bench` is a CLI command; a scene directory without the scenes is a one-line error."""
+    from inertia_ros.cli import build_parser, main
+
+    args = build_parser().parse_args(['bench', '--quick', '--out', str(tmp_path)])
+    assert args.quick and args.out == str(tmp_path)
+    assert main(['bench', '--quick', '--scenes', str(tmp_path), '--out', str(tmp_path)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and '--scenes' in err[0] and 'default.yaml' in err[0]
