@@ -257,14 +257,16 @@ def _torque_stats(V: np.ndarray, t: np.ndarray, t_tau: np.ndarray,
     m = len(t_tau)
     ends = np.append(t_tau[1:], max(tau_end, t_tau[-1]))
     h = ends - t_tau
-    j = np.clip(np.searchsorted(t_tau, t, side='right') - 1, 0, m - 1)
-    counts = np.bincount(j, minlength=m)
+    # samples of interval j (s_j <= t_b < s_{j+1}) form the contiguous range from first[j]
+    first = np.searchsorted(t, t_tau, side='left')
+    first[0] = 0                                      # (no sample precedes t_tau[0])
+    counts = np.diff(np.append(first, n))
     nz = counts > 0
-    first = np.cumsum(counts) - counts
     S = np.zeros((m, q))
     St = np.zeros((m, q))
     S[nz] = np.add.reduceat(V, first[nz], axis=0)
-    St[nz] = np.add.reduceat(V * (t - t_tau[j])[:, None], first[nz], axis=0)
+    u = t - np.repeat(t_tau, counts)                  # time since the interval's sample
+    St[nz] = np.add.reduceat(V * u[:, None], first[nz], axis=0)
     after = np.zeros((m, q))
     after[:-1] = np.cumsum(S[::-1], axis=0)[::-1][1:]
     return h[:, None] * after + St
