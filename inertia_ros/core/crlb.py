@@ -35,6 +35,10 @@ its innovations are ``de_k/dp`` and
 
 With no torque noise the filter gain is zero and ``F = sum_k J_k' J_k / sigma_g^2``.
 
+Equivalently, treat the true held commands ``u_j`` as nuisance parameters, each measured once
+by ``tau_j`` with information ``sigma_t^-2``: by the Woodbury identity the Schur complement of
+the joint information of ``(p, u)`` is ``J' (S_g + J_u S_t J_u')^-1 J``, the same ``F``.
+
 The trajectory, its parameter sensitivities (variational equations) and the per-interval
 transition matrices ``Phi_k`` and input matrices ``Psi_k`` are integrated together with the
 classical Runge-Kutta scheme on the merged grid of gyro and torque times.
