@@ -2,13 +2,20 @@
 
 The same anchored momentum equations as the batch ``integral`` method,
 ``I w_b + int w x (I w) dt - d t_b - h0 = int tau dt``, accumulated in information form:
-exponentially weighted means and centred cross Gram matrices of the equation blocks
-``A_b = [X6_b | Xd_b | y_b]`` (3 x 10).  Removing the weighted mean is the exact elimination of
-the momentum intercept ``h0``; the centred statistics are merged block by block (the parallel
-update of Chan, Golub and LeVeque), so the cost per sample is a few small matrix products
-amortised over the block, and the normal equations of any parameter set are projections of
-the same 10 x 10 statistics.  Forgetting (``window`` time constant or per-sample
-``forgetting`` factor) lets the estimate follow a changing tensor.
+exponentially weighted means and centred Gram matrices of the 13 per-sample variables
+``v_b = [w, m, t, T]`` (angular velocity, integrated squared rates, time, integrated torque)
+from which every equation block is a fixed linear map.  The record is cut into anchored
+segments (``segment`` seconds), each with its own momentum intercept ``h0``, so removing the
+segment's weighted mean is the exact elimination of ``h0`` and a momentum jump (payload
+release) only disturbs one segment.  Statistics are merged block by block (the parallel
+update of Chan, Golub and LeVeque): the cost per sample is a few small matrix products
+amortised over the block, and ``estimate()`` projects the same 13 x 13 statistics onto any
+parameter set, with the batch estimator's identifiability, model selection and covariance
+(white gyro noise plus the integrated torque noise of each segment).  The gyro-noise
+correction of the squared-rate integrals is linear in ``v`` and applied at ``estimate()`` with
+the running noise estimate, so the answer does not depend on how the streams were cut into
+blocks.  Forgetting (``window`` time constant or per-sample ``forgetting`` factor) lets the
+estimate follow a changing tensor.
 
 The two streams arrive asynchronously: gyro samples are buffered until torque covering them
 has arrived (a torque sample at or after the gyro time), then integrated exactly under the
