@@ -7,7 +7,7 @@ import re
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 from scipy.optimize import minimize
 from scipy.spatial.transform import Rotation
@@ -228,6 +228,7 @@ def _slsqp_projection(lam: np.ndarray, eps: float) -> np.ndarray:
 
 @PROPS
 @given(I=_symmetric)
+@example(I=ti.theta_to_matrix([0.0, 0.0, 0.0, 0.0, 0.0, 7.839290951911623e-72]))
 def test_nearest_physical_is_valid_and_as_close_as_an_independent_solver(I):
     """The projection is physical, keeps the axes, and is no farther than SLSQP's (1e-7 rel)."""
     if np.max(np.abs(I)) == 0:

@@ -454,7 +454,8 @@ def _project_moments(lam: np.ndarray, eps: float) -> np.ndarray:
     all candidates are evaluated at once.
     """
     cand = _FACE_M @ lam + eps * _FACE_C                  # (K, 3)
-    slack_tol = 1e-12 * max(1.0, float(np.max(np.abs(lam))), eps)
+    # Relative to the tensor's own scale: an absolute floor would call tiny tensors valid.
+    slack_tol = 1e-12 * max(float(np.max(np.abs(lam))), eps, np.finfo(float).tiny)
     feasible = np.all(cand @ _CONE_A.T - eps * _CONE_B >= -slack_tol, axis=1)
     dist = np.where(feasible, np.sum((cand - lam) ** 2, axis=1), np.inf)
     if feasible[0]:                                       # already valid: exactly unchanged
