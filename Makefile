@@ -38,8 +38,11 @@ test-fast: $(STAMP)
 demo: $(STAMP)
 	$(PY) -m inertia_ros demo
 
+# The Pinocchio peer baseline is an optional extra: the bench skips it with a note if the
+# install fails.
 bench: $(STAMP)
-	$(PY) -m inertia_ros bench
+	-$(PY) -m pip install --quiet --disable-pip-version-check -r requirements-bench.txt
+	$(PY) -m inertia_ros bench --out docs
 
 bags: $(STAMP)
 	$(PY) scripts/make_bags.py
