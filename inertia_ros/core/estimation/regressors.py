@@ -167,6 +167,20 @@ def cumulative_monomials(t: np.ndarray, omega: np.ndarray,
     return out
 
 
+def _interval_index(t_tau: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """Index of the last torque sample at or before each query time (0 before the first).
+
+    Sorted queries (the common case) take one search per torque sample and a repeat instead
+    of one search per query.
+    """
+    m = len(t_tau)
+    if len(t) > m and np.all(t[1:] >= t[:-1]):
+        first = np.searchsorted(t, t_tau, side='left')
+        first[0] = 0
+        return np.repeat(np.arange(m), np.diff(np.append(first, len(t))))
+    return np.clip(np.searchsorted(t_tau, t, side='right') - 1, 0, m - 1)
+
+
 def cumulative_torque(t_tau: np.ndarray, tau: np.ndarray, t: np.ndarray,
                       hold: str = 'zoh') -> np.ndarray:
     """Exact integral of the sampled torque from ``t_tau[0]`` to each query time.
@@ -194,14 +208,14 @@ def cumulative_torque(t_tau: np.ndarray, tau: np.ndarray, t: np.ndarray,
     if hold == 'zoh':
         if len(dts):
             np.cumsum(tau[:-1] * dts[:, None], axis=0, out=cum[1:])
-        j = np.clip(np.searchsorted(t_tau, t, side='right') - 1, 0, len(t_tau) - 1)
+        j = _interval_index(t_tau, t)
         u = (t - t_tau[j])[:, None]
         return cum[j] + tau[j] * u
     if hold != 'linear':
         raise ValueError(f"hold: must be 'zoh' or 'linear', got {hold!r}")
     if len(dts):
         np.cumsum(0.5 * (tau[:-1] + tau[1:]) * dts[:, None], axis=0, out=cum[1:])
-    j = np.clip(np.searchsorted(t_tau, t, side='right') - 1, 0, len(t_tau) - 1)
+    j = _interval_index(t_tau, t)
     u = (t - t_tau[j])[:, None]
     inside = j < len(t_tau) - 1
     slope = np.zeros_like(tau)
