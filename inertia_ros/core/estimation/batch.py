@@ -82,6 +82,7 @@ _L_BASIS = momentum_matrix(np.eye(3))          # (3 axes c, 3, 6): L(e_c)
 _SIGNAL_SHARE = 0.5                            # conditional signal share of a determined element
 _NULL_FRACTION = 0.01                          # signal fraction of an empty direction
 _NOISE_SHARE = 0.01                            # gyro-noise share that makes a column suspect
+_NREG = 10                                     # regressor variables [w, m, t] of the 13
 _SELECT_MAX_ROWS = 100_000                     # equations used by the segment-length search
 _THREAD_MIN_ROWS = 200_000                     # rows from which _raw uses two threads
 _BLAS_MIN_ROWS = 400_000                       # rows from which a Gram goes to BLAS
@@ -297,12 +298,12 @@ def _raw(eq: _Equations, t_tau: np.ndarray, tau_end: float,
     if walk and len(eq.t) >= _THREAD_MIN_ROWS:
         # the two big reductions are independent and numpy releases the GIL: overlap them
         with ThreadPoolExecutor(max_workers=2) as pool:
-            fut = pool.submit(_torque_stats, eq.V, eq.t, t_tau, tau_end)
+            fut = pool.submit(_torque_stats, eq.V[:, :_NREG], eq.t, t_tau, tau_end)
             G = _gram(eq.V)
             P = fut.result()
     else:
         G = _gram(eq.V)
-        P = _torque_stats(eq.V, eq.t, t_tau, tau_end) if walk else None
+        P = _torque_stats(eq.V[:, :_NREG], eq.t, t_tau, tau_end) if walk else None
     raw: dict[str, Any] = {'G': G, 'CT': np.concatenate([[0.0], np.cumsum(eq.t)])}
     if P is not None:
         ends = np.append(t_tau[1:], max(tau_end, t_tau[-1]))
@@ -333,10 +334,10 @@ def _stats(eq: _Equations, segment: float | None, t_tau: np.ndarray, tau_end: fl
     CP = None
     if 'P' in raw:
         CT = raw['CT']
-        q = S.shape[1]
-        Sp = np.vstack([np.zeros(q), np.cumsum(S, axis=0)])
+        S, m = S[:, :_NREG], m[:, :_NREG]                     # regressor variables only
+        Sp = np.vstack([np.zeros(_NREG), np.cumsum(S, axis=0)])
         TS = CT[bounds[1:]] - CT[starts]
-        MTp = np.vstack([np.zeros(q), np.cumsum(m * TS[:, None], axis=0)])
+        MTp = np.vstack([np.zeros(_NREG), np.cumsum(m * TS[:, None], axis=0)])
 
         def Z(k: np.ndarray) -> np.ndarray:
             """sum_{b<k} m_seg(b)."""
@@ -352,7 +353,9 @@ def _stats(eq: _Equations, segment: float | None, t_tau: np.ndarray, tau_end: fl
         z1 = Z(k1)
         adj = raw['h'][:, None] * (Sp[-1][None] - z1) + (Q(k1) - Q(k0)) \
             - raw['s'][:, None] * (z1 - Z(k0))
-        CP = _lift(_gram(raw['P'] - adj))
+        GP = np.zeros((13, 13))
+        GP[:_NREG, :_NREG] = _gram(raw['P'] - adj)
+        CP = _lift(GP)
     dur = eq.t[bounds[1:] - 1] - eq.t[starts]
     tdt = float(np.median(np.diff(t_tau))) if len(t_tau) > 1 else 0.0
     return _Stats(C, CP, n, n - len(starts), len(starts), eq, None,
