@@ -352,11 +352,15 @@ class PlaybackNode(Node):
 
 
 def spin_until_done(node: PlaybackNode) -> None:
-    """Spin until shutdown or, with ``exit_on_end``, until the data end (+0.5 s linger)."""
+    """Spin until shutdown or, with ``exit_on_end``, until the data end (+2 s linger).
+
+    The linger matters: a process that exits right after its last publish can take the
+    last messages with it before a busy subscriber has pulled them from the transport.
+    """
     while rclpy.ok() and not node.done:
         rclpy.spin_once(node, timeout_sec=0.1)
     if node.done:
-        end = time.monotonic() + 0.5
+        end = time.monotonic() + 2.0
         while rclpy.ok() and time.monotonic() < end:
             rclpy.spin_once(node, timeout_sec=0.05)
 

@@ -6,6 +6,7 @@ cross-talk.  Synthetic streams come from the core simulator, published message b
 from __future__ import annotations
 
 import os
+import re
 import subprocess
 import sys
 import time
@@ -607,3 +608,7 @@ def test_demo_runs_end_to_end(tmp_path):
     assert log.omega.t.size > 2000 and log.torque.t.size > 500
     err = float(proc.stdout.split('final error max|I_est - I_true| / I3 = ')[1].split('%')[0])
     assert err < 2.0, proc.stdout
+    # Nothing lost on the way: the estimator received every message the demo recorded.
+    m = re.search(r'gyro (\d+), torque (\d+) \(recorded here: (\d+), (\d+)\)', proc.stdout)
+    assert m and m.group(1, 2) == m.group(3, 4) == (str(log.omega.counts.received),
+                                                    str(log.torque.counts.received)), proc.stdout

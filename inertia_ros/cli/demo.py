@@ -311,7 +311,8 @@ def _final(run: _Run) -> str | None:
             + ', '.join(f'{a:.4f} (true {b:.4f}, {100 * r:+.2f}%)'
                         for a, b, r in zip(m_est, m_true, rel, strict=True))
             + f"; messages received by the estimator: gyro {counts.get('gyro_received', '?')}"
-            f", torque {counts.get('torque_received', '?')}")
+            f", torque {counts.get('torque_received', '?')} (recorded here: "
+            f"{len(run.records.get('/imu', []))}, {len(run.records.get('/torque', []))})")
 
 
 def _write_mcap(path: Path, run: _Run) -> list[str]:
