@@ -116,3 +116,59 @@ def test_recursive_standard_errors_are_calibrated(nominal60):
         z.append((est.theta - truth) / est.theta_std)
     rms = np.sqrt(np.mean(np.square(z), axis=0))
     assert np.all(rms >= 0.7) and np.all(rms <= 1.5), rms
+
+
+@pytest.fixture(scope='module')
+def nominal20_mc():
+    """Nominal scene, 20 s, noise-free trajectory, and the Cramer-Rao bound of its noise."""
+    from inertia_ros.core.crlb import fisher_information
+    sim = noise_free('default', duration=20.0)
+    rms = np.sqrt(np.mean(sim.torque_command ** 2, axis=0))
+    bound = fisher_information(sim.t_gyro, sim.t_torque, sim.torque_command, sim.inertia,
+                               sim.omega_true[0], gyro_std=0.002, torque_std=0.02 * rms)
+    return sim, bound
+
+
+def test_ml_is_calibrated_and_reaches_the_bound(nominal20_mc):
+    """40 resamplings, method ml: RMS z in [0.7, 1.5], std = bound (rtol 0.05), MSE <= 1.5 CRLB.
+
+    Also: ml's MSE is below the integral method's on the same records.
+    """
+    from inertia_ros.core.crlb import frobenius_weights
+    sim, bound = nominal20_mc
+    truth = matrix_to_theta(sim.inertia)
+    crlb = np.diag(bound.theta_covariance())
+    z, err, err0 = [], [], []
+    for seed in range(40):
+        data = add_noise(sim, seed=5000 + seed)
+        est = estimate(*data, method='ml', model='full', torque_bias='off')
+        assert est.method == 'ml' and est.diagnostics['ml']['refined'] is True
+        base = estimate(*data, model='full', torque_bias='off')
+        z.append((est.theta - truth) / est.theta_std)
+        err.append(est.theta - truth)
+        err0.append(base.theta - truth)
+    rms = np.sqrt(np.mean(np.square(z), axis=0))
+    assert np.all(rms >= 0.7) and np.all(rms <= 1.5), rms
+    np.testing.assert_allclose(est.theta_std, np.sqrt(crlb), rtol=0.05, atol=0)
+    w = frobenius_weights()
+    ratio = float(w @ np.mean(np.square(err), axis=0)) / float(w @ crlb)
+    ratio0 = float(w @ np.mean(np.square(err0), axis=0)) / float(w @ crlb)
+    assert ratio <= 1.5 and ratio < ratio0, (ratio, ratio0)
+
+
+def test_ml_optimum_is_the_kalman_prediction_error_optimum(nominal20_mc):
+    """At the ml estimate, crlb's Kalman prediction-error step is < 0.05 std (atol) per element."""
+    from inertia_ros.core.crlb import prediction_error_step
+    sim, _ = nominal20_mc
+    t_g, w, t_t, tau = add_noise(sim, seed=77)
+    est = estimate(t_g, w, t_t, tau, method='ml', model='full', torque_bias='off')
+    assert est.diagnostics['ml']['refined'] is True
+    dg = est.diagnostics
+    # w0 is a nuisance of both: two steps settle crlb's w0 (its theta step is then ~0)
+    w0 = w[0].copy()
+    for _ in range(2):
+        st = prediction_error_step(t_g, w, t_t, tau, est.inertia, w0,
+                                   gyro_std=dg['gyro_noise_std'],
+                                   torque_std=dg['torque_noise_std'])
+        w0 = w0 + st.step[6:9]
+    np.testing.assert_array_less(np.abs(st.step[:6]) / est.theta_std, 0.05)

@@ -212,15 +212,17 @@ class _Dynamics:
                  ) -> tuple[np.ndarray, np.ndarray]:
         """``(w_dot, Z_dot)`` with ``Z = [S (3, p) | Phi (3, 3) | Psi (3, 3)]``.
 
-        ``Iiu`` is ``I^-1 (u + d)`` for the interval.
+        ``Iiu`` is ``I^-1 (u + d)`` for the interval.  Leading batch dimensions are allowed:
+        ``w (..., 3)``, ``Z (..., 3, p + 6)``, ``Iiu (..., 3)`` (many intervals at once, as
+        :mod:`inertia_ros.core.estimation.ml` integrates them).
         """
-        mono = w[_MONO_I] * w[_MONO_J]
+        mono = w[..., _MONO_I] * w[..., _MONO_J]
         wd = Iiu + mono @ self.gyro_wd
-        Jw = (w @ self.jac_w).reshape(3, 3)
+        Jw = (w @ self.jac_w).reshape(w.shape[:-1] + (3, 3))
         # Y[:, k] = E_k wd + w x (E_k w): regressor of Euler's equation in theta
-        Y = (np.concatenate((wd, mono)) @ _Y_MAP).reshape(3, 6)
+        Y = (np.concatenate((wd, mono), axis=-1) @ _Y_MAP).reshape(w.shape[:-1] + (3, 6))
         Zd = Jw @ Z + self.forcing
-        Zd[:, :6] += self.mIi @ Y
+        Zd[..., :6] += self.mIi @ Y
         return wd, Zd
 
 

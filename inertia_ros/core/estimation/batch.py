@@ -19,6 +19,14 @@ Methods (:data:`METHODS`), all built from :mod:`.regressors`:
     forms in 13 per-sample variables ``[w, m, t, T]``, so the data are reduced once to a
     13 x 13 Gram matrix (plus the torque-noise sums) and every model, weight and segmentation
     is evaluated on those.
+``ml``
+    Maximum likelihood: the ``integral`` estimate (status, model and bias decision included)
+    refined by Gauss-Newton on the likelihood of the exact model (gyro white noise, torque
+    noise as process noise held over each torque interval; :mod:`.ml`), with the covariance
+    from the Fisher information.  Attains the Cramer-Rao bound of :mod:`inertia_ros.core.crlb`.
+    Only an ``ok`` zero-order-hold estimate without torque gaps is refined; otherwise, or when
+    the refinement does not converge, the ``integral`` result is returned unchanged and
+    ``diagnostics['ml']`` says why.
 ``integral_ls``
     The same anchored equations, unweighted and without bias compensation.
 ``integral_sliding``
@@ -45,7 +53,7 @@ by the nearest valid one and the violation is reported in ``diagnostics['physica
 from __future__ import annotations
 
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -58,6 +66,7 @@ from ..inertia import (
     principal_axes,
     theta_to_matrix,
 )
+from .ml import refine
 from .regressors import (
     cumulative_monomials,
     cumulative_torque,
@@ -70,8 +79,8 @@ from .result import InertiaEstimate
 
 __all__ = ['HOLDS', 'METHODS', 'MODELS', 'TORQUE_BIAS', 'estimate', 'model_basis']
 
-METHODS: tuple[str, ...] = ('integral', 'integral_ls', 'integral_sliding', 'differential_fd',
-                            'differential_sg')
+METHODS: tuple[str, ...] = ('integral', 'ml', 'integral_ls', 'integral_sliding',
+                            'differential_fd', 'differential_sg')
 MODELS: tuple[str, ...] = ('auto', 'full', 'diagonal', 'axisymmetric')
 TORQUE_BIAS: tuple[str, ...] = ('auto', 'on', 'off')
 HOLDS: tuple[str, ...] = ('zoh', 'linear')
@@ -791,6 +800,13 @@ def estimate(t_gyro: Any, omega: Any, t_torque: Any, torque: Any, *,
     if len(ts) == 1:
         raise ValueError('t_torque: a single torque sample covers no time; give at least 2 '
                          '(or none for torque-free data)')
+    if method == 'ml':
+        first = estimate(tg, w, ts, tau, method='integral', model=model,
+                         torque_bias=torque_bias, symmetry_axis=symmetry_axis, hold=hold,
+                         alpha=alpha, gyro_noise=gyro_noise, torque_noise=torque_noise,
+                         segment=segment, window=window,
+                         identifiability_tol=identifiability_tol, physical=physical)
+        return _maximum_likelihood(first, tg, w, ts, tau, hold, axis)
     # work relative to the first stamp: ROS times are ~1.7e9 s, and prefix sums of absolute
     # times would lose the sub-millisecond differences everything depends on
     t_origin = float(min(tg[0], ts[0])) if len(ts) else float(tg[0])
@@ -1113,3 +1129,56 @@ def _homogeneous(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau
     return InertiaEstimate(status='scale_unobservable', ratios=R, principal_axes=axes,
                            identifiable=dict.fromkeys(THETA_NAMES, False), model='homogeneous',
                            diagnostics=diag, **base)   # type: ignore[arg-type]
+
+
+def _maximum_likelihood(first: InertiaEstimate, tg: np.ndarray, w: np.ndarray, ts: np.ndarray,
+                        tau: np.ndarray, hold: str, axis: np.ndarray | None) -> InertiaEstimate:
+    """Refine an ``integral`` estimate by maximum likelihood (:func:`.ml.refine`)."""
+    diag = dict(first.diagnostics)
+    diag['warnings'] = list(diag.get('warnings', []))
+    info: dict[str, Any] = {'refined': False, 'start': 'integral'}
+    diag['ml'] = info
+
+    def keep(reason: str) -> InertiaEstimate:
+        info['reason'] = reason + '; the integral estimate is reported'
+        return replace(first, method='ml', diagnostics=diag)
+
+    if first.status != 'ok' or first.inertia is None:
+        return keep(f'the starting estimate is {first.status!r}, only ok estimates are refined')
+    if hold != 'zoh':
+        return keep("the likelihood model holds each torque sample (hold='zoh' only)")
+    if any('torque gap' in str(m) for m in diag['warnings']):
+        return keep('torque gaps: the held-torque model does not cover them')
+    t0 = float(min(tg[0], ts[0]))
+    tg, ts = tg - t0, ts - t0
+    inside = tg >= ts[0]
+    name = first.model.removesuffix('+bias')
+    basis = model_basis(name, axis)
+    theta0 = first.theta
+    assert theta0 is not None
+    res = refine(tg[inside], w[inside], ts, tau, theta0, basis,
+                 None if first.torque_bias is None else np.asarray(first.torque_bias),
+                 np.asarray(diag['gyro_noise_std']), np.asarray(diag['torque_noise_std']))
+    info.update(iterations=res.iterations, steps_in_std=res.steps, residual_excess=res.excess)
+    if not res.converged:
+        return keep(f'the refinement did not converge ({res.reason})')
+    k = basis.shape[1]
+    theta = basis @ res.beta
+    cov6 = basis @ res.cov[:k, :k] @ basis.T
+    I = _sym(theta)
+    chk = check_physical(I)
+    if not chk.valid:
+        return keep('the refined tensor is not physical (' + '; '.join(chk.failures) + ')')
+    info['refined'] = True
+    if res.excess > 1.5:
+        diag['warnings'].append(f'likelihood residuals are {res.excess:.3g} times the noise '
+                                'model: standard errors inflated accordingly')
+    moments, axes = principal_axes(I)
+    diag['principal_moments_std'] = _moment_std(I, cov6)
+    diag['physical'] = {'valid': True, 'projected': False}
+    if res.bias is not None:
+        diag['torque_bias_std'] = np.sqrt(np.maximum(np.diag(res.cov)[k:k + 3], 0.0))
+    return replace(first, method='ml', inertia=I,
+                   inertia_std=_sym(np.sqrt(np.maximum(np.diag(cov6), 0.0))),
+                   principal_moments=moments, principal_axes=axes, ratios=I / np.trace(I),
+                   torque_bias=res.bias, diagnostics=diag)
