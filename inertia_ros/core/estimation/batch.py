@@ -2,7 +2,12 @@
 
 Methods (:data:`METHODS`), all built from :mod:`.regressors`:
 
-``integral`` (default)
+``auto`` (default)
+    ``ml`` for records of up to :data:`ML_AUTO_MAX_SAMPLES` gyro samples, ``integral`` for
+    longer ones (``ml`` costs about 5-8x ``integral``; on long records ``integral``'s error is
+    already small).  The result's ``method`` names the one used and
+    ``diagnostics['method_selection']`` says why.
+``integral``
     Momentum form anchored per segment.  For every gyro sample ``b`` of a segment,
     ``I w_b + int_{t0}^{t_b} w x (I w) dt - d t_b - h0 = int_{t0}^{t_b} tau dt``, with the
     segment's initial momentum ``h0`` as three nuisance parameters (eliminated exactly by
@@ -77,10 +82,14 @@ from .regressors import (
 )
 from .result import InertiaEstimate
 
-__all__ = ['HOLDS', 'METHODS', 'MODELS', 'TORQUE_BIAS', 'estimate', 'model_basis']
+__all__ = ['HOLDS', 'METHODS', 'ML_AUTO_MAX_SAMPLES', 'MODELS', 'TORQUE_BIAS', 'estimate',
+           'model_basis']
 
-METHODS: tuple[str, ...] = ('integral', 'ml', 'integral_ls', 'integral_sliding',
+METHODS: tuple[str, ...] = ('auto', 'ml', 'integral', 'integral_ls', 'integral_sliding',
                             'differential_fd', 'differential_sg')
+#: ``method='auto'`` uses ``ml`` up to this many gyro samples, ``integral`` beyond (where the
+#: likelihood passes would cost seconds and memory of ~0.5 kB per sample).
+ML_AUTO_MAX_SAMPLES = 250_000
 MODELS: tuple[str, ...] = ('auto', 'full', 'diagonal', 'axisymmetric')
 TORQUE_BIAS: tuple[str, ...] = ('auto', 'on', 'off')
 HOLDS: tuple[str, ...] = ('zoh', 'linear')
@@ -720,7 +729,7 @@ def _sym(theta: np.ndarray) -> np.ndarray:
 # public entry point
 # ---------------------------------------------------------------------------------------------
 def estimate(t_gyro: Any, omega: Any, t_torque: Any, torque: Any, *,
-             method: str = 'integral', model: str = 'auto', torque_bias: str = 'auto',
+             method: str = 'auto', model: str = 'auto', torque_bias: str = 'auto',
              symmetry_axis: Any = None, hold: str = 'zoh', alpha: float = 1e-3,
              gyro_noise: Any = None, torque_noise: Any = None, segment: float | None = None,
              window: float | None = None, identifiability_tol: float = 0.1,
@@ -738,7 +747,8 @@ def estimate(t_gyro: Any, omega: Any, t_torque: Any, torque: Any, *,
     torque : array_like, shape (M, 3)
         Known applied torque about the centre of mass, body axes [N m].
     method : str
-        One of :data:`METHODS` (default ``integral``).
+        One of :data:`METHODS` (default ``auto``: ``ml``, or ``integral`` on records longer
+        than :data:`ML_AUTO_MAX_SAMPLES` gyro samples).
     model : {'auto', 'full', 'diagonal', 'axisymmetric'}
         Parameter set; ``auto`` picks the smallest the data supports (Wald tests at ``alpha``;
         ``axisymmetric`` is only a candidate when ``symmetry_axis`` is given).
@@ -800,13 +810,21 @@ def estimate(t_gyro: Any, omega: Any, t_torque: Any, torque: Any, *,
     if len(ts) == 1:
         raise ValueError('t_torque: a single torque sample covers no time; give at least 2 '
                          '(or none for torque-free data)')
+    selection = None
+    if method == 'auto':
+        method = 'ml' if len(tg) <= ML_AUTO_MAX_SAMPLES else 'integral'
+        selection = {'requested': 'auto', 'chosen': method,
+                     'rule': f'ml up to {ML_AUTO_MAX_SAMPLES} gyro samples, integral beyond'}
     if method == 'ml':
         first = estimate(tg, w, ts, tau, method='integral', model=model,
                          torque_bias=torque_bias, symmetry_axis=symmetry_axis, hold=hold,
                          alpha=alpha, gyro_noise=gyro_noise, torque_noise=torque_noise,
                          segment=segment, window=window,
                          identifiability_tol=identifiability_tol, physical=physical)
-        return _maximum_likelihood(first, tg, w, ts, tau, hold, axis)
+        res = _maximum_likelihood(first, tg, w, ts, tau, hold, axis)
+        if selection is not None:
+            res.diagnostics['method_selection'] = selection
+        return res
     # work relative to the first stamp: ROS times are ~1.7e9 s, and prefix sums of absolute
     # times would lose the sub-millisecond differences everything depends on
     t_origin = float(min(tg[0], ts[0])) if len(ts) else float(tg[0])
@@ -828,6 +846,8 @@ def estimate(t_gyro: Any, omega: Any, t_torque: Any, torque: Any, *,
     gyro_var, torque_var = gyro_std ** 2, torque_std ** 2
     diag: dict[str, Any] = {'gyro_noise_std': gyro_std, 'torque_noise_std': torque_std,
                             'warnings': []}
+    if selection is not None:
+        diag['method_selection'] = selection
 
     # ---- torque coverage and gaps
     dtg = np.diff(tg)
