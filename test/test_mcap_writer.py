@@ -378,3 +378,29 @@ def test_truth_carries_mass_and_com_of_composite_bodies(tmp_path):
     assert [m.m for m in msgs] == [3.0, 2.0]
     assert _vec(msgs[0].com) == pytest.approx([0.1, 0.0, 0.0], abs=1e-15)
     assert _vec(msgs[1].com) == [0.0, 0.0, 0.0]
+
+
+def test_explicit_schema_text_for_other_types(tmp_path):
+    """A type cdr_encode does not know is written with a caller's schema and decodes back."""
+    from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+    from rclpy.serialization import serialize_message
+
+    from inertia_ros.io.ros_msgs import schema_text_from_share
+
+    msg = DiagnosticArray()
+    msg.header.stamp.sec, msg.header.frame_id = 7, 'base_link'
+    msg.status = [DiagnosticStatus(level=DiagnosticStatus.WARN, name='inertia', message='m',
+                                   values=[KeyValue(key='k', value='v')])]
+    path = tmp_path / 'diag.mcap'
+    with McapWriter(path) as w:
+        w.add_topic('/diagnostics', 'diagnostic_msgs/msg/DiagnosticArray',
+                    schema_text=schema_text_from_share('diagnostic_msgs/msg/DiagnosticArray'))
+        w.write_many('/diagnostics', np.array([7_000_000_000]), [serialize_message(msg)])
+    with open(path, 'rb') as f:
+        decoded = [m for _, _, _, m in make_reader(
+            f, decoder_factories=[DecoderFactory()]).iter_decoded_messages()]
+    assert len(decoded) == 1
+    st = decoded[0].status[0]
+    assert (decoded[0].header.stamp.sec, st.level, st.values[0].key) == (7, 1, 'k')  # WARN
+    with McapWriter(tmp_path / 'bad.mcap') as w, pytest.raises(ValueError, match='schema_text'):
+        w.add_topic('/x', 'diagnostic_msgs/msg/DiagnosticArray', schema_text='  ')

@@ -316,32 +316,25 @@ def _final(run: _Run) -> str | None:
 
 
 def _write_mcap(path: Path, run: _Run) -> list[str]:
-    """Write the recorded topics; return the topics skipped for want of a schema.
+    """Write the recorded topics; return the topics skipped (always empty now).
 
-    Types the MCAP writer knows use its schemas; the others get the schema text built from
-    the installed ``.msg`` files, when the writer accepts an explicit ``schema_text``.
+    Types the MCAP writer knows use its schemas; the others (diagnostics, markers, ...) get
+    the schema text built from the installed ``.msg`` files.
     """
-    import inspect
-
     from inertia_ros.io.mcap_writer import McapWriter
     from inertia_ros.io.ros_msgs import schema_text_from_share
 
-    skipped = []
     with McapWriter(path) as w:
-        takes_schema = 'schema_text' in inspect.signature(w.add_topic).parameters
         for topic, rows in run.records.items():
             msgtype, _, _, kind = TOPICS[topic]
             try:
                 w.add_topic(topic, msgtype, qos=kind)
             except ValueError:
-                if not takes_schema:
-                    skipped.append(topic)
-                    continue
                 w.add_topic(topic, msgtype, qos=kind,
                             schema_text=schema_text_from_share(msgtype))
             w.write_many(topic, np.array([r[0] for r in rows], dtype=np.int64),
                          [r[1] for r in rows])
-    return skipped
+    return []
 
 
 def _plot(path: Path, run: _Run, name: str) -> None:

@@ -180,7 +180,8 @@ class McapWriter:
 
     # ---------------------------------------------------------------- topics and data
     def add_topic(self, topic: str, msgtype: str, *,
-                  qos: str | Mapping[str, Any] = 'reliable') -> None:
+                  qos: str | Mapping[str, Any] = 'reliable',
+                  schema_text: str | None = None) -> None:
         """Declare a topic (one MCAP channel) of a known message type.
 
         Parameters
@@ -191,16 +192,26 @@ class McapWriter:
             ``pkg/msg/Type``; its schema must be known to :mod:`inertia_ros.io.cdr_encode`.
         qos : str or Mapping, optional
             Offered QoS: a :data:`QOS_PRESETS` name or a rosbag2 v9 QoS dict.
+        schema_text : str, optional
+            The ros2msg schema with its dependency blocks, for a type
+            :mod:`inertia_ros.io.cdr_encode` does not know (payloads are then serialised by the
+            caller, e.g. with rclpy).  Default: cdr_encode's schema for ``msgtype``.
         """
         self._check_open()
         if not isinstance(topic, str) or not topic.startswith('/') or topic.endswith('/'):
             raise McapWriterError(f'topic: must be an absolute name like /imu, got {topic!r}')
         if topic in self._topics:
             raise McapWriterError(f'topic: {topic} was already added')
-        try:
-            text = cdr_encode.schema_text(msgtype)
-        except ValueError as exc:
-            raise McapWriterError(str(exc)) from None
+        if schema_text is not None:
+            if not isinstance(schema_text, str) or not schema_text.strip():
+                raise McapWriterError(f'schema_text: must be a non-empty ros2msg text for '
+                                      f'{msgtype}')
+            text = schema_text
+        else:
+            try:
+                text = cdr_encode.schema_text(msgtype)
+            except ValueError as exc:
+                raise McapWriterError(str(exc)) from None
         qos_text = qos_yaml(qos)
         assert self._writer is not None
         if msgtype not in self._schemas:
