@@ -133,21 +133,41 @@ def test_noise_free_recovers_tensor(nominal20):
 
 @pytest.mark.parametrize('method', METHODS)
 def test_every_method_runs_and_reports(nominal20, method):
-    """Every method returns an InertiaEstimate with the method name and a finite tensor."""
+    """Every method returns its name and a finite tensor, or (differentiating ones) says EIV."""
     t_g, w, t_t, tau = add_noise(nominal20, seed=3)
-    est = estimate(t_g, w, t_t, tau, method=method, model='full', torque_bias='off')
+    est = estimate(t_g, w, t_t, tau, method=method, model='full', torque_bias='off',
+                   window=0.5 if method == 'differential_sg' else None)
     assert est.method == ('ml' if method == 'auto' else method)
     assert est.status in STATUSES
-    assert est.inertia is not None and np.all(np.isfinite(est.inertia))
+    if method == 'differential_fd':
+        assert est.status == 'insufficient_excitation' and est.inertia is None
+    else:
+        assert est.inertia is not None and np.all(np.isfinite(est.inertia))
 
 
-def test_default_beats_finite_difference_baseline(nominal20):
-    """On noisy nominal data the default method is >= 20x more accurate than finite differences."""
+@pytest.mark.parametrize(('method', 'window'), [('differential_fd', None),
+                                                ('differential_sg', 0.1)])
+def test_noise_dominated_derivative_is_reported_not_ok(nominal20, method, window):
+    """Differentiated gyro mostly noise: insufficient_excitation naming EIV, never status ok."""
+    t_g, w, t_t, tau = add_noise(nominal20, seed=4)
+    est = estimate(t_g, w, t_t, tau, method=method, window=window)
+    assert est.status == 'insufficient_excitation'
+    assert 'errors in variables' in est.diagnostics['reason']
+    assert 'integral' in est.diagnostics['reason']
+    assert np.max(est.diagnostics['regressor_noise_share']) > 0.3
+    clean = estimate(t_g, nominal20.omega_true, t_t, nominal20.torque_command, method=method,
+                     window=window, model='full', torque_bias='off')
+    assert clean.status == 'ok'
+
+
+def test_default_beats_smoothed_differential_form(nominal20):
+    """Noisy nominal data: the default is >= 2x more accurate than SG 0.5 s (accepted, ok)."""
     t_g, w, t_t, tau = add_noise(nominal20, seed=4)
     good = estimate(t_g, w, t_t, tau, model='full', torque_bias='off')
-    base = estimate(t_g, w, t_t, tau, method='differential_fd', model='full',
+    base = estimate(t_g, w, t_t, tau, method='differential_sg', window=0.5, model='full',
                     torque_bias='off')
-    assert rel_error(base, nominal20.inertia) > 20 * rel_error(good, nominal20.inertia)
+    assert base.status == 'ok' and good.status == 'ok'
+    assert rel_error(base, nominal20.inertia) > 2 * rel_error(good, nominal20.inertia)
 
 
 def test_to_dict_is_the_json_contract(nominal20):

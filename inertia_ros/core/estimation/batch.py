@@ -42,6 +42,12 @@ Methods (:data:`METHODS`), all built from :mod:`.regressors`:
 ``differential_sg``
     The same with a Savitzky-Golay smoothing differentiator, the same filter on the torque.
 
+    Both differentiate the gyro, so its noise enters the regressor (errors in variables) and
+    shrinks the fit by about the noise share of the differentiated gyro.  That share (from the
+    estimated gyro noise and the differentiator's noise gain, per axis, in
+    ``diagnostics['regressor_noise_share']``) above 2 % gives ``insufficient_excitation``
+    instead of a biased tensor with status ``ok``.
+
 Model selection (``model='auto'`` / ``torque_bias='auto'``): Wald tests on the general model
 (full tensor plus bias) with its calibrated covariance; the smallest parameter set the data does
 not reject at level ``alpha`` is used (an F-test analogue that stays valid with the correlated
@@ -105,6 +111,7 @@ _SELECT_MAX_ROWS = 100_000                     # equations used by the segment-l
 _THREAD_MIN_ROWS = 200_000                     # rows from which _raw uses two threads
 _BLAS_MIN_ROWS = 400_000                       # rows from which a Gram goes to BLAS
 _SEGMENT_CANDIDATES = (5.0, 10.0, 20.0, 40.0)   # s, anchored-segment lengths tried
+_EIV_MAX_SHARE = 0.02                          # differentiated-gyro noise share tolerated
 
 
 # ---------------------------------------------------------------------------------------------
@@ -571,6 +578,11 @@ def _build(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.n
         m = monomials(wi)
         lag = 2
         info: dict[str, Any] = {}
+        # central difference: var = 2 sigma^2 / (t_{k+1} - t_{k-1})^2 per sample
+        span = np.empty(len(t))
+        span[1:-1] = t[2:] - t[:-2]
+        span[0], span[-1] = 2.0 * (t[1] - t[0]), 2.0 * (t[-1] - t[-2])
+        noise_gain = float(np.mean(2.0 / span ** 2))
     else:
         dt = float(np.median(np.diff(t)))
         wl = max(5, round((window or 1.0) / dt))
@@ -582,6 +594,10 @@ def _build(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.n
         m = monomials(ws)
         lag = wl
         info = {'window_s': wl * dt}
+        noise_gain = float(np.sum(signal.savgol_coeffs(wl, 3, deriv=1, delta=dt) ** 2))
+    # errors in variables: the share of the differentiated gyro's power that is gyro noise
+    noise_pow = noise_gain * gyro_var
+    info['regressor_noise_share'] = noise_pow / np.maximum(np.mean(wd ** 2, axis=0), 1e-300)
     V = _variables(wd, m, np.ones(len(t)), tq)
     return _Equations(V, t, np.zeros(len(t) - 1, dtype=bool), 'hac', hac_lag=lag, info=info)
 
@@ -888,6 +904,16 @@ def estimate(t_gyro: Any, omega: Any, t_torque: Any, torque: Any, *,
 
     eq = _build(method, tg, w, ts, tau, mask, breaks, hold, gyro_var, window)
     diag.update(eq.info)
+    share = eq.info.get('regressor_noise_share')
+    if share is not None and float(np.max(share)) > _EIV_MAX_SHARE:
+        diag['reason'] = (
+            f'errors in variables: gyro noise is {100 * float(np.max(share)):.3g} % of the '
+            f'differentiated gyro (limit {100 * _EIV_MAX_SHARE:g} %), which biases the '
+            f'{method} fit towards zero by about as much; use the integral or ml method '
+            '(no differentiation)' + (', or a longer window' if method == 'differential_sg'
+                                      else ''))
+        return InertiaEstimate(status='insufficient_excitation', diagnostics=diag,
+                               **base)   # type: ignore[arg-type]
     gen_bias = torque_bias != 'off'
     if len(eq.t) < 3 * (6 + 3):
         diag['reason'] = f'{len(eq.t)} equations are too few for the parameters'
