@@ -29,8 +29,9 @@ from inertia_ros.core.inertia import theta_to_matrix
 __all__ = ['DEFAULT_METHOD', 'MethodSpec', 'Outcome', 'hand_fd', 'method_specs',
            'pinocchio_available', 'pinocchio_regressor']
 
-#: Name of the package's default setting in the tables.
-DEFAULT_METHOD = 'integral'
+#: Name of the package's default setting in the tables (``method='auto'``: ``ml`` on records
+#: of up to ``ML_AUTO_MAX_SAMPLES`` gyro samples, which every bench record is).
+DEFAULT_METHOD = 'ml'
 
 
 @dataclass(frozen=True)
@@ -186,54 +187,6 @@ def _run_pinocchio(sim: Any) -> Outcome:
     return Outcome('ok', I, dt)
 
 
-def pem_refine(t_gyro: np.ndarray, omega: np.ndarray, t_torque: np.ndarray,
-               torque: np.ndarray, *, iterations: int = 2) -> tuple[str, np.ndarray | None]:
-    """Prototype: the default estimate refined by Gauss-Newton on the prediction error.
-
-    Starts from :func:`~inertia_ros.core.estimation.estimate` (default settings; its noise
-    levels and its torque-bias decision), then takes ``iterations`` steps of
-    :func:`~inertia_ros.core.crlb.prediction_error_step` (Kalman-filter innovations of the
-    exact Euler dynamics driven by the measured torque: maximum likelihood).
-
-    Parameters
-    ----------
-    t_gyro, omega, t_torque, torque
-        As :func:`hand_fd`.
-    iterations : int
-        Gauss-Newton steps (>= 1).
-
-    Returns
-    -------
-    status : str
-        The starting estimate's status (no refinement unless ``ok``).
-    inertia : numpy.ndarray, shape (3, 3), or None
-    """
-    from inertia_ros.core.crlb import prediction_error_step
-    from inertia_ros.core.inertia import matrix_to_theta
-
-    first = estimation.estimate(t_gyro, omega, t_torque, torque)
-    if first.status != 'ok' or first.inertia is None:
-        return first.status, None
-    dg = first.diagnostics
-    bias = first.torque_bias is not None
-    p = np.concatenate([matrix_to_theta(np.asarray(first.inertia)), omega[0],
-                        np.asarray(first.torque_bias) if bias else []])
-    for _ in range(iterations):
-        st = prediction_error_step(t_gyro, omega, t_torque, torque, theta_to_matrix(p[:6]),
-                                   p[6:9], gyro_std=dg['gyro_noise_std'],
-                                   torque_std=dg['torque_noise_std'],
-                                   disturbance=p[9:12] if bias else None, estimate_bias=bias)
-        p = p + st.step
-    return 'ok', theta_to_matrix(p[:6])
-
-
-def _run_pem(sim: Any) -> Outcome:
-    """``pem_refine`` as a runner."""
-    (status, I), dt = _timed(lambda: pem_refine(sim.t_gyro, sim.omega, sim.t_torque,
-                                                sim.torque))
-    return Outcome(status, I, dt)
-
-
 def _recursive_runner(**kwargs: Any) -> tuple[Callable[[Any], Outcome] | None, str]:
     """A runner for ``RecursiveEstimator(**kwargs)``: the record in 1 s blocks, then estimate."""
     cls = getattr(estimation, 'RecursiveEstimator', None)
@@ -284,15 +237,20 @@ def method_specs(*, include_pinocchio: bool = True, quick: bool = False
         Why a setting was left out.
     """
     specs = [
-        MethodSpec('integral', 'integral', 'default: anchored momentum form, weighted, '
+        MethodSpec('ml', 'ml', "default (method='auto', which is ml on these records): the "
+                   'integral estimate refined by maximum likelihood (Gauss-Newton on the '
+                   'exact noise model), Fisher-information covariance', _package()),
+        MethodSpec('integral', 'integral', 'anchored momentum form, weighted, '
                    'EIV-compensated, segment length chosen from the data, model selection, '
-                   'physical projection', _package()),
+                   'physical projection (the starting point of ml)',
+                   _package(method='integral')),
         MethodSpec('integral_full', 'integral', 'integral, full model and bias off '
-                   '(no model selection)', _package(model='full', torque_bias='off')),
+                   '(no model selection)', _package(method='integral', model='full',
+                                                    torque_bias='off')),
         MethodSpec('integral_unconstrained', 'integral', 'integral without the physical '
-                   'projection', _package(physical=False)),
+                   'projection', _package(method='integral', physical=False)),
         MethodSpec('integral_seg5', 'integral', 'integral, anchored segments of 5 s',
-                   _package(segment=5.0)),
+                   _package(method='integral', segment=5.0)),
         MethodSpec('integral_ls', 'integral', 'anchored momentum form, unweighted, no EIV '
                    'compensation', _package(method='integral_ls')),
         MethodSpec('sliding_1s', 'sliding', 'overlapping 1 s momentum windows, OLS',
@@ -307,7 +265,7 @@ def method_specs(*, include_pinocchio: bool = True, quick: bool = False
     if not quick:
         specs += [
             MethodSpec('integral_seg20', 'integral', 'integral, anchored segments of 20 s',
-                       _package(segment=20.0)),
+                       _package(method='integral', segment=20.0)),
             MethodSpec('sliding_0.25s', 'sliding', 'overlapping 0.25 s momentum windows',
                        _package(method='integral_sliding', window=0.25)),
             MethodSpec('sliding_4s', 'sliding', 'overlapping 4 s momentum windows',
@@ -317,9 +275,6 @@ def method_specs(*, include_pinocchio: bool = True, quick: bool = False
             MethodSpec('sg_2s', 'differential', 'differential form, Savitzky-Golay 2 s',
                        _package(method='differential_sg', window=2.0)),
         ]
-    specs.append(MethodSpec('pem_refine', 'prototype', 'prototype (bench only): default '
-                            'estimate + 2 Gauss-Newton steps of the Kalman prediction-error '
-                            '(maximum-likelihood) criterion', _run_pem))
     notes: list[str] = []
     rec, why = _recursive_runner(model='full', torque_bias='off')
     if rec is not None:

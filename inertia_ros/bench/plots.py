@@ -20,7 +20,7 @@ __all__ = ['plot_speed_vs_accuracy', 'plot_stability_map']
 
 _FAMILY_COLOURS = {'integral': 'tab:blue', 'sliding': 'tab:green', 'differential': 'tab:orange',
                    'baseline': 'tab:red', 'recursive': 'tab:purple',
-                   'prototype': 'tab:brown'}
+                   'prototype': 'tab:brown', 'ml': 'black'}
 _MARKERS = 'osD^v<>pP*Xhd8H'
 
 

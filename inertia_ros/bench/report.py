@@ -109,17 +109,13 @@ def render_markdown(ctx: BenchContext) -> str:
               f'{_f(d.p90_error, ".2e")}); bound (RMS) '
               f'{_f(ctx.bounds[nominal].rel_frobenius, ".2e")}; median compute time '
               f'{_ms(d.median_seconds)} ms for a {_record_len(ctx, nominal)} record.']
-    pem = by.get((nominal, 'pem_refine'))
-    if pem is not None and np.isfinite(pem.efficiency) and d is not None:
-        z = (pem.efficiency - 1.0) / pem.efficiency_se
-        L += [f'- Prototype `pem_refine` (default estimate + 2 Gauss-Newton steps of the '
-              f'Kalman prediction-error criterion, bench only): MSE = '
-              f'**{1 / pem.efficiency:.2f} x the bound** (efficiency {pem.efficiency:.2f} +- '
-              f'{pem.efficiency_se:.2f}, {abs(z):.1f} standard errors '
-              f'{"above" if z > 0 else "below"} 1: at the bound within Monte Carlo error) at '
-              f'{_f(pem.median_seconds / d.median_seconds, ".0f")}x the default\'s compute '
-              f'time. Maximum likelihood attains the bound, so the bound is tight and this is '
-              f'the route to the {GOAL_RATIO}x goal.']
+    base = by.get((nominal, 'integral'))
+    if base is not None and np.isfinite(base.efficiency) and d is not None:
+        L += [f'- Its starting point `integral` (the previous default): MSE = '
+              f'**{1 / base.efficiency:.2f} x the bound** (efficiency {base.efficiency:.2f} '
+              f'+- {base.efficiency_se:.2f}) at '
+              f'{_f(base.median_seconds / d.median_seconds, ".2f")}x the default\'s compute '
+              f'time; maximum likelihood closes the gap to the bound.']
     silent_default = [c for c in ctx.cells if c.method == DEFAULT_METHOD
                       and c.outcome == 'silent']
     n_default = sum(1 for c in ctx.cells if c.method == DEFAULT_METHOD)
@@ -256,29 +252,31 @@ def _advice(ctx: BenchContext, nominal: str) -> list[str]:
 
     L = ['## What to pick when', '']
     package = {s.name for s in ctx.specs if s.family not in ('baseline', 'prototype')}
+    package.discard('recursive')
+    package.discard('recursive_bias')
     wins = 0
     for sc in ctx.scenes:
         errs = {m: by[(sc, m)].median_error for m in package if (sc, m) in by
                 and np.isfinite(by[(sc, m)].median_error)}
         if errs and DEFAULT_METHOD in errs and errs[DEFAULT_METHOD] <= min(errs.values()):
             wins += 1
-    L.append(f'- **Default, offline logs: `integral`** (`estimate(..., method="integral")`): '
-             f'the lowest median error of the package settings (ties included) on {wins} of '
-             f'{len(ctx.scenes)} standard scenes here (median over scenes '
-             f'{_f(med("integral"), ".2e")}); it reports failure statuses instead of numbers '
-             f'where the data cannot support a tensor, and gives standard errors (see the '
-             f'stability section for where they are too small).')
-    if any(k[1] == 'pem_refine' for k in by):
-        L.append(f'- **Best accuracy: maximum likelihood** (`pem_refine`, a bench prototype, '
-                 f'not yet in the package): median error {_f(med("pem_refine"), ".2e")} over '
-                 f'scenes at about {_f(speed("pem_refine"), ".0f")}x the default\'s time; '
-                 f'worth it offline when the remaining factor between the default\'s MSE '
-                 f'and the bound matters.')
+    L.append(f'- **Default, offline logs: `ml`** (`estimate(...)` with `method="auto"`; '
+             f'records over 250 000 gyro samples use `integral`): the lowest median error of '
+             f'the package settings (ties included) on {wins} of {len(ctx.scenes)} standard '
+             f'scenes here (median over scenes {_f(med(DEFAULT_METHOD), ".2e")}), standard '
+             f'errors from the Fisher information, and failure statuses instead of numbers '
+             f'where the data cannot support a tensor (it refines only `ok` integral '
+             f'estimates).')
+    if any(k[1] == 'integral' for k in by):
+        L.append(f'- **Faster, nearly as accurate: `integral`** (`method="integral"`): median '
+                 f'error {_f(med("integral"), ".2e")} over scenes at '
+                 f'{_f(speed("integral"), ".2f")}x the default\'s time; the choice for very '
+                 f'long records or repeated re-solves (the node\'s batch mode).')
     if ('sliding_1s', DEFAULT_METHOD) and any(k[1] == 'sliding_1s' for k in by):
         L.append(f'- **Tight compute budget: `integral_sliding`** (1 s windows): about '
                  f'{_f(1 / speed("sliding_1s"), ".0f")}x faster than the default (median time '
                  f'ratio {_f(speed("sliding_1s"), ".2f")}) at roughly '
-                 f'{_f(med("sliding_1s") / med("integral"), ".0f")}x its error '
+                 f'{_f(med("sliding_1s") / med(DEFAULT_METHOD), ".0f")}x its error '
                  f'({_f(med("sliding_1s"), ".1e")} median).')
     if any(k[1] == 'recursive' for k in by):
         L.append(f'- **Live (the ROS node): `RecursiveEstimator`**: median error '
@@ -289,7 +287,10 @@ def _advice(ctx: BenchContext, nominal: str) -> list[str]:
     L.append(f'- **Never the plain finite-difference fit** (`differential_fd`, the hand-written '
              f'`hand_fd`, Pinocchio\'s regressor with `lstsq`): differentiating a noisy gyro puts '
              f'the noise into the regressor (errors in variables) and biases the tensor towards '
-             f'zero; median error {_f(med("hand_fd"), ".2f")} on these scenes, with status ok.')
+             f'zero; median error {_f(med("hand_fd"), ".2f")} on these scenes. The package\'s '
+             f'`differential_fd` detects this (gyro noise share of the differentiated gyro '
+             f'above 2 %) and reports `insufficient_excitation` instead of status ok; the '
+             f'hand-written fit and Pinocchio\'s regressor cannot.')
     if any(k[1] == 'sg_0.5s' for k in by):
         L.append(f'- Savitzky-Golay smoothing rescues the differential form only with long '
                  f'windows matched to the excitation band (0.5 s: '

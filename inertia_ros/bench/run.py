@@ -58,7 +58,7 @@ class BenchConfig:
     quick: bool
 
 
-_GRID_METHODS = ('integral', 'integral_ls', 'sliding_1s', 'differential_fd', 'sg_0.1s',
+_GRID_METHODS = ('ml', 'integral', 'integral_ls', 'sliding_1s', 'differential_fd', 'sg_0.1s',
                  'recursive')
 
 FULL = BenchConfig(
