@@ -212,6 +212,36 @@ def test_torque_free_gives_ratios_and_axes_only():
     assert est.to_dict()['inertia'] is None
 
 
+def test_ml_keeps_the_integral_result_when_it_cannot_refine(nominal20):
+    """ml: single-axis (not ok) and hold='linear' return the integral result, saying why."""
+    s = noise_free('single_axis', duration=20.0)
+    t_g, w, t_t, tau = add_noise(s, seed=8)
+    ml = estimate(t_g, w, t_t, tau, method='ml')
+    base = estimate(t_g, w, t_t, tau, method='integral')
+    assert ml.method == 'ml' and ml.status == base.status == 'partially_identifiable'
+    assert ml.diagnostics['ml']['refined'] is False
+    assert 'partially_identifiable' in ml.diagnostics['ml']['reason']
+    np.testing.assert_array_equal(ml.to_dict()['inertia'], base.to_dict()['inertia'])
+    t_g, w, t_t, tau = add_noise(nominal20, seed=9)
+    lin = estimate(t_g, w, t_t, tau, method='ml', hold='linear')
+    assert lin.status == 'ok' and lin.diagnostics['ml']['refined'] is False
+    assert 'zoh' in lin.diagnostics['ml']['reason']
+
+
+def test_ml_refine_reports_non_convergence(nominal20):
+    """refine() with tol=0 never converges: converged False with a reason, finite estimate."""
+    from inertia_ros.core.estimation.ml import refine
+    t_g, w, t_t, tau = add_noise(nominal20, seed=10)
+    res = refine(t_g, w, t_t, tau, matrix_to_theta(nominal20.inertia), np.eye(6), None,
+                 np.full(3, 0.002), np.full(3, 0.002), max_iter=2, tol=0.0)
+    assert res.converged is False and 'no convergence' in res.reason
+    assert res.iterations == 2 and len(res.steps) == 2
+    assert np.all(np.isfinite(res.beta))
+    with pytest.raises(ValueError, match='max_iter'):
+        refine(t_g, w, t_t, tau, matrix_to_theta(nominal20.inertia), np.eye(6), None,
+               np.full(3, 0.002), np.full(3, 0.002), max_iter=1)
+
+
 def test_no_torque_samples_at_all_is_torque_free():
     """An empty torque stream is accepted as torque-free data."""
     s = noise_free('torque_free', duration=10.0)

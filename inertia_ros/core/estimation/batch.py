@@ -1197,7 +1197,8 @@ def _maximum_likelihood(first: InertiaEstimate, tg: np.ndarray, w: np.ndarray, t
         return keep('torque gaps: the held-torque model does not cover them')
     t0 = float(min(tg[0], ts[0]))
     tg, ts = tg - t0, ts - t0
-    inside = tg >= ts[0]
+    # the gyro samples the integral stage used: inside the held torque's coverage
+    inside = (tg >= ts[0]) & (tg <= ts[-1] + float(np.median(np.diff(ts))))
     name = first.model.removesuffix('+bias')
     basis = model_basis(name, axis)
     theta0 = first.theta
