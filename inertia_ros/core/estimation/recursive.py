@@ -28,18 +28,26 @@ from typing import Any
 
 import numpy as np
 
-from ..inertia import THETA_NAMES
+from ..inertia import (
+    THETA_NAMES,
+    check_physical,
+    nearest_physical,
+    principal_axes,
+    theta_to_matrix,
+)
 from .batch import (
+    _L_BASIS,
+    _VMAP,
     HOLDS,
     _axis,
     _conclude,
+    _describe,
     _Equations,
     _Fit,
     _fit2,
     _gram,
-    _lift,
+    _metric,
     _Stats,
-    _torque_stats,
 )
 from .regressors import (
     cumulative_torque,
@@ -52,6 +60,78 @@ __all__ = ['RecursiveEstimator']
 
 _RMODELS = ('auto', 'full', 'diagonal', 'axisymmetric')
 _MAX_BUFFER = 400_000                      # gyro samples kept waiting for torque
+_VMAP2 = np.ascontiguousarray(_VMAP.reshape(13, 30))
+
+
+def _lift(G13: np.ndarray) -> np.ndarray:
+    """Cross Grams (3, 3, 10, 10) of the equation blocks from a 13 x 13 Gram of ``V``.
+
+    The same map as the batch module's ``_lift`` as two small matrix products (a tenth of the
+    three-operand ``einsum``'s time, which ran twice per ``estimate()``).
+    """
+    C = _VMAP2.T @ G13 @ _VMAP2                       # (30, 30): [r q] x [s p]
+    return np.ascontiguousarray(C.reshape(3, 10, 3, 10).transpose(0, 2, 1, 3))
+
+
+def _homogeneous_from_stats(C: np.ndarray, n_eff: float, eiv_var: np.ndarray | None,
+                            diag: dict[str, Any], base: dict[str, Any]) -> InertiaEstimate:
+    """Torque-free data: ratios and axes from the null vector of the homogeneous problem.
+
+    The statistics half of the batch module's ``_homogeneous`` (which builds ``C`` from the
+    raw streams first), step for step, so that both report the same ``scale_unobservable``
+    result; it belongs in the batch module, with ``_homogeneous`` calling it (see the H8
+    report).
+
+    Parameters
+    ----------
+    C : ndarray, shape (3, 3, 10, 10)
+        Cross Grams of the segment-demeaned, gyro-noise-corrected equation blocks.
+    n_eff : float
+        Equations minus segment intercepts (effective count when weighted).
+    eiv_var : ndarray, shape (3,), optional
+        Gyro noise variance per axis [rad^2/s^2] in the regressor (bias compensation).
+    diag, base : dict
+        Diagnostics (updated in place) and the common result fields.
+
+    Returns
+    -------
+    InertiaEstimate
+        ``scale_unobservable`` with ``ratios`` and ``principal_axes``, or
+        ``insufficient_excitation`` when the motion does not single out the ratios.
+    """
+    H0 = _metric(C, np.eye(3))[:6, :6]
+    H = H0.copy()
+    if eiv_var is not None:
+        H -= n_eff * np.einsum('c,crk,csl->kl', eiv_var, _L_BASIS, _L_BASIS)
+    d = np.sqrt(np.diag(H0))
+    diag['reason'] = 'no torque excitation: only ratios and principal axes are observable'
+    if np.any(d == 0):
+        diag['reason'] = 'torque-free data without rotation about every axis'
+        return InertiaEstimate(status='insufficient_excitation', diagnostics=diag,
+                               **base)   # type: ignore[arg-type]
+    lam0 = np.linalg.eigvalsh(H0 / d[:, None] / d[None, :])
+    lam, vec = np.linalg.eigh(H / d[:, None] / d[None, :])
+    v = vec[:, 0] / d
+    gap = float(lam0[1] / max(lam0[0], 1e-300))
+    diag['eigenvalue_gap'] = gap
+    diag['condition_number'] = float(lam0[-1] / max(lam0[0], 1e-300))
+    if gap < 10.0:
+        diag['reason'] = ('torque-free data whose motion does not single out the inertia '
+                          'ratios (e.g. a spin about a principal axis)')
+        diag['weakest_direction'] = _describe(vec[:, 1] / d, list(THETA_NAMES))
+        return InertiaEstimate(status='insufficient_excitation', diagnostics=diag,
+                               **base)   # type: ignore[arg-type]
+    R = theta_to_matrix(v)
+    R /= np.trace(R)
+    chk = check_physical(R)
+    if not chk.valid:
+        diag['physical'] = {'valid': False, 'failures': list(chk.failures), 'projected': True}
+        R = nearest_physical(R)
+        R /= np.trace(R)
+    _, axes = principal_axes(R)
+    return InertiaEstimate(status='scale_unobservable', ratios=R, principal_axes=axes,
+                           identifiable=dict.fromkeys(THETA_NAMES, False), model='homogeneous',
+                           diagnostics=diag, **base)   # type: ignore[arg-type]
 
 
 class RecursiveEstimator:
@@ -145,12 +225,13 @@ class RecursiveEstimator:
         self._Cc = np.zeros((13, 13))      # closed segments
         self._wc = self._w00c = self._neffc = 0.0
         self._seg_start: float | None = None
-        self._seg_t: list[np.ndarray] = []   # open segment: times, variables, torque times
-        self._seg_V: list[np.ndarray] = []
-        self._seg_tt: list[np.ndarray] = []
+        self._first_segment = True
+        self._walk_reset()
         self._GPc = np.zeros((13, 13))        # closed segments' torque-noise Gram
         self._walkc = 0.0
         self._tau_var: np.ndarray | None = None
+        self._tq_ss = np.zeros(3)        # (decayed) sum of squared torque [N^2 m^2]
+        self._tq_n = 0.0                 # and its (decayed) count
         self._tau_dt = 0.0
         self._t_last: float | None = None
         self._last_t_in: float | None = None
@@ -276,7 +357,8 @@ class RecursiveEstimator:
             self._ts = np.concatenate([self._ts, new_t])
             self._tau = np.concatenate([self._tau, new_tau])
             self._pt, self._ptau = [], []
-            self._seg_tt.append(new_t)
+            self._tq_ss = self._tq_ss + np.einsum('ij,ij->j', new_tau, new_tau)
+            self._tq_n += len(new_t)
             if len(new_t) >= 16:
                 v = noise_std_from_differences(new_tau) ** 2
                 self._tau_var = v if self._tau_var is None else 0.8 * self._tau_var + 0.2 * v
@@ -364,19 +446,90 @@ class RecursiveEstimator:
             if len(t):
                 self._close_segment(float(t[0]))
 
+    def _walk_reset(self) -> None:
+        """Empty the open segment's torque-noise accumulators (see :meth:`_walk_add`)."""
+        self._wk_s: float | None = None   # start of the open torque interval [s]
+        self._wk_ok = True                # a torque sample at or before the segment's start
+        self._wk_ntt = 0                  # torque samples of the segment up to the last gyro
+        self._wk_n = 0                    # gyro samples of the segment
+        self._wk_t0 = self._wk_tl = 0.0   # first and last gyro time of the segment [s]
+        self._wk_ref = np.zeros(13)       # reference row: variables are kept relative to it
+        self._wk_S = np.zeros(14)         # sum of x_b = [v_b - ref, 1]
+        self._wk_St = np.zeros(14)        # open interval: sum of (t_b - s_J) x_b
+        self._wk_h2 = 0.0                 # closed intervals: sum h_j^2, sum h_j Q_j,
+        self._wk_hQ = np.zeros(14)        # sum Q_j Q_j'  (Q_j = St_j - h_j F_j, 14 vectors)
+        self._wk_QQ = np.zeros((14, 14))
+
+    def _walk_add(self, t: np.ndarray, V: np.ndarray) -> None:
+        """Accumulate the open segment's torque-noise statistics over new equations.
+
+        The segment's torque-noise sums (:func:`.batch._torque_stats` on the segment-demeaned
+        variables) are ``P_j = [1 | -mean] R_j`` with ``R_j = sum_b o_j(b) x_b``,
+        ``o_j(b) = clip(t_b - s_j, 0, h_j)`` and ``x_b = [v_b - ref, 1]``.  Once torque interval
+        ``j`` is closed (a gyro sample at or after its end has arrived), ``R_j = h_j S + Q_j``
+        with the running segment sum ``S`` and a fixed ``Q_j``; so ``sum_j R_j R_j'`` needs only
+        ``sum h_j^2``, ``sum h_j Q_j`` and ``sum Q_j Q_j'`` of the closed intervals plus the open
+        one: O(new samples + new torque samples) per block, none per ``estimate()``.
+        """
+        ts = self._ts
+        n = len(t)
+        if self._wk_s is None:
+            i = int(np.searchsorted(ts, t[0], side='right')) - 1
+            if i < 0:                      # cannot happen: such gyro samples are dropped
+                self._wk_ok = False
+                i = 0
+            self._wk_s = float(ts[i])
+            # the first segment's torque list starts at the first torque sample, later ones
+            # at the last torque sample at or before their start
+            self._wk_ntt = i + 1 if self._first_segment else 1
+            self._wk_ref = V[0].copy()
+            self._wk_t0 = float(t[0])
+        X = np.empty((n, 14))
+        np.subtract(V, self._wk_ref[None], out=X[:, :13])
+        X[:, 13] = 1.0
+        lo = int(np.searchsorted(ts, self._wk_s, side='right'))
+        hi = int(np.searchsorted(ts, t[-1], side='right'))
+        b = ts[lo:hi]                      # torque samples starting new intervals
+        k = len(b)
+        if k == 0:
+            self._wk_St = self._wk_St + (t - self._wk_s) @ X
+        else:
+            bounds = np.concatenate([[self._wk_s], b])
+            first = np.searchsorted(t, bounds, side='left')
+            counts = np.diff(np.append(first, n))
+            nz = counts > 0
+            u = t - np.repeat(bounds, counts)
+            Sm = np.zeros((k + 1, 14))
+            St = np.zeros((k + 1, 14))
+            Sm[nz] = np.add.reduceat(X, first[nz], axis=0)
+            St[nz] = np.add.reduceat(X * u[:, None], first[nz], axis=0)
+            h = np.diff(bounds)
+            St[0] += self._wk_St
+            # every earlier sample precedes the end of the block's first interval
+            F = self._wk_S + np.cumsum(Sm[:k], axis=0)
+            Q = St[:k] - h[:, None] * F
+            self._wk_h2 += float(h @ h)
+            self._wk_hQ = self._wk_hQ + h @ Q
+            self._wk_QQ = self._wk_QQ + Q.T @ Q
+            self._wk_St = St[k]
+            self._wk_s = float(bounds[k])
+            self._wk_ntt += k
+        self._wk_S = self._wk_S + X.sum(axis=0)
+        self._wk_n += n
+        self._wk_tl = float(t[-1])
+
     def _segment_walk(self) -> tuple[np.ndarray, float]:
         """Torque-noise Gram (13 x 13) and walk time of the open segment (see batch)."""
-        if not self._seg_t or self._tau_var is None:
+        if self._wk_n == 0 or self._tau_var is None or self._wk_ntt < 2 or not self._wk_ok:
             return np.zeros((13, 13)), 0.0
-        t = np.concatenate(self._seg_t)
-        V = np.concatenate(self._seg_V)
-        V = V - V.mean(axis=0)[None]
-        tt = np.concatenate(self._seg_tt) if self._seg_tt else np.empty(0)
-        tt = tt[tt <= t[-1]]
-        if len(tt) < 2 or tt[0] > t[0]:
-            return np.zeros((13, 13)), 0.0
-        P = _torque_stats(V, t, tt, float(t[-1]))
-        return _gram(P), len(t) * float(t[-1] - t[0]) / 6.0
+        S, hQ = self._wk_S, self._wk_hQ
+        RR = self._wk_h2 * np.outer(S, S) + np.outer(S, hQ) + np.outer(hQ, S) + self._wk_QQ \
+            + np.outer(self._wk_St, self._wk_St)
+        L = np.empty((13, 14))
+        L[:, :13] = np.eye(13)
+        L[:, 13] = -S[:13] / self._wk_n
+        G = L @ RR @ L.T
+        return 0.5 * (G + G.T), self._wk_n * (self._wk_tl - self._wk_t0) / 6.0
 
     def _close_segment(self, new_start: float) -> None:
         """Fold the current segment's statistics into the closed ones; start a new one."""
@@ -391,18 +544,14 @@ class RecursiveEstimator:
         self._w0 = self._w00 = 0.0
         self._mean = np.zeros(13)
         self._C = np.zeros((13, 13))
-        self._seg_t, self._seg_V = [], []
-        if self._seg_tt:
-            tt = np.concatenate(self._seg_tt)
-            keep = max(int(np.searchsorted(tt, new_start, side='right')) - 1, 0)
-            self._seg_tt = [tt[keep:]]
+        self._walk_reset()
+        self._first_segment = False
         self._seg_start = new_start
 
     def _merge_piece(self, t: np.ndarray, V: np.ndarray) -> None:
         """Merge equations of one segment into the weighted centred statistics."""
         n = len(t)
-        self._seg_t.append(t)
-        self._seg_V.append(V)
+        self._walk_add(t, V)
         if self.window:
             wts = np.exp(-(t[-1] - t) / self.window)
             old = float(np.exp(-(t[-1] - self._t_last) / self.window)) \
@@ -425,6 +574,8 @@ class RecursiveEstimator:
         self._Cc = old * self._Cc
         self._GPc = old * old * self._GPc
         self._walkc *= old
+        self._tq_ss = old * self._tq_ss
+        self._tq_n *= old
         self._wc *= old
         self._w00c *= old * old
         self._neffc *= old
@@ -462,6 +613,14 @@ class RecursiveEstimator:
             diag['reason'] = f'only {self.samples_used} gyro samples covered by torque so far'
             return InertiaEstimate(status='insufficient_data', diagnostics=diag,
                                    **base)   # type: ignore[arg-type]
+        # torque-free data (as the batch rule): the scale is unobservable, the ratios and the
+        # principal axes come from the null vector of the homogeneous problem
+        torque_rms = np.sqrt(self._tq_ss / max(self._tq_n, 1e-300))
+        diag['torque_rms'] = torque_rms
+        tq_std = np.sqrt(self._tau_var) if self._tau_var is not None else np.zeros(3)
+        diag['torque_noise_std'] = tq_std
+        if float(np.max(torque_rms)) <= 5.0 * float(np.max(tq_std)):
+            return _homogeneous_from_stats(C_all, n_eff, nv, diag, base)
         eq = _Equations(np.zeros((0, 13)), np.zeros(0), np.zeros(0, dtype=bool),
                         'anchored', eiv_var=nv, weighted=True)
         gp, walk = self._segment_walk()
@@ -477,12 +636,6 @@ class RecursiveEstimator:
             f.cov = f.cov * ratio
             return f
 
-        torque_free = float(C_all[0, 0, 9, 9] + C_all[1, 1, 9, 9] + C_all[2, 2, 9, 9]) == 0.0
-        if torque_free:
-            diag['reason'] = 'no torque excitation: the scale is unobservable'
-            return InertiaEstimate(status='scale_unobservable',
-                                   identifiable=dict.fromkeys(THETA_NAMES, False),
-                                   diagnostics=diag, **base)   # type: ignore[arg-type]
         model = self.model
         return _conclude(fit, model, self.torque_bias, self.axis, self.alpha, 0.1, True,
                          diag, base)
