@@ -15,13 +15,11 @@ answers with a clean reset.
 """
 from __future__ import annotations
 
-import sys
 from typing import Any
 
-import rclpy
 from rcl_interfaces.msg import ParameterDescriptor
-from rclpy.executors import ExternalShutdownException
 
+from inertia_ros.ros_main import run_node
 from inertia_ros.scene_simulator_node import PlaybackNode, spin_until_done
 
 NODE_NAME = 'bag_player'
@@ -68,23 +66,7 @@ class BagPlayerNode(PlaybackNode):
 
 def main(args: list[str] | None = None) -> None:
     """Run the node (``ros2 run inertia_ros bag_player --ros-args -p path:=LOG.mcap``)."""
-    rclpy.init(args=args)
-    node = None
-    status = 0
-    try:
-        node = BagPlayerNode()
-        spin_until_done(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except ValueError as exc:  # bad parameters, scene or log: one line, no traceback
-        print(f'{NODE_NAME}: error: {exc}', file=sys.stderr)
-        status = 2
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
-    if status:
-        sys.exit(status)
+    run_node(BagPlayerNode, NODE_NAME, args, spin=spin_until_done)
 
 
 if __name__ == '__main__':

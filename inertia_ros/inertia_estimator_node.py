@@ -34,7 +34,6 @@ All numerics live in :mod:`inertia_ros.core`; messages in :mod:`inertia_ros.io`.
 from __future__ import annotations
 
 import math
-import sys
 import threading
 import time
 from collections.abc import Callable
@@ -42,7 +41,6 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import InertiaStamped, QuaternionStamped, Vector3Stamped, WrenchStamped
 from rcl_interfaces.msg import (
@@ -56,7 +54,6 @@ from rclpy.clock import Clock, ClockChange, JumpThreshold, TimeJump
 from rclpy.clock_type import ClockType
 from rclpy.duration import Duration
 from rclpy.event_handler import PublisherEventCallbacks
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile, qos_profile_sensor_data
@@ -66,6 +63,7 @@ from visualization_msgs.msg import MarkerArray
 
 from inertia_ros.core import estimation
 from inertia_ros.io import cdr_decode, ros_msgs
+from inertia_ros.ros_main import run_node
 
 NODE_NAME = 'inertia_estimator'
 
@@ -626,23 +624,7 @@ class InertiaEstimatorNode(Node):
 
 def main(args: list[str] | None = None) -> None:
     """Run the node until Ctrl-C or shutdown (``ros2 run inertia_ros inertia_estimator``)."""
-    rclpy.init(args=args)
-    node = None
-    status = 0
-    try:
-        node = InertiaEstimatorNode()
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except ValueError as exc:  # bad parameters, scene or log: one line, no traceback
-        print(f'{NODE_NAME}: error: {exc}', file=sys.stderr)
-        status = 2
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
-    if status:
-        sys.exit(status)
+    run_node(InertiaEstimatorNode, NODE_NAME, args)
 
 
 if __name__ == '__main__':

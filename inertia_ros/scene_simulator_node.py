@@ -17,7 +17,6 @@ does the timed playback.
 """
 from __future__ import annotations
 
-import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -34,13 +33,13 @@ from rcl_interfaces.msg import (
 )
 from rclpy.clock import Clock
 from rclpy.clock_type import ClockType
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, qos_profile_sensor_data
 from sensor_msgs.msg import Imu
 
 from inertia_ros.io import ros_msgs
+from inertia_ros.ros_main import run_node
 
 NODE_NAME = 'scene_simulator'
 _NS = 1_000_000_000
@@ -393,23 +392,7 @@ class SceneSimulatorNode(PlaybackNode):
 
 def main(args: list[str] | None = None) -> None:
     """Run the node (``ros2 run inertia_ros scene_simulator``)."""
-    rclpy.init(args=args)
-    node = None
-    status = 0
-    try:
-        node = SceneSimulatorNode()
-        spin_until_done(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except ValueError as exc:  # bad parameters, scene or log: one line, no traceback
-        print(f'{NODE_NAME}: error: {exc}', file=sys.stderr)
-        status = 2
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
-    if status:
-        sys.exit(status)
+    run_node(SceneSimulatorNode, NODE_NAME, args, spin=spin_until_done)
 
 
 if __name__ == '__main__':
