@@ -4,9 +4,9 @@ Methods (:data:`METHODS`), all built from :mod:`.regressors`:
 
 ``auto`` (default)
     ``ml`` for records of up to :data:`ML_AUTO_MAX_SAMPLES` gyro samples, ``integral`` for
-    longer ones (``ml`` costs about 5-8x ``integral``; on long records ``integral``'s error is
-    already small).  The result's ``method`` names the one used and
-    ``diagnostics['method_selection']`` says why.
+    longer ones (``ml`` costs about 6x ``integral`` on a 60 s, 200 Hz record and more on
+    long ones, where ``integral``'s error is already small).  The result's ``method`` names
+    the one used and ``diagnostics['method_selection']`` says why.
 ``integral``
     Momentum form anchored per segment.  For every gyro sample ``b`` of a segment,
     ``I w_b + int_{t0}^{t_b} w x (I w) dt - d t_b - h0 = int_{t0}^{t_b} tau dt``, with the
@@ -93,9 +93,10 @@ __all__ = ['HOLDS', 'METHODS', 'ML_AUTO_MAX_SAMPLES', 'MODELS', 'TORQUE_BIAS', '
 
 METHODS: tuple[str, ...] = ('auto', 'ml', 'integral', 'integral_ls', 'integral_sliding',
                             'differential_fd', 'differential_sg')
-#: ``method='auto'`` uses ``ml`` up to this many gyro samples, ``integral`` beyond (where the
-#: likelihood passes would cost seconds and memory of ~0.5 kB per sample).
-ML_AUTO_MAX_SAMPLES = 250_000
+#: ``method='auto'`` uses ``ml`` up to this many gyro samples (500 s at 200 Hz), ``integral``
+#: beyond: the likelihood passes cost ~25 us and ~2 kB per gyro sample (2.5 s and 0.2 GB
+#: here), while ``integral``'s cost grows more slowly and its error is already small.
+ML_AUTO_MAX_SAMPLES = 100_000
 MODELS: tuple[str, ...] = ('auto', 'full', 'diagonal', 'axisymmetric')
 TORQUE_BIAS: tuple[str, ...] = ('auto', 'on', 'off')
 HOLDS: tuple[str, ...] = ('zoh', 'linear')
