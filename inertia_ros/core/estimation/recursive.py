@@ -17,6 +17,15 @@ the running noise estimate, so the answer does not depend on how the streams wer
 blocks.  Forgetting (``window`` time constant or per-sample ``forgetting`` factor) lets the
 estimate follow a changing tensor.
 
+Everything ``estimate()`` needs is kept up to date as samples are merged, so its cost does not
+grow with the record: closed segments are folded into fixed sums, and the open segment's
+torque-noise statistics (the batch ``_torque_stats`` of its demeaned variables) are
+accumulated per torque interval in closed form (see :meth:`RecursiveEstimator._walk_add`)
+instead of being recomputed from the segment's samples, which are no longer stored.
+Torque-free data (torque RMS within five times its noise, the batch rule) gives
+``scale_unobservable`` with the ratios and principal axes from the null vector of the same
+statistics, as the batch estimator does.
+
 The two streams arrive asynchronously: gyro samples are buffered until torque covering them
 has arrived (a torque sample at or after the gyro time), then integrated exactly under the
 zero-order hold (or linear interpolation) of the torque samples.
