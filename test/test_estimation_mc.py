@@ -173,3 +173,25 @@ def test_ml_optimum_is_the_kalman_prediction_error_optimum(nominal20_mc):
                                    torque_std=dg['torque_noise_std'])
         w0 = w0 + st.step[6:9]
     np.testing.assert_array_less(np.abs(st.step[:6]) / est.theta_std, 0.05)
+
+
+def test_ml_is_calibrated_at_low_snr():
+    """Gyro noise 0.01 rad/s, multisine 0.03 N m, 60 s: ml's RMS z per element in [0.6, 1.3].
+
+    Low SNR, where the integral method's standard errors run small (RMS z up to ~1.5 on these
+    records); 20 seeds give RMS z a Monte Carlo spread of ~0.16, hence the lower limit.
+    """
+    from test_estimation import scene_dict
+    d = scene_dict('default')
+    d['torque'] = [dict(c, amplitude=0.03) for c in d['torque']]
+    d['gyro'] = dict(d['gyro'], noise_std=0.0)
+    d['torque_sensor'] = dict(d['torque_sensor'], noise_std=0.0, noise_rel=0.0)
+    sim = simulate(Scene.from_dict(d))
+    truth = matrix_to_theta(sim.inertia)
+    z = []
+    for seed in range(20):
+        est = estimate(*add_noise(sim, seed=6000 + seed, gyro_std=0.01), method='ml')
+        assert est.status == 'ok' and est.diagnostics['ml']['refined'] is True
+        z.append((est.theta - truth) / est.theta_std)
+    rms = np.sqrt(np.mean(np.square(z), axis=0))
+    assert np.all(rms >= 0.6) and np.all(rms <= 1.3), rms
