@@ -89,7 +89,11 @@ def monomials(omega: np.ndarray) -> np.ndarray:
     ndarray, shape (..., 6)
         [rad^2/s^2].
     """
-    return omega[..., _MONO_I] * omega[..., _MONO_J]
+    omega = np.asarray(omega, dtype=float)
+    out = np.empty(omega.shape[:-1] + (6,))
+    for k, (i, j) in enumerate(zip(_MONO_I, _MONO_J, strict=True)):   # no fancy-index copies
+        np.multiply(omega[..., i], omega[..., j], out=out[..., k])
+    return out
 
 
 def gyroscopic_matrix(m: np.ndarray) -> np.ndarray:
