@@ -13,6 +13,7 @@ from conftest import ROOT
 from inertia_ros.core.estimation import RecursiveEstimator, estimate
 from inertia_ros.core.estimation import batch as batch_mod
 from inertia_ros.core.estimation import recursive as rec_mod
+from inertia_ros.core.estimation.regressors import noise_std_from_differences
 from inertia_ros.core.inertia import principal_axes
 from inertia_ros.core.scene import Scene
 from inertia_ros.core.simulation import simulate
@@ -59,6 +60,16 @@ def test_lift_matches_batch():
     G = G @ G.T
     ref = batch_mod._lift(G)
     np.testing.assert_allclose(rec_mod._lift(G), ref, rtol=0, atol=1e-12 * np.abs(ref).max())
+
+
+@pytest.mark.parametrize('n', [0, 3, 5, 6, 16, 99, 100, 257, 60_000])
+def test_torque_noise_std_equals_regressors_helper(n):
+    """The per-block torque-noise estimate equals noise_std_from_differences exactly."""
+    rng = np.random.default_rng(n)
+    x = rng.normal(size=(n, 3)) * [0.1, 1.0, 0.0] + np.cumsum(rng.normal(size=(n, 3)), axis=0)
+    np.testing.assert_array_equal(rec_mod._torque_noise_std(x), noise_std_from_differences(x))
+    np.testing.assert_array_equal(rec_mod._torque_noise_std(np.round(x, 1)),
+                                  noise_std_from_differences(np.round(x, 1)))
 
 
 def feed(rec: RecursiveEstimator, sim, step: int) -> None:
