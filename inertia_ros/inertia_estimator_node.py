@@ -107,6 +107,10 @@ PARAMETERS: dict[str, _Param] = {
     'method': _Param('recursive', "'recursive' (core RecursiveEstimator over all data or the "
                      "window) or 'batch' (core estimate() re-solved over the sliding window)",
                      choices=METHODS),
+    'batch_method': _Param('integral', "core estimator of the 'batch' method: 'integral' "
+                           "(fast), 'ml' (maximum likelihood, at the Cramer-Rao bound, ~5x the "
+                           "time), 'auto' or another name of the core's METHODS",
+                           choices=tuple(estimation.METHODS)),
     'model': _Param('full', "tensor parameters: 'full' (6), 'diagonal' (3), 'axisymmetric' "
                     "(2, needs symmetry_axis) or 'auto' (model selection in the core)"),
     'symmetry_axis': _Param('', "symmetry axis for model 'axisymmetric': 'x', 'y' or 'z' "
@@ -177,8 +181,8 @@ def make_estimator(cfg: dict[str, Any]) -> Callable[[], Any]:
         estimation.RecursiveEstimator(**kwargs)  # validates
         return lambda: estimation.RecursiveEstimator(**kwargs)
     window = float(cfg['window']) or BATCH_DEFAULT_WINDOW
-    options = dict(model=cfg['model'], torque_bias=cfg['torque_bias'], hold=cfg['hold'],
-                   symmetry_axis=axis)
+    options = dict(method=cfg['batch_method'], model=cfg['model'],
+                   torque_bias=cfg['torque_bias'], hold=cfg['hold'], symmetry_axis=axis)
     _BatchWindow(window, options).validate()
     return lambda: _BatchWindow(window, options)
 
@@ -363,8 +367,8 @@ class InertiaEstimatorNode(Node):
             return SetParametersResult(successful=False, reason=problem)
         with self._lock:
             rebuild = any(cfg[k] != self._cfg[k] for k in
-                          ('method', 'model', 'symmetry_axis', 'torque_bias', 'forgetting',
-                           'window', 'hold'))
+                          ('method', 'batch_method', 'model', 'symmetry_axis', 'torque_bias',
+                           'forgetting', 'window', 'hold'))
             if cfg['frame_id'] != self._cfg['frame_id']:
                 self._frame = cfg['frame_id'] or None
                 rebuild = True

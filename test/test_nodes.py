@@ -188,6 +188,7 @@ def test_every_parameter_has_description_and_range(harness):
 @pytest.mark.parametrize('name, value, reason', [
     ('method', 'magic', 'method must be one of'),
     ('hold', 'cubic', 'hold must be one of'),
+    ('batch_method', 'guess', 'batch_method must be one of'),
     ('model', 'octagonal', 'rejected by the estimator'),
     ('model', 'axisymmetric', 'symmetry_axis'),
     ('torque_bias', 'maybe', 'torque_bias must be one of'),

@@ -55,8 +55,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help='body symmetry axis (needed by --model axisymmetric)')
     p.add_argument('--torque-bias', choices=TORQUE_BIAS, default='auto',
                    help='estimate a constant unmeasured disturbance torque (default auto)')
-    p.add_argument('--method', choices=METHODS, default='integral',
-                   help='estimator (default integral)')
+    p.add_argument('--method', choices=METHODS, default='auto',
+                   help='estimator (default auto: maximum likelihood (ml) up to 100k gyro '
+                        'samples, integral beyond)')
     p.add_argument('--hold', choices=HOLDS, default='zoh',
                    help='torque between samples: zero-order hold or linear (default zoh)')
     p.add_argument('--torque-delay', type=float, default=0.0, metavar='S',
