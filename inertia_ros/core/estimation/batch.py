@@ -1149,10 +1149,38 @@ def _homogeneous(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau
     meth = method if method != 'integral_ls' else 'integral'
     eq = _build(meth, tg, w, ts, tau, mask, breaks, hold, gyro_var, window)
     st = _stats(eq, segment, ts, float(ts[-1]), np.zeros(3))
-    H0 = _metric(st.C, np.eye(3))[:6, :6]
+    return _homogeneous_from_stats(st.C, st.n_eff, eq.eiv_var, diag, base)
+
+
+def _homogeneous_from_stats(C: np.ndarray, n_eff: float, eiv_var: np.ndarray | None,
+                            diag: dict[str, Any], base: dict[str, Any]) -> InertiaEstimate:
+    """Torque-free data: ratios and axes from the null vector of the homogeneous problem.
+
+    Shared by the batch ``_homogeneous`` (which builds ``C`` from the raw streams first) and
+    the recursive estimator (which keeps ``C`` as running sums), so that both report the
+    same ``scale_unobservable`` result.
+
+    Parameters
+    ----------
+    C : ndarray, shape (3, 3, 10, 10)
+        Cross Grams of the segment-demeaned, gyro-noise-corrected equation blocks.
+    n_eff : float
+        Equations minus segment intercepts (effective count when weighted).
+    eiv_var : ndarray, shape (3,), optional
+        Gyro noise variance per axis [rad^2/s^2] in the regressor (bias compensation).
+    diag, base : dict
+        Diagnostics (updated in place) and the common result fields.
+
+    Returns
+    -------
+    InertiaEstimate
+        ``scale_unobservable`` with ``ratios`` and ``principal_axes``, or
+        ``insufficient_excitation`` when the motion does not single out the ratios.
+    """
+    H0 = _metric(C, np.eye(3))[:6, :6]
     H = H0.copy()
-    if eq.eiv_var is not None:
-        H -= st.n_eff * np.einsum('c,crk,csl->kl', eq.eiv_var, _L_BASIS, _L_BASIS)
+    if eiv_var is not None:
+        H -= n_eff * np.einsum('c,crk,csl->kl', eiv_var, _L_BASIS, _L_BASIS)
     d = np.sqrt(np.diag(H0))
     diag['reason'] = 'no torque excitation: only ratios and principal axes are observable'
     if np.any(d == 0):

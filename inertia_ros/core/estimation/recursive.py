@@ -37,25 +37,16 @@ from typing import Any
 
 import numpy as np
 
-from ..inertia import (
-    THETA_NAMES,
-    check_physical,
-    nearest_physical,
-    principal_axes,
-    theta_to_matrix,
-)
 from .batch import (
-    _L_BASIS,
     _VMAP,
     HOLDS,
     _axis,
     _conclude,
-    _describe,
     _Equations,
     _Fit,
     _fit2,
     _gram,
-    _metric,
+    _homogeneous_from_stats,
     _Stats,
 )
 from .regressors import (
@@ -111,67 +102,6 @@ def _torque_noise_std(x: np.ndarray) -> np.ndarray:
             best = np.minimum(best, 1.4826 * mad / _SQRT_COMB[k])
     best[~np.isfinite(best)] = 0.0
     return best
-
-
-def _homogeneous_from_stats(C: np.ndarray, n_eff: float, eiv_var: np.ndarray | None,
-                            diag: dict[str, Any], base: dict[str, Any]) -> InertiaEstimate:
-    """Torque-free data: ratios and axes from the null vector of the homogeneous problem.
-
-    The statistics half of the batch module's ``_homogeneous`` (which builds ``C`` from the
-    raw streams first), step for step, so that both report the same ``scale_unobservable``
-    result; it belongs in the batch module, with ``_homogeneous`` calling it (see the H8
-    report).
-
-    Parameters
-    ----------
-    C : ndarray, shape (3, 3, 10, 10)
-        Cross Grams of the segment-demeaned, gyro-noise-corrected equation blocks.
-    n_eff : float
-        Equations minus segment intercepts (effective count when weighted).
-    eiv_var : ndarray, shape (3,), optional
-        Gyro noise variance per axis [rad^2/s^2] in the regressor (bias compensation).
-    diag, base : dict
-        Diagnostics (updated in place) and the common result fields.
-
-    Returns
-    -------
-    InertiaEstimate
-        ``scale_unobservable`` with ``ratios`` and ``principal_axes``, or
-        ``insufficient_excitation`` when the motion does not single out the ratios.
-    """
-    H0 = _metric(C, np.eye(3))[:6, :6]
-    H = H0.copy()
-    if eiv_var is not None:
-        H -= n_eff * np.einsum('c,crk,csl->kl', eiv_var, _L_BASIS, _L_BASIS)
-    d = np.sqrt(np.diag(H0))
-    diag['reason'] = 'no torque excitation: only ratios and principal axes are observable'
-    if np.any(d == 0):
-        diag['reason'] = 'torque-free data without rotation about every axis'
-        return InertiaEstimate(status='insufficient_excitation', diagnostics=diag,
-                               **base)   # type: ignore[arg-type]
-    lam0 = np.linalg.eigvalsh(H0 / d[:, None] / d[None, :])
-    lam, vec = np.linalg.eigh(H / d[:, None] / d[None, :])
-    v = vec[:, 0] / d
-    gap = float(lam0[1] / max(lam0[0], 1e-300))
-    diag['eigenvalue_gap'] = gap
-    diag['condition_number'] = float(lam0[-1] / max(lam0[0], 1e-300))
-    if gap < 10.0:
-        diag['reason'] = ('torque-free data whose motion does not single out the inertia '
-                          'ratios (e.g. a spin about a principal axis)')
-        diag['weakest_direction'] = _describe(vec[:, 1] / d, list(THETA_NAMES))
-        return InertiaEstimate(status='insufficient_excitation', diagnostics=diag,
-                               **base)   # type: ignore[arg-type]
-    R = theta_to_matrix(v)
-    R /= np.trace(R)
-    chk = check_physical(R)
-    if not chk.valid:
-        diag['physical'] = {'valid': False, 'failures': list(chk.failures), 'projected': True}
-        R = nearest_physical(R)
-        R /= np.trace(R)
-    _, axes = principal_axes(R)
-    return InertiaEstimate(status='scale_unobservable', ratios=R, principal_axes=axes,
-                           identifiable=dict.fromkeys(THETA_NAMES, False), model='homogeneous',
-                           diagnostics=diag, **base)   # type: ignore[arg-type]
 
 
 class RecursiveEstimator:
