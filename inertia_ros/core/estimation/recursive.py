@@ -59,6 +59,8 @@ __all__ = ['RecursiveEstimator']
 
 _RMODELS = ('auto', 'full', 'diagonal', 'axisymmetric')
 _MAX_BUFFER = 400_000                      # gyro samples kept waiting for torque
+_GAP_FACTOR = 5.0       # a sample interval over this many nominal intervals is a gap
+_DT_HISTORY = 64        # recent sample intervals kept per stream for the nominal interval
 _VMAP2 = np.ascontiguousarray(_VMAP.reshape(13, 30))
 
 
@@ -203,6 +205,10 @@ class RecursiveEstimator:
         self._tq_ss = np.zeros(3)        # (decayed) sum of squared torque [N^2 m^2]
         self._tq_n = 0.0                 # and its (decayed) count
         self._tau_dt = 0.0
+        self._tq_dts = np.empty(0)       # recent torque / gyro sample intervals [s]
+        self._g_dts = np.empty(0)
+        self._tq_last: float | None = None
+        self.gaps = 0                    # gaps that ended a segment holding data
         self._t_last: float | None = None
         self._last_t_in: float | None = None
         self._last_tau_in: float | None = None
@@ -329,6 +335,10 @@ class RecursiveEstimator:
             self._pt, self._ptau = [], []
             self._tq_ss = self._tq_ss + np.einsum('ij,ij->j', new_tau, new_tau)
             self._tq_n += len(new_t)
+            edges = new_t if self._tq_last is None else np.concatenate([[self._tq_last],
+                                                                         new_t])
+            self._tq_dts = np.concatenate([self._tq_dts, np.diff(edges)])[-_DT_HISTORY:]
+            self._tq_last = float(new_t[-1])
             if len(new_t) >= 16:
                 v = _torque_noise_std(new_tau) ** 2
                 self._tau_var = v if self._tau_var is None else 0.8 * self._tau_var + 0.2 * v
@@ -354,6 +364,7 @@ class RecursiveEstimator:
             self._gt, self._gw = [t[~ready]], [w[~ready]]
             self._n_buf = int(np.sum(~ready))
             t, w = t[ready], w[ready]
+        t, w, breaks = self._gaps(t, w)
         if len(t) == 0:
             return
         if self._gyro_noise is None:
@@ -392,7 +403,16 @@ class RecursiveEstimator:
         # raw monomial integrals: the gyro-noise correction m - s sigma^2 is linear in the
         # variables, applied to the statistics at estimate() with the final noise estimate
         V = np.concatenate([w, M, (t - self._t0)[:, None], T], axis=1)
-        self._merge(t, V)
+        # a gap starts a new anchored segment: the wrongly held torque and the trapezoid across
+        # the gap shift T and M by constants, which the new segment's momentum absorbs
+        lo = 0
+        for k in breaks:
+            if k > lo:
+                self._merge(t[lo:k], V[lo:k])
+            self.gaps += self._w0 > 0       # a break that ends a segment holding data
+            self._close_segment(float(t[k]))
+            lo = k
+        self._merge(t[lo:], V[lo:])
         self.samples_used += len(t)
         # keep torque samples from the last one at or before the last processed gyro time
         j = int(np.searchsorted(self._ts, t[-1], side='right') - 1)
@@ -401,6 +421,44 @@ class RecursiveEstimator:
                                                             self._ts[j:j + 1], self.hold)[0]
             self._ts = self._ts[j:]
             self._tau = self._tau[j:]
+
+    def _gaps(self, t: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[int]]:
+        """Drop gyro samples inside torque gaps; find where gaps force a new segment.
+
+        A torque interval longer than ``_GAP_FACTOR`` nominal intervals (lost messages, a
+        paused controller) would be integrated as the last command held throughout, and a
+        gyro gap would be bridged by one trapezoid: both corrupt every later equation of the
+        segment.  Gyro samples the held torque cannot cover are dropped (counted), and the
+        first sample after each gap starts a new anchored segment.
+
+        Returns
+        -------
+        t, w : ndarray
+            The kept gyro samples.
+        breaks : list of int
+            Sorted indices into the kept ``t`` where a new segment starts.
+        """
+        starts: list[float] = []
+        keep = np.ones(len(t), dtype=bool)
+        if len(self._tq_dts) >= 2 and len(self._ts) >= 2:
+            nominal = float(np.median(self._tq_dts))
+            dq = np.diff(self._ts)
+            for i in np.flatnonzero(dq > _GAP_FACTOR * nominal):
+                keep &= ~((t > self._ts[i] + nominal) & (t < self._ts[i + 1]))
+                starts.append(float(self._ts[i + 1]))
+        edges = t if self._prev is None else np.concatenate([[self._prev[0]], t])
+        self._g_dts = np.concatenate([self._g_dts, np.diff(edges)])[-_DT_HISTORY:]
+        if len(self._g_dts) >= 2:
+            dg = np.diff(edges)
+            big = np.flatnonzero(dg > _GAP_FACTOR * float(np.median(self._g_dts)))
+            starts.extend(float(edges[i + 1]) for i in big)
+        if not starts:
+            return t, w, []
+        dropped = int(np.sum(~keep))
+        self.samples_dropped += dropped
+        t, w = t[keep], w[keep]
+        breaks = sorted({int(np.searchsorted(t, b, side='left')) for b in starts})
+        return t, w, [k for k in breaks if k < len(t)]
 
     def _merge(self, t: np.ndarray, V: np.ndarray) -> None:
         """Merge a block of equations, closing anchored segments at their boundaries."""
@@ -576,6 +634,9 @@ class RecursiveEstimator:
         K[9, 3:6] = -nv
         diag: dict[str, Any] = {'gyro_noise_std': np.sqrt(nv), 'warnings': [],
                                 'effective_samples': self._w0 + self._wc}
+        if self.gaps:
+            diag['warnings'].append(f'{self.gaps} gap(s) in the streams: each started a new '
+                                    'segment; gyro samples inside torque gaps were dropped')
         n_eff = self._neffc + (self._w0 - self._w00 / self._w0 if self._w0 > 0 else 0.0)
         w_all = self._w0 + self._wc
         C_all = _lift(K.T @ (self._C + self._Cc) @ K)
