@@ -129,6 +129,17 @@ def _check_symmetric(m: np.ndarray, name: str, rtol: float) -> None:
                          f'rtol * max|I_ij| = {rtol:.1g} * {scale:.3g}')
 
 
+def _matrix33(I: Any, name: str) -> np.ndarray:
+    """``I`` (array-like or anything with ``.matrix``) as a finite float (3, 3) array."""
+    if hasattr(I, 'matrix') and not isinstance(I, np.ndarray):
+        I = I.matrix
+    arr = _as_float_array(I, name)
+    if arr.shape != (3, 3):
+        raise ValueError(f'{name}: expected shape (3, 3), got {arr.shape}')
+    _check_finite(arr, name)
+    return arr
+
+
 def as_inertia_matrix(I: Any, name: str = 'I', *, rtol: float = SYMMETRY_RTOL,
                       check_finite: bool = True, stacked: bool = False) -> np.ndarray:
     """Validate and return a symmetric 3x3 inertia matrix (or a stack of them).
@@ -375,12 +386,7 @@ def check_physical(I: Any, rtol: float = 1e-9, *, allow_singular: bool = False) 
     """
     if not (np.isfinite(rtol) and rtol >= 0):
         raise ValueError(f'rtol: must be a finite number >= 0, got {rtol!r}')
-    if hasattr(I, 'matrix') and not isinstance(I, np.ndarray):
-        I = I.matrix
-    arr = _as_float_array(I, 'I')
-    if arr.shape != (3, 3):
-        raise ValueError(f'I: expected shape (3, 3), got {arr.shape}')
-    _check_finite(arr, 'I')
+    arr = _matrix33(I, 'I')
     sym = 0.5 * (arr + arr.T)
     asym = _max_asymmetry(arr)
     moments = np.linalg.eigvalsh(sym)
@@ -493,12 +499,7 @@ def nearest_physical(I: Any, *, min_moment: float | None = None) -> np.ndarray:
         Wrong shape, NaN/inf, negative ``min_moment``, or an all-zero ``I`` with no
         ``min_moment`` (no scale to take the default from).
     """
-    if hasattr(I, 'matrix') and not isinstance(I, np.ndarray):
-        I = I.matrix
-    arr = _as_float_array(I, 'I')
-    if arr.shape != (3, 3):
-        raise ValueError(f'I: expected shape (3, 3), got {arr.shape}')
-    _check_finite(arr, 'I')
+    arr = _matrix33(I, 'I')
     sym = 0.5 * (arr + arr.T)
     lam, vecs = np.linalg.eigh(sym)
     scale = float(np.max(np.abs(lam)))
