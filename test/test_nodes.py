@@ -516,15 +516,8 @@ def start_pair(est_cmd, sim_cmd, env, tmp_path: Path):
 
 def stop_all(procs, logs):
     """SIGINT, then kill, every process; close the logs."""
-    for p in procs:
-        if p.poll() is None:
-            p.send_signal(2)
-    for p in procs:
-        try:
-            p.wait(timeout=5)
-        except subprocess.TimeoutExpired:
-            p.kill()
-            p.wait()
+    from inertia_ros.cli.demo import stop_processes
+    stop_processes(procs)
     for log in logs:
         log.close()
 

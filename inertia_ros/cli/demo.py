@@ -56,6 +56,27 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
+def stop_processes(procs: list[subprocess.Popen], timeout: float = 5.0) -> None:
+    """Interrupt every process (SIGINT, a clean ROS shutdown), then kill the stragglers.
+
+    Parameters
+    ----------
+    procs : list of subprocess.Popen
+        Node processes started by the demo (or a test).
+    timeout : float
+        How long each may take to exit after SIGINT [s].
+    """
+    for p in procs:
+        if p.poll() is None:
+            p.send_signal(signal.SIGINT)
+    for p in procs:
+        try:
+            p.wait(timeout=timeout)
+        except subprocess.TimeoutExpired:
+            p.kill()
+            p.wait()
+
+
 def _unique(path: Path) -> Path:
     """``path`` itself, or with the first free ``-N`` suffix: never overwrite a file."""
     if not path.exists():
@@ -251,15 +272,7 @@ def run(args: argparse.Namespace) -> int:
                 next_print = now + 1.0
                 _print_row(run_data)
     finally:
-        for p in procs:
-            if p.poll() is None:
-                p.send_signal(signal.SIGINT)
-        for p in procs:
-            try:
-                p.wait(timeout=5)
-            except subprocess.TimeoutExpired:
-                p.kill()
-                p.wait()
+        stop_processes(procs)
         drain()
         node.destroy_node()
         sensor_node.destroy_node()
