@@ -80,6 +80,8 @@ def test_installed_nodes_talk_over_dds(colcon_ws, tmp_path):
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.node import Node
 
+    from inertia_ros.cli.demo import stop_processes, wait_until_matched
+
     prefix = colcon_ws / 'install' / 'inertia_ros'
     domain = 221 + os.getpid() % 11
     env = _installed_env(prefix, domain)
@@ -92,37 +94,41 @@ def test_installed_nodes_talk_over_dds(colcon_ws, tmp_path):
                       '-p', 'wait_for_subscribers:=1', '-p', 'exit_on_end:=true'],
     }
     logs = {k: open(tmp_path / f'{k}.log', 'w') for k in cmds}
-    procs = {k: subprocess.Popen(c, env=env, cwd=tmp_path, stdout=logs[k],
-                                 stderr=subprocess.STDOUT) for k, c in cmds.items()}
+    procs: dict[str, subprocess.Popen] = {}
+
+    def start(k: str) -> None:
+        procs[k] = subprocess.Popen(cmds[k], env=env, cwd=tmp_path, stdout=logs[k],
+                                    stderr=subprocess.STDOUT)
+
     ctx = rclpy.context.Context()
     rclpy.init(context=ctx, domain_id=domain)
     got = []
     try:
         node = Node('colcon_listener', context=ctx)
-        node.create_subscription(InertiaStamped, '/inertia_estimator/inertia', got.append, 10)
+        sub = node.create_subscription(InertiaStamped, '/inertia_estimator/inertia',
+                                       got.append, 10)
         exe = SingleThreadedExecutor(context=ctx)
         exe.add_node(node)
-        end = time.monotonic() + 40.0
-        while time.monotonic() < end and len(got) < 3:
-            exe.spin_once(timeout_sec=0.05)
-            if procs['estimator'].poll() is not None:
-                break
+        start('estimator')
+        # The scene starts once this listener has discovered the estimator's output.
+        problem = wait_until_matched(lambda: exe.spin_once(timeout_sec=0.05), [sub],
+                                     procs['estimator'], 30.0)
+        if not problem:
+            start('simulator')
+            end = time.monotonic() + 40.0
+            while time.monotonic() < end and len(got) < 3:
+                exe.spin_once(timeout_sec=0.05)
+                if procs['estimator'].poll() is not None:
+                    break
         exe.shutdown()
         node.destroy_node()
     finally:
         rclpy.try_shutdown(context=ctx)
-        for p in procs.values():
-            if p.poll() is None:
-                p.send_signal(2)
-        for p in procs.values():
-            try:
-                p.wait(timeout=5)
-            except subprocess.TimeoutExpired:
-                p.kill()
-                p.wait()
+        stop_processes(list(procs.values()))
         for f in logs.values():
             f.close()
     text = {k: (tmp_path / f'{k}.log').read_text() for k in cmds}
+    assert not problem, f"{problem}\n{text['estimator'][-2000:]}"
     assert got, f"no estimate over DDS\n{text['estimator'][-2000:]}\n{text['simulator'][-2000:]}"
     assert str(prefix / 'share' / 'inertia_ros' / 'config' / 'scenes') in text['simulator']
     assert got[-1].header.frame_id == 'base_link'

@@ -486,32 +486,44 @@ def _env():
                 PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get('PYTHONPATH', ''))
 
 
-def collect_estimates(node, ctx, done, timeout):
-    """Spin ``node`` collecting ~/inertia and ~/truth until ``done()`` (+1 s) or timeout."""
+def run_pair(node, ctx, est_cmd, sim_cmd, env, tmp_path: Path, timeout: float,
+             procs: list, logs: list):
+    """Run the estimator and simulator processes; collect ~/inertia and ~/truth on ``node``.
+
+    The simulator starts only once ``node`` has discovered the estimator's ~/inertia
+    publisher (as ``make demo`` does), so that no estimate is lost to slow discovery.
+    Collection ends 1 s after the simulator exits, or at ``timeout`` [s].
+    The processes and their logs are appended to ``procs`` and ``logs`` (for ``stop_all``,
+    also when this fails).  Returns (estimates, truths).
+    """
+    from inertia_ros.cli.demo import wait_until_matched
+
     got, truth = [], []
-    node.create_subscription(InertiaStamped, '/inertia_estimator/inertia', got.append, 100)
+    sub = node.create_subscription(InertiaStamped, '/inertia_estimator/inertia', got.append,
+                                   100)
     node.create_subscription(InertiaStamped, '/scene_simulator/truth', truth.append,
                              QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL))
     exe = SingleThreadedExecutor(context=ctx)
     exe.add_node(node)
-    end = time.monotonic() + timeout
-    finished = None
-    while time.monotonic() < end:
-        exe.spin_once(timeout_sec=0.05)
-        if finished is None and done():
-            finished = time.monotonic()
-        if finished is not None and time.monotonic() - finished > 1.0:
-            break
-    exe.shutdown()
+    logs += [open(tmp_path / n, 'w') for n in ('est.log', 'sim.log')]
+    procs.append(subprocess.Popen(est_cmd, env=env, stdout=logs[0], stderr=subprocess.STDOUT))
+    try:
+        problem = wait_until_matched(lambda: exe.spin_once(timeout_sec=0.05), [sub], procs[0],
+                                     30.0)
+        assert not problem, problem + '\n' + (tmp_path / 'est.log').read_text()[-3000:]
+        procs.append(subprocess.Popen(sim_cmd, env=env, stdout=logs[1],
+                                      stderr=subprocess.STDOUT))
+        end = time.monotonic() + timeout
+        finished = None
+        while time.monotonic() < end:
+            exe.spin_once(timeout_sec=0.05)
+            if finished is None and procs[1].poll() is not None:
+                finished = time.monotonic()
+            if finished is not None and time.monotonic() - finished > 1.0:
+                break
+    finally:
+        exe.shutdown()
     return got, truth
-
-
-def start_pair(est_cmd, sim_cmd, env, tmp_path: Path):
-    """Start the estimator and simulator processes with logs in tmp_path."""
-    logs = [open(tmp_path / n, 'w') for n in ('est.log', 'sim.log')]
-    procs = [subprocess.Popen(cmd, env=env, stdout=log, stderr=subprocess.STDOUT)
-             for cmd, log in zip((est_cmd, sim_cmd), logs, strict=True)]
-    return procs, logs
 
 
 def stop_all(procs, logs):
@@ -534,12 +546,12 @@ def test_nodes_as_processes_over_dds(tmp_path):
     sim_cmd = [sys.executable, '-m', 'inertia_ros.scene_simulator_node', '--ros-args',
                '-p', f'scene:={scene}', '-p', 'rate:=8.0', '-p', 'wait_for_subscribers:=1',
                '-p', 'exit_on_end:=true']
-    procs, logs = start_pair(est_cmd, sim_cmd, env, tmp_path)
     ctx = rclpy.context.Context()
     rclpy.init(context=ctx, domain_id=DOMAIN_ID + 110)
+    procs, logs = [], []
     try:
         node = Node('test_listener', context=ctx)
-        got, truth = collect_estimates(node, ctx, lambda: procs[1].poll() is not None, 40.0)
+        got, truth = run_pair(node, ctx, est_cmd, sim_cmd, env, tmp_path, 40.0, procs, logs)
         node.destroy_node()
     finally:
         rclpy.try_shutdown(context=ctx)

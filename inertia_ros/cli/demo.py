@@ -23,8 +23,10 @@ import signal
 import subprocess
 import sys
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -32,6 +34,7 @@ from inertia_ros.cli import UserError
 
 DEFAULT_RATE = 4.0  # playback speed factor: the 60 s default scene runs in 15 s
 MAX_RATE = 50.0
+DISCOVERY_TIMEOUT = 30.0  # [s] longest wait for the estimator's outputs to be discovered
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -75,6 +78,42 @@ def stop_processes(procs: list[subprocess.Popen], timeout: float = 5.0) -> None:
         except subprocess.TimeoutExpired:
             p.kill()
             p.wait()
+
+
+def wait_until_matched(spin: Callable[[], None], subscriptions: list[Any],
+                       proc: subprocess.Popen, timeout: float) -> str:
+    """Spin until every subscription is matched to a publisher: DDS discovery is done.
+
+    A node's first outputs are lost to a subscriber that has not yet discovered it, and
+    discovery between processes can take seconds on a loaded machine; so the demo (and the
+    process tests) wait for the estimator's outputs to be matched before any data flows.
+
+    Parameters
+    ----------
+    spin : callable
+        Spins the subscribing node(s) once, briefly.
+    subscriptions : list of rclpy.subscription.Subscription
+        Subscriptions to the publishing process's topics.
+    proc : subprocess.Popen
+        The publishing process: its early exit ends the wait.
+    timeout : float
+        Longest wait [s].
+
+    Returns
+    -------
+    str
+        '' when all are matched, else what went wrong (one line).
+    """
+    end = time.monotonic() + timeout
+    while True:
+        missing = [s.topic_name for s in subscriptions if s.get_publisher_count() == 0]
+        if not missing:
+            return ''
+        if proc.poll() is not None:
+            return f'the publishing process exited (status {proc.returncode})'
+        if time.monotonic() > end:
+            return f'no publisher discovered on {", ".join(missing)} within {timeout:g} s'
+        spin()
 
 
 def _unique(path: Path) -> Path:
@@ -228,6 +267,7 @@ def run(args: argparse.Namespace) -> int:
     sensor_node = Node('inertia_demo_input', start_parameter_services=False,
                        enable_rosout=False)
     sensor_subs = {}
+    estimator_subs: list[Any] = []
     try:
         for topic, (_, _, _, kind) in TOPICS.items():
             if kind == 'sensor_data':
@@ -239,10 +279,18 @@ def run(args: argparse.Namespace) -> int:
                 qos = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
             else:
                 qos = QoSProfile(depth=100)
-            node.create_subscription(classes[topic], topic,
-                                     lambda d, t=topic: on_message(t, d), qos, raw=True)
+            sub = node.create_subscription(classes[topic], topic,
+                                           lambda d, t=topic: on_message(t, d), qos, raw=True)
+            if topic in ('/inertia_estimator/inertia', '/diagnostics'):
+                estimator_subs.append(sub)
         node.create_timer(0.01, drain, clock=Clock(clock_type=ClockType.STEADY_TIME))
         procs.append(subprocess.Popen(est_cmd, env=env, stdout=log, stderr=subprocess.STDOUT))
+        # The scene starts only once this process has discovered the estimator's outputs:
+        # otherwise a slow discovery would lose the first (or, on a short scene, all) estimates.
+        problem = wait_until_matched(lambda: rclpy.spin_once(node, timeout_sec=0.05),
+                                     estimator_subs, procs[0], DISCOVERY_TIMEOUT)
+        if problem:
+            raise UserError(f'the estimator did not come up: {problem}; see {log_path}')
         procs.append(subprocess.Popen(sim_cmd, env=env, stdout=log, stderr=subprocess.STDOUT))
         sim = procs[1]
         wall_budget = scene.duration / args.rate + 60.0
