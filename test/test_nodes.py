@@ -580,6 +580,19 @@ def test_demo_never_overwrites(tmp_path):
     assert first.read_text() == 'user file'
 
 
+def test_demo_plot_without_estimates(tmp_path):
+    """A run that got no estimate still gets a readable PNG, without matplotlib warnings."""
+    import warnings
+
+    from inertia_ros.cli.demo import _plot, _Run
+
+    png = tmp_path / 'empty.png'
+    with warnings.catch_warnings():
+        warnings.simplefilter('error')
+        _plot(png, _Run(), 'nominal')
+    assert png.read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'
+
+
 @pytest.mark.parametrize('argv, match', [
     (['--rate', '0'], '--rate: must be in'),
     (['--scene', 'no/such.yaml'], '--scene: no such file'),

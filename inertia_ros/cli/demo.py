@@ -427,8 +427,12 @@ def _plot(path: Path, run: _Run, name: str) -> None:
     ax_d.set_ylabel('moments of inertia [kg m^2]')
     ax_p.set_ylabel('products of inertia [kg m^2]')
     ax_d.set_title(f'inertia_ros demo, scene {name!r}: estimate (solid) vs truth (dashed)')
-    ax_d.legend(ncol=3, fontsize='small')
-    ax_p.legend(ncol=3, fontsize='small')
+    if run.est:
+        ax_d.legend(ncol=3, fontsize='small')
+        ax_p.legend(ncol=3, fontsize='small')
+    else:
+        ax_d.text(0.5, 0.5, 'no estimate was published', transform=ax_d.transAxes,
+                  ha='center', va='center')
     ax2.set_ylabel('max |I_est - I_true| / I3 [%]')
     ax2.set_xlabel('data time [s]')
     ax2.grid(True, which='both', alpha=0.3)
