@@ -225,6 +225,27 @@ class _Dynamics:
         Zd[..., :6] += self.mIi @ Y
         return wd, Zd
 
+    def rk4(self, w: np.ndarray, Z: np.ndarray, Iiu: np.ndarray, h: float | np.ndarray,
+            n: int) -> tuple[np.ndarray, np.ndarray]:
+        """``n`` classical RK4 steps of length ``h`` [s] from ``(w, Z)`` under constant ``Iiu``.
+
+        ``h`` is a scalar, or one step length per leading batch index of ``w`` (shape
+        ``w.shape[:-1]``: every interval of a batch integrated at once).
+        """
+        if isinstance(h, float):
+            hw = hz = h
+        else:
+            hw = np.asarray(h, dtype=float)[..., None]  # broadcasts over w's last axis
+            hz = hw[..., None]                          # and over Z's last two
+        for _ in range(n):
+            k1w, k1 = self(w, Z, Iiu)
+            k2w, k2 = self(w + 0.5 * hw * k1w, Z + 0.5 * hz * k1, Iiu)
+            k3w, k3 = self(w + 0.5 * hw * k2w, Z + 0.5 * hz * k2, Iiu)
+            k4w, k4 = self(w + hw * k3w, Z + hz * k3, Iiu)
+            w = w + hw / 6.0 * (k1w + 2.0 * (k2w + k3w) + k4w)
+            Z = Z + hz / 6.0 * (k1 + 2.0 * (k2 + k3) + k4)
+        return w, Z
+
 
 def _validated(t_gyro: Any, t_torque: Any, torque: Any, inertia: Any, omega0: Any,
                gyro_std: Any, torque_std: Any, disturbance: Any) -> tuple[Any, ...]:
@@ -350,13 +371,7 @@ def _kalman_pass(tg: np.ndarray, ts: np.ndarray, tau: np.ndarray, I: np.ndarray,
         Z[:, :n_par] = S
         Z[:, n_par:n_par + 3] = np.eye(3)
         Z[:, n_par + 3:] = 0.0
-        for _ in range(n):
-            k1w, k1 = dyn(w, Z, Iiu)
-            k2w, k2 = dyn(w + 0.5 * h * k1w, Z + 0.5 * h * k1, Iiu)
-            k3w, k3 = dyn(w + 0.5 * h * k2w, Z + 0.5 * h * k2, Iiu)
-            k4w, k4 = dyn(w + h * k3w, Z + h * k3, Iiu)
-            w = w + h / 6.0 * (k1w + 2.0 * (k2w + k3w) + k4w)
-            Z = Z + h / 6.0 * (k1 + 2.0 * (k2 + k3) + k4)
+        w, Z = dyn.rk4(w, Z, Iiu, h, n)
         S = Z[:, :n_par].copy()
         if noisy:
             Phi = Z[:, n_par:n_par + 3]

@@ -115,15 +115,7 @@ def _shoot(dyn: _Dynamics, r0: np.ndarray, s: np.ndarray, T: np.ndarray, iiu: np
             vmax = float(np.max(np.linalg.norm(w, axis=1))) + float(
                 np.max(np.linalg.norm(iiu, axis=1)) * np.max(h_tot))
             nsub = max(1, int(np.ceil(vmax * float(np.max(h_tot)) / _MAX_STEP_ANGLE)))
-            h = (h_tot / nsub)[:, None]
-            h3 = h[:, :, None]
-            for _ in range(nsub):
-                k1w, k1 = dyn(w, Z, iiu)
-                k2w, k2 = dyn(w + 0.5 * h * k1w, Z + 0.5 * h3 * k1, iiu)
-                k3w, k3 = dyn(w + 0.5 * h * k2w, Z + 0.5 * h3 * k2, iiu)
-                k4w, k4 = dyn(w + h * k3w, Z + h3 * k3, iiu)
-                w = w + h / 6.0 * (k1w + 2.0 * (k2w + k3w) + k4w)
-                Z = Z + h3 / 6.0 * (k1 + 2.0 * (k2 + k3) + k4)
+            w, Z = dyn.rk4(w, Z, iiu, h_tot / nsub, nsub)
         at = cg == k
         wg[at] = w[jg[at]]
         Zg[at] = Z[jg[at]]
