@@ -12,7 +12,6 @@ import yaml
 from conftest import ROOT
 from inertia_ros.core.estimation import RecursiveEstimator, estimate
 from inertia_ros.core.estimation import batch as batch_mod
-from inertia_ros.core.estimation import recursive as rec_mod
 from inertia_ros.core.estimation.regressors import noise_std_from_differences
 from inertia_ros.core.inertia import principal_axes
 from inertia_ros.core.scene import Scene
@@ -54,22 +53,40 @@ def test_incremental_torque_walk_matches_definition(cuts):
         start = stop
 
 
-def test_lift_matches_batch():
-    """The recursive module's matrix-product lift equals the batch einsum lift (rtol 1e-12)."""
+def test_lift_is_the_variable_map_sandwich():
+    """``_lift`` (two matrix products) equals its defining einsum (rtol 1e-12)."""
     G = np.random.default_rng(5).normal(size=(13, 13))
     G = G @ G.T
-    ref = batch_mod._lift(G)
-    np.testing.assert_allclose(rec_mod._lift(G), ref, rtol=0, atol=1e-12 * np.abs(ref).max())
+    ref = np.einsum('irq,ij,jsp->rsqp', batch_mod._VMAP, G, batch_mod._VMAP)
+    np.testing.assert_allclose(batch_mod._lift(G), ref, rtol=0,
+                               atol=1e-12 * np.abs(ref).max())
+
+
+def _noise_std_reference(x, orders=(2, 3, 4)):
+    """The textbook form: MAD of np.diff(x, k) scaled by sqrt(C(2k, k)), minimum over k."""
+    from math import comb
+
+    x = np.asarray(x, dtype=float)[:50_000]
+    best = np.full(x.shape[1], np.inf)
+    for k in orders:
+        if len(x) >= k + 2:
+            d = np.diff(x, n=k, axis=0)
+            mad = np.median(np.abs(d - np.median(d, axis=0)), axis=0)
+            best = np.minimum(best, 1.4826 * mad / np.sqrt(comb(2 * k, k)))
+    best[~np.isfinite(best)] = 0.0
+    return best
 
 
 @pytest.mark.parametrize('n', [0, 3, 5, 6, 16, 99, 100, 257, 60_000])
-def test_torque_noise_std_equals_regressors_helper(n):
-    """The per-block torque-noise estimate equals noise_std_from_differences exactly."""
+def test_noise_std_from_differences_equals_textbook_form(n):
+    """The partition-median noise estimate (run on every online block) equals np.median's."""
     rng = np.random.default_rng(n)
     x = rng.normal(size=(n, 3)) * [0.1, 1.0, 0.0] + np.cumsum(rng.normal(size=(n, 3)), axis=0)
-    np.testing.assert_array_equal(rec_mod._torque_noise_std(x), noise_std_from_differences(x))
-    np.testing.assert_array_equal(rec_mod._torque_noise_std(np.round(x, 1)),
-                                  noise_std_from_differences(np.round(x, 1)))
+    np.testing.assert_array_equal(noise_std_from_differences(x), _noise_std_reference(x))
+    np.testing.assert_array_equal(noise_std_from_differences(np.round(x, 1)),
+                                  _noise_std_reference(np.round(x, 1)))
+    np.testing.assert_array_equal(noise_std_from_differences(x, orders=(3,)),
+                                  _noise_std_reference(x, orders=(3,)))
 
 
 def feed(rec: RecursiveEstimator, sim, step: int) -> None:

@@ -218,9 +218,18 @@ def _gram(V: np.ndarray) -> np.ndarray:
     return np.einsum('ni,nj->ij', V, V)
 
 
+_VMAP2 = np.ascontiguousarray(_VMAP.reshape(13, 30))
+
+
 def _lift(G13: np.ndarray) -> np.ndarray:
-    """Cross Grams (3, 3, 10, 10) of the equation blocks from a 13 x 13 Gram of ``V``."""
-    return np.einsum('irq,ij,jsp->rsqp', _VMAP, G13, _VMAP)
+    """Cross Grams (3, 3, 10, 10) of the equation blocks from a 13 x 13 Gram of ``V``.
+
+    ``C[r, s, q, p] = sum_ij VMAP[i, r, q] G13[i, j] VMAP[j, s, p]``, as two small matrix
+    products (a tenth of the time of the three-operand ``einsum``; the recursive estimator
+    runs it twice per ``estimate()``).
+    """
+    C = _VMAP2.T @ G13 @ _VMAP2                       # (30, 30): [r q] x [s p]
+    return np.ascontiguousarray(C.reshape(3, 10, 3, 10).transpose(0, 2, 1, 3))
 
 
 @dataclass
@@ -248,7 +257,7 @@ class _Equations:
     @property
     def A(self) -> np.ndarray:
         """Equation blocks (n, 3, 10)."""
-        return (self.V @ _VMAP.reshape(13, 30)).reshape(-1, 3, 10)
+        return (self.V @ _VMAP2).reshape(-1, 3, 10)
 
 
 def _cross(A: np.ndarray) -> np.ndarray:

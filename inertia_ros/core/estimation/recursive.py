@@ -38,7 +38,6 @@ from typing import Any
 import numpy as np
 
 from .batch import (
-    _VMAP,
     HOLDS,
     _axis,
     _conclude,
@@ -47,11 +46,14 @@ from .batch import (
     _fit2,
     _gram,
     _homogeneous_from_stats,
+    _lift,
     _Stats,
 )
 from .regressors import (
     cumulative_torque,
+    median_rows,
     monomials,
+    noise_std_from_differences,
 )
 from .result import InertiaEstimate
 
@@ -61,49 +63,6 @@ _RMODELS = ('auto', 'full', 'diagonal', 'axisymmetric')
 _MAX_BUFFER = 400_000                      # gyro samples kept waiting for torque
 _GAP_FACTOR = 5.0       # a sample interval over this many nominal intervals is a gap
 _DT_HISTORY = 64        # recent sample intervals kept per stream for the nominal interval
-_VMAP2 = np.ascontiguousarray(_VMAP.reshape(13, 30))
-
-
-def _lift(G13: np.ndarray) -> np.ndarray:
-    """Cross Grams (3, 3, 10, 10) of the equation blocks from a 13 x 13 Gram of ``V``.
-
-    The same map as the batch module's ``_lift`` as two small matrix products (a tenth of the
-    three-operand ``einsum``'s time, which ran twice per ``estimate()``).
-    """
-    C = _VMAP2.T @ G13 @ _VMAP2                       # (30, 30): [r q] x [s p]
-    return np.ascontiguousarray(C.reshape(3, 10, 3, 10).transpose(0, 2, 1, 3))
-
-
-_SQRT_COMB = {k: math.sqrt(math.comb(2 * k, k)) for k in (2, 3, 4)}
-
-
-def _median_rows(d: np.ndarray) -> np.ndarray:
-    """Column medians of ``d`` (n, c), bit for bit ``np.median(d, axis=0)`` (finite input)."""
-    n = len(d)
-    lo, hi = (n - 1) // 2, n // 2
-    p = np.partition(d, [lo, hi] if hi != lo else lo, axis=0)
-    return p[lo] if hi == lo else (p[lo] + p[hi]) / 2.0
-
-
-def _torque_noise_std(x: np.ndarray) -> np.ndarray:
-    """Per-column white-noise std of a torque block [N m], shape (3,).
-
-    The value of :func:`.regressors.noise_std_from_differences` with its default orders
-    (2, 3, 4) and sample cap, with the medians taken by one partition each: this runs on
-    every processed block, where ``np.median``'s overhead was a tenth of ``estimate()``.
-    """
-    x = np.asarray(x, dtype=float)[:50_000]
-    best = np.full(x.shape[1], np.inf)
-    d = x
-    for k in (1, 2, 3, 4):
-        if len(d) < 2:
-            break
-        d = d[1:] - d[:-1]
-        if k >= 2 and len(x) >= k + 2:
-            mad = _median_rows(np.abs(d - _median_rows(d)[None]))
-            best = np.minimum(best, 1.4826 * mad / _SQRT_COMB[k])
-    best[~np.isfinite(best)] = 0.0
-    return best
 
 
 class RecursiveEstimator:
@@ -340,9 +299,9 @@ class RecursiveEstimator:
             self._tq_dts = np.concatenate([self._tq_dts, np.diff(edges)])[-_DT_HISTORY:]
             self._tq_last = float(new_t[-1])
             if len(new_t) >= 16:
-                v = _torque_noise_std(new_tau) ** 2
+                v = noise_std_from_differences(new_tau) ** 2
                 self._tau_var = v if self._tau_var is None else 0.8 * self._tau_var + 0.2 * v
-                dt = float(_median_rows(np.diff(new_t)[:, None])[0])
+                dt = float(median_rows(np.diff(new_t)[:, None])[0])
                 self._tau_dt = dt if self._tau_dt == 0.0 else 0.8 * self._tau_dt + 0.2 * dt
         if not self._gt:
             return
