@@ -76,7 +76,7 @@ class Harness:
             lambda m: self.diag.extend(s for s in m.status if s.name == 'inertia_estimator'),
             100)
         self.spin_until(lambda: self.pub_gyro.get_subscription_count() > 0
-                        and self.pub_torque.get_subscription_count() > 0, 5.0)
+                        and self.pub_torque.get_subscription_count() > 0, 10.0)
 
     def spin_until(self, cond, timeout):
         end = time.monotonic() + timeout
@@ -111,8 +111,8 @@ class Harness:
                 self.pub_torque.publish(ros_msgs.wrench_msg(stamp, sim.torque[idx[k]], frame))
             sent += 1
             if n % chunk == chunk - 1:
-                self.spin_until(lambda s=sent: self.received() >= s, 2.0)
-        assert self.spin_until(lambda: self.received() >= sent, 5.0), 'messages were lost'
+                self.spin_until(lambda s=sent: self.received() >= s, 10.0)
+        assert self.spin_until(lambda: self.received() >= sent, 10.0), 'messages were lost'
 
     def latest_diag(self):
         self.spin_for(0.2)
@@ -232,7 +232,7 @@ def test_nominal_scene_converges_within_one_percent(harness):
     h = harness(overrides={'publish_rate': 2.0})
     h.play(sim)
     h.spin_until(lambda: h.inertia and ros_msgs.stamp_to_ns(h.inertia[-1].header.stamp)
-                 >= EPOCH_NS + int(sim.t_gyro[-1] * 1e9) - 10**9, 3.0)
+                 >= EPOCH_NS + int(sim.t_gyro[-1] * 1e9) - 10**9, 10.0)
     h.est.set_parameters([Parameter('publish_rate', value=1000.0)])
     h.pub_gyro.publish(ros_msgs.imu_msg(EPOCH_NS + int(sim.t_gyro[-1] * 1e9) + 1,
                                         sim.omega[-1], 'base_link'))
@@ -300,7 +300,7 @@ def test_nan_samples_are_dropped_and_counted(harness):
         w = [np.nan, 0.0, 0.0] if k % 5 == 0 else [0.1, 0.2, 0.3]
         h.pub_gyro.publish(ros_msgs.imu_msg(EPOCH_NS + k * 5_000_000, w, 'base_link'))
     h.pub_torque.publish(ros_msgs.wrench_msg(EPOCH_NS, [np.inf, 0, 0], 'base_link'))
-    assert h.spin_until(lambda: h.received() == 21, 3.0)
+    assert h.spin_until(lambda: h.received() == 21, 10.0)
     c = h.est.counts()
     assert (c['gyro_nan_dropped'], c['torque_nan_dropped']) == (4, 1)
     h.spin_for(0.3)
@@ -311,13 +311,13 @@ def test_mismatched_frames_are_refused(harness):
     """Torque in another frame than the gyro is refused, counted and raises an ERROR."""
     h = harness(overrides={'publish_rate': 100.0})
     h.pub_gyro.publish(ros_msgs.imu_msg(EPOCH_NS, [0.1, 0.2, 0.3], 'base_link'))
-    h.spin_until(lambda: h.received() == 1, 2.0)
+    h.spin_until(lambda: h.received() == 1, 10.0)
     for k in range(3):
         h.pub_torque.publish(ros_msgs.wrench_msg(EPOCH_NS + k, [0.1, 0, 0], 'tool0'))
-    assert h.spin_until(lambda: h.received() == 4, 3.0)
+    assert h.spin_until(lambda: h.received() == 4, 10.0)
     assert h.est.counts()['torque_frame_refused'] == 3
     h.pub_gyro.publish(ros_msgs.imu_msg(EPOCH_NS + 10**8, [0.1, 0.2, 0.3], 'base_link'))
-    h.spin_until(lambda: h.diag and 'tool0' in h.diag[-1].message, 2.0)
+    h.spin_until(lambda: h.diag and 'tool0' in h.diag[-1].message, 10.0)
     assert h.diag[-1].level == DiagnosticStatus.ERROR
     assert "'tool0'" in h.diag[-1].message and "'base_link'" in h.diag[-1].message
 
@@ -326,10 +326,10 @@ def test_torque_before_first_gyro_is_not_a_frame_error(harness):
     """Torque arriving before any gyro message is dropped and counted, not refused."""
     h = harness(overrides={'publish_rate': 100.0})
     h.pub_torque.publish(ros_msgs.wrench_msg(EPOCH_NS, [0.1, 0, 0], 'base_link'))
-    assert h.spin_until(lambda: h.received() == 1, 2.0)
+    assert h.spin_until(lambda: h.received() == 1, 10.0)
     h.pub_gyro.publish(ros_msgs.imu_msg(EPOCH_NS + 10**6, [0.1, 0.2, 0.3], 'base_link'))
     h.pub_torque.publish(ros_msgs.wrench_msg(EPOCH_NS + 2 * 10**6, [0.1, 0, 0], 'base_link'))
-    assert h.spin_until(lambda: h.received() == 3, 2.0)
+    assert h.spin_until(lambda: h.received() == 3, 10.0)
     c = h.est.counts()
     assert (c['torque_before_gyro_dropped'], c['torque_frame_refused']) == (1, 0)
     h.spin_for(0.2)
@@ -342,14 +342,14 @@ def test_backward_stamp_jump_resets_and_reset_service(harness):
     for t_ns in (EPOCH_NS, EPOCH_NS + 10**9, EPOCH_NS + 10**9 - 10**6, EPOCH_NS + 10**7):
         h.pub_gyro.publish(ros_msgs.imu_msg(t_ns, [0.1, 0.2, 0.3], 'base_link'))
         h.spin_until(lambda: False, 0.05)
-    h.spin_until(lambda: h.received() == 4, 2.0)
+    h.spin_until(lambda: h.received() == 4, 10.0)
     c = h.est.counts()
     assert c['gyro_out_of_order_dropped'] == 1
     assert c['resets'] == 1 and 'jumped back' in c['last_reset_reason']
     client = h.node.create_client(Trigger, '/inertia_estimator/reset')
     assert client.wait_for_service(timeout_sec=2.0)
     future = client.call_async(Trigger.Request())
-    h.spin_until(future.done, 3.0)
+    h.spin_until(future.done, 10.0)
     assert future.result().success
     assert h.est.counts()['resets'] == 2
 
@@ -359,7 +359,7 @@ def test_stream_timeout_warns(harness):
     h = harness(overrides={'stream_timeout': 0.2})
     h.pub_gyro.publish(ros_msgs.imu_msg(EPOCH_NS, [0.1, 0.2, 0.3], 'base_link'))
     assert h.spin_until(lambda: any('gyro stream' in s.message and 'silent' in s.message
-                                    for s in h.diag), 3.0)
+                                    for s in h.diag), 10.0)
     st = next(s for s in reversed(h.diag) if 'silent' in s.message)
     assert st.level >= DiagnosticStatus.WARN
 
@@ -369,7 +369,7 @@ def test_vector3_gyro_input(harness):
     h = harness(overrides={'omega_msg_type': 'vector3'}, omega_type=Vector3Stamped)
     assert h.est._sub_omega.topic_name == '/omega'
     h.pub_gyro.publish(ros_msgs.vector3_stamped(EPOCH_NS, [0.1, 0.2, 0.3], 'base_link'))
-    assert h.spin_until(lambda: h.est.counts()['gyro_received'] == 1, 2.0)
+    assert h.spin_until(lambda: h.est.counts()['gyro_received'] == 1, 10.0)
 
 
 def test_remaps_resolve_for_the_polled_inputs(context):
@@ -391,16 +391,16 @@ def test_sim_time_clock_jump_resets(harness):
 
     h = harness(overrides={'use_sim_time': True})
     pub = h.node.create_publisher(Clock, '/clock', 10)
-    h.spin_until(lambda: pub.get_subscription_count() > 0, 3.0)
+    h.spin_until(lambda: pub.get_subscription_count() > 0, 10.0)
     for sec in (100, 101, 50):
         pub.publish(Clock(clock=ros_msgs.ns_to_stamp(sec * 10**9)))
         h.spin_for(0.1)
     assert h.spin_until(lambda: 'ROS clock jumped back 51.000 s'
-                        in h.est.counts()['last_reset_reason'], 2.0)
+                        in h.est.counts()['last_reset_reason'], 10.0)
     # Polling runs on the steady clock: input is taken while /clock stands still.
     for k in range(3):
         h.pub_gyro.publish(ros_msgs.imu_msg(EPOCH_NS + k * 10**7, [0.1, 0.2, 0.3], 'base_link'))
-    assert h.spin_until(lambda: h.est.counts()['gyro_received'] == 3, 2.0)
+    assert h.spin_until(lambda: h.est.counts()['gyro_received'] == 3, 10.0)
 
 
 def _player_harness(harness, tmp_path, kind, **params):
@@ -438,7 +438,7 @@ def test_player_publishes_streams_and_truth(harness, tmp_path, kind):
     try:
         assert h.spin_until(lambda: player.done, 10.0)
         n_g, n_q = player.player.published
-        assert h.spin_until(lambda: h.received() == n_g + n_q, 3.0)
+        assert h.spin_until(lambda: h.received() == n_g + n_q, 10.0)
         assert (n_g, n_q) == (801, 201)
         assert truth, 'no truth published'
         _, mat = ros_msgs.inertia_from_msg(truth[0])
