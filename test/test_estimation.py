@@ -175,8 +175,8 @@ def test_to_dict_is_the_json_contract(nominal20):
     t_g, w, t_t, tau = add_noise(nominal20, seed=5)
     d = estimate(t_g, w, t_t, tau).to_dict()
     assert set(d) == {'status', 'inertia', 'inertia_std', 'principal_moments',
-                      'principal_axes', 'ratios', 'identifiable', 'torque_bias', 'model',
-                      'method', 'samples', 'diagnostics'}
+                      'principal_axes', 'ratios', 'ratios_std', 'identifiable',
+                      'torque_bias', 'model', 'method', 'samples', 'diagnostics'}
     assert set(d['identifiable']) == set(THETA_NAMES)
     assert set(d['samples']) == {'used', 'dropped'}
     text = json.dumps(d, allow_nan=False)
@@ -453,6 +453,19 @@ def test_recursive_torque_free_is_scale_unobservable():
     rec = RecursiveEstimator()
     _interleaved(rec, s.t_gyro, s.omega_true, s.t_torque, np.zeros((len(s.t_torque), 3)))
     assert rec.estimate().status == 'scale_unobservable'
+
+
+def test_recursive_torque_free_ratios_match_batch():
+    """Torque-free with gyro noise: recursive ratios and their std match the batch integral
+    method's (values within 1e-5, standard errors within 5 %)."""
+    t_g, w, t_t, tau = add_noise(noise_free('torque_free', duration=30.0), seed=5)
+    rec = RecursiveEstimator()
+    _interleaved(rec, t_g, w, t_t, tau)
+    r = rec.estimate()
+    b = estimate(t_g, w, t_t, tau, method='integral')
+    assert r.status == b.status == 'scale_unobservable'
+    np.testing.assert_allclose(r.ratios, b.ratios, rtol=0, atol=1e-5)
+    np.testing.assert_allclose(r.ratios_std, b.ratios_std, rtol=0.05)
 
 
 def test_recursive_auto_model_and_stalled_torque(nominal20):

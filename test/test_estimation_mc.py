@@ -67,13 +67,42 @@ def test_standard_errors_are_calibrated(nominal60):
     covariance under test is the one reported in ``inertia_std``; ``ml``: see below).
     """
     truth = matrix_to_theta(nominal60.inertia)
-    z = []
+    ratios_true = truth / np.sum(truth[:3])
+    z, zr = [], []
     for seed in range(200):
         est = estimate(*add_noise(nominal60, seed=1000 + seed), method='integral',
                        model='full', torque_bias='off')
         z.append((est.theta - truth) / est.theta_std)
+        zr.append((matrix_to_theta(est.ratios) - ratios_true)
+                  / matrix_to_theta(est.ratios_std))
     rms = np.sqrt(np.mean(np.square(z), axis=0))
     assert np.all(rms >= 0.7) and np.all(rms <= 1.5), rms
+    # the ratios' standard errors (delta method through the trace) are calibrated as well
+    rms_r = np.sqrt(np.mean(np.square(zr), axis=0))
+    assert np.all(rms_r >= 0.7) and np.all(rms_r <= 1.5), rms_r
+
+
+@pytest.mark.slow
+def test_torque_free_ratio_errors_are_calibrated():
+    """Torque-free tumble, 100 gyro-noise resamplings: RMS of (ratio - truth)/sigma in
+    [0.7, 1.5] for every element of ``inertia / trace``, and likewise for the principal
+    moment ratios; no bias: the mean z of each element within 5 standard errors of 0 (0.5).
+    """
+    sim = noise_free('torque_free')
+    truth = matrix_to_theta(sim.inertia) / np.trace(sim.inertia)
+    moments_true = np.linalg.eigvalsh(sim.inertia) / np.trace(sim.inertia)
+    z, zm = [], []
+    for seed in range(100):
+        est = estimate(*add_noise(sim, seed=3000 + seed), method='integral')
+        assert est.status == 'scale_unobservable'
+        z.append((matrix_to_theta(est.ratios) - truth) / matrix_to_theta(est.ratios_std))
+        d = est.diagnostics
+        zm.append((d['principal_ratios'] - moments_true) / d['principal_ratios_std'])
+    rms = np.sqrt(np.mean(np.square(z), axis=0))
+    assert np.all(rms >= 0.7) and np.all(rms <= 1.5), rms
+    rms_m = np.sqrt(np.mean(np.square(zm), axis=0))
+    assert np.all(rms_m >= 0.7) and np.all(rms_m <= 1.5), rms_m
+    assert np.all(np.abs(np.mean(z, axis=0)) < 5.0 / np.sqrt(len(z))), np.mean(z, axis=0)
 
 
 def _selection_counts(body: list[float], n: int = 100) -> dict[str, int]:

@@ -251,9 +251,18 @@ def format_text(report: dict, log: LogData) -> str:
                 + ' ]')
     elif report['ratios'] is not None:
         lines.append('')
-        lines.append('inertia / trace (ratios; the scale is unobservable):')
-        for row in report['ratios']:
-            lines.append('  [' + '  '.join(_fmt(v) for v in row) + ' ]')
+        lines.append('inertia / trace (ratios; the scale is unobservable) (± one sigma):')
+        rstd = report.get('ratios_std')
+        for i, row in enumerate(report['ratios']):
+            lines.append('  [' + '  '.join(
+                _fmt(v, None if rstd is None else rstd[i][j]) for j, v in enumerate(row))
+                + ' ]')
+        pr = report['diagnostics'].get('principal_ratios')
+        if pr is not None:
+            pr_std = report['diagnostics'].get('principal_ratios_std') or [None] * 3
+            lines.append('principal moments / trace: ' + ', '.join(
+                f'I{k + 1} = {_fmt(v, e).strip()}'
+                for k, (v, e) in enumerate(zip(pr, pr_std, strict=True))))
     if report['principal_moments'] is not None:
         m = report['principal_moments']
         lines.append('')

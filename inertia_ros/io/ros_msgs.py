@@ -419,6 +419,8 @@ def diagnostic_status(result: Mapping[str, Any] | None, *, name: str, hardware_i
         values.append(('identifiable', result['identifiable']))
     if result.get('ratios') is not None and status != 'ok':
         values.append(('ratios', result['ratios']))  # what torque-free data still gives
+        if result.get('ratios_std') is not None:
+            values.append(('ratios_std', result['ratios_std']))
     values.append(('reason', reason))
     seen = {k for k, _ in values}
     for key, val in diag.items():

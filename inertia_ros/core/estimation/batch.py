@@ -467,6 +467,11 @@ def _fit(st: _Stats, basis: np.ndarray, bias: bool, W: np.ndarray, gyro_var: np.
     if bias_comp and st.eq.eiv_var is not None:
         B6 = np.einsum('c,crk,rs,csl->kl', st.eq.eiv_var, _L_BASIS, W, _L_BASIS)
         H[:k, :k] -= st.n_eff * (basis.T @ B6 @ basis)
+        if offset is not None:
+            # the held part's regressor carries the same gyro noise: g = -B' X6'X6 offset
+            # is compensated like H (B' (X6'X6 - n B6) offset)
+            g = g.copy()
+            g[:k] += st.n_eff * (basis.T @ B6 @ offset)
     beta = _solve_sym(H, g)
     Hinv = _solve_sym(H, np.eye(p))
     c = np.append(-beta, 1.0)
@@ -750,6 +755,16 @@ def _moment_std(I: np.ndarray, cov6: np.ndarray) -> np.ndarray:
                          2 * v[1] * v[2]])
         out[i] = np.sqrt(max(float(grad @ cov6 @ grad), 0.0))
     return out
+
+
+_TRACE = np.array([1.0, 1.0, 1.0, 0.0, 0.0, 0.0])     # theta -> trace of the tensor
+
+
+def _ratio_cov(theta: np.ndarray, cov6: np.ndarray) -> np.ndarray:
+    """First-order covariance (6, 6) of ``theta / trace`` from that of ``theta``."""
+    tr = float(_TRACE @ theta)
+    J = (np.eye(6) - np.outer(theta / tr, _TRACE)) / tr
+    return J @ cov6 @ J.T
 
 
 def _sym(theta: np.ndarray) -> np.ndarray:
@@ -1129,19 +1144,20 @@ def _assemble(status: str, f: _Fit, model: str, free: np.ndarray, diag: dict[str
             diag['physical'] = {'valid': True, 'projected': False}
         moments, axes = principal_axes(I)
         diag['principal_moments_std'] = _moment_std(I, cov6)
-        ratios = I / np.trace(I)
     else:
         undetermined = [n for n, ok in zip(THETA_NAMES, free, strict=True) if not ok]
         diag['undetermined'] = undetermined
         diag['reason'] = ('the excitation does not determine ' + ', '.join(undetermined)
                           + ' (reported as null)')
-        ratios = I / np.trace(I)
+    ratios = I / np.trace(I)
+    ratios_std = _sym(np.sqrt(np.maximum(np.diag(_ratio_cov(theta, cov6)), 0.0)))
     bias = f.beta[k:k + 3] if f.bias else None
     if f.bias:
         diag['torque_bias_std'] = np.sqrt(np.maximum(np.diag(f.cov)[k:k + 3], 0.0))
     name = model + ('+bias' if f.bias else '')
     return InertiaEstimate(status=status, inertia=I, inertia_std=I_std,
                            principal_moments=moments, principal_axes=axes, ratios=ratios,
+                           ratios_std=ratios_std,
                            identifiable=dict(zip(THETA_NAMES, map(bool, free), strict=True)),
                            torque_bias=bias, model=name, diagnostics=diag,
                            **base)   # type: ignore[arg-type]
@@ -1158,34 +1174,63 @@ def _homogeneous(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau
     meth = method if method != 'integral_ls' else 'integral'
     eq = _build(meth, tg, w, ts, tau, mask, breaks, hold, gyro_var, window)
     st = _stats(eq, segment, ts, float(ts[-1]), np.zeros(3))
-    return _homogeneous_from_stats(st.C, st.n_eff, eq.eiv_var, diag, base)
+    return _homogeneous_from_stats(st, gyro_var, diag, base)
 
 
-def _homogeneous_from_stats(C: np.ndarray, n_eff: float, eiv_var: np.ndarray | None,
-                            diag: dict[str, Any], base: dict[str, Any]) -> InertiaEstimate:
-    """Torque-free data: ratios and axes from the null vector of the homogeneous problem.
+def _trace_free_basis() -> np.ndarray:
+    """Orthonormal basis (6, 5) of the theta directions that leave the trace unchanged."""
+    q, _ = np.linalg.qr(np.array([[1.0, 0.0], [-1.0, 1.0], [0.0, -1.0]]))
+    basis = np.zeros((6, 5))
+    basis[:3, :2] = q
+    basis[3:, 2:] = np.eye(3)
+    return basis
 
-    Shared by the batch ``_homogeneous`` (which builds ``C`` from the raw streams first) and
-    the recursive estimator (which keeps ``C`` as running sums), so that both report the
-    same ``scale_unobservable`` result.
+
+_TRACE_FREE = _trace_free_basis()
+
+
+def _homogeneous_from_stats(st: _Stats, gyro_var: np.ndarray, diag: dict[str, Any],
+                            base: dict[str, Any], cov_scale: float = 1.0) -> InertiaEstimate:
+    """Torque-free data: the ratios ``inertia / trace`` with their standard errors, and axes.
+
+    With no torque the equations are homogeneous, ``X6 theta = e``: ``theta`` is fitted
+    under the constraint ``trace = 1`` (``theta = offset + B psi`` with ``B`` spanning the
+    trace-free directions), by the same weighted, bias-compensated least squares and
+    covariance model as the torque-driven fits (:func:`_fit2`), the torque column dropped (it
+    holds only sensor noise).  The eigenvalue gap of the homogeneous information says
+    whether the motion singles out the ratios at all.
+
+    Shared by the batch ``_homogeneous`` and the recursive estimator, so that both report
+    the same ``scale_unobservable`` result.
 
     Parameters
     ----------
-    C : ndarray, shape (3, 3, 10, 10)
-        Cross Grams of the segment-demeaned, gyro-noise-corrected equation blocks.
-    n_eff : float
-        Equations minus segment intercepts (effective count when weighted).
-    eiv_var : ndarray, shape (3,), optional
-        Gyro noise variance per axis [rad^2/s^2] in the regressor (bias compensation).
+    st : _Stats
+        Statistics of the equations (cross Grams of the segment-demeaned blocks).
+    gyro_var : ndarray, shape (3,)
+        Gyro white-noise variance per axis [rad^2/s^2].
     diag, base : dict
         Diagnostics (updated in place) and the common result fields.
+    cov_scale : float
+        Factor on the covariance (the recursive estimator's forgetting weights).
 
     Returns
     -------
     InertiaEstimate
-        ``scale_unobservable`` with ``ratios`` and ``principal_axes``, or
+        ``scale_unobservable`` with ``ratios``, ``ratios_std`` and ``principal_axes`` (and
+        ``principal_ratios`` with their std in the diagnostics), or
         ``insufficient_excitation`` when the motion does not single out the ratios.
     """
+    C = st.C.copy()
+    C[:, :, 9, :] = 0.0                  # the (integrated) torque column: noise only here
+    C[:, :, :, 9] = 0.0
+    A = None
+    if st.A is not None:
+        A = st.A.copy()
+        A[..., 9] = 0.0
+    st = replace(st, C=C, CP=None, A=A)
+    eiv_var = st.eq.eiv_var
+    n_eff = st.n_eff
     H0 = _metric(C, np.eye(3))[:6, :6]
     H = H0.copy()
     if eiv_var is not None:
@@ -1197,8 +1242,7 @@ def _homogeneous_from_stats(C: np.ndarray, n_eff: float, eiv_var: np.ndarray | N
         return InertiaEstimate(status='insufficient_excitation', diagnostics=diag,
                                **base)   # type: ignore[arg-type]
     lam0 = np.linalg.eigvalsh(H0 / d[:, None] / d[None, :])
-    lam, vec = np.linalg.eigh(H / d[:, None] / d[None, :])
-    v = vec[:, 0] / d
+    _, vec = np.linalg.eigh(H / d[:, None] / d[None, :])
     gap = float(lam0[1] / max(lam0[0], 1e-300))
     diag['eigenvalue_gap'] = gap
     diag['condition_number'] = float(lam0[-1] / max(lam0[0], 1e-300))
@@ -1208,17 +1252,25 @@ def _homogeneous_from_stats(C: np.ndarray, n_eff: float, eiv_var: np.ndarray | N
         diag['weakest_direction'] = _describe(vec[:, 1] / d, list(THETA_NAMES))
         return InertiaEstimate(status='insufficient_excitation', diagnostics=diag,
                                **base)   # type: ignore[arg-type]
-    R = theta_to_matrix(v)
-    R /= np.trace(R)
+    offset = _TRACE / 3.0
+    f = _fit2(st, _TRACE_FREE, False, gyro_var, np.zeros(3), offset)
+    theta = _TRACE_FREE @ f.beta + offset
+    cov6 = cov_scale * (_TRACE_FREE @ f.cov @ _TRACE_FREE.T)
+    diag['residual_excess'] = f.excess
+    R = theta_to_matrix(theta)
     chk = check_physical(R)
     if not chk.valid:
         diag['physical'] = {'valid': False, 'failures': list(chk.failures), 'projected': True}
         R = nearest_physical(R)
         R /= np.trace(R)
-    _, axes = principal_axes(R)
-    return InertiaEstimate(status='scale_unobservable', ratios=R, principal_axes=axes,
-                           identifiable=dict.fromkeys(THETA_NAMES, False), model='homogeneous',
-                           diagnostics=diag, **base)   # type: ignore[arg-type]
+    ratios, axes = principal_axes(R)
+    diag['principal_ratios'] = ratios
+    diag['principal_ratios_std'] = _moment_std(R, cov6)
+    return InertiaEstimate(status='scale_unobservable', ratios=R,
+                           ratios_std=_sym(np.sqrt(np.maximum(np.diag(cov6), 0.0))),
+                           principal_axes=axes, identifiable=dict.fromkeys(THETA_NAMES, False),
+                           model='homogeneous', diagnostics=diag,
+                           **base)   # type: ignore[arg-type]
 
 
 def _maximum_likelihood(first: InertiaEstimate, tg: np.ndarray, w: np.ndarray, ts: np.ndarray,

@@ -609,8 +609,6 @@ class RecursiveEstimator:
         diag['torque_rms'] = torque_rms
         tq_std = np.sqrt(self._tau_var) if self._tau_var is not None else np.zeros(3)
         diag['torque_noise_std'] = tq_std
-        if float(np.max(torque_rms)) <= 5.0 * float(np.max(tq_std)):
-            return _homogeneous_from_stats(C_all, n_eff, nv, diag, base)
         eq = _Equations(np.zeros((0, 13)), np.zeros(0), np.zeros(0, dtype=bool),
                         'anchored', eiv_var=nv, weighted=True)
         gp, walk = self._segment_walk()
@@ -619,6 +617,8 @@ class RecursiveEstimator:
         st = _Stats(C_all, CP, int(round(w_all)), int(round(n_eff)), 1, eq, None,
                     walk_time=self._walkc + walk, torque_dt=self._tau_dt)
         ratio = (self._w00 + self._w00c) / w_all
+        if float(np.max(torque_rms)) <= 5.0 * float(np.max(tq_std)):
+            return _homogeneous_from_stats(st, nv, diag, base, cov_scale=ratio)
 
         def fit(basis: np.ndarray, bias: bool, offset: np.ndarray | None = None) -> _Fit:
             """Fit on the weighted statistics; the meat of weighted sums scales by w^2/w."""

@@ -91,6 +91,8 @@ class InertiaEstimate:
         when only the scale is unobservable.
     ratios : ndarray, shape (3, 3), or None
         ``inertia / trace(inertia)`` (dimensionless); given also when the scale is unobservable.
+    ratios_std : ndarray, shape (3, 3), or None
+        One-sigma standard errors of ``ratios`` (dimensionless), same pattern.
     identifiable : dict of str to bool
         One entry per name in ``THETA_NAMES``.
     torque_bias : ndarray, shape (3,), or None
@@ -115,6 +117,7 @@ class InertiaEstimate:
     principal_moments: np.ndarray | None = None
     principal_axes: np.ndarray | None = None
     ratios: np.ndarray | None = None
+    ratios_std: np.ndarray | None = None
     identifiable: dict[str, bool] = field(
         default_factory=lambda: dict.fromkeys(THETA_NAMES, False))
     torque_bias: np.ndarray | None = None
@@ -130,7 +133,8 @@ class InertiaEstimate:
             raise ValueError(f'status: must be one of {STATUSES}, got {self.status!r}')
         for name, shape in (('inertia', (3, 3)), ('inertia_std', (3, 3)),
                             ('principal_moments', (3,)), ('principal_axes', (3, 3)),
-                            ('ratios', (3, 3)), ('torque_bias', (3,))):
+                            ('ratios', (3, 3)), ('ratios_std', (3, 3)),
+                            ('torque_bias', (3,))):
             object.__setattr__(self, name, _opt_array(getattr(self, name), shape, name))
         ident = {k: bool(self.identifiable.get(k, False)) for k in THETA_NAMES}
         object.__setattr__(self, 'identifiable', ident)
@@ -163,7 +167,8 @@ class InertiaEstimate:
         -------
         dict
             Keys ``status, inertia, inertia_std, principal_moments, principal_axes, ratios,
-            identifiable, torque_bias, model, method, samples, diagnostics``; NaN -> None.
+            ratios_std, identifiable, torque_bias, model, method, samples, diagnostics``;
+            NaN -> None.
         """
         return {
             'status': self.status,
@@ -172,6 +177,7 @@ class InertiaEstimate:
             'principal_moments': to_jsonable(self.principal_moments),
             'principal_axes': to_jsonable(self.principal_axes),
             'ratios': to_jsonable(self.ratios),
+            'ratios_std': to_jsonable(self.ratios_std),
             'identifiable': {k: bool(v) for k, v in self.identifiable.items()},
             'torque_bias': to_jsonable(self.torque_bias),
             'model': self.model,
