@@ -21,6 +21,7 @@ import numpy as np
 from inertia_ros.cli import UserError
 from inertia_ros.core.estimation import HOLDS, METHODS, MODELS, TORQUE_BIAS, estimate
 from inertia_ros.core.estimation.result import InertiaEstimate, to_jsonable
+from inertia_ros.core.inertia import matrix_to_theta
 from inertia_ros.io.logs import LogData, LogError, log_files, read_log
 
 #: What each status means, for the text report.
@@ -417,9 +418,9 @@ def plot_report(path: Path, est: InertiaEstimate, log: LogData,
             th = e.theta
             sd = e.theta_std if e.theta_std is not None else np.full(6, np.nan)
         elif e.ratios is not None:  # scale unobservable: the ratios converge instead
-            r = e.ratios
-            th = np.array([r[0, 0], r[1, 1], r[2, 2], r[0, 1], r[0, 2], r[1, 2]])
-            sd = np.full(6, np.nan)
+            th = matrix_to_theta(e.ratios)
+            sd = (matrix_to_theta(e.ratios_std) if e.ratios_std is not None
+                  else np.full(6, np.nan))
         else:
             continue
         rows.append((t_end - tg[0], th, sd))
@@ -442,7 +443,7 @@ def plot_report(path: Path, est: InertiaEstimate, log: LogData,
         axc.text(0.5, 0.5, f'no tensor estimate (status {est.status})', ha='center',
                  transform=axc.transAxes)
     ratios_only = est.inertia is None
-    axc.set_title('convergence over the log' + (' (inertia / trace)'
+    axc.set_title('convergence over the log' + (' (inertia / trace, band: ±2 sigma)'
                                                 if ratios_only else ' (band: ±2 sigma)'))
     axc.set_xlabel('data used [s]')
     axc.set_ylabel('[-]' if ratios_only else '[kg m^2]')
