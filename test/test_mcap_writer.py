@@ -16,12 +16,14 @@ from inertia_ros.cli import main
 from inertia_ros.core.scene import Scene
 from inertia_ros.core.simulation import simulate
 from inertia_ros.io import cdr_encode
+from inertia_ros.io.cdr_encode import IMU, INERTIA_STAMPED, WRENCH_STAMPED
 from inertia_ros.io.mcap_writer import (
     DEFAULT_START_NS,
     McapWriter,
     McapWriterError,
     qos_yaml,
     seconds_to_ns,
+    type_description_hash,
     write_simulation,
 )
 from inertia_ros.io.scene_file import load_scene
@@ -222,6 +224,47 @@ def test_rosbag2_conventions(written):
     scene = meta['inertia_ros.scene']
     assert scene['scene_name'] == 'writer_test' and scene['seed'] == '3'
     assert Scene.from_dict(yaml.safe_load(scene['scene_json'])).to_dict() == SCENE
+
+
+def test_type_hashes_are_the_middlewares(written):
+    """topic_type_hash / type_description_hash carry the RIHS01 hash rclpy's middleware reports
+    for a publisher of each type (the ROS wheels' type support, not our lookup)."""
+    rclpy = pytest.importorskip('rclpy')
+    from geometry_msgs.msg import InertiaStamped, WrenchStamped
+    from rclpy.node import Node
+    from sensor_msgs.msg import Imu
+
+    ctx = rclpy.context.Context()
+    rclpy.init(context=ctx, domain_id=230)        # a private domain: nothing is sent anyway
+    try:
+        node = Node('type_hash_probe', context=ctx, enable_rosout=False,
+                    start_parameter_services=False)
+        expected = {}
+        for cls, name in ((Imu, IMU), (WrenchStamped, WRENCH_STAMPED),
+                          (InertiaStamped, INERTIA_STAMPED)):
+            topic = '/probe_' + cls.__name__.lower()
+            node.create_publisher(cls, topic, 1)
+            (info,) = node.get_publishers_info_by_topic(topic)
+            expected[name] = str(info.topic_type_hash)
+        node.destroy_node()
+    finally:
+        rclpy.try_shutdown(context=ctx)
+    assert all(h.startswith('RIHS01_') for h in expected.values()), expected
+    assert {n: type_description_hash(n) for n in expected} == expected
+    path, _, _ = written
+    with open(path, 'rb') as f:
+        reader = make_reader(f)
+        summary = reader.get_summary()
+        channels = {c.topic: c for c in summary.channels.values()}
+        meta = {m.name: m.metadata for m in reader.iter_metadata()}
+    types = {'/imu': IMU, '/torque': WRENCH_STAMPED, '/truth/inertia': INERTIA_STAMPED}
+    for topic, name in types.items():
+        assert channels[topic].metadata['topic_type_hash'] == expected[name]
+    bag = yaml.safe_load(meta['rosbag2']['serialized_metadata'])
+    assert {t['topic_metadata']['name']: t['topic_metadata']['type_description_hash']
+            for t in bag['topics_with_message_count']} == {
+        t: expected[n] for t, n in types.items()}
+    assert type_description_hash('no_such_pkg/msg/Thing') == ''
 
 
 def test_messages_are_in_log_time_order(written):

@@ -7,7 +7,8 @@ makes a file a rosbag2 log (the conventions of ``rosbag2_storage_mcap`` in ROS 2
 - one schema per message type: name ``pkg/msg/Type``, encoding ``ros2msg``, data the full
   message text with its dependency blocks (:func:`inertia_ros.io.cdr_encode.schema_text`);
 - one channel per topic: message encoding ``cdr``, metadata ``offered_qos_profiles`` (the
-  rosbag2 v9 YAML list) and ``topic_type_hash`` (empty: we do not compute RIHS01 hashes);
+  rosbag2 v9 YAML list) and ``topic_type_hash`` (the type's RIHS01 hash as the installed ROS
+  interface packages state it, see :func:`type_description_hash`; empty if not installed);
 - a metadata record ``rosbag2`` whose ``serialized_metadata`` is the bag's
   ``BagMetadata`` YAML (version 9: topics, counts, start time, duration);
 - chunked data (zstd by default), message indexes and a summary with statistics.
@@ -17,8 +18,10 @@ be added in any order.  Times are integer nanoseconds.
 """
 from __future__ import annotations
 
+import functools
 import json
 import os
+import sys
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -39,6 +42,7 @@ __all__ = [
     'McapWriterError',
     'qos_yaml',
     'seconds_to_ns',
+    'type_description_hash',
     'write_simulation',
 ]
 
@@ -47,6 +51,44 @@ DEFAULT_START_NS = 1_704_067_200_000_000_000
 
 _INFINITE = {'sec': 9223372036, 'nsec': 854775807}  # rmw "infinite" duration as rosbag2 dumps it
 _ZERO = {'sec': 0, 'nsec': 0}
+
+
+@functools.lru_cache(maxsize=64)
+def type_description_hash(msgtype: str) -> str:
+    """The REP-2011 type hash (``RIHS01_...``) of a message type, or '' when unknown.
+
+    Read from the ``share/<pkg>/msg/<Type>.json`` type description that every ROS 2 Jazzy
+    interface package installs (the ROS wheels put it under ``sys.prefix``; a sourced
+    workspace lists its prefixes in ``AMENT_PREFIX_PATH``): rosbag2 records the same string as
+    ``topic_type_hash`` / ``type_description_hash``.
+
+    Parameters
+    ----------
+    msgtype : str
+        ``pkg/msg/Type`` (or ``pkg/Type``).
+
+    Returns
+    -------
+    str
+        The hash string, or '' if no installed description names it.
+    """
+    parts = msgtype.split('/')
+    if len(parts) == 2:
+        parts = [parts[0], 'msg', parts[1]]
+    if len(parts) != 3 or not all(parts):
+        return ''
+    full = '/'.join(parts)
+    prefixes = [sys.prefix, *os.environ.get('AMENT_PREFIX_PATH', '').split(os.pathsep)]
+    for prefix in filter(None, prefixes):
+        path = Path(prefix, 'share', parts[0], parts[1], f'{parts[2]}.json')
+        try:
+            hashes = json.loads(path.read_text(encoding='utf-8')).get('type_hashes', [])
+        except (OSError, ValueError):
+            continue
+        for h in hashes:
+            if isinstance(h, dict) and h.get('type_name') == full:
+                return str(h.get('hash_string', ''))
+    return ''
 
 
 def _qos(reliability: str, durability: str, depth: int) -> dict[str, Any]:
@@ -219,7 +261,8 @@ class McapWriter:
                 name=msgtype, encoding='ros2msg', data=text.encode('utf-8'))
         cid = self._writer.register_channel(
             topic=topic, message_encoding='cdr', schema_id=self._schemas[msgtype],
-            metadata={'offered_qos_profiles': qos_text, 'topic_type_hash': ''})
+            metadata={'offered_qos_profiles': qos_text,
+                      'topic_type_hash': type_description_hash(msgtype)})
         self._topics[topic] = _Topic(topic, msgtype, qos_text, cid)
 
     def write_many(self, topic: str, log_time_ns: Any, payloads: Sequence[bytes]) -> None:
@@ -267,7 +310,7 @@ class McapWriter:
             'topic_metadata': {'name': tp.name, 'type': tp.msgtype,
                                'serialization_format': 'cdr',
                                'offered_qos_profiles': yaml.safe_load(tp.qos),
-                               'type_description_hash': ''},
+                               'type_description_hash': type_description_hash(tp.msgtype)},
             'message_count': tp.count,
         } for tp in self._topics.values()]
         meta = {
