@@ -1,6 +1,7 @@
 """MCAP writing: CDR encoding, ros2msg schemas, rosbag2 conventions, independent read-back."""
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -370,7 +371,8 @@ def test_simulate_command(tmp_path, capsys):
 @pytest.mark.parametrize(('argv', 'pattern'), [
     (['{bad}', '-o', '{out}'], 'gyro.rate: must be a positive number'),
     (['{missing}', '-o', '{out}'], 'no such scene file'),
-    (['{good}', '-o', '{tmp}/o.txt'], 'must end in .mcap'),
+    (['{good}', '-o', '{tmp}/o.txt'], "without a suffix (not '.txt')"),
+    (['{good}', '-o', '{tmp}', '--force'], 'a bag directory is never replaced'),
     (['{good}', '-o', '{tmp}/nodir/o.mcap'], 'does not exist'),
     (['{good}', '-o', '{out}', '--seed', '-4'], '--seed: must be >= 0'),
 ])
@@ -383,6 +385,37 @@ def test_simulate_command_bad_input_is_one_line(tmp_path, capsys, argv, pattern)
     assert main(['simulate'] + [a.format(**fill) for a in argv]) == 2
     err = capsys.readouterr().err
     assert pattern in err and err.count('\n') == 1 and 'Traceback' not in err
+
+
+def test_simulate_writes_a_rosbag2_directory(tmp_path, capsys):
+    """-o NAME (no .mcap suffix) writes NAME/metadata.yaml + NAME/NAME_0.mcap, as ros2 bag
+    record does: rosbags' rosbag2 reader opens it, and our estimate command reads it."""
+    from rosbags.rosbag2 import Reader
+
+    text = (ROOT / 'config' / 'scenes' / 'default.yaml').read_text()
+    scene = tmp_path / 'short.yaml'
+    scene.write_text(text.replace('duration: 60.0', 'duration: 20.0'))
+    bag = tmp_path / 'run1'
+    assert main(['simulate', str(scene), '-o', str(bag), '-q']) == 0
+    assert sorted(p.name for p in bag.iterdir()) == ['metadata.yaml', 'run1_0.mcap']
+    assert not (tmp_path / 'run1.partial').exists()
+    with Reader(bag) as rd:                     # parses metadata.yaml, then reads the mcap
+        assert rd.message_count == 4001 + 1001 + 1
+        types = {c.topic: c.msgtype for c in rd.connections}
+        assert types == {'/imu': IMU, '/torque': WRENCH_STAMPED,
+                         '/truth/inertia': INERTIA_STAMPED}
+        assert sum(1 for _ in rd.messages()) == rd.message_count
+    info = yaml.safe_load((bag / 'metadata.yaml').read_text())['rosbag2_bagfile_information']
+    assert info['relative_file_paths'] == ['run1_0.mcap'] and info['version'] == 9
+    assert main(['estimate', str(bag), '--format', 'json', '--no-progress']) == 0
+    rep = json.loads(capsys.readouterr().out)
+    assert rep['status'] == 'ok' and rep['diagnostics']['truth']['relative_error'] < 0.01
+    # an existing directory is never replaced, --force or not; nothing in it is touched
+    before = {p.name: p.read_bytes() for p in bag.iterdir()}
+    for extra in ([], ['--force']):
+        assert main(['simulate', str(scene), '-o', str(bag), '--seed', '5', *extra]) == 2
+        assert 'never replaced' in capsys.readouterr().err
+    assert {p.name: p.read_bytes() for p in bag.iterdir()} == before
 
 
 # --------------------------------------------------------------------------- sample logs

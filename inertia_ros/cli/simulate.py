@@ -23,12 +23,16 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
     p = sub.add_parser(
         'simulate', help='simulate a scene and write a rosbag2-compatible MCAP log',
         description='Simulate a scene (YAML, see docs/SCENES.md) and write /imu, /torque and '
-                    '/truth/inertia to a rosbag2-compatible MCAP file.')
+                    '/truth/inertia to a rosbag2-compatible MCAP file (-o OUT.mcap), or to a '
+                    'rosbag2 bag directory as "ros2 bag record -o OUT" writes it (-o OUT, no '
+                    '.mcap suffix: OUT/metadata.yaml and OUT/OUT_0.mcap).')
     p.add_argument('scene', metavar='SCENE.yaml', help='scene file')
-    p.add_argument('-o', '--output', required=True, metavar='OUT.mcap', help='output log')
+    p.add_argument('-o', '--output', required=True, metavar='OUT.mcap|OUT',
+                   help='output: an .mcap file, or a new rosbag2 bag directory')
     p.add_argument('--seed', type=int, default=None,
                    help='seed for every random draw (default: the scene\'s seed)')
-    p.add_argument('--force', action='store_true', help='overwrite OUT.mcap if it exists')
+    p.add_argument('--force', action='store_true',
+                   help='overwrite OUT.mcap if it exists (a bag directory is never replaced)')
     p.add_argument('--start-ns', type=int, default=None, metavar='NS',
                    help='epoch of t = 0 in integer nanoseconds (default 2024-01-01T00:00Z)')
     p.add_argument('-q', '--quiet', action='store_true', help='print nothing on success')
@@ -44,8 +48,13 @@ def run(args: argparse.Namespace) -> int:
     from inertia_ros.io.scene_file import load_scene
 
     out = Path(args.output)
-    if out.suffix != '.mcap':
-        raise UserError(f'{out}: the output file name must end in .mcap')
+    bag_dir = out.suffix != '.mcap'
+    if bag_dir and out.suffix:
+        raise UserError(f'{out}: give an .mcap file, or a bag directory name without a '
+                        f'suffix (not {out.suffix!r})')
+    if bag_dir and out.exists():
+        raise UserError(f'{out} exists (a bag directory is never replaced: remove it or '
+                        'choose another name)')
     if out.exists() and not args.force:
         raise UserError(f'{out} exists (use --force to overwrite it)')
     if args.seed is not None and args.seed < 0:
@@ -61,7 +70,8 @@ def run(args: argparse.Namespace) -> int:
     result = simulate(scene, seed=args.seed)
     t1 = time.perf_counter()
     try:
-        counts = write_simulation(out, result, start_ns=start_ns, overwrite=args.force)
+        counts = write_simulation(out, result, start_ns=start_ns, overwrite=args.force,
+                                  rosbag2_dir=bag_dir)
     except (McapWriterError, FileExistsError, OSError) as exc:
         raise UserError(f'{out}: {exc}') from None
     t2 = time.perf_counter()

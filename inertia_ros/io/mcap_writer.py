@@ -21,6 +21,7 @@ from __future__ import annotations
 import functools
 import json
 import os
+import shutil
 import sys
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -203,6 +204,8 @@ class McapWriter:
         self._stream = None
         self._writer: Writer | None = None
         self._closed = False
+        #: the rosbag2 ``BagMetadata`` YAML written into the file, set by :meth:`close`
+        self.bag_metadata: str | None = None
         self._tmp = self.path.with_name(self.path.name + '.partial')
         self._stream = open(self._tmp, 'wb')  # closed in close() / abort()
         self._writer = Writer(self._stream, chunk_size=chunk_size,
@@ -364,8 +367,8 @@ class McapWriter:
                 start = end = 0
             for name, md in self._metadata:
                 self._writer.add_metadata(name, md)
-            self._writer.add_metadata('rosbag2', {
-                'serialized_metadata': self._bag_metadata(start, end, count)})
+            self.bag_metadata = self._bag_metadata(start, end, count)
+            self._writer.add_metadata('rosbag2', {'serialized_metadata': self.bag_metadata})
             self._writer.finish()
             self._stream.close()
             if not self._overwrite and self.path.exists():
@@ -402,13 +405,14 @@ def write_simulation(path: str | os.PathLike[str], result: SimResult, *,
                      start_ns: int = DEFAULT_START_NS, overwrite: bool = False,
                      imu_topic: str = '/imu', torque_topic: str = '/torque',
                      truth_topic: str = '/truth/inertia', compression: str = 'zstd',
-                     extra_metadata: Mapping[str, str] | None = None) -> dict[str, int]:
+                     extra_metadata: Mapping[str, str] | None = None,
+                     rosbag2_dir: bool = False) -> dict[str, int]:
     """Write a simulation result as a rosbag2-compatible MCAP log.
 
     Parameters
     ----------
     path : str or pathlib.Path
-        Output ``.mcap`` file.
+        Output ``.mcap`` file, or with ``rosbag2_dir`` the bag directory to create.
     result : SimResult
         What :func:`inertia_ros.core.simulation.simulate` returned.
     start_ns : int, optional
@@ -426,12 +430,17 @@ def write_simulation(path: str | os.PathLike[str], result: SimResult, *,
         Chunk compression.
     extra_metadata : Mapping[str, str], optional
         Added to the ``inertia_ros.scene`` metadata record.
+    rosbag2_dir : bool, optional
+        Write a rosbag2 bag directory as ``ros2 bag record -o PATH`` does:
+        ``PATH/metadata.yaml`` and ``PATH/<name>_0.mcap``.  ``PATH`` must not exist (an
+        existing directory is never replaced, whatever ``overwrite`` says).
 
     Returns
     -------
     dict
         Message counts per topic.
     """
+
     if not isinstance(result, SimResult):
         raise McapWriterError(f'result: expected a SimResult, got {type(result).__name__}')
     if isinstance(start_ns, bool) or not isinstance(start_ns, (int, np.integer)) \
@@ -460,17 +469,55 @@ def write_simulation(path: str | os.PathLike[str], result: SimResult, *,
     }
     if extra_metadata:
         meta.update({str(k): str(v) for k, v in extra_metadata.items()})
-    with McapWriter(path, overwrite=overwrite, compression=compression) as w:
-        w.add_topic(imu_topic, cdr_encode.IMU, qos='sensor_data')
-        w.add_topic(torque_topic, cdr_encode.WRENCH_STAMPED, qos='sensor_data')
-        w.add_topic(truth_topic, cdr_encode.INERTIA_STAMPED, qos='latched')
-        w.write_many(imu_topic, t_g, cdr_encode.encode_imu(
-            t_g, result.omega, frame,
-            angular_velocity_covariance=np.diag([sigma ** 2] * 3).ravel()))
-        w.write_many(torque_topic, t_t, cdr_encode.encode_wrench_stamped(
-            t_t, result.torque, frame))
-        w.write_many(truth_topic, t_i, cdr_encode.encode_inertia_stamped(
-            t_i, truth_i, frame, mass=np.array(truth_m), com=np.array(truth_c)))
-        w.add_metadata('inertia_ros.scene', meta)
+    out = Path(path)
+    tmp = _bag_dir_begin(out) if rosbag2_dir else None
+    try:
+        with McapWriter(out if tmp is None else tmp / f'{out.name}_0.mcap',
+                        overwrite=overwrite, compression=compression) as w:
+            w.add_topic(imu_topic, cdr_encode.IMU, qos='sensor_data')
+            w.add_topic(torque_topic, cdr_encode.WRENCH_STAMPED, qos='sensor_data')
+            w.add_topic(truth_topic, cdr_encode.INERTIA_STAMPED, qos='latched')
+            w.write_many(imu_topic, t_g, cdr_encode.encode_imu(
+                t_g, result.omega, frame,
+                angular_velocity_covariance=np.diag([sigma ** 2] * 3).ravel()))
+            w.write_many(torque_topic, t_t, cdr_encode.encode_wrench_stamped(
+                t_t, result.torque, frame))
+            w.write_many(truth_topic, t_i, cdr_encode.encode_inertia_stamped(
+                t_i, truth_i, frame, mass=np.array(truth_m), com=np.array(truth_c)))
+            w.add_metadata('inertia_ros.scene', meta)
+        if tmp is not None:
+            assert w.bag_metadata is not None
+            _bag_dir_finish(tmp, out, w.bag_metadata)
+    except BaseException:
+        if tmp is not None:
+            shutil.rmtree(tmp, ignore_errors=True)
+        raise
     return {imu_topic: int(t_g.size), torque_topic: int(t_t.size), truth_topic: int(t_i.size)}
+
+
+def _bag_dir_begin(out: Path) -> Path:
+    """Check that the bag directory ``out`` can be created; make its ``.partial`` twin."""
+    if out.exists():
+        raise FileExistsError(f'{out} exists (a bag directory is never replaced: remove it '
+                              'or choose another name)')
+    if out.name in ('', '.', '..'):
+        raise McapWriterError(f'path: {out} does not name a new directory')
+    if not out.parent.is_dir():
+        raise McapWriterError(f'path: directory {out.parent} does not exist')
+    tmp = out.with_name(out.name + '.partial')
+    if tmp.exists():
+        raise FileExistsError(f'{tmp} exists (left by an interrupted run? remove it)')
+    tmp.mkdir()
+    return tmp
+
+
+def _bag_dir_finish(tmp: Path, out: Path, bag_metadata: str) -> None:
+    """Write ``metadata.yaml`` (as ``ros2 bag record`` does) and move the bag into place."""
+    info = yaml.safe_load(bag_metadata)
+    (tmp / 'metadata.yaml').write_text(
+        yaml.safe_dump({'rosbag2_bagfile_information': info}, sort_keys=False))
+    if out.exists():
+        raise FileExistsError(f'{out} appeared while writing; it was left as it is')
+    tmp.rename(out)
+
 
