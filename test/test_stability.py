@@ -26,17 +26,18 @@ AMPLITUDES = (0.003, 0.03, 0.3)
 
 @pytest.mark.slow
 def test_default_method_has_no_silent_failures() -> None:
-    """On the coarse grid the default method is within 10 % or reports a failure status."""
+    """On the coarse grid (3 seeds per cell) the default method is within 10 % or reports a
+    failure status."""
     specs, _ = method_specs(include_pinocchio=False, quick=True)
     default = [s for s in specs if s.name == DEFAULT_METHOD]
-    cells = run_grid(default, NOISES, AMPLITUDES, (20.0,), (1,))
-    assert len(cells) == len(NOISES) * len(AMPLITUDES)
+    cells = run_grid(default, NOISES, AMPLITUDES, (20.0,), (1, 2, 3))
+    assert len(cells) == len(NOISES) * len(AMPLITUDES) * 3
     silent = [(c.gyro_noise, c.amplitude, c.status, round(c.error, 3)) for c in cells
               if c.outcome == 'silent']
     assert silent == []
     # the grid is not trivially easy: the well-excited low-noise corner is accurate
     best = [c for c in cells if c.gyro_noise == NOISES[0] and c.amplitude == AMPLITUDES[-1]]
-    assert best[0].outcome == 'ok' and best[0].error < 0.01
+    assert all(c.outcome == 'ok' and c.error < 0.01 for c in best), best
 
 
 @pytest.mark.parametrize(('status', 'error', 'expected'), [

@@ -71,7 +71,7 @@ FULL = BenchConfig(
     noises=(3e-4, 1e-3, 3e-3, 1e-2, 3e-2),
     amplitudes=(0.003, 0.01, 0.03, 0.1, 0.3),
     durations=(20.0, 60.0),
-    grid_seeds=(1,),
+    grid_seeds=(1, 2, 3),
     grid_methods=_GRID_METHODS,
     quick=False)
 
