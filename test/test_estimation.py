@@ -265,6 +265,9 @@ def test_single_axis_is_partially_identifiable():
     z = (est.theta - matrix_to_theta(s.inertia)) / est.theta_std
     ident = np.array([est.identifiable[n] for n in THETA_NAMES])
     assert np.all(np.abs(z[ident]) < 4.0), z
+    # ratios need every moment: none is given, and no standard error without its ratio
+    assert np.all(np.isnan(est.ratios)) and np.all(np.isnan(est.ratios_std))
+    assert d['ratios_std'][0][0] is None
 
 
 def test_spin_about_principal_axis_without_torque_is_insufficient():

@@ -1150,7 +1150,9 @@ def _assemble(status: str, f: _Fit, model: str, free: np.ndarray, diag: dict[str
         diag['reason'] = ('the excitation does not determine ' + ', '.join(undetermined)
                           + ' (reported as null)')
     ratios = I / np.trace(I)
-    ratios_std = _sym(np.sqrt(np.maximum(np.diag(_ratio_cov(theta, cov6)), 0.0)))
+    # undetermined products leave the other ratios defined; an undetermined moment, none
+    r_se = np.sqrt(np.maximum(np.diag(_ratio_cov(np.where(free, theta, 0.0), cov6)), 0.0))
+    ratios_std = _sym(np.where(free & bool(np.all(free[:3])), r_se, np.nan))
     bias = f.beta[k:k + 3] if f.bias else None
     if f.bias:
         diag['torque_bias_std'] = np.sqrt(np.maximum(np.diag(f.cov)[k:k + 3], 0.0))
