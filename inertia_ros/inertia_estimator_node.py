@@ -115,8 +115,9 @@ PARAMETERS: dict[str, _Param] = {
                     "(2, needs symmetry_axis) or 'auto' (model selection in the core)"),
     'symmetry_axis': _Param('', "symmetry axis for model 'axisymmetric': 'x', 'y' or 'z' "
                             "('' = none)", choices=('', 'x', 'y', 'z')),
-    'torque_bias': _Param('off', "estimate a constant unmeasured disturbance torque [N m]: "
-                          "'off', 'on' or 'auto' (kept when significant)",
+    'torque_bias': _Param('auto', "estimate a constant unmeasured disturbance torque [N m]: "
+                          "'off', 'on' or 'auto' (kept when significant; the recursive "
+                          "method re-tests it about once a second)",
                           choices=('off', 'on', 'auto')),
     'forgetting': _Param(1.0, 'recursive forgetting factor per gyro sample; 1 = none '
                          '[dimensionless]', 0.5, 1.0),
@@ -174,10 +175,13 @@ def make_estimator(cfg: dict[str, Any]) -> Callable[[], Any]:
     """
     axis = cfg['symmetry_axis'] or None
     if cfg['method'] == 'recursive':
+        # model selection ('auto') re-run about once a second, its choice reused in between:
+        # the per-update cost (and so the latency) stays that of one fit
         kwargs = dict(model=cfg['model'], torque_bias=cfg['torque_bias'],
                       forgetting=float(cfg['forgetting']),
                       window=float(cfg['window']) or None, hold=cfg['hold'],
-                      symmetry_axis=axis)
+                      symmetry_axis=axis,
+                      reselect_every=max(1, round(float(cfg['publish_rate']))))
         estimation.RecursiveEstimator(**kwargs)  # validates
         return lambda: estimation.RecursiveEstimator(**kwargs)
     window = float(cfg['window']) or BATCH_DEFAULT_WINDOW

@@ -276,15 +276,15 @@ def method_specs(*, include_pinocchio: bool = True, quick: bool = False
                        _package(method='differential_sg', window=2.0)),
         ]
     notes: list[str] = []
-    rec, why = _recursive_runner(model='full', torque_bias='off')
+    rec, why = _recursive_runner(model='full', torque_bias='auto', reselect_every=10)
     if rec is not None:
         specs.append(MethodSpec('recursive', 'recursive', 'RecursiveEstimator fed the whole '
-                                'record in 1 s blocks, node defaults (full model, bias off)',
-                                rec))
-        rec_b, _ = _recursive_runner(model='full', torque_bias='auto')
-        assert rec_b is not None
-        specs.append(MethodSpec('recursive_bias', 'recursive', 'RecursiveEstimator as above '
-                                "with torque_bias='auto'", rec_b))
+                                'record in 1 s blocks, node defaults (full model, '
+                                "torque_bias 'auto')", rec))
+        rec_n, _ = _recursive_runner(model='full', torque_bias='off')
+        assert rec_n is not None
+        specs.append(MethodSpec('recursive_nobias', 'recursive', 'RecursiveEstimator as '
+                                "above with torque_bias='off'", rec_n))
     else:
         notes.append(f'recursive: skipped ({why})')
     if include_pinocchio:

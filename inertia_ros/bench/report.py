@@ -259,7 +259,7 @@ def _advice(ctx: BenchContext, nominal: str) -> list[str]:
     L = ['## What to pick when', '']
     package = {s.name for s in ctx.specs if s.family not in ('baseline', 'prototype')}
     package.discard('recursive')
-    package.discard('recursive_bias')
+    package.discard('recursive_nobias')
     wins = 0
     for sc in ctx.scenes:
         errs = {m: by[(sc, m)].median_error for m in package if (sc, m) in by
@@ -287,8 +287,9 @@ def _advice(ctx: BenchContext, nominal: str) -> list[str]:
     if any(k[1] == 'recursive' for k in by):
         L.append(f'- **Live (the ROS node): `RecursiveEstimator`**: median error '
                  f'{_f(med("recursive"), ".1e")} over scenes with the node defaults '
-                 f'({_f(med("recursive_bias"), ".1e")} with `torque_bias: auto`, which the '
-                 f'disturbance scene needs); feeding a whole record in 1 s blocks costs '
+                 f'(`torque_bias: auto`; {_f(med("recursive_nobias"), ".1e")} with it off, '
+                 f'which leaves the disturbance scene biased while its status says ok); '
+                 f'feeding a whole record in 1 s blocks costs '
                  f'{_f(speed("recursive"), ".2f")}x the batch default\'s time.')
     L.append(f'- **Never the plain finite-difference fit** (`differential_fd`, the hand-written '
              f'`hand_fd`, Pinocchio\'s regressor with `lstsq`): differentiating a noisy gyro puts '

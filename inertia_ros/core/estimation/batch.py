@@ -527,8 +527,17 @@ def _weight(theta: np.ndarray, gyro_var: np.ndarray) -> np.ndarray:
 
 
 def _fit2(st: _Stats, basis: np.ndarray, bias: bool, gyro_var: np.ndarray,
-          torque_var: np.ndarray, offset: np.ndarray | None = None) -> _Fit:
-    """Two-pass fit: unweighted, then weighted by the first pass's tensor (weighted methods)."""
+          torque_var: np.ndarray, offset: np.ndarray | None = None,
+          theta0: np.ndarray | None = None) -> _Fit:
+    """Two-pass fit: unweighted, then weighted by the first pass's tensor (weighted methods).
+
+    ``theta0`` (6,), a tensor from an earlier fit of the same data, gives the weights at once
+    (one weighted pass; model selection refits the same equations several times).
+    """
+    if theta0 is not None and st.eq.weighted and np.all(gyro_var > 0) \
+            and np.all(np.isfinite(theta0)) and np.any(theta0[:3] != 0):
+        return _fit(st, basis, bias, _weight(theta0, gyro_var), gyro_var, torque_var,
+                    st.eq.weighted, offset)
     f = _fit(st, basis, bias, np.eye(3), gyro_var, torque_var, st.eq.weighted, offset)
     if st.eq.weighted and np.all(gyro_var > 0):
         theta = basis @ f.beta[:basis.shape[1]] + (0.0 if offset is None else offset)
@@ -962,9 +971,10 @@ def estimate(t_gyro: Any, omega: Any, t_torque: Any, torque: Any, *,
             return InertiaEstimate(status='insufficient_data', diagnostics=diag,
                                    **base)   # type: ignore[arg-type]
 
-    def fit(basis: np.ndarray, bias: bool, offset: np.ndarray | None = None) -> _Fit:
-        """Fit one parameter set on the statistics."""
-        return _fit2(st, basis, bias, gyro_var, torque_var, offset)
+    def fit(basis: np.ndarray, bias: bool, offset: np.ndarray | None = None,
+            theta0: np.ndarray | None = None) -> _Fit:
+        """Fit one parameter set on the statistics (weights from ``theta0`` when given)."""
+        return _fit2(st, basis, bias, gyro_var, torque_var, offset, theta0)
 
     return _conclude(fit, model, torque_bias, axis, alpha, identifiability_tol, physical,
                      diag, base)
@@ -1045,7 +1055,7 @@ def _conclude(fit: Any, model: str, torque_bias: str, axis: np.ndarray | None, a
         selection['bias'] = {'wald': stat, 'dof': dof, 'p_value': pval,
                              'kept': bool(bias_on)}
         if not bias_on:
-            f = fit(np.eye(6), False)
+            f = fit(np.eye(6), False, theta0=f.basis @ f.beta[:6])
     chosen = model
     if model == 'auto':
         candidates = (['axisymmetric'] if axis is not None else []) + ['diagonal']
@@ -1065,7 +1075,7 @@ def _conclude(fit: Any, model: str, torque_bias: str, axis: np.ndarray | None, a
     if selection:
         diag['model_selection'] = selection
     if chosen != 'full':
-        f = fit(model_basis(chosen, axis), bias_on)
+        f = fit(model_basis(chosen, axis), bias_on, theta0=f.basis @ f.beta[:6])
     return _assemble('ok', f, chosen, free, diag, base, physical=physical)
 
 

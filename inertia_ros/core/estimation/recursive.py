@@ -92,12 +92,18 @@ class RecursiveEstimator:
     segment : float, optional
         Anchored-segment length [s]: each segment has its own momentum intercept, so a
         momentum jump (payload change) only affects one segment.  Default ``window`` or 10 s.
+    reselect_every : int
+        With ``model`` or ``torque_bias`` ``'auto'``: run the model-selection tests on every
+        ``reselect_every``-th call of :meth:`estimate` and reuse the parameter set they chose
+        in between (one fit instead of two or more per call; the node re-selects about once
+        a second).  1 (default) selects on every call.
     """
 
     def __init__(self, model: str = 'full', torque_bias: bool | str = False,
                  forgetting: float = 1.0, window: float | None = None, hold: str = 'zoh',
                  symmetry_axis: Any = None, gyro_noise: Any = None, alpha: float = 1e-3,
-                 block: int = 256, segment: float | None = None) -> None:
+                 block: int = 256, segment: float | None = None,
+                 reselect_every: int = 1) -> None:
         if model not in _RMODELS:
             raise ValueError(f'model: must be one of {_RMODELS}, got {model!r}')
         if isinstance(torque_bias, bool):
@@ -118,6 +124,10 @@ class RecursiveEstimator:
         self.segment = float(segment if segment is not None else (window or 10.0))
         if int(block) < 1:
             raise ValueError(f'block: must be >= 1, got {block!r}')
+        if isinstance(reselect_every, bool) or int(reselect_every) != reselect_every \
+                or reselect_every < 1:
+            raise ValueError(f'reselect_every: must be an integer >= 1, got {reselect_every!r}')
+        self.reselect_every = int(reselect_every)
         self.model = model
         self.torque_bias = torque_bias
         self.forgetting = float(forgetting)
@@ -176,6 +186,9 @@ class RecursiveEstimator:
         self._wtail = np.empty((0, 3))
         self.samples_used = 0
         self.samples_dropped = 0
+        # model selection reused between re-selections: (torque_bias, model, its record)
+        self._selection: tuple[str, str, dict[str, Any]] | None = None
+        self._selection_left = 0
 
     @staticmethod
     def _block(t: Any, x: Any, name: str) -> tuple[np.ndarray, np.ndarray]:
@@ -620,12 +633,30 @@ class RecursiveEstimator:
         if float(np.max(torque_rms)) <= 5.0 * float(np.max(tq_std)):
             return _homogeneous_from_stats(st, nv, diag, base, cov_scale=ratio)
 
-        def fit(basis: np.ndarray, bias: bool, offset: np.ndarray | None = None) -> _Fit:
+        def fit(basis: np.ndarray, bias: bool, offset: np.ndarray | None = None,
+                theta0: np.ndarray | None = None) -> _Fit:
             """Fit on the weighted statistics; the meat of weighted sums scales by w^2/w."""
-            f = _fit2(st, basis, bias, nv, tv, offset)
+            f = _fit2(st, basis, bias, nv, tv, offset, theta0)
             f.cov = f.cov * ratio
             return f
 
-        model = self.model
-        return _conclude(fit, model, self.torque_bias, self.axis, self.alpha, 0.1, True,
-                         diag, base)
+        auto = self.model == 'auto' or self.torque_bias == 'auto'
+        if auto and self._selection is not None and self._selection_left > 0:
+            self._selection_left -= 1
+            bias, model, record = self._selection
+            est = _conclude(fit, model, bias, self.axis, self.alpha, 0.1, True,
+                            dict(diag, warnings=list(diag['warnings'])), base)
+            if est.status == 'ok':
+                est.diagnostics['model_selection'] = dict(record, reused=True)
+                return est
+        est = _conclude(fit, self.model, self.torque_bias, self.axis, self.alpha, 0.1, True,
+                        diag, base)
+        self._selection = None
+        if auto and est.status == 'ok':
+            record = dict(est.diagnostics.get('model_selection') or {},
+                          selected_at_samples=self.samples_used)
+            est.diagnostics['model_selection'] = record
+            self._selection = ('on' if est.model.endswith('+bias') else 'off',
+                               est.model.removesuffix('+bias'), record)
+            self._selection_left = self.reselect_every - 1
+        return est
