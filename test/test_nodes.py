@@ -580,6 +580,31 @@ def test_demo_never_overwrites(tmp_path):
     assert first.read_text() == 'user file'
 
 
+def test_wait_until_matched_reports_why_it_gave_up():
+    """The discovery wait ends with a one-line reason: a dead publisher, or the timeout."""
+    from types import SimpleNamespace
+
+    from inertia_ros.cli.demo import wait_until_matched
+
+    count = {'n': 0}
+    sub = SimpleNamespace(topic_name='/inertia_estimator/inertia',
+                          get_publisher_count=lambda: count['n'])
+    dead = subprocess.Popen([sys.executable, '-c', 'pass'])
+    dead.wait()
+    assert 'exited (status 0)' in wait_until_matched(lambda: None, [sub], dead, 5.0)
+    alive = subprocess.Popen([sys.executable, '-c', 'import time; time.sleep(30)'])
+    try:
+        msg = wait_until_matched(lambda: time.sleep(0.01), [sub], alive, 0.1)
+        assert msg == 'no publisher discovered on /inertia_estimator/inertia within 0.1 s'
+
+        def spin():
+            count['n'] = 1            # discovery completes during the first spin
+        assert wait_until_matched(spin, [sub], alive, 5.0) == ''
+    finally:
+        alive.kill()
+        alive.wait()
+
+
 def test_demo_plot_without_estimates(tmp_path):
     """A run that got no estimate still gets a readable PNG, without matplotlib warnings."""
     import warnings
