@@ -573,7 +573,8 @@ def _build(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.n
            mask: np.ndarray, breaks: np.ndarray, hold: str, gyro_var: np.ndarray,
            window: float | None) -> _Equations:
     """Equations of ``method`` from the gyro samples selected by ``mask``."""
-    idx = np.flatnonzero(mask)
+    # every sample used (the common case): views instead of fancy-indexed copies
+    idx: slice | np.ndarray = slice(None) if mask.all() else np.flatnonzero(mask)
     t = tg[idx]
     if method in ('integral', 'integral_ls'):
         comp = method == 'integral'
