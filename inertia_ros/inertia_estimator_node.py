@@ -376,10 +376,16 @@ class InertiaEstimatorNode(Node):
             if cfg['frame_id'] != self._cfg['frame_id']:
                 self._frame = cfg['frame_id'] or None
                 rebuild = True
+            rate_changed = cfg['publish_rate'] != self._cfg['publish_rate']
             self._cfg = cfg
             if rebuild:
                 self._factory = make_estimator(cfg)
                 self._reset('parameters changed')
+            elif rate_changed:
+                # the model-selection period follows the publish rate; the estimate is kept
+                self._factory = make_estimator(cfg)
+                if hasattr(self._estimator, 'reselect_every'):
+                    self._estimator.reselect_every = max(1, round(float(cfg['publish_rate'])))
         return SetParametersResult(successful=True)
 
     # ------------------------------------------------------------------ input

@@ -215,6 +215,10 @@ def test_valid_parameter_change_resets(harness):
     assert h.est.counts()['resets'] == resets + 1
     assert h.est.set_parameters([Parameter('marker_scale', value=1.0)])[0].successful
     assert h.est.counts()['resets'] == resets + 1
+    # a new publish rate keeps the estimate; model selection still runs about once a second
+    assert h.est.set_parameters([Parameter('publish_rate', value=5.0)])[0].successful
+    assert h.est.counts()['resets'] == resets + 1
+    assert h.est._estimator.reselect_every == 5
 
 
 def test_invalid_startup_parameters_raise(context):
