@@ -61,47 +61,64 @@ def nominal60():
 
 @pytest.mark.slow
 def test_standard_errors_are_calibrated(nominal60):
-    """200 noise resamplings (nominal, integral): RMS of (est - truth)/sigma in [0.7, 1.5].
+    """200 noise resamplings (nominal, integral): RMS of (est - truth)/sigma in [0.7, 1.5]
+    for the tensor elements, the ratios and the principal axes' angles.
 
     Checked per tensor element for the integral method with the full model and no bias (the
     covariance under test is the one reported in ``inertia_std``; ``ml``: see below).
     """
     truth = matrix_to_theta(nominal60.inertia)
     ratios_true = truth / np.sum(truth[:3])
-    z, zr = [], []
+    axes_true = np.linalg.eigh(nominal60.inertia)[1]
+    z, zr, za = [], [], []
     for seed in range(200):
         est = estimate(*add_noise(nominal60, seed=1000 + seed), method='integral',
                        model='full', torque_bias='off')
         z.append((est.theta - truth) / est.theta_std)
         zr.append((matrix_to_theta(est.ratios) - ratios_true)
                   / matrix_to_theta(est.ratios_std))
+        za.append(_axis_angles(est.principal_axes, axes_true)
+                  / est.diagnostics['principal_axes_std'])
     rms = np.sqrt(np.mean(np.square(z), axis=0))
     assert np.all(rms >= 0.7) and np.all(rms <= 1.5), rms
     # the ratios' standard errors (delta method through the trace) are calibrated as well
     rms_r = np.sqrt(np.mean(np.square(zr), axis=0))
     assert np.all(rms_r >= 0.7) and np.all(rms_r <= 1.5), rms_r
+    # and the principal axes' angular errors (RMS angle to the true axis over its sigma)
+    rms_a = np.sqrt(np.mean(np.square(za), axis=0))
+    assert np.all(rms_a >= 0.7) and np.all(rms_a <= 1.5), rms_a
+
+
+def _axis_angles(axes: np.ndarray, truth: np.ndarray) -> np.ndarray:
+    """Angle [rad] between each estimated principal axis (column) and the true one."""
+    return np.arccos(np.clip(np.abs(np.sum(axes * truth, axis=0)), 0.0, 1.0))
 
 
 @pytest.mark.slow
 def test_torque_free_ratio_errors_are_calibrated():
     """Torque-free tumble, 100 gyro-noise resamplings: RMS of (ratio - truth)/sigma in
     [0.7, 1.5] for every element of ``inertia / trace``, and likewise for the principal
-    moment ratios; no bias: the mean z of each element within 5 standard errors of 0 (0.5).
+    moment ratios and the principal axes' angles; no bias: the mean z of each element within
+    5 standard errors of 0 (0.5).
     """
     sim = noise_free('torque_free')
     truth = matrix_to_theta(sim.inertia) / np.trace(sim.inertia)
-    moments_true = np.linalg.eigvalsh(sim.inertia) / np.trace(sim.inertia)
-    z, zm = [], []
+    moments_true, axes_true = np.linalg.eigh(sim.inertia)
+    moments_true = moments_true / np.trace(sim.inertia)
+    z, zm, za = [], [], []
     for seed in range(100):
         est = estimate(*add_noise(sim, seed=3000 + seed), method='integral')
         assert est.status == 'scale_unobservable'
         z.append((matrix_to_theta(est.ratios) - truth) / matrix_to_theta(est.ratios_std))
         d = est.diagnostics
         zm.append((d['principal_ratios'] - moments_true) / d['principal_ratios_std'])
+        za.append(_axis_angles(est.principal_axes, axes_true) / d['principal_axes_std'])
     rms = np.sqrt(np.mean(np.square(z), axis=0))
     assert np.all(rms >= 0.7) and np.all(rms <= 1.5), rms
     rms_m = np.sqrt(np.mean(np.square(zm), axis=0))
     assert np.all(rms_m >= 0.7) and np.all(rms_m <= 1.5), rms_m
+    rms_a = np.sqrt(np.mean(np.square(za), axis=0))
+    assert np.all(rms_a >= 0.7) and np.all(rms_a <= 1.5), rms_a
     assert np.all(np.abs(np.mean(z, axis=0)) < 5.0 / np.sqrt(len(z))), np.mean(z, axis=0)
 
 

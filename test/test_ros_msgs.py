@@ -1,6 +1,8 @@
 """Message <-> array conversion at the ROS boundary (no rclpy.init needed)."""
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 from builtin_interfaces.msg import Time
@@ -152,6 +154,17 @@ def test_diagnostic_values_carry_contract_fields():
     assert v['samples_used'] == '1000' and v['samples_dropped'] == '3'
     assert v['residual_rms'] == '0.01'
     assert v['gyro_received'] == '10' and v['nan_dropped'] == '2'
+
+
+def test_diagnostic_values_carry_principal_uncertainty():
+    """The principal moments' std [kg m^2] and the axes' angular std, in degrees, are shown."""
+    res = _result(diagnostics={'principal_moments_std': [0.001, 0.002, 0.003],
+                               'principal_axes_std': [math.radians(0.5), math.radians(1.0),
+                                                      float('inf')]})
+    v = _values(rm.diagnostic_status(res, name='est'))
+    assert 'principal_moments_std' in v and '0.002' in v['principal_moments_std']
+    shown = v['principal_axes_std_deg']
+    assert '0.5' in shown and '1' in shown, shown
 
 
 def test_diagnostic_null_std_and_reason():

@@ -267,13 +267,19 @@ def format_text(report: dict, log: LogData) -> str:
     if report['principal_moments'] is not None:
         m = report['principal_moments']
         lines.append('')
+        m_std = report['diagnostics'].get('principal_moments_std') or [None] * 3
         lines.append('principal moments [kg m^2]: ' + ', '.join(
-            f'I{k + 1} = {v:.6g}' for k, v in enumerate(m)))
+            f'I{k + 1} = {_fmt(v, e).strip()}' for k, (v, e) in enumerate(zip(m, m_std,
+                                                                             strict=True))))
     if report['principal_axes'] is not None:
         a = np.array(report['principal_axes'], dtype=float)
-        lines.append('principal axes (unit vectors in the gyro frame):')
+        a_std = report['diagnostics'].get('principal_axes_std') or [None] * 3
+        lines.append('principal axes (unit vectors in the gyro frame, ± one-sigma angle):')
         for k in range(3):
-            lines.append(f'  axis {k + 1}: [{a[0, k]: .4f} {a[1, k]: .4f} {a[2, k]: .4f}]')
+            err = ('' if a_std[k] is None else
+                   f'  ± {math.degrees(a_std[k]):.2g} deg')
+            lines.append(f'  axis {k + 1}: [{a[0, k]: .4f} {a[1, k]: .4f} {a[2, k]: .4f}]'
+                         + err)
     if report['torque_bias'] is not None:
         b = report['torque_bias']
         lines.append(f'disturbance torque (estimated bias) [N m]: '

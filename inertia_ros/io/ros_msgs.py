@@ -413,6 +413,13 @@ def diagnostic_status(result: Mapping[str, Any] | None, *, name: str, hardware_i
     samples = result.get('samples') or {}
     values.append(('samples_used', samples.get('used')))
     values.append(('samples_dropped', samples.get('dropped')))
+    for key in ('principal_moments_std', 'principal_ratios', 'principal_ratios_std'):
+        if diag.get(key) is not None:
+            values.append((key, diag[key]))
+    axes_std = diag.get('principal_axes_std')
+    if axes_std is not None:      # [deg]: how far each principal axis may be off (1 sigma)
+        values.append(('principal_axes_std_deg',
+                       [None if v is None else math.degrees(float(v)) for v in axes_std]))
     if 'torque_bias' in result:
         values.append(('torque_bias', result['torque_bias']))
     if 'identifiable' in result:

@@ -767,6 +767,30 @@ def _moment_std(I: np.ndarray, cov6: np.ndarray) -> np.ndarray:
     return out
 
 
+def _axis_std(I: np.ndarray, cov6: np.ndarray) -> np.ndarray:
+    """First-order angular std [rad] of each principal axis (ascending moments' order).
+
+    Perturbation of a symmetric eigenproblem: ``dv_i = sum_{j != i} (v_j' dI v_i) /
+    (l_i - l_j) v_j``, so ``E|dv_i|^2 = sum_j var(v_j' dI v_i) / (l_i - l_j)^2``: the RMS
+    angle between the estimated and the true axis.  Infinite for repeated moments (the axes
+    of a degenerate subspace are not determined).
+    """
+    lam, vec = np.linalg.eigh(I)
+    out = np.empty(3)
+    for i in range(3):
+        var = 0.0
+        for j in range(3):
+            if j == i:
+                continue
+            a, b = vec[:, i], vec[:, j]
+            g = np.array([a[0] * b[0], a[1] * b[1], a[2] * b[2], a[0] * b[1] + a[1] * b[0],
+                          a[0] * b[2] + a[2] * b[0], a[1] * b[2] + a[2] * b[1]])
+            gap = float(lam[i] - lam[j])
+            var += max(float(g @ cov6 @ g), 0.0) / gap ** 2 if gap != 0.0 else np.inf
+        out[i] = np.sqrt(var)
+    return out
+
+
 _TRACE = np.array([1.0, 1.0, 1.0, 0.0, 0.0, 0.0])     # theta -> trace of the tensor
 
 
@@ -1155,6 +1179,7 @@ def _assemble(status: str, f: _Fit, model: str, free: np.ndarray, diag: dict[str
             diag['physical'] = {'valid': True, 'projected': False}
         moments, axes = principal_axes(I)
         diag['principal_moments_std'] = _moment_std(I, cov6)
+        diag['principal_axes_std'] = _axis_std(I, cov6)
     else:
         undetermined = [n for n, ok in zip(THETA_NAMES, free, strict=True) if not ok]
         diag['undetermined'] = undetermined
@@ -1279,6 +1304,7 @@ def _homogeneous_from_stats(st: _Stats, gyro_var: np.ndarray, diag: dict[str, An
     ratios, axes = principal_axes(R)
     diag['principal_ratios'] = ratios
     diag['principal_ratios_std'] = _moment_std(R, cov6)
+    diag['principal_axes_std'] = _axis_std(R, cov6)
     return InertiaEstimate(status='scale_unobservable', ratios=R,
                            ratios_std=_sym(np.sqrt(np.maximum(np.diag(cov6), 0.0))),
                            principal_axes=axes, identifiable=dict.fromkeys(THETA_NAMES, False),
@@ -1331,6 +1357,7 @@ def _maximum_likelihood(first: InertiaEstimate, tg: np.ndarray, w: np.ndarray, t
                                 'model: standard errors inflated accordingly')
     moments, axes = principal_axes(I)
     diag['principal_moments_std'] = _moment_std(I, cov6)
+    diag['principal_axes_std'] = _axis_std(I, cov6)
     diag['physical'] = {'valid': True, 'projected': False}
     if res.bias is not None:
         diag['torque_bias_std'] = np.sqrt(np.maximum(np.diag(res.cov)[k:k + 3], 0.0))
