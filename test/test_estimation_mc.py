@@ -17,6 +17,12 @@ from inertia_ros.core.scene import Scene
 from inertia_ros.core.simulation import simulate
 
 
+def assert_calibrated(z: list, lo: float = 0.7, hi: float = 1.5) -> None:
+    """RMS over the runs of each column of z = (estimate - truth) / sigma lies in [lo, hi]."""
+    rms = np.sqrt(np.mean(np.square(z), axis=0))
+    assert np.all(rms >= lo) and np.all(rms <= hi), rms
+
+
 @pytest.mark.parametrize('seed', [1, 2, 3])
 def test_nominal_scene_error_below_half_percent(seed):
     """Nominal scene (60 s, 200 Hz gyro, 50 Hz torque): relative Frobenius error <= 0.5 %."""
@@ -79,14 +85,11 @@ def test_standard_errors_are_calibrated(nominal60):
                   / matrix_to_theta(est.ratios_std))
         za.append(_axis_angles(est.principal_axes, axes_true)
                   / est.diagnostics['principal_axes_std'])
-    rms = np.sqrt(np.mean(np.square(z), axis=0))
-    assert np.all(rms >= 0.7) and np.all(rms <= 1.5), rms
+    assert_calibrated(z)
     # the ratios' standard errors (delta method through the trace) are calibrated as well
-    rms_r = np.sqrt(np.mean(np.square(zr), axis=0))
-    assert np.all(rms_r >= 0.7) and np.all(rms_r <= 1.5), rms_r
+    assert_calibrated(zr)
     # and the principal axes' angular errors (RMS angle to the true axis over its sigma)
-    rms_a = np.sqrt(np.mean(np.square(za), axis=0))
-    assert np.all(rms_a >= 0.7) and np.all(rms_a <= 1.5), rms_a
+    assert_calibrated(za)
 
 
 def _axis_angles(axes: np.ndarray, truth: np.ndarray) -> np.ndarray:
@@ -113,12 +116,9 @@ def test_torque_free_ratio_errors_are_calibrated():
         d = est.diagnostics
         zm.append((d['principal_ratios'] - moments_true) / d['principal_ratios_std'])
         za.append(_axis_angles(est.principal_axes, axes_true) / d['principal_axes_std'])
-    rms = np.sqrt(np.mean(np.square(z), axis=0))
-    assert np.all(rms >= 0.7) and np.all(rms <= 1.5), rms
-    rms_m = np.sqrt(np.mean(np.square(zm), axis=0))
-    assert np.all(rms_m >= 0.7) and np.all(rms_m <= 1.5), rms_m
-    rms_a = np.sqrt(np.mean(np.square(za), axis=0))
-    assert np.all(rms_a >= 0.7) and np.all(rms_a <= 1.5), rms_a
+    assert_calibrated(z)
+    assert_calibrated(zm)
+    assert_calibrated(za)
     assert np.all(np.abs(np.mean(z, axis=0)) < 5.0 / np.sqrt(len(z))), np.mean(z, axis=0)
 
 
@@ -161,8 +161,7 @@ def test_recursive_standard_errors_are_calibrated(nominal60):
         rec.add_gyro(t_g, w)
         est = rec.estimate()
         z.append((est.theta - truth) / est.theta_std)
-    rms = np.sqrt(np.mean(np.square(z), axis=0))
-    assert np.all(rms >= 0.7) and np.all(rms <= 1.5), rms
+    assert_calibrated(z)
 
 
 @pytest.fixture(scope='module')
@@ -194,8 +193,7 @@ def test_ml_is_calibrated_and_reaches_the_bound(nominal20_mc):
         z.append((est.theta - truth) / est.theta_std)
         err.append(est.theta - truth)
         err0.append(base.theta - truth)
-    rms = np.sqrt(np.mean(np.square(z), axis=0))
-    assert np.all(rms >= 0.7) and np.all(rms <= 1.5), rms
+    assert_calibrated(z)
     np.testing.assert_allclose(est.theta_std, np.sqrt(crlb), rtol=0.05, atol=0)
     w = frobenius_weights()
     ratio = float(w @ np.mean(np.square(err), axis=0)) / float(w @ crlb)
@@ -239,5 +237,4 @@ def test_ml_is_calibrated_at_low_snr():
         est = estimate(*add_noise(sim, seed=6000 + seed, gyro_std=0.01), method='ml')
         assert est.status == 'ok' and est.diagnostics['ml']['refined'] is True
         z.append((est.theta - truth) / est.theta_std)
-    rms = np.sqrt(np.mean(np.square(z), axis=0))
-    assert np.all(rms >= 0.6) and np.all(rms <= 1.3), rms
+    assert_calibrated(z, 0.6, 1.3)
