@@ -77,6 +77,7 @@ from ..inertia import (
     theta_to_matrix,
 )
 from .ml import refine
+from .options import HOLDS, METHODS, ML_AUTO_MAX_SAMPLES, MODELS, TORQUE_BIAS
 from .regressors import (
     cumulative_monomials,
     cumulative_torque,
@@ -89,16 +90,6 @@ from .result import InertiaEstimate
 
 __all__ = ['HOLDS', 'METHODS', 'ML_AUTO_MAX_SAMPLES', 'MODELS', 'TORQUE_BIAS', 'estimate',
            'model_basis']
-
-METHODS: tuple[str, ...] = ('auto', 'ml', 'integral', 'integral_ls', 'integral_sliding',
-                            'differential_fd', 'differential_sg')
-#: ``method='auto'`` uses ``ml`` up to this many gyro samples (500 s at 200 Hz), ``integral``
-#: beyond: the likelihood passes cost ~25 us and ~2 kB per gyro sample (2.5 s and 0.2 GB
-#: here), while ``integral``'s cost grows more slowly and its error is already small.
-ML_AUTO_MAX_SAMPLES = 100_000
-MODELS: tuple[str, ...] = ('auto', 'full', 'diagonal', 'axisymmetric')
-TORQUE_BIAS: tuple[str, ...] = ('auto', 'on', 'off')
-HOLDS: tuple[str, ...] = ('zoh', 'linear')
 
 _AXES = {'x': np.array([1.0, 0.0, 0.0]), 'y': np.array([0.0, 1.0, 0.0]),
          'z': np.array([0.0, 0.0, 1.0])}

@@ -49,6 +49,7 @@ from .batch import (
     _lift,
     _Stats,
 )
+from .options import GAP_FACTOR, MODELS
 from .regressors import (
     cumulative_torque,
     median_rows,
@@ -59,9 +60,7 @@ from .result import InertiaEstimate
 
 __all__ = ['RecursiveEstimator']
 
-_RMODELS = ('auto', 'full', 'diagonal', 'axisymmetric')
 _MAX_BUFFER = 400_000                      # gyro samples kept waiting for torque
-_GAP_FACTOR = 5.0       # a sample interval over this many nominal intervals is a gap
 _DT_HISTORY = 64        # recent sample intervals kept per stream for the nominal interval
 
 
@@ -104,8 +103,8 @@ class RecursiveEstimator:
                  symmetry_axis: Any = None, gyro_noise: Any = None, alpha: float = 1e-3,
                  block: int = 256, segment: float | None = None,
                  reselect_every: int = 1) -> None:
-        if model not in _RMODELS:
-            raise ValueError(f'model: must be one of {_RMODELS}, got {model!r}')
+        if model not in MODELS:
+            raise ValueError(f'model: must be one of {MODELS}, got {model!r}')
         if isinstance(torque_bias, bool):
             torque_bias = 'on' if torque_bias else 'off'
         if torque_bias not in ('auto', 'on', 'off'):
@@ -397,7 +396,7 @@ class RecursiveEstimator:
     def _gaps(self, t: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[int]]:
         """Drop gyro samples inside torque gaps; find where gaps force a new segment.
 
-        A torque interval longer than ``_GAP_FACTOR`` nominal intervals (lost messages, a
+        A torque interval longer than ``GAP_FACTOR`` nominal intervals (lost messages, a
         paused controller) would be integrated as the last command held throughout, and a
         gyro gap would be bridged by one trapezoid: both corrupt every later equation of the
         segment.  Gyro samples the held torque cannot cover are dropped (counted), and the
@@ -415,14 +414,14 @@ class RecursiveEstimator:
         if len(self._tq_dts) >= 2 and len(self._ts) >= 2:
             nominal = float(np.median(self._tq_dts))
             dq = np.diff(self._ts)
-            for i in np.flatnonzero(dq > _GAP_FACTOR * nominal):
+            for i in np.flatnonzero(dq > GAP_FACTOR * nominal):
                 keep &= ~((t > self._ts[i] + nominal) & (t < self._ts[i + 1]))
                 starts.append(float(self._ts[i + 1]))
         edges = t if self._prev is None else np.concatenate([[self._prev[0]], t])
         self._g_dts = np.concatenate([self._g_dts, np.diff(edges)])[-_DT_HISTORY:]
         if len(self._g_dts) >= 2:
             dg = np.diff(edges)
-            big = np.flatnonzero(dg > _GAP_FACTOR * float(np.median(self._g_dts)))
+            big = np.flatnonzero(dg > GAP_FACTOR * float(np.median(self._g_dts)))
             starts.extend(float(edges[i + 1]) for i in big)
         if not starts:
             return t, w, []

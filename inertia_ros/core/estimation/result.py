@@ -16,12 +16,10 @@ from typing import Any
 import numpy as np
 
 from ..inertia import THETA_NAMES
+from .options import STATUSES
 
 __all__ = ['STATUSES', 'InertiaEstimate', 'to_jsonable']
 
-#: Every status an estimate can carry (DESIGN.md contract), best first.
-STATUSES: tuple[str, ...] = ('ok', 'scale_unobservable', 'partially_identifiable',
-                             'insufficient_excitation', 'insufficient_data')
 
 
 def to_jsonable(value: Any) -> Any:

@@ -1,0 +1,71 @@
+"""The estimators' vocabularies and thresholds: the one home of every rule shared by batch,
+online and the command line.
+
+This module imports nothing (not even numpy), so ``python -m inertia_ros estimate --help``
+and the node's parameter table can use it without paying for the numerical stack.
+
+Vocabularies
+    :data:`METHODS`, :data:`MODELS`, :data:`TORQUE_BIAS`, :data:`HOLDS`, :data:`STATUSES`.
+Rules
+    :data:`MIN_GYRO_SAMPLES` (fewer used gyro samples is ``insufficient_data``),
+    :data:`GAP_FACTOR` (a sample interval over this many median intervals is a gap),
+    :data:`TORQUE_FREE_SIGMAS` (a torque stream whose RMS is within this many noise sigmas of
+    zero is torque-free), :data:`ALPHA` (level of the model-selection tests),
+    :data:`IDENTIFIABILITY_TOL` (an element whose standard error exceeds this share of the
+    tensor scale is not identifiable), :data:`ML_AUTO_MAX_SAMPLES`.
+"""
+from __future__ import annotations
+
+__all__ = ['ALPHA', 'GAP_FACTOR', 'HOLDS', 'IDENTIFIABILITY_TOL', 'METHODS',
+           'MIN_GYRO_SAMPLES', 'ML_AUTO_MAX_SAMPLES', 'MODELS', 'STATUSES', 'TORQUE_BIAS',
+           'TORQUE_FREE_SIGMAS', 'check_choice']
+
+#: Batch methods (``estimate(method=...)``, ``--method``).
+METHODS: tuple[str, ...] = ('auto', 'ml', 'integral', 'integral_ls', 'integral_sliding',
+                            'differential_fd', 'differential_sg')
+#: Parameter sets (``model=``, ``--model``).
+MODELS: tuple[str, ...] = ('auto', 'full', 'diagonal', 'axisymmetric')
+#: Constant disturbance-torque choices (``torque_bias=``, ``--torque-bias``).
+TORQUE_BIAS: tuple[str, ...] = ('auto', 'on', 'off')
+#: How the torque is held between its samples (``hold=``, ``--hold``).
+HOLDS: tuple[str, ...] = ('zoh', 'linear')
+#: Every status an estimate can carry (DESIGN.md contract), best first.
+STATUSES: tuple[str, ...] = ('ok', 'scale_unobservable', 'partially_identifiable',
+                             'insufficient_excitation', 'insufficient_data')
+
+#: ``method='auto'`` uses ``ml`` up to this many gyro samples (500 s at 200 Hz), ``integral``
+#: beyond: the likelihood passes cost ~25 us and ~2 kB per gyro sample (2.5 s and 0.2 GB
+#: here), while ``integral``'s cost grows more slowly and its error is already small.
+ML_AUTO_MAX_SAMPLES = 100_000
+#: Fewer used gyro samples than this gives ``insufficient_data`` (batch and online).
+MIN_GYRO_SAMPLES = 20
+#: A sample interval longer than this many median (nominal) intervals is a gap.
+GAP_FACTOR = 5.0
+#: Torque-free when every axis' torque RMS is within this many torque-noise sigmas.
+TORQUE_FREE_SIGMAS = 5.0
+#: Level of the model-selection Wald tests.
+ALPHA = 1e-3
+#: An element whose standard error exceeds this share of the tensor scale is undetermined.
+IDENTIFIABILITY_TOL = 0.1
+
+
+def check_choice(name: str, value: object, choices: tuple[str, ...]) -> str:
+    """Return ``value`` if it is one of ``choices``, else raise one clear ``ValueError``.
+
+    Parameters
+    ----------
+    name : str
+        The option's name, used in the message (``'method'``, ``'model'``, ...).
+    value : object
+        What the user gave.
+    choices : tuple of str
+        The allowed values.
+
+    Returns
+    -------
+    str
+        ``value``, unchanged.
+    """
+    if not isinstance(value, str) or value not in choices:
+        raise ValueError(f'{name}: must be one of {", ".join(choices)}; got {value!r}')
+    return value
