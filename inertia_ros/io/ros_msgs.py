@@ -77,6 +77,7 @@ DIAGNOSTIC_LEVELS: dict[str, bytes] = {
     'ok': DiagnosticStatus.OK,
     'insufficient_data': DiagnosticStatus.WARN,
     'partially_identifiable': DiagnosticStatus.WARN,
+    'model_mismatch': DiagnosticStatus.WARN,
     'scale_unobservable': DiagnosticStatus.ERROR,
     'insufficient_excitation': DiagnosticStatus.ERROR,
 }

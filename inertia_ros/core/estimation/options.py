@@ -16,9 +16,10 @@ Rules
 """
 from __future__ import annotations
 
-__all__ = ['ALPHA', 'GAP_FACTOR', 'HOLDS', 'IDENTIFIABILITY_TOL', 'METHODS',
-           'MIN_GYRO_SAMPLES', 'ML_AUTO_MAX_SAMPLES', 'MODELS', 'STATUSES', 'TORQUE_BIAS',
-           'TORQUE_FREE_SIGMAS', 'check_choice']
+__all__ = ['ADEQUACY_ALPHA', 'ADEQUACY_MIN_WINDOW_S', 'ADEQUACY_WINDOWS', 'ALPHA', 'GAP_FACTOR',
+           'HOLDS', 'IDENTIFIABILITY_TOL', 'MAX_RESIDUAL_EXCESS', 'METHODS', 'MIN_GYRO_SAMPLES',
+           'ML_AUTO_MAX_SAMPLES', 'MODELS', 'STATUSES', 'TORQUE_BIAS', 'TORQUE_FREE_SIGMAS',
+           'check_choice']
 
 #: Batch methods (``estimate(method=...)``, ``--method``).
 METHODS: tuple[str, ...] = ('auto', 'ml', 'integral', 'integral_ls', 'integral_sliding',
@@ -30,8 +31,9 @@ TORQUE_BIAS: tuple[str, ...] = ('auto', 'on', 'off')
 #: How the torque is held between its samples (``hold=``, ``--hold``).
 HOLDS: tuple[str, ...] = ('zoh', 'linear')
 #: Every status an estimate can carry (DESIGN.md contract), best first.
-STATUSES: tuple[str, ...] = ('ok', 'scale_unobservable', 'partially_identifiable',
-                             'insufficient_excitation', 'insufficient_data')
+STATUSES: tuple[str, ...] = ('ok', 'model_mismatch', 'scale_unobservable',
+                             'partially_identifiable', 'insufficient_excitation',
+                             'insufficient_data')
 
 #: ``method='auto'`` uses ``ml`` up to this many gyro samples (500 s at 200 Hz), ``integral``
 #: beyond: the likelihood passes cost ~25 us and ~2 kB per gyro sample (2.5 s and 0.2 GB
@@ -47,6 +49,13 @@ TORQUE_FREE_SIGMAS = 5.0
 ALPHA = 1e-3
 #: An element whose standard error exceeds this share of the tensor scale is undetermined.
 IDENTIFIABILITY_TOL = 0.1
+#: Level of the model-adequacy window test (``model_mismatch`` below it).
+ADEQUACY_ALPHA = 1e-3
+#: Largest residual excess (weighted RSS over its noise-model prediction) accepted as ``ok``.
+MAX_RESIDUAL_EXCESS = 1.5
+#: Windows of the adequacy test, and the shortest window [s] (fewer windows on short records).
+ADEQUACY_WINDOWS = 4
+ADEQUACY_MIN_WINDOW_S = 5.0
 
 
 def check_choice(name: str, value: object, choices: tuple[str, ...]) -> str:

@@ -1,0 +1,176 @@
+"""Model adequacy: does the fitted model explain the data, and if not, what probably doesn't?
+
+Two tests, both against the noise model the standard errors come from:
+
+Time-window consistency
+    The record is cut into ``K`` consecutive windows and the same parameter set is fitted on
+    each with the same weights.  Under the model (one constant tensor, the stated noise),
+    the window estimates ``theta_k`` scatter around their information-weighted mean
+    ``theta_bar`` with their own covariances ``C_k``, so
+
+        chi2 = sum_k (theta_k - theta_bar)' C_k^-1 (theta_k - theta_bar)  ~  chi2((K - 1) p)
+
+    A payload change, a drifting tensor, a gyro bias or an unmodelled torque make the windows
+    disagree, because their effect depends on the motion in each window.  The split of the
+    windows into two groups that explains most of ``chi2`` locates a step change.
+Residual excess
+    The weighted residual sum of squares over its noise-model prediction (``excess``, about 1
+    when the model holds).  Much larger: an unmodelled torque or a wrong torque hold.
+
+A failed test makes the status ``model_mismatch``; the estimate is still reported, its
+covariance inflated by the Birge ratio ``chi2 / dof`` so that the spread the windows show is in
+the standard errors.  The level of both tests is :data:`.options.ADEQUACY_ALPHA`.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.special import chdtrc
+
+from .options import ADEQUACY_ALPHA, MAX_RESIDUAL_EXCESS
+
+__all__ = ['Adequacy', 'check_adequacy', 'window_consistency']
+
+
+@dataclass(frozen=True)
+class Adequacy:
+    """Outcome of the adequacy tests.
+
+    Attributes
+    ----------
+    ok : bool
+        Both tests passed.
+    chi2, dof, p_value : float, int, float
+        Window-consistency statistic, its degrees of freedom and tail probability
+        (``nan``/0/1 when there were too few usable windows).
+    windows : int
+        Windows that entered the test.
+    excess : float
+        Residual excess (weighted RSS over its noise-model prediction).
+    inflation : float
+        Factor (>= 1) applied to the covariance: ``max(1, chi2 / dof, excess)`` when a test
+        failed, else 1.
+    change_at : float or None
+        Time [s] of the most likely step change when one split explains the disagreement.
+    reason : str
+        Empty when ``ok``; else what failed and the likely cause.
+    """
+
+    ok: bool
+    chi2: float
+    dof: int
+    p_value: float
+    windows: int
+    excess: float
+    inflation: float
+    change_at: float | None
+    reason: str
+
+    def as_dict(self) -> dict[str, object]:
+        """The JSON-ready record for ``diagnostics['adequacy']``."""
+        return {'ok': self.ok, 'window_chi2': self.chi2, 'window_dof': self.dof,
+                'window_p_value': self.p_value, 'windows': self.windows,
+                'residual_excess': self.excess, 'covariance_inflation': self.inflation,
+                'change_at_s': self.change_at, 'reason': self.reason}
+
+
+def _pooled(thetas: np.ndarray, infos: np.ndarray) -> tuple[np.ndarray, float]:
+    """Information-weighted mean of ``thetas`` (k, p) and the chi2 of the scatter about it."""
+    H = infos.sum(axis=0)
+    g = np.einsum('kij,kj->i', infos, thetas)
+    mean = np.linalg.lstsq(H, g, rcond=1e-12)[0]
+    d = thetas - mean[None]
+    return mean, float(np.einsum('ki,kij,kj->', d, infos, d))
+
+
+def window_consistency(thetas: np.ndarray, covs: np.ndarray, t_mid: np.ndarray
+                       ) -> tuple[float, int, float, float | None]:
+    """Test that the window estimates agree; locate a step change.
+
+    Parameters
+    ----------
+    thetas : numpy.ndarray, shape (K, p)
+        Estimates of the same parameters on ``K`` consecutive windows.
+    covs : numpy.ndarray, shape (K, p, p)
+        Their covariances (from the noise model, not inflated).
+    t_mid : numpy.ndarray, shape (K,)
+        Window mid-times [s].
+
+    Returns
+    -------
+    chi2 : float
+        The scatter statistic (see the module docstring).
+    dof : int
+        ``(K - 1) * rank``; 0 when fewer than two windows were usable.
+    p_value : float
+        ``P(chi2_dof > chi2)``; 1 when ``dof == 0``.
+    change_at : float or None
+        Boundary time [s] of the two-group split that removes at least 80 % of ``chi2``
+        (a step change), else ``None``.
+    """
+    thetas = np.asarray(thetas, dtype=float)
+    covs = np.asarray(covs, dtype=float)
+    good = np.all(np.isfinite(thetas), axis=1) & np.all(np.isfinite(covs), axis=(1, 2))
+    thetas, covs, t_mid = thetas[good], covs[good], np.asarray(t_mid, dtype=float)[good]
+    K, p = thetas.shape if thetas.ndim == 2 else (0, 0)
+    if K < 2:
+        return float('nan'), 0, 1.0, None
+    infos = np.array([np.linalg.pinv(0.5 * (C + C.T), rcond=1e-10, hermitian=True)
+                      for C in covs])
+    rank = int(np.linalg.matrix_rank(infos.sum(axis=0), tol=None))
+    _, chi2 = _pooled(thetas, infos)
+    dof = (K - 1) * rank
+    pval = float(chdtrc(dof, chi2)) if dof > 0 else 1.0
+    change_at = None
+    if K >= 3 and chi2 > 0:
+        best, at = np.inf, None
+        for s in range(1, K):
+            rest = _pooled(thetas[:s], infos[:s])[1] + _pooled(thetas[s:], infos[s:])[1]
+            if rest < best:
+                best, at = rest, 0.5 * (t_mid[s - 1] + t_mid[s])
+        if best <= 0.2 * chi2:
+            change_at = float(at)
+    return chi2, dof, pval, change_at
+
+
+def check_adequacy(thetas: np.ndarray, covs: np.ndarray, t_mid: np.ndarray, excess: float,
+                   alpha: float = ADEQUACY_ALPHA,
+                   max_excess: float = MAX_RESIDUAL_EXCESS) -> Adequacy:
+    """Run both tests and name the likely cause of a failure.
+
+    Parameters
+    ----------
+    thetas, covs, t_mid
+        As :func:`window_consistency`.
+    excess : float
+        Residual excess of the whole-record fit (1 when the model holds).
+    alpha : float
+        Level of the window test.
+    max_excess : float
+        Largest residual excess accepted.
+
+    Returns
+    -------
+    Adequacy
+    """
+    chi2, dof, pval, change_at = window_consistency(thetas, covs, t_mid)
+    excess = float(excess) if np.isfinite(excess) else 1.0
+    causes = []
+    if dof > 0 and pval < alpha:
+        if change_at is not None:
+            causes.append(f'inertia change near t = {change_at:.1f} s (window estimates '
+                          f'disagree: chi2 {chi2:.0f} on {dof} dof)')
+        else:
+            causes.append(f'window estimates disagree (chi2 {chi2:.0f} on {dof} dof, p = '
+                          f'{pval:.1e}): a drifting tensor, a gyro bias or an unmodelled '
+                          'torque that varies with the motion')
+    if excess > max_excess:
+        causes.append(f'residuals {excess:.1f}x the noise model: unmodelled torque, a torque '
+                      'that varies between its samples (try hold linear) or correlated '
+                      'sensor noise')
+    ok = not causes
+    inflation = 1.0 if ok else max(1.0, (chi2 / dof) if dof > 0 else 1.0, excess)
+    return Adequacy(ok=ok, chi2=chi2, dof=dof, p_value=pval, windows=len(thetas),
+                    excess=excess, inflation=float(inflation), change_at=change_at,
+                    reason='; '.join(causes))
