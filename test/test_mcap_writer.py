@@ -16,7 +16,7 @@ from conftest import ROOT
 from inertia_ros.cli import main
 from inertia_ros.core.scene import Scene
 from inertia_ros.core.simulation import simulate
-from inertia_ros.io import cdr_encode
+from inertia_ros.io import cdr_encode, msgtypes
 from inertia_ros.io.cdr_encode import IMU, INERTIA_STAMPED, WRENCH_STAMPED
 from inertia_ros.io.mcap_writer import (
     DEFAULT_START_NS,
@@ -64,7 +64,7 @@ def test_encoding_matches_rclpy_serialization():
     from rclpy.serialization import deserialize_message, serialize_message
     from sensor_msgs.msg import Imu
 
-    from inertia_ros.io.ros_msgs import imu_msg
+    from inertia_ros.nodes.messages import imu_msg
 
     t = np.array([0, 1_700_000_000_123_456_789, -1_500_000_000], dtype=np.int64)
     w = np.random.default_rng(0).normal(size=(3, 3))
@@ -461,7 +461,7 @@ def test_explicit_schema_text_for_other_types(tmp_path):
     from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
     from rclpy.serialization import serialize_message
 
-    from inertia_ros.io.ros_msgs import schema_text_from_share
+    from inertia_ros.io.msgtypes import schema_text_from_share
 
     msg = DiagnosticArray()
     msg.header.stamp.sec, msg.header.frame_id = 7, 'base_link'
@@ -480,3 +480,65 @@ def test_explicit_schema_text_for_other_types(tmp_path):
     assert (decoded[0].header.stamp.sec, st.level, st.values[0].key) == (7, 1, 'k')  # WARN
     with McapWriter(tmp_path / 'bad.mcap') as w, pytest.raises(ValueError, match='schema_text'):
         w.add_topic('/x', 'diagnostic_msgs/msg/DiagnosticArray', schema_text='  ')
+
+
+# --------------------------------------------------------------------------- message types
+@pytest.mark.parametrize('name, full, short', [
+    ('sensor_msgs/Imu', 'sensor_msgs/msg/Imu', 'sensor_msgs/Imu'),
+    ('sensor_msgs/msg/Imu', 'sensor_msgs/msg/Imu', 'sensor_msgs/Imu'),
+    ('std_srvs/srv/Trigger', 'std_srvs/srv/Trigger', 'std_srvs/srv/Trigger'),
+    ('Imu', 'Imu', 'Imu'),                          # not a type name: left as it is
+    ('a/b/c/d', 'a/b/c/d', 'a/b/c/d'),
+])
+def test_type_name_forms(name, full, short):
+    """One parser: pkg/Type <-> pkg/msg/Type; anything else is returned unchanged."""
+    assert msgtypes.normalise_type(name) == full
+    assert msgtypes.short_type(name) == short
+
+
+@pytest.mark.parametrize('bad', ['Imu', 'pkg//Type', 'pkg/foo/Type', '/a/b', 7])
+def test_split_type_rejects_malformed_names(bad):
+    """split_type names the expected forms."""
+    with pytest.raises(ValueError, match="expected 'pkg/msg/Type' or 'pkg/Type'"):
+        msgtypes.split_type(bad)
+
+
+def test_hand_written_schema_walk_matches_installed_files():
+    """The hand-written schema and the installed .msg files give the same dependency order."""
+    for name in ('sensor_msgs/msg/Imu', 'geometry_msgs/msg/WrenchStamped',
+                 'geometry_msgs/msg/InertiaStamped'):
+        ours = msgtypes.schema_text(name)
+        share = msgtypes.schema_text_from_share(name)
+        deps = [ln for ln in ours.splitlines() if ln.startswith('MSG: ')]
+        assert deps == [ln for ln in share.splitlines() if ln.startswith('MSG: ')], name
+
+
+def _fake_install(prefix: Path, pkg: str, fields: str, hash_string: str) -> None:
+    """A share/ dir with one interface package: Thing.msg and its type description."""
+    d = prefix / 'share' / pkg / 'msg'
+    d.mkdir(parents=True)
+    (d / 'Thing.msg').write_text(fields)
+    (d / 'Thing.json').write_text(json.dumps({'type_hashes': [
+        {'type_name': f'{pkg}/msg/Thing', 'hash_string': hash_string}]}))
+
+
+def test_schema_text_and_hash_come_from_the_same_install(tmp_path, monkeypatch):
+    """AMENT_PREFIX_PATH wins over sys.prefix for both the .msg text and the RIHS01 hash."""
+    ws, wheels = tmp_path / 'ws', tmp_path / 'wheels'
+    _fake_install(ws, 'fake_msgs', 'float64 from_workspace\n', 'RIHS01_ws')
+    _fake_install(wheels, 'fake_msgs', 'float64 from_wheels\n', 'RIHS01_wheels')
+    _fake_install(wheels, 'only_wheel_msgs', 'float64 w\n', 'RIHS01_only')
+    monkeypatch.setattr('sys.prefix', str(wheels))
+    monkeypatch.setenv('AMENT_PREFIX_PATH', str(ws))
+    assert msgtypes.share_prefixes() == [str(ws), str(wheels)]
+    assert msgtypes.schema_text_from_share('fake_msgs/msg/Thing') == 'float64 from_workspace\n'
+    assert msgtypes.type_description_hash('fake_msgs/msg/Thing') == 'RIHS01_ws'
+    assert msgtypes.find_share_file('fake_msgs/Thing', '.json').parent.parent.parent.parent \
+        == ws
+    # a package only in the wheels is found there, text and hash alike
+    assert msgtypes.schema_text_from_share('only_wheel_msgs/msg/Thing') == 'float64 w\n'
+    assert msgtypes.type_description_hash('only_wheel_msgs/msg/Thing') == 'RIHS01_only'
+    # without the workspace, the same type resolves to the wheels (the cache follows the env)
+    monkeypatch.delenv('AMENT_PREFIX_PATH')
+    assert msgtypes.schema_text_from_share('fake_msgs/msg/Thing') == 'float64 from_wheels\n'
+    assert msgtypes.type_description_hash('fake_msgs/msg/Thing') == 'RIHS01_wheels'

@@ -27,6 +27,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
+from inertia_ros.io.msgtypes import normalise_type
+
 #: Float64 fields after the header, per message type: (name, number of float64).
 LAYOUTS: dict[str, tuple[tuple[str, int], ...]] = {
     'sensor_msgs/msg/Imu': (
@@ -50,19 +52,6 @@ _COMPONENTS = {
 }
 
 _HEAD = 16  # encapsulation + sec + nanosec + string length
-
-
-def normalise_type(name: str) -> str:
-    """Return the ROS 2 type name ``pkg/msg/Type`` for ``pkg/Type`` or ``pkg/msg/Type``."""
-    parts = name.split('/')
-    if len(parts) == 2:
-        return f'{parts[0]}/msg/{parts[1]}'
-    return name
-
-
-def is_supported(msg_type: str) -> bool:
-    """True if :func:`decode_batch` can decode ``msg_type`` (either naming form)."""
-    return normalise_type(msg_type) in LAYOUTS
 
 
 def _layout(msg_type: str) -> tuple[tuple[str, int], ...]:

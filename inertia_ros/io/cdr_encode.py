@@ -10,19 +10,19 @@ header.  The stamped messages written here have a fixed layout for a given ``fra
 so a whole stream is encoded at once as one ``(N, size)`` byte array.  The output is
 byte-identical to ``rclpy.serialization.serialize_message`` (tested).
 
-Schemas: :func:`schema_text` returns the ``ros2msg`` text rosbag2 stores in an MCAP schema
-record: the type's own fields followed, for every dependency, by a line of 80 ``=``, a line
-``MSG: pkg/Type`` and that type's fields.
+Schemas: :func:`schema_text` and :data:`MSG_FIELDS` (the ``ros2msg`` text rosbag2 stores in an
+MCAP schema record) live in :mod:`inertia_ros.io.msgtypes` and are re-exported here.
 
 Time at this boundary is integer nanoseconds; ``sec = floor(t_ns / 1e9)`` must fit in int32.
 """
 from __future__ import annotations
 
-import re
 from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
+
+from inertia_ros.io.msgtypes import MSG_FIELDS, schema_text
 
 __all__ = [
     'IMU',
@@ -41,108 +41,9 @@ IMU = 'sensor_msgs/msg/Imu'
 WRENCH_STAMPED = 'geometry_msgs/msg/WrenchStamped'
 INERTIA_STAMPED = 'geometry_msgs/msg/InertiaStamped'
 
-#: Field definitions (ros2msg syntax, comments omitted) of every type we write and its
-#: dependencies, keyed by ``pkg/Type``.  Field types are fully qualified.
-MSG_FIELDS: dict[str, str] = {
-    'sensor_msgs/Imu': (
-        'std_msgs/Header header\n'
-        'geometry_msgs/Quaternion orientation\n'
-        'float64[9] orientation_covariance\n'
-        'geometry_msgs/Vector3 angular_velocity\n'
-        'float64[9] angular_velocity_covariance\n'
-        'geometry_msgs/Vector3 linear_acceleration\n'
-        'float64[9] linear_acceleration_covariance\n'),
-    'geometry_msgs/WrenchStamped': (
-        'std_msgs/Header header\n'
-        'geometry_msgs/Wrench wrench\n'),
-    'geometry_msgs/Wrench': (
-        'geometry_msgs/Vector3 force\n'
-        'geometry_msgs/Vector3 torque\n'),
-    'geometry_msgs/InertiaStamped': (
-        'std_msgs/Header header\n'
-        'geometry_msgs/Inertia inertia\n'),
-    'geometry_msgs/Inertia': (
-        'float64 m\n'
-        'geometry_msgs/Vector3 com\n'
-        'float64 ixx\n'
-        'float64 ixy\n'
-        'float64 ixz\n'
-        'float64 iyy\n'
-        'float64 iyz\n'
-        'float64 izz\n'),
-    'geometry_msgs/Vector3': (
-        'float64 x\n'
-        'float64 y\n'
-        'float64 z\n'),
-    'geometry_msgs/Quaternion': (
-        'float64 x 0\n'
-        'float64 y 0\n'
-        'float64 z 0\n'
-        'float64 w 1\n'),
-    'std_msgs/Header': (
-        'builtin_interfaces/Time stamp\n'
-        'string frame_id\n'),
-    'builtin_interfaces/Time': (
-        'int32 sec\n'
-        'uint32 nanosec\n'),
-}
-
-_SEPARATOR = '=' * 80
 _ENCAPSULATION_CDR_LE = np.array([0, 1, 0, 0], dtype=np.uint8)
 _NS = 1_000_000_000
 _INT32_MAX = 2**31 - 1
-
-
-def _short(msgtype: str) -> str:
-    """``pkg/msg/Type`` -> ``pkg/Type``."""
-    parts = msgtype.split('/')
-    if len(parts) == 3 and parts[1] == 'msg':
-        return f'{parts[0]}/{parts[2]}'
-    return msgtype
-
-
-def _dependencies(short: str) -> list[str]:
-    """Complex types used by ``short``, depth first in order of first use."""
-    out: list[str] = []
-
-    def visit(name: str) -> None:
-        for line in MSG_FIELDS[name].splitlines():
-            ftype = re.sub(r'\[.*\]$', '', line.split()[0])
-            if '/' in ftype and ftype not in out:
-                out.append(ftype)
-                visit(ftype)
-
-    visit(short)
-    return out
-
-
-def schema_text(msgtype: str) -> str:
-    """The ``ros2msg`` schema text (with dependency blocks) for a message type.
-
-    Parameters
-    ----------
-    msgtype : str
-        ``pkg/msg/Type`` (or ``pkg/Type``), one of the types in :data:`MSG_FIELDS`.
-
-    Returns
-    -------
-    str
-        The type's fields, then for each dependency ``=`` * 80, ``MSG: pkg/Type`` and its
-        fields, as rosbag2 writes them into MCAP schema records.
-
-    Raises
-    ------
-    ValueError
-        If the type is not one this module knows.
-    """
-    short = _short(msgtype)
-    if short not in MSG_FIELDS:
-        raise ValueError(f'msgtype: no schema for {msgtype!r} '
-                         f'(known: {", ".join(sorted(MSG_FIELDS))})')
-    blocks = [MSG_FIELDS[short]]
-    for dep in _dependencies(short):
-        blocks.append(f'{_SEPARATOR}\nMSG: {dep}\n{MSG_FIELDS[dep]}')
-    return '\n'.join(blocks)
 
 
 def split_stamp(t_ns: Any) -> tuple[np.ndarray, np.ndarray]:

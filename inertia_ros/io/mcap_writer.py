@@ -5,10 +5,11 @@ makes a file a rosbag2 log (the conventions of ``rosbag2_storage_mcap`` in ROS 2
 
 - header profile ``ros2``;
 - one schema per message type: name ``pkg/msg/Type``, encoding ``ros2msg``, data the full
-  message text with its dependency blocks (:func:`inertia_ros.io.cdr_encode.schema_text`);
+  message text with its dependency blocks (:func:`inertia_ros.io.msgtypes.schema_text`);
 - one channel per topic: message encoding ``cdr``, metadata ``offered_qos_profiles`` (the
   rosbag2 v9 YAML list) and ``topic_type_hash`` (the type's RIHS01 hash as the installed ROS
-  interface packages state it, see :func:`type_description_hash`; empty if not installed);
+  interface packages state it, :func:`inertia_ros.io.msgtypes.type_description_hash`; empty
+  if not installed);
 - a metadata record ``rosbag2`` whose ``serialized_metadata`` is the bag's
   ``BagMetadata`` YAML (version 9: topics, counts, start time, duration);
 - chunked data (zstd by default), message indexes and a summary with statistics.
@@ -18,11 +19,9 @@ be added in any order.  Times are integer nanoseconds.
 """
 from __future__ import annotations
 
-import functools
 import json
 import os
 import shutil
-import sys
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -35,6 +34,9 @@ from mcap.writer import CompressionType, Writer
 
 from inertia_ros.core.simulation import SimResult
 from inertia_ros.io import cdr_encode
+from inertia_ros.io.errors import McapWriterError
+from inertia_ros.io.msgtypes import schema_text as _schema_text
+from inertia_ros.io.msgtypes import type_description_hash
 
 __all__ = [
     'DEFAULT_START_NS',
@@ -54,44 +56,6 @@ _INFINITE = {'sec': 9223372036, 'nsec': 854775807}  # rmw "infinite" duration as
 _ZERO = {'sec': 0, 'nsec': 0}
 
 
-@functools.lru_cache(maxsize=64)
-def type_description_hash(msgtype: str) -> str:
-    """The REP-2011 type hash (``RIHS01_...``) of a message type, or '' when unknown.
-
-    Read from the ``share/<pkg>/msg/<Type>.json`` type description that every ROS 2 Jazzy
-    interface package installs (the ROS wheels put it under ``sys.prefix``; a sourced
-    workspace lists its prefixes in ``AMENT_PREFIX_PATH``): rosbag2 records the same string as
-    ``topic_type_hash`` / ``type_description_hash``.
-
-    Parameters
-    ----------
-    msgtype : str
-        ``pkg/msg/Type`` (or ``pkg/Type``).
-
-    Returns
-    -------
-    str
-        The hash string, or '' if no installed description names it.
-    """
-    parts = msgtype.split('/')
-    if len(parts) == 2:
-        parts = [parts[0], 'msg', parts[1]]
-    if len(parts) != 3 or not all(parts):
-        return ''
-    full = '/'.join(parts)
-    prefixes = [sys.prefix, *os.environ.get('AMENT_PREFIX_PATH', '').split(os.pathsep)]
-    for prefix in filter(None, prefixes):
-        path = Path(prefix, 'share', parts[0], parts[1], f'{parts[2]}.json')
-        try:
-            hashes = json.loads(path.read_text(encoding='utf-8')).get('type_hashes', [])
-        except (OSError, ValueError):
-            continue
-        for h in hashes:
-            if isinstance(h, dict) and h.get('type_name') == full:
-                return str(h.get('hash_string', ''))
-    return ''
-
-
 def _qos(reliability: str, durability: str, depth: int) -> dict[str, Any]:
     return {'history': 'keep_last', 'depth': depth, 'reliability': reliability,
             'durability': durability, 'deadline': dict(_INFINITE),
@@ -106,10 +70,6 @@ QOS_PRESETS: Mapping[str, dict[str, Any]] = {
     'reliable': _qos('reliable', 'volatile', 10),
     'latched': _qos('reliable', 'transient_local', 1),
 }
-
-
-class McapWriterError(ValueError):
-    """Invalid use of :class:`McapWriter` (bad path, topic, type or times)."""
 
 
 def qos_yaml(qos: str | Mapping[str, Any]) -> str:
@@ -196,7 +156,6 @@ class McapWriter:
             raise McapWriterError(f'path: directory {self.path.parent} does not exist')
         self._overwrite = overwrite
         self._compression = _COMPRESSION[compression]
-        self._chunk_size = chunk_size
         self._ros_distro = ros_distro
         self._topics: dict[str, _Topic] = {}
         self._schemas: dict[str, int] = {}
@@ -234,13 +193,15 @@ class McapWriter:
         topic : str
             Absolute topic name, e.g. ``/imu``.
         msgtype : str
-            ``pkg/msg/Type``; its schema must be known to :mod:`inertia_ros.io.cdr_encode`.
+            ``pkg/msg/Type``; its schema must be in :data:`inertia_ros.io.msgtypes.MSG_FIELDS`.
         qos : str or Mapping, optional
             Offered QoS: a :data:`QOS_PRESETS` name or a rosbag2 v9 QoS dict.
         schema_text : str, optional
             The ros2msg schema with its dependency blocks, for a type
-            :mod:`inertia_ros.io.cdr_encode` does not know (payloads are then serialised by the
-            caller, e.g. with rclpy).  Default: cdr_encode's schema for ``msgtype``.
+            :data:`inertia_ros.io.msgtypes.MSG_FIELDS` lacks (payloads are then serialised by
+            the caller, e.g. with rclpy; the text from
+            :func:`inertia_ros.io.msgtypes.schema_text_from_share`).  Default: the hand-written
+            schema for ``msgtype``.
         """
         self._check_open()
         if not isinstance(topic, str) or not topic.startswith('/') or topic.endswith('/'):
@@ -254,7 +215,7 @@ class McapWriter:
             text = schema_text
         else:
             try:
-                text = cdr_encode.schema_text(msgtype)
+                text = _schema_text(msgtype)
             except ValueError as exc:
                 raise McapWriterError(str(exc)) from None
         qos_text = qos_yaml(qos)
