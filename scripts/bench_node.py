@@ -84,8 +84,8 @@ def main() -> int:
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.node import Node
 
-    from inertia_ros.io import ros_msgs
-    from inertia_ros.scene_simulator_node import sensor_qos
+    from inertia_ros.nodes import messages as ros_msgs
+    from inertia_ros.nodes._ros import sensor_qos
 
     est_cmd = [sys.executable, '-m', 'inertia_ros.inertia_estimator_node', '--ros-args',
                '--params-file', str(ROOT / 'config' / 'inertia_estimator.yaml'),

@@ -29,17 +29,18 @@ from rclpy.qos import DurabilityPolicy, QoSProfile  # noqa: E402
 from sensor_msgs.msg import Imu  # noqa: E402
 from std_srvs.srv import Trigger  # noqa: E402
 
-from inertia_ros import inertia_estimator_node as en  # noqa: E402
 from inertia_ros.core.scene import Scene  # noqa: E402
 from inertia_ros.core.simulation import simulate  # noqa: E402
-from inertia_ros.io import ros_msgs  # noqa: E402
 from inertia_ros.io.scene_file import load_scene  # noqa: E402
-from inertia_ros.scene_simulator_node import sensor_qos  # noqa: E402
+from inertia_ros.nodes import estimator as en  # noqa: E402
+from inertia_ros.nodes import messages  # noqa: E402
+from inertia_ros.nodes._ros import sensor_qos  # noqa: E402
 
 pytestmark = pytest.mark.ros
 
 DOMAIN_ID = 1 + os.getpid() % 110  # 1..110; process tests use DOMAIN_ID + 110 (<= 220)
 EPOCH_NS = 1_700_000_000_000_000_000
+STATUS_NAME = 'inertia_estimator: inertia estimate'  # diagnostic_updater: '<node>: <task>'
 
 
 @pytest.fixture(scope='module')
@@ -73,7 +74,7 @@ class Harness:
                                       self.moments.append, 100)
         self.node.create_subscription(
             DiagnosticArray, '/diagnostics',
-            lambda m: self.diag.extend(s for s in m.status if s.name == 'inertia_estimator'),
+            lambda m: self.diag.extend(s for s in m.status if s.name == STATUS_NAME),
             100)
         self.spin_until(lambda: self.pub_gyro.get_subscription_count() > 0
                         and self.pub_torque.get_subscription_count() > 0, 10.0)
@@ -105,17 +106,21 @@ class Harness:
         for n, k in enumerate(order):
             stamp = EPOCH_NS + int(round(t[k] * 1e9))
             if kind[k] == 0:
-                self.pub_gyro.publish(ros_msgs.imu_msg(stamp, sim.omega[idx[k]],
+                self.pub_gyro.publish(messages.imu_msg(stamp, sim.omega[idx[k]],
                                                        gyro_frame or frame))
             else:
-                self.pub_torque.publish(ros_msgs.wrench_msg(stamp, sim.torque[idx[k]], frame))
+                self.pub_torque.publish(messages.wrench_msg(stamp, sim.torque[idx[k]], frame))
             sent += 1
             if n % chunk == chunk - 1:
                 self.spin_until(lambda s=sent: self.received() >= s, 10.0)
         assert self.spin_until(lambda: self.received() >= sent, 10.0), 'messages were lost'
 
     def latest_diag(self):
-        self.spin_for(0.2)
+        """Diagnostics published now (as the 1 Hz timer would), once received."""
+        n = len(self.diag)
+        self.spin_for(0.1)
+        self.est.force_update()
+        assert self.spin_until(lambda: len(self.diag) > n, 10.0), 'no diagnostics received'
         return self.diag[-1]
 
     def close(self):
@@ -235,14 +240,14 @@ def test_nominal_scene_converges_within_one_percent(harness):
     sim = simulate(scene, seed=3)
     h = harness(overrides={'publish_rate': 2.0})
     h.play(sim)
-    h.spin_until(lambda: h.inertia and ros_msgs.stamp_to_ns(h.inertia[-1].header.stamp)
+    h.spin_until(lambda: h.inertia and messages.stamp_to_ns(h.inertia[-1].header.stamp)
                  >= EPOCH_NS + int(sim.t_gyro[-1] * 1e9) - 10**9, 10.0)
     h.est.set_parameters([Parameter('publish_rate', value=1000.0)])
-    h.pub_gyro.publish(ros_msgs.imu_msg(EPOCH_NS + int(sim.t_gyro[-1] * 1e9) + 1,
+    h.pub_gyro.publish(messages.imu_msg(EPOCH_NS + int(sim.t_gyro[-1] * 1e9) + 1,
                                         sim.omega[-1], 'base_link'))
     h.spin_for(0.3)
     assert h.inertia, f'no estimate published; last diagnostics {h.diag[-1].message}'
-    _, est = ros_msgs.inertia_from_msg(h.inertia[-1])
+    _, est = messages.inertia_from_msg(h.inertia[-1])
     err = np.max(np.abs(est - sim.inertia)) / np.linalg.eigvalsh(sim.inertia)[-1]
     assert err < 0.01, f'error {err:.4f}\n{est}\n{sim.inertia}'
     st = h.latest_diag()
@@ -252,6 +257,13 @@ def test_nominal_scene_converges_within_one_percent(harness):
     assert int(v['gyro_received']) == sim.t_gyro.size + 1
     assert int(v['torque_received']) == sim.t_torque.size
     assert h.moments, 'principal moments not published'
+    # ~/inertia is latched: a subscriber joining now gets the last estimate, and only it.
+    late: list[InertiaStamped] = []
+    h.node.create_subscription(InertiaStamped, '/inertia_estimator/inertia', late.append,
+                               QoSProfile(depth=10, durability=DurabilityPolicy.TRANSIENT_LOCAL))
+    assert h.spin_until(lambda: late, 10.0), 'a late subscriber got no estimate'
+    h.spin_for(0.2)
+    assert len(late) == 1 and late[0] == h.inertia[-1]
 
 
 @pytest.mark.parametrize('method, statuses', [
@@ -266,7 +278,7 @@ def test_torque_free_input_reports_failure(harness, method, statuses):
     h = harness(overrides={'publish_rate': 2.0, 'method': method})
     h.play(sim)
     h.est.set_parameters([Parameter('publish_rate', value=1000.0)])
-    h.pub_gyro.publish(ros_msgs.imu_msg(EPOCH_NS + int(sim.t_gyro[-1] * 1e9) + 1,
+    h.pub_gyro.publish(messages.imu_msg(EPOCH_NS + int(sim.t_gyro[-1] * 1e9) + 1,
                                         sim.omega[-1], 'base_link'))
     h.spin_for(0.3)
     st = h.latest_diag()
@@ -284,7 +296,7 @@ def test_publish_partial(harness, partial):
     h.play(sim, chunk=50)
     h.spin_for(0.3)
     n_before = len(h.inertia)
-    h.pub_gyro.publish(ros_msgs.imu_msg(EPOCH_NS + int(sim.t_gyro[-1] * 1e9) + 10**6,
+    h.pub_gyro.publish(messages.imu_msg(EPOCH_NS + int(sim.t_gyro[-1] * 1e9) + 10**6,
                                         sim.omega[-1], 'base_link'))
     h.spin_for(0.3)
     st = h.latest_diag()
@@ -292,7 +304,7 @@ def test_publish_partial(harness, partial):
     assert st.level == DiagnosticStatus.WARN
     assert len(h.inertia) == n_before + (1 if partial else 0)
     if partial:
-        _, mat = ros_msgs.inertia_from_msg(h.inertia[-1])
+        _, mat = messages.inertia_from_msg(h.inertia[-1])
         assert np.isnan(mat[0, 0]) and np.isfinite(mat[2, 2])
         np.testing.assert_allclose(mat[2, 2], sim.inertia[2, 2], rtol=0.02)
 
@@ -302,25 +314,24 @@ def test_nan_samples_are_dropped_and_counted(harness):
     h = harness(overrides={'publish_rate': 100.0})
     for k in range(20):
         w = [np.nan, 0.0, 0.0] if k % 5 == 0 else [0.1, 0.2, 0.3]
-        h.pub_gyro.publish(ros_msgs.imu_msg(EPOCH_NS + k * 5_000_000, w, 'base_link'))
-    h.pub_torque.publish(ros_msgs.wrench_msg(EPOCH_NS, [np.inf, 0, 0], 'base_link'))
+        h.pub_gyro.publish(messages.imu_msg(EPOCH_NS + k * 5_000_000, w, 'base_link'))
+    h.pub_torque.publish(messages.wrench_msg(EPOCH_NS, [np.inf, 0, 0], 'base_link'))
     assert h.spin_until(lambda: h.received() == 21, 10.0)
     c = h.est.counts()
     assert (c['gyro_nan_dropped'], c['torque_nan_dropped']) == (4, 1)
-    h.spin_for(0.3)
-    assert _values(h.diag[-1])['gyro_nan_dropped'] == '4'
+    assert _values(h.latest_diag())['gyro_nan_dropped'] == '4'
 
 
 def test_mismatched_frames_are_refused(harness):
     """Torque in another frame than the gyro is refused, counted and raises an ERROR."""
     h = harness(overrides={'publish_rate': 100.0})
-    h.pub_gyro.publish(ros_msgs.imu_msg(EPOCH_NS, [0.1, 0.2, 0.3], 'base_link'))
+    h.pub_gyro.publish(messages.imu_msg(EPOCH_NS, [0.1, 0.2, 0.3], 'base_link'))
     h.spin_until(lambda: h.received() == 1, 10.0)
     for k in range(3):
-        h.pub_torque.publish(ros_msgs.wrench_msg(EPOCH_NS + k, [0.1, 0, 0], 'tool0'))
+        h.pub_torque.publish(messages.wrench_msg(EPOCH_NS + k, [0.1, 0, 0], 'tool0'))
     assert h.spin_until(lambda: h.received() == 4, 10.0)
     assert h.est.counts()['torque_frame_refused'] == 3
-    h.pub_gyro.publish(ros_msgs.imu_msg(EPOCH_NS + 10**8, [0.1, 0.2, 0.3], 'base_link'))
+    h.pub_gyro.publish(messages.imu_msg(EPOCH_NS + 10**8, [0.1, 0.2, 0.3], 'base_link'))
     h.spin_until(lambda: h.diag and 'tool0' in h.diag[-1].message, 10.0)
     assert h.diag[-1].level == DiagnosticStatus.ERROR
     assert "'tool0'" in h.diag[-1].message and "'base_link'" in h.diag[-1].message
@@ -329,14 +340,14 @@ def test_mismatched_frames_are_refused(harness):
 def test_torque_before_first_gyro_is_not_a_frame_error(harness):
     """Torque arriving before any gyro message is dropped and counted, not refused."""
     h = harness(overrides={'publish_rate': 100.0})
-    h.pub_torque.publish(ros_msgs.wrench_msg(EPOCH_NS, [0.1, 0, 0], 'base_link'))
+    h.pub_torque.publish(messages.wrench_msg(EPOCH_NS, [0.1, 0, 0], 'base_link'))
     assert h.spin_until(lambda: h.received() == 1, 10.0)
-    h.pub_gyro.publish(ros_msgs.imu_msg(EPOCH_NS + 10**6, [0.1, 0.2, 0.3], 'base_link'))
-    h.pub_torque.publish(ros_msgs.wrench_msg(EPOCH_NS + 2 * 10**6, [0.1, 0, 0], 'base_link'))
+    h.pub_gyro.publish(messages.imu_msg(EPOCH_NS + 10**6, [0.1, 0.2, 0.3], 'base_link'))
+    h.pub_torque.publish(messages.wrench_msg(EPOCH_NS + 2 * 10**6, [0.1, 0, 0], 'base_link'))
     assert h.spin_until(lambda: h.received() == 3, 10.0)
     c = h.est.counts()
     assert (c['torque_before_gyro_dropped'], c['torque_frame_refused']) == (1, 0)
-    h.spin_for(0.2)
+    h.latest_diag()
     assert all("differs from the estimation frame" not in st.message for st in h.diag)
 
 
@@ -344,7 +355,7 @@ def test_backward_stamp_jump_resets_and_reset_service(harness):
     """A bag-loop jump back in stamps resets; a small step back is dropped; ~/reset works."""
     h = harness(overrides={'publish_rate': 100.0, 'clock_jump_threshold': 0.5})
     for t_ns in (EPOCH_NS, EPOCH_NS + 10**9, EPOCH_NS + 10**9 - 10**6, EPOCH_NS + 10**7):
-        h.pub_gyro.publish(ros_msgs.imu_msg(t_ns, [0.1, 0.2, 0.3], 'base_link'))
+        h.pub_gyro.publish(messages.imu_msg(t_ns, [0.1, 0.2, 0.3], 'base_link'))
         h.spin_until(lambda: False, 0.05)
     h.spin_until(lambda: h.received() == 4, 10.0)
     c = h.est.counts()
@@ -361,7 +372,7 @@ def test_backward_stamp_jump_resets_and_reset_service(harness):
 def test_stream_timeout_warns(harness):
     """A stream silent for longer than stream_timeout raises a WARN naming the stream."""
     h = harness(overrides={'stream_timeout': 0.2})
-    h.pub_gyro.publish(ros_msgs.imu_msg(EPOCH_NS, [0.1, 0.2, 0.3], 'base_link'))
+    h.pub_gyro.publish(messages.imu_msg(EPOCH_NS, [0.1, 0.2, 0.3], 'base_link'))
     assert h.spin_until(lambda: any('gyro stream' in s.message and 'silent' in s.message
                                     for s in h.diag), 10.0)
     st = next(s for s in reversed(h.diag) if 'silent' in s.message)
@@ -371,8 +382,8 @@ def test_stream_timeout_warns(harness):
 def test_vector3_gyro_input(harness):
     """With omega_msg_type vector3 the node listens on 'omega' (Vector3Stamped)."""
     h = harness(overrides={'omega_msg_type': 'vector3'}, omega_type=Vector3Stamped)
-    assert h.est._sub_omega.topic_name == '/omega'
-    h.pub_gyro.publish(ros_msgs.vector3_stamped(EPOCH_NS, [0.1, 0.2, 0.3], 'base_link'))
+    assert h.est._gyro.topic == '/omega'
+    h.pub_gyro.publish(messages.vector3_stamped(EPOCH_NS, [0.1, 0.2, 0.3], 'base_link'))
     assert h.spin_until(lambda: h.est.counts()['gyro_received'] == 1, 10.0)
 
 
@@ -381,12 +392,44 @@ def test_remaps_resolve_for_the_polled_inputs(context):
     node = en.InertiaEstimatorNode(context=context, cli_args=[
         '--ros-args', '-r', 'imu:=/robot/imu', '-r', '__node:=est_b', '-r', '__ns:=/r2'])
     try:
-        assert node._sub_omega.topic_name == '/robot/imu'
-        assert node._sub_torque.topic_name == '/r2/torque'
-        assert node._input.get_name() == 'est_b_input'
-        assert node._input.get_namespace() == '/r2'
+        assert node._gyro.topic == '/robot/imu'
+        assert node._torque.topic == '/r2/torque'
+        assert (node.get_name(), node.get_namespace()) == ('est_b', '/r2')
     finally:
         node.destroy_node()
+
+
+def test_node_graph_shows_the_estimator_with_its_subscriptions(harness):
+    """No helper node: the graph lists imu and torque under inertia_estimator itself."""
+    h = harness()
+    names = h.node.get_node_names_and_namespaces()
+    assert ('inertia_estimator', '/') in names
+    assert not any('input' in n for n, _ in names), names
+    subs = dict(h.node.get_subscriber_names_and_types_by_node('inertia_estimator', '/'))
+    assert subs['/imu'] == ['sensor_msgs/msg/Imu']
+    assert subs['/torque'] == ['geometry_msgs/msg/WrenchStamped']
+    pubs = dict(h.node.get_publisher_names_and_types_by_node('inertia_estimator', '/'))
+    assert {'/inertia_estimator/inertia', '/diagnostics'} <= set(pubs)
+    info = h.node.get_publishers_info_by_topic('/inertia_estimator/inertia')
+    assert [i.qos_profile.durability for i in info] == [DurabilityPolicy.TRANSIENT_LOCAL]
+    assert h.est._pub_inertia.qos_profile.depth == 1  # (discovery does not carry the depth)
+
+
+def test_diagnostics_follow_diagnostic_updater_convention(harness):
+    """One status '<node>: <task>', hardware_id the node name, about once a second."""
+    h = harness(overrides={'publish_rate': 100.0})
+    h.spin_until(lambda: h.diag, 3.0)
+    n0, t0 = len(h.diag), time.monotonic()
+    # inputs flowing at 100 updates/s do not add diagnostics
+    for k in range(300):
+        h.pub_gyro.publish(messages.imu_msg(EPOCH_NS + k * 10**7, [0.1, 0.2, 0.3],
+                                            'base_link'))
+        h.spin_for(0.01)
+    h.spin_until(lambda: time.monotonic() - t0 >= 3.5, 10.0)
+    rate = (len(h.diag) - n0) / (time.monotonic() - t0)
+    assert 0.5 <= rate <= 1.5, f'{rate:.2f} diagnostics per second'
+    st = h.diag[-1]
+    assert (st.name, st.hardware_id) == (STATUS_NAME, 'inertia_estimator')
 
 
 def test_sim_time_clock_jump_resets(harness):
@@ -397,21 +440,21 @@ def test_sim_time_clock_jump_resets(harness):
     pub = h.node.create_publisher(Clock, '/clock', 10)
     h.spin_until(lambda: pub.get_subscription_count() > 0, 10.0)
     for sec in (100, 101, 50):
-        pub.publish(Clock(clock=ros_msgs.ns_to_stamp(sec * 10**9)))
+        pub.publish(Clock(clock=messages.ns_to_stamp(sec * 10**9)))
         h.spin_for(0.1)
     assert h.spin_until(lambda: 'ROS clock jumped back 51.000 s'
                         in h.est.counts()['last_reset_reason'], 10.0)
     # Polling runs on the steady clock: input is taken while /clock stands still.
     for k in range(3):
-        h.pub_gyro.publish(ros_msgs.imu_msg(EPOCH_NS + k * 10**7, [0.1, 0.2, 0.3], 'base_link'))
+        h.pub_gyro.publish(messages.imu_msg(EPOCH_NS + k * 10**7, [0.1, 0.2, 0.3], 'base_link'))
     assert h.spin_until(lambda: h.est.counts()['gyro_received'] == 3, 10.0)
 
 
 def _player_harness(harness, tmp_path, kind, **params):
     """An estimator harness plus a scene_simulator or bag_player node in its executor."""
-    from inertia_ros.bag_player_node import BagPlayerNode
     from inertia_ros.io.mcap_writer import write_simulation
-    from inertia_ros.scene_simulator_node import SceneSimulatorNode
+    from inertia_ros.nodes.bag_player import BagPlayerNode
+    from inertia_ros.nodes.scene_simulator import SceneSimulatorNode
 
     scene = tmp_path / 'short.yaml'
     d = dict(load_scene(ROOT / 'config' / 'scenes' / 'default.yaml').source, duration=4.0)
@@ -445,7 +488,7 @@ def test_player_publishes_streams_and_truth(harness, tmp_path, kind):
         assert h.spin_until(lambda: h.received() == n_g + n_q, 10.0)
         assert (n_g, n_q) == (801, 201)
         assert truth, 'no truth published'
-        _, mat = ros_msgs.inertia_from_msg(truth[0])
+        _, mat = messages.inertia_from_msg(truth[0])
         np.testing.assert_allclose(mat[0, 1], 0.05, rtol=0, atol=1e-12)
     finally:
         player.destroy_node()
@@ -470,7 +513,7 @@ def test_bag_player_loop_resets_the_estimator(harness, tmp_path):
 ])
 def test_stream_player_rejects_bad_input(context, kwargs, match):
     """StreamPlayer refuses unsorted stamps, wrong shapes, bad rates and unknown types."""
-    from inertia_ros.scene_simulator_node import StreamPlayer
+    from inertia_ros.nodes.playback import StreamPlayer
 
     node = Node('player_args', context=context)
     args = {'t_gyro': [0.0, 1.0, 2.0], 'omega': np.zeros((3, 3)), 't_torque': [0.0],
@@ -563,8 +606,8 @@ def test_nodes_as_processes_over_dds(tmp_path):
     log_text = (tmp_path / 'est.log').read_text() + (tmp_path / 'sim.log').read_text()
     assert got, 'no estimate published by the estimator process\n' + log_text[-3000:]
     assert truth, 'no truth from the simulator process'
-    _, est = ros_msgs.inertia_from_msg(got[-1])
-    _, true = ros_msgs.inertia_from_msg(truth[-1])
+    _, est = messages.inertia_from_msg(got[-1])
+    _, true = messages.inertia_from_msg(truth[-1])
     # 20 s of the nominal scene: the last estimate is within 2% of I3 (atol 0.024 kg m^2).
     np.testing.assert_allclose(est, true, rtol=0, atol=0.02 * np.linalg.eigvalsh(true)[-1])
 

@@ -1,4 +1,8 @@
-"""Message <-> array conversion at the ROS boundary (no rclpy.init needed)."""
+"""Message objects at the ROS boundary: builders, diagnostics, markers (no rclpy.init needed).
+
+The nodes read their inputs with :mod:`inertia_ros.io.cdr_decode`; the small readers below
+(``_imu_sample`` ...) only check what the builders put into a message.
+"""
 from __future__ import annotations
 
 import math
@@ -7,17 +11,46 @@ import numpy as np
 import pytest
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticStatus
-from geometry_msgs.msg import Vector3Stamped
+from geometry_msgs.msg import QuaternionStamped, Vector3Stamped
 from scipy.spatial.transform import Rotation
 from visualization_msgs.msg import Marker
 
-from inertia_ros.io import ros_msgs as rm
+from inertia_ros.core.inertia import THETA_NAMES
+from inertia_ros.io import cdr_decode
+from inertia_ros.io.msgtypes import schema_text_from_share
+from inertia_ros.nodes import diagnostics as dg
+from inertia_ros.nodes import markers as mk
+from inertia_ros.nodes import messages as rm
 
 I_NOM = np.array([[1.0, 0.05, -0.03], [0.05, 1.2, 0.02], [-0.03, 0.02, 0.9]])
 
 
 def _values(status: DiagnosticStatus) -> dict[str, str]:
     return {kv.key: kv.value for kv in status.values}
+
+
+def _xyz(v) -> np.ndarray:
+    return np.array((v.x, v.y, v.z), dtype=float)
+
+
+def _imu_sample(msg):
+    """(t_ns, angular_velocity (3,)) of a sensor_msgs/Imu."""
+    return rm.stamp_to_ns(msg.header.stamp), _xyz(msg.angular_velocity)
+
+
+def _vector3_sample(msg):
+    """(t_ns, vector (3,)) of a geometry_msgs/Vector3Stamped."""
+    return rm.stamp_to_ns(msg.header.stamp), _xyz(msg.vector)
+
+
+def _wrench_sample(msg):
+    """(t_ns, torque (3,)) of a geometry_msgs/WrenchStamped."""
+    return rm.stamp_to_ns(msg.header.stamp), _xyz(msg.wrench.torque)
+
+
+def _quaternion_to_axes(msg: QuaternionStamped) -> np.ndarray:
+    q = msg.quaternion
+    return Rotation.from_quat([q.x, q.y, q.z, q.w]).as_matrix()
 
 
 @pytest.mark.parametrize('t_ns', [0, 1, 999_999_999, 1_000_000_000, 1_700_000_000_123_456_789,
@@ -43,9 +76,9 @@ def test_stamp_to_ns_reads_message_time():
 
 
 @pytest.mark.parametrize('build, read, vec', [
-    (rm.imu_msg, rm.imu_sample, [0.1, -0.2, 0.3]),
-    (rm.vector3_stamped, rm.vector3_sample, [1e-9, 2.5, -7.0]),
-    (rm.wrench_msg, rm.wrench_sample, [0.01, 0.0, -0.02]),
+    (rm.imu_msg, _imu_sample, [0.1, -0.2, 0.3]),
+    (rm.vector3_stamped, _vector3_sample, [1e-9, 2.5, -7.0]),
+    (rm.wrench_msg, _wrench_sample, [0.01, 0.0, -0.02]),
 ])
 def test_input_roundtrip(build, read, vec):
     """Each input message type round-trips (t_ns, vector) exactly (atol=0)."""
@@ -54,6 +87,24 @@ def test_input_roundtrip(build, read, vec):
     t_ns, v = read(msg)
     assert t_ns == 1_234_567_890_123
     np.testing.assert_allclose(v, vec, rtol=0, atol=0)
+
+
+@pytest.mark.parametrize('build, msgtype, field', [
+    (rm.imu_msg, 'sensor_msgs/msg/Imu', 'angular_velocity'),
+    (rm.vector3_stamped, 'geometry_msgs/msg/Vector3Stamped', 'vector'),
+    (rm.wrench_msg, 'geometry_msgs/msg/WrenchStamped', 'torque'),
+])
+def test_built_inputs_decode_in_the_node_path(build, msgtype, field):
+    """What the players publish, the estimator's batch decoder reads back exactly."""
+    from rclpy.serialization import serialize_message
+
+    vecs = np.array([[0.1, -0.2, 0.3], [np.nan, 2.5, -7.0]])
+    data = [serialize_message(build(1_700_000_000_000_000_000 + k, v, 'base_link'))
+            for k, v in enumerate(vecs)]
+    batch = cdr_decode.decode_payloads(msgtype, data, fields=(field,))
+    assert batch.ok.all() and tuple(batch.frame_ids) == ('base_link',)
+    np.testing.assert_array_equal(batch.stamp_ns, 1_700_000_000_000_000_000 + np.arange(2))
+    np.testing.assert_array_equal(batch.fields[field], vecs)
 
 
 def test_imu_marks_orientation_and_acceleration_absent():
@@ -65,7 +116,7 @@ def test_imu_marks_orientation_and_acceleration_absent():
 
 def test_nan_passes_through_input():
     """NaN in an input message is returned as NaN (the node counts and drops it)."""
-    _, w = rm.imu_sample(rm.imu_msg(0, [np.nan, 0, 0], 'imu'))
+    _, w = _imu_sample(rm.imu_msg(0, [np.nan, 0, 0], 'imu'))
     assert np.isnan(w[0])
 
 
@@ -73,8 +124,9 @@ def test_nan_passes_through_input():
     (rm.imu_msg, (0, [1, 2], 'f'), 'omega must have shape'),
     (rm.wrench_msg, (0, np.zeros((3, 1)), 'f'), 'tau must have shape'),
     (rm.inertia_stamped, (np.eye(2), 0, 'f'), r'inertia must have shape \(3, 3\)'),
-    (rm.principal_axes_msg, (np.diag([1.0, 1.0, -1.0]), 0, 'f'), 'proper rotation'),
+    (rm.principal_axes_msg, (np.diag([1.0, 1.0, -1.0]), 0, 'f'), 'reflection'),
     (rm.principal_axes_msg, (np.full((3, 3), np.nan), 0, 'f'), 'finite'),
+    (rm.principal_axes_msg, (np.eye(3) * 1.01, 0, 'f'), 'not orthonormal'),
 ])
 def test_builders_reject_bad_shapes(fn, args, match):
     """Builders refuse wrongly shaped arrays or improper rotations with a specific message."""
@@ -109,7 +161,7 @@ def test_principal_axes_quaternion_roundtrip(seed):
     q = msg.quaternion
     assert q.w >= 0
     np.testing.assert_allclose(q.x**2 + q.y**2 + q.z**2 + q.w**2, 1.0, rtol=0, atol=1e-12)
-    np.testing.assert_allclose(rm.quaternion_to_axes(msg), rot, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(_quaternion_to_axes(msg), rot, rtol=0, atol=1e-12)
 
 
 def _result(status='ok', **kw):
@@ -120,7 +172,7 @@ def _result(status='ok', **kw):
         'model': 'full', 'method': 'recursive',
         'samples': {'used': 1000, 'dropped': 3},
         'torque_bias': None,
-        'identifiable': {n: True for n in rm.THETA_NAMES},
+        'identifiable': {n: True for n in THETA_NAMES},
         'diagnostics': {'condition_number': 12.5, 'residual_rms': 0.01},
     }
     d.update(kw)
@@ -136,7 +188,7 @@ def _result(status='ok', **kw):
 ])
 def test_diagnostic_level_per_status(status, level):
     """Each estimate status maps to its documented DiagnosticStatus level."""
-    st = rm.diagnostic_status(_result(status), name='est')
+    st = dg.diagnostic_status(_result(status), name='est')
     assert st.level == level
     assert st.message.startswith(status)
     assert _values(st)['status'] == status
@@ -144,7 +196,7 @@ def test_diagnostic_level_per_status(status, level):
 
 def test_diagnostic_values_carry_contract_fields():
     """Values include model, condition number, std errors per element and sample counts."""
-    st = rm.diagnostic_status(_result(), name='est', hardware_id='body',
+    st = dg.diagnostic_status(_result(), name='est', hardware_id='body',
                               extra={'gyro_received': 10, 'nan_dropped': 2})
     v = _values(st)
     assert st.name == 'est' and st.hardware_id == 'body'
@@ -161,7 +213,7 @@ def test_diagnostic_values_carry_principal_uncertainty():
     res = _result(diagnostics={'principal_moments_std': [0.001, 0.002, 0.003],
                                'principal_axes_std': [math.radians(0.5), math.radians(1.0),
                                                       float('inf')]})
-    v = _values(rm.diagnostic_status(res, name='est'))
+    v = _values(dg.diagnostic_status(res, name='est'))
     assert 'principal_moments_std' in v and '0.002' in v['principal_moments_std']
     shown = v['principal_axes_std_deg']
     assert '0.5' in shown and '1' in shown, shown
@@ -171,7 +223,7 @@ def test_diagnostic_null_std_and_reason():
     """Null standard errors render as 'null'; the reason is in the message when not ok."""
     res = _result('scale_unobservable', inertia=None, inertia_std=None,
                   diagnostics={'reason': 'no torque: only ratios observable'})
-    st = rm.diagnostic_status(res, name='est')
+    st = dg.diagnostic_status(res, name='est')
     v = _values(st)
     assert v['std_ixx'] == 'null'
     assert 'no torque' in st.message and v['reason'] == 'no torque: only ratios observable'
@@ -179,16 +231,22 @@ def test_diagnostic_null_std_and_reason():
 
 def test_diagnostic_problems_raise_level():
     """A node-level problem (stream timeout) raises an ok estimate to WARN and is reported."""
-    st = rm.diagnostic_status(_result(), name='est',
+    st = dg.diagnostic_status(_result(), name='est',
                               problems=[(DiagnosticStatus.WARN, 'torque stream timed out')])
     assert st.level == DiagnosticStatus.WARN
     assert st.message.startswith('torque stream timed out')
-    assert rm.level_name(st.level) == 'WARN'
+
+
+def test_status_name_follows_diagnostic_updater():
+    """Status names are '<node name>: <task>' (diagnostic_updater)."""
+    assert dg.status_name('inertia_estimator', 'inertia estimate') == \
+        'inertia_estimator: inertia estimate'
+    assert dg.DIAGNOSTIC_PERIOD == 1.0
 
 
 def test_diagnostic_none_result_is_warming_up():
     """Before any estimate the status is insufficient_data at WARN level."""
-    st = rm.diagnostic_status(None, name='est')
+    st = dg.diagnostic_status(None, name='est')
     assert st.level == DiagnosticStatus.WARN
     assert _values(st)['status'] == 'insufficient_data'
 
@@ -196,12 +254,12 @@ def test_diagnostic_none_result_is_warming_up():
 def test_diagnostic_rejects_unknown_status():
     """An unknown status string is refused, naming the allowed ones."""
     with pytest.raises(ValueError, match='result status'):
-        rm.diagnostic_status({'status': 'great'}, name='est')
+        dg.diagnostic_status({'status': 'great'}, name='est')
 
 
 def test_diagnostic_array_stamp():
     """The array carries the statuses and the stamp."""
-    arr = rm.diagnostic_array([rm.diagnostic_status(None, name='a')], 5_000_000_001)
+    arr = dg.diagnostic_array([dg.diagnostic_status(None, name='a')], 5_000_000_001)
     assert rm.stamp_to_ns(arr.header.stamp) == 5_000_000_001
     assert len(arr.status) == 1
 
@@ -215,11 +273,11 @@ def test_markers_ellipsoid_axes_and_arrows():
     moments, axes = np.linalg.eigh(I_NOM)
     axes[:, 2] = np.cross(axes[:, 0], axes[:, 1])
     omega = np.array([0.3, 0.1, -0.2])
-    ma = rm.inertia_markers(9, 'body', inertia=I_NOM, moments=moments, axes=axes, omega=omega,
+    ma = mk.inertia_markers(9, 'body', inertia=I_NOM, moments=moments, axes=axes, omega=omega,
                             scale=0.5, label='ok')
     assert ma.markers[0].action == Marker.DELETEALL
     by_id = _by_id(ma)
-    ell = by_id[rm.MARKER_IDS['ellipsoid']]
+    ell = by_id[mk.MARKER_IDS['ellipsoid']]
     semi = np.array([ell.scale.x, ell.scale.y, ell.scale.z]) / 2
     expected = 1 / np.sqrt(moments)
     np.testing.assert_allclose(semi, expected * 0.5 / expected.max(), rtol=1e-12)
@@ -227,33 +285,33 @@ def test_markers_ellipsoid_axes_and_arrows():
     np.testing.assert_allclose(Rotation.from_quat([q.x, q.y, q.z, q.w]).as_matrix(), axes,
                                atol=1e-12)
     for k in range(3):
-        tip = by_id[rm.MARKER_IDS[f'axis{k + 1}']].points[1]
+        tip = by_id[mk.MARKER_IDS[f'axis{k + 1}']].points[1]
         np.testing.assert_allclose([tip.x, tip.y, tip.z], axes[:, k] * 0.65, atol=1e-12)
 
     def direction(mid):
         p = by_id[mid].points[1]
         v = np.array([p.x, p.y, p.z])
         return v / np.linalg.norm(v)
-    np.testing.assert_allclose(direction(rm.MARKER_IDS['omega']),
+    np.testing.assert_allclose(direction(mk.MARKER_IDS['omega']),
                                omega / np.linalg.norm(omega), atol=1e-12)
     L = I_NOM @ omega
-    np.testing.assert_allclose(direction(rm.MARKER_IDS['momentum']), L / np.linalg.norm(L),
+    np.testing.assert_allclose(direction(mk.MARKER_IDS['momentum']), L / np.linalg.norm(L),
                                atol=1e-12)
-    assert by_id[rm.MARKER_IDS['label']].text == 'ok'
+    assert by_id[mk.MARKER_IDS['label']].text == 'ok'
 
 
 def test_markers_without_estimate_keep_only_omega():
     """With no valid estimate only DELETEALL and the omega arrow are published."""
-    ma = rm.inertia_markers(0, 'body', omega=[0, 0, 1.0])
-    assert [m.id for m in ma.markers if m.action == Marker.ADD] == [rm.MARKER_IDS['omega']]
-    assert len(rm.inertia_markers(0, 'body').markers) == 1
+    ma = mk.inertia_markers(0, 'body', omega=[0, 0, 1.0])
+    assert [m.id for m in ma.markers if m.action == Marker.ADD] == [mk.MARKER_IDS['omega']]
+    assert len(mk.inertia_markers(0, 'body').markers) == 1
 
 
 @pytest.mark.parametrize('scale', [0.0, -1.0, float('nan')])
 def test_markers_reject_bad_scale(scale):
     """A non-positive or NaN display scale is refused."""
     with pytest.raises(ValueError, match='scale must be'):
-        rm.inertia_markers(0, 'body', scale=scale)
+        mk.inertia_markers(0, 'body', scale=scale)
 
 
 @pytest.mark.parametrize('msgtype', ['visualization_msgs/msg/MarkerArray',
@@ -271,17 +329,17 @@ def test_schema_from_share_decodes_with_independent_readers(msgtype):
     moments, axes = np.linalg.eigh(I_NOM)
     axes[:, 2] = np.cross(axes[:, 0], axes[:, 1])
     msgs = {
-        'visualization_msgs/msg/MarkerArray': rm.inertia_markers(
+        'visualization_msgs/msg/MarkerArray': mk.inertia_markers(
             5, 'body', inertia=I_NOM, moments=moments, axes=axes, omega=[0.1, 0.2, 0.3],
             label='ok'),
-        'diagnostic_msgs/msg/DiagnosticArray': rm.diagnostic_array(
-            [rm.diagnostic_status(_result(), name='est', extra={'n': 3})], 7),
+        'diagnostic_msgs/msg/DiagnosticArray': dg.diagnostic_array(
+            [dg.diagnostic_status(_result(), name='est', extra={'n': 3})], 7),
         'geometry_msgs/msg/QuaternionStamped': rm.principal_axes_msg(axes, 9, 'body'),
         'geometry_msgs/msg/Vector3Stamped': rm.principal_moments_msg(moments, 9, 'body'),
     }
     msg = msgs[msgtype]
     data = serialize_message(msg)
-    text = rm.schema_text_from_share(msgtype)
+    text = schema_text_from_share(msgtype)
     decoder = DecoderFactory().decoder_for(
         'cdr', Schema(id=1, name=msgtype, encoding='ros2msg', data=text.encode()))
     a = decoder(data)
@@ -319,4 +377,4 @@ def test_schema_from_share_decodes_with_independent_readers(msgtype):
 def test_schema_from_share_rejects(bad, match):
     """A malformed type name or a type with no installed .msg file is refused."""
     with pytest.raises(ValueError, match=match):
-        rm.schema_text_from_share(bad)
+        schema_text_from_share(bad)

@@ -137,28 +137,32 @@ class _Run:
     status: str = 'waiting'
     message: str = ''
     counts: dict[str, str] = field(default_factory=dict)
-    first_gyro_ns: int | None = None
-    last_gyro_ns: int | None = None
+
+    def gyro_span(self) -> float:
+        """Header-stamp span of the gyro messages recorded so far [s] (0 before two)."""
+        from inertia_ros.io import cdr_decode
+
+        rows = self.records.get('/imu', [])
+        if len(rows) < 2:
+            return 0.0
+        stamps = cdr_decode.decode_payloads(TOPICS['/imu'][0], [rows[0][1], rows[-1][1]],
+                                            fields=()).stamp_ns
+        return float(stamps[-1] - stamps[0]) * 1e-9
 
 
 TOPICS = {
-    # topic: (message type name, module, class, qos kind)
-    '/imu': ('sensor_msgs/msg/Imu', 'sensor_msgs.msg', 'Imu', 'sensor_data'),
-    '/torque': ('geometry_msgs/msg/WrenchStamped', 'geometry_msgs.msg', 'WrenchStamped',
-                'sensor_data'),
-    '/scene_simulator/truth': ('geometry_msgs/msg/InertiaStamped', 'geometry_msgs.msg',
-                               'InertiaStamped', 'latched'),
-    '/inertia_estimator/inertia': ('geometry_msgs/msg/InertiaStamped', 'geometry_msgs.msg',
-                                   'InertiaStamped', 'reliable'),
-    '/inertia_estimator/principal_moments': ('geometry_msgs/msg/Vector3Stamped',
-                                             'geometry_msgs.msg', 'Vector3Stamped', 'reliable'),
-    '/inertia_estimator/principal_axes': ('geometry_msgs/msg/QuaternionStamped',
-                                          'geometry_msgs.msg', 'QuaternionStamped', 'reliable'),
-    '/inertia_estimator/markers': ('visualization_msgs/msg/MarkerArray', 'visualization_msgs.msg',
-                                   'MarkerArray', 'reliable'),
-    '/diagnostics': ('diagnostic_msgs/msg/DiagnosticArray', 'diagnostic_msgs.msg',
-                     'DiagnosticArray', 'reliable'),
+    # topic: (message type name, qos kind: see inertia_ros.nodes.recorder.KINDS)
+    '/imu': ('sensor_msgs/msg/Imu', 'sensor_data'),
+    '/torque': ('geometry_msgs/msg/WrenchStamped', 'sensor_data'),
+    '/scene_simulator/truth': ('geometry_msgs/msg/InertiaStamped', 'latched'),
+    '/inertia_estimator/inertia': ('geometry_msgs/msg/InertiaStamped', 'latched'),
+    '/inertia_estimator/principal_moments': ('geometry_msgs/msg/Vector3Stamped', 'reliable'),
+    '/inertia_estimator/principal_axes': ('geometry_msgs/msg/QuaternionStamped', 'reliable'),
+    '/inertia_estimator/markers': ('visualization_msgs/msg/MarkerArray', 'reliable'),
+    '/diagnostics': ('diagnostic_msgs/msg/DiagnosticArray', 'reliable'),
 }
+#: Name prefix of the estimator's diagnostic status ('<node name>: <task>').
+ESTIMATOR_STATUS = 'inertia_estimator: '
 
 
 def _error(est: np.ndarray, truth: np.ndarray) -> float:
@@ -176,9 +180,8 @@ def _truth_at(run: _Run, t_ns: int) -> np.ndarray | None:
 
 def run(args: argparse.Namespace) -> int:
     """Execute the demo; return the exit status."""
-    import importlib
-
-    from inertia_ros.scene_simulator_node import default_scene_path
+    from inertia_ros.nodes._ros import share_path
+    from inertia_ros.nodes.scene_simulator import default_scene_path
 
     scene_path = Path(args.scene) if args.scene else default_scene_path()
     if not scene_path.is_file():
@@ -205,7 +208,7 @@ def run(args: argparse.Namespace) -> int:
         env['ROS_DOMAIN_ID'] = str(args.domain_id)
         os.environ['ROS_DOMAIN_ID'] = str(args.domain_id)
     env.setdefault('RCUTILS_LOGGING_BUFFERED_STREAM', '1')
-    params = Path(__file__).resolve().parents[2] / 'config' / 'inertia_estimator.yaml'
+    params = share_path('config', 'inertia_estimator.yaml')
     est_cmd = [sys.executable, '-m', 'inertia_ros.inertia_estimator_node', '--ros-args']
     if params.is_file():
         est_cmd += ['--params-file', str(params)]
@@ -216,116 +219,9 @@ def run(args: argparse.Namespace) -> int:
                '-p', 'exit_on_end:=true']
     if args.seed is not None:
         sim_cmd += ['-p', f'seed:={int(args.seed)}']
-
-    import rclpy
-    from rclpy.clock import Clock
-    from rclpy.clock_type import ClockType
-    from rclpy.node import Node
-    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
-    from rclpy.serialization import deserialize_message
-
-    from inertia_ros.io import cdr_decode, ros_msgs
-
     run_data = _Run()
-    classes = {t: getattr(importlib.import_module(v[1]), v[2]) for t, v in TOPICS.items()}
-
-    def on_message(topic: str, data: bytes) -> None:
-        run_data.records.setdefault(topic, []).append((time.time_ns(), data))
-        if topic in ('/scene_simulator/truth', '/inertia_estimator/inertia'):
-            t_ns, mat = ros_msgs.inertia_from_msg(deserialize_message(data, classes[topic]))
-            (run_data.truth if topic.endswith('truth') else run_data.est).append((t_ns, mat))
-        elif topic == '/diagnostics':
-            msg = deserialize_message(data, classes[topic])
-            for st in msg.status:
-                if st.name.endswith('inertia_estimator'):
-                    vals = {kv.key: kv.value for kv in st.values}
-                    run_data.status = vals.get('status', '?')
-                    run_data.message = st.message
-                    run_data.counts = vals
-
-    def drain() -> None:
-        """Take every queued sensor message (polled: one executor wake per batch)."""
-        for topic, sub in sensor_subs.items():
-            rows = run_data.records.setdefault(topic, [])
-            n0 = len(rows)
-            with sub.handle:
-                while (got := sub.handle.take_message(sub.msg_type, True)) is not None:
-                    rows.append((time.time_ns(), got[0]))
-            if topic == '/imu' and len(rows) > n0:
-                stamps = cdr_decode.decode_payloads(
-                    TOPICS[topic][0], [rows[n0][1], rows[-1][1]], fields=()).stamp_ns
-                if run_data.first_gyro_ns is None:
-                    run_data.first_gyro_ns = int(stamps[0])
-                run_data.last_gyro_ns = int(stamps[-1])
-
-    log = open(log_path, 'w')  # closed in the finally clause below
-    procs: list[subprocess.Popen] = []
-    rclpy.init()
-    node = Node('inertia_demo')
-    # The kHz sensor streams are recorded from a companion node that no executor waits on,
-    # drained every 10 ms (as in the estimator): far less CPU than a wake-up per message.
-    sensor_node = Node('inertia_demo_input', start_parameter_services=False,
-                       enable_rosout=False)
-    sensor_subs = {}
-    estimator_subs: list[Any] = []
-    try:
-        for topic, (_, _, _, kind) in TOPICS.items():
-            if kind == 'sensor_data':
-                qos = QoSProfile(depth=5000, reliability=ReliabilityPolicy.BEST_EFFORT)
-                sensor_subs[topic] = sensor_node.create_subscription(
-                    classes[topic], topic, lambda _: None, qos, raw=True)
-                continue
-            if kind == 'latched':
-                qos = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
-            else:
-                qos = QoSProfile(depth=100)
-            sub = node.create_subscription(classes[topic], topic,
-                                           lambda d, t=topic: on_message(t, d), qos, raw=True)
-            if topic in ('/inertia_estimator/inertia', '/diagnostics'):
-                estimator_subs.append(sub)
-        node.create_timer(0.01, drain, clock=Clock(clock_type=ClockType.STEADY_TIME))
-        procs.append(subprocess.Popen(est_cmd, env=env, stdout=log, stderr=subprocess.STDOUT))
-        # The scene starts only once this process has discovered the estimator's outputs:
-        # otherwise a slow discovery would lose the first (or, on a short scene, all) estimates.
-        problem = wait_until_matched(lambda: rclpy.spin_once(node, timeout_sec=0.05),
-                                     estimator_subs, procs[0], DISCOVERY_TIMEOUT)
-        if problem:
-            raise UserError(f'the estimator did not come up: {problem}; see {log_path}')
-        procs.append(subprocess.Popen(sim_cmd, env=env, stdout=log, stderr=subprocess.STDOUT))
-        sim = procs[1]
-        wall_budget = scene.duration / args.rate + 60.0
-        t_start = time.monotonic()
-        if not args.quiet:
-            print(f'inertia_ros demo: scene {scene.name!r} ({scene.duration:g} s) at rate '
-                  f'{args.rate:g}; simulator and estimator started (logs: {log_path})')
-            print(f'{"t [s]":>7} {"status":<24} {"I1":>8} {"I2":>8} {"I3":>8}  '
-                  f'{"true I1":>8} {"I2":>8} {"I3":>8}  {"error":>7}')
-        next_print = time.monotonic() + 1.0
-        sim_done_at = None
-        while True:
-            rclpy.spin_once(node, timeout_sec=0.05)
-            now = time.monotonic()
-            if sim_done_at is None and sim.poll() is not None:
-                sim_done_at = now
-            if sim_done_at is not None and now - sim_done_at > 1.5:
-                break
-            if now - t_start > wall_budget:
-                print('inertia_ros demo: time budget exceeded, stopping', file=sys.stderr)
-                break
-            if procs[0].poll() is not None:
-                print('inertia_ros demo: the estimator exited early; see ' + str(log_path),
-                      file=sys.stderr)
-                break
-            if now >= next_print and not args.quiet:
-                next_print = now + 1.0
-                _print_row(run_data)
-    finally:
-        stop_processes(procs)
-        drain()
-        node.destroy_node()
-        sensor_node.destroy_node()
-        rclpy.try_shutdown()
-        log.close()
+    with open(log_path, 'w') as log:
+        _run_nodes(args, scene, run_data, est_cmd, sim_cmd, env, log, log_path)
 
     skipped = _write_mcap(mcap_path, run_data)
     final = _final(run_data)
@@ -341,8 +237,84 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
+def _collector(run_data: _Run) -> Callable[[str, int, bytes], None]:
+    """The recorder callback: keep every payload, decode what the live table shows."""
+    from inertia_ros.nodes.messages import inertia_from_msg
+    from inertia_ros.nodes.recorder import deserialize
+
+    def on_message(topic: str, recv_ns: int, data: bytes) -> None:
+        run_data.records.setdefault(topic, []).append((recv_ns, data))
+        if topic in ('/scene_simulator/truth', '/inertia_estimator/inertia'):
+            t_ns, mat = inertia_from_msg(deserialize(TOPICS[topic][0], data))
+            (run_data.truth if topic.endswith('truth') else run_data.est).append((t_ns, mat))
+        elif topic == '/diagnostics':
+            for st in deserialize(TOPICS[topic][0], data).status:
+                if st.name.startswith(ESTIMATOR_STATUS):
+                    vals = {kv.key: kv.value for kv in st.values}
+                    run_data.status = vals.get('status', '?')
+                    run_data.message = st.message
+                    run_data.counts = vals
+    return on_message
+
+
+def _run_nodes(args: argparse.Namespace, scene: Any, run_data: _Run, est_cmd: list[str],
+               sim_cmd: list[str], env: dict[str, str], log: Any, log_path: Path) -> None:
+    """Start the estimator, wait for discovery, start the simulator, record until it ends."""
+    from inertia_ros.nodes.recorder import Recorder
+
+    procs: list[subprocess.Popen] = []
+    recorder = Recorder('inertia_demo', TOPICS, _collector(run_data))
+    try:
+        procs.append(subprocess.Popen(est_cmd, env=env, stdout=log, stderr=subprocess.STDOUT))
+        # The scene starts only once this process has discovered the estimator's outputs:
+        # otherwise a slow discovery would lose the first (or, on a short scene, all) estimates.
+        problem = wait_until_matched(
+            recorder.spin_once, [recorder.subscription(t) for t in
+                                 ('/inertia_estimator/inertia', '/diagnostics')],
+            procs[0], DISCOVERY_TIMEOUT)
+        if problem:
+            raise UserError(f'the estimator did not come up: {problem}; see {log_path}')
+        procs.append(subprocess.Popen(sim_cmd, env=env, stdout=log, stderr=subprocess.STDOUT))
+        _follow(args, scene, run_data, recorder, procs, log_path)
+    finally:
+        stop_processes(procs)
+        recorder.close()
+
+
+def _follow(args: argparse.Namespace, scene: Any, run_data: _Run, recorder: Any,
+            procs: list[subprocess.Popen], log_path: Path) -> None:
+    """Spin and print the live table until the simulator has ended (or the time is up)."""
+    sim = procs[1]
+    wall_budget = scene.duration / args.rate + 60.0
+    t_start = time.monotonic()
+    if not args.quiet:
+        print(f'inertia_ros demo: scene {scene.name!r} ({scene.duration:g} s) at rate '
+              f'{args.rate:g}; simulator and estimator started (logs: {log_path})')
+        print(f'{"t [s]":>7} {"status":<24} {"I1":>8} {"I2":>8} {"I3":>8}  '
+              f'{"true I1":>8} {"I2":>8} {"I3":>8}  {"error":>7}')
+    next_print = time.monotonic() + 1.0
+    sim_done_at = None
+    while True:
+        recorder.spin_once(0.05)
+        now = time.monotonic()
+        if sim_done_at is None and sim.poll() is not None:
+            sim_done_at = now
+        if sim_done_at is not None and now - sim_done_at > 1.5:
+            break
+        if now - t_start > wall_budget:
+            print('inertia_ros demo: time budget exceeded, stopping', file=sys.stderr)
+            break
+        if procs[0].poll() is not None:
+            print('inertia_ros demo: the estimator exited early; see ' + str(log_path),
+                  file=sys.stderr)
+            break
+        if now >= next_print and not args.quiet:
+            next_print = now + 1.0
+            _print_row(run_data)
+
+
 def _print_row(run: _Run) -> None:
-    t = 0.0 if run.first_gyro_ns is None else (run.last_gyro_ns - run.first_gyro_ns) * 1e-9
+    t = run.gyro_span()
     cells = ['-'] * 3
     err = '-'
     truth = _truth_at(run, run.est[-1][0]) if run.est else (run.truth[-1][1] if run.truth
@@ -383,11 +355,11 @@ def _write_mcap(path: Path, run: _Run) -> list[str]:
     the schema text built from the installed ``.msg`` files.
     """
     from inertia_ros.io.mcap_writer import McapWriter
-    from inertia_ros.io.ros_msgs import schema_text_from_share
+    from inertia_ros.io.msgtypes import schema_text_from_share
 
     with McapWriter(path) as w:
         for topic, rows in run.records.items():
-            msgtype, _, _, kind = TOPICS[topic]
+            msgtype, kind = TOPICS[topic]
             try:
                 w.add_topic(topic, msgtype, qos=kind)
             except ValueError:

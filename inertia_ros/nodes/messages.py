@@ -1,0 +1,232 @@
+"""ROS 2 message objects <-> numpy arrays at the boundary between the nodes and the core.
+
+Pure functions: they build and read message objects and never need ``rclpy.init()``, so the
+tests construct messages directly.  Time at this boundary is integer nanoseconds (``t_ns``);
+vectors are float64 arrays in SI units (rad/s, N m, kg m^2).  The nodes *read* their inputs
+in batches with :mod:`inertia_ros.io.cdr_decode`; the builders here serve the players and the
+outputs:
+
+- inputs as published by the players: :func:`imu_msg` (``sensor_msgs/msg/Imu``),
+  :func:`vector3_stamped`, :func:`wrench_msg` (``geometry_msgs/msg/WrenchStamped``);
+- outputs: :func:`inertia_stamped` (``geometry_msgs/msg/InertiaStamped``, read back by
+  :func:`inertia_from_msg`), :func:`principal_moments_msg` (``Vector3Stamped``) and
+  :func:`principal_axes_msg` (``QuaternionStamped``).
+
+Diagnostics and markers are in :mod:`inertia_ros.nodes.diagnostics` and
+:mod:`inertia_ros.nodes.markers`.
+"""
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from builtin_interfaces.msg import Time
+from geometry_msgs.msg import (
+    InertiaStamped,
+    QuaternionStamped,
+    Vector3,
+    Vector3Stamped,
+    WrenchStamped,
+)
+from sensor_msgs.msg import Imu
+from std_msgs.msg import Header
+
+from inertia_ros.core.inertia import axes_to_quaternion
+
+__all__ = [
+    'header',
+    'imu_msg',
+    'inertia_from_msg',
+    'inertia_stamped',
+    'ns_to_stamp',
+    'principal_axes_msg',
+    'principal_moments_msg',
+    'stamp_to_ns',
+    'vector3_stamped',
+    'wrench_msg',
+]
+
+_NS = 1_000_000_000
+
+
+# --------------------------------------------------------------------------- time and headers
+def stamp_to_ns(stamp: Time) -> int:
+    """Convert a ``builtin_interfaces/Time`` to integer nanoseconds.
+
+    Parameters
+    ----------
+    stamp : builtin_interfaces.msg.Time
+        ``sec`` (int32) and ``nanosec`` (uint32, < 1e9).
+
+    Returns
+    -------
+    int
+        ``sec * 1e9 + nanosec`` [ns].
+    """
+    return int(stamp.sec) * _NS + int(stamp.nanosec)
+
+
+def ns_to_stamp(t_ns: int) -> Time:
+    """Convert integer nanoseconds to a ``builtin_interfaces/Time``.
+
+    Parameters
+    ----------
+    t_ns : int
+        Time [ns]; must be within the int32 seconds range of the message.
+
+    Returns
+    -------
+    builtin_interfaces.msg.Time
+        With ``0 <= nanosec < 1e9`` (negative times floor to the previous second).
+
+    Raises
+    ------
+    ValueError
+        If ``t_ns`` is not an integer or is outside the representable range.
+    """
+    if isinstance(t_ns, bool) or not isinstance(t_ns, (int, np.integer)):
+        raise ValueError(f't_ns must be an integer number of nanoseconds, got {t_ns!r}')
+    sec, nanosec = divmod(int(t_ns), _NS)
+    if not -2**31 <= sec < 2**31:
+        raise ValueError(f't_ns={t_ns} is outside the int32 seconds range of '
+                         'builtin_interfaces/Time')
+    return Time(sec=sec, nanosec=nanosec)
+
+
+def header(t_ns: int, frame_id: str) -> Header:
+    """Build a ``std_msgs/Header`` from integer nanoseconds and a frame id."""
+    return Header(stamp=ns_to_stamp(t_ns), frame_id=str(frame_id))
+
+
+def vec3(v: Any, name: str) -> np.ndarray:
+    """``v`` as a float64 array of shape (3,); ``ValueError`` naming ``name`` otherwise."""
+    arr = np.asarray(v, dtype=float)
+    if arr.shape != (3,):
+        raise ValueError(f'{name} must have shape (3,), got {arr.shape}')
+    return arr
+
+
+def matrix33(m: Any, name: str) -> np.ndarray:
+    """``m`` as a float64 array of shape (3, 3); ``ValueError`` naming ``name`` otherwise."""
+    mat = np.asarray(m, dtype=float)
+    if mat.shape != (3, 3):
+        raise ValueError(f'{name} must have shape (3, 3), got {mat.shape}')
+    return mat
+
+
+def _vector3(x: np.ndarray) -> Vector3:
+    return Vector3(x=float(x[0]), y=float(x[1]), z=float(x[2]))
+
+
+# --------------------------------------------------------------------------- inputs
+def imu_msg(t_ns: int, omega: Any, frame_id: str) -> Imu:
+    """Build a ``sensor_msgs/Imu`` carrying only an angular velocity.
+
+    Parameters
+    ----------
+    t_ns : int
+        Header stamp [ns].
+    omega : array_like, shape (3,)
+        Angular velocity [rad/s].
+    frame_id : str
+        Frame of the gyro.
+
+    Returns
+    -------
+    sensor_msgs.msg.Imu
+        Orientation and linear acceleration are marked absent (covariance[0] = -1, REP 145).
+    """
+    msg = Imu(header=header(t_ns, frame_id))
+    msg.angular_velocity = _vector3(vec3(omega, 'omega'))
+    msg.orientation_covariance[0] = -1.0
+    msg.linear_acceleration_covariance[0] = -1.0
+    return msg
+
+
+def vector3_stamped(t_ns: int, v: Any, frame_id: str) -> Vector3Stamped:
+    """Build a ``geometry_msgs/Vector3Stamped`` from a (3,) array (any unit)."""
+    return Vector3Stamped(header=header(t_ns, frame_id), vector=_vector3(vec3(v, 'v')))
+
+
+def wrench_msg(t_ns: int, tau: Any, frame_id: str) -> WrenchStamped:
+    """Build a ``geometry_msgs/WrenchStamped`` with torque ``tau`` (3,) [N m] and zero force."""
+    msg = WrenchStamped(header=header(t_ns, frame_id))
+    msg.wrench.torque = _vector3(vec3(tau, 'tau'))
+    return msg
+
+
+# --------------------------------------------------------------------------- outputs
+def inertia_stamped(inertia: Any, t_ns: int, frame_id: str, *, mass: float = 0.0,
+                    com: Any = (0.0, 0.0, 0.0)) -> InertiaStamped:
+    """Build a ``geometry_msgs/InertiaStamped`` from a 3x3 tensor.
+
+    Parameters
+    ----------
+    inertia : array_like, shape (3, 3)
+        Tensor about the centre of mass [kg m^2]; ``ixy`` is the matrix element (DESIGN.md).
+        Elements that are not identifiable (NaN) are written as NaN.
+    t_ns : int
+        Header stamp [ns].
+    frame_id : str
+        Frame the tensor is expressed in (the gyro frame).
+    mass : float, optional
+        ``inertia.m`` [kg].  The estimator does not observe the mass: 0.0 means unknown.
+    com : array_like, shape (3,), optional
+        ``inertia.com`` [m]; zero: the tensor is about the centre of mass.
+
+    Returns
+    -------
+    geometry_msgs.msg.InertiaStamped
+    """
+    mat = matrix33(inertia, 'inertia')
+    c = vec3(com, 'com')
+    msg = InertiaStamped(header=header(t_ns, frame_id))
+    i = msg.inertia
+    i.m = float(mass)
+    i.com = _vector3(c)
+    i.ixx, i.iyy, i.izz = float(mat[0, 0]), float(mat[1, 1]), float(mat[2, 2])
+    i.ixy, i.ixz, i.iyz = float(mat[0, 1]), float(mat[0, 2]), float(mat[1, 2])
+    return msg
+
+
+def inertia_from_msg(msg: InertiaStamped) -> tuple[int, np.ndarray]:
+    """Read a ``geometry_msgs/InertiaStamped`` as ``(t_ns [ns], inertia (3, 3) [kg m^2])``."""
+    i = msg.inertia
+    mat = np.array([[i.ixx, i.ixy, i.ixz], [i.ixy, i.iyy, i.iyz], [i.ixz, i.iyz, i.izz]],
+                   dtype=float)
+    return stamp_to_ns(msg.header.stamp), mat
+
+
+def principal_moments_msg(moments: Any, t_ns: int, frame_id: str) -> Vector3Stamped:
+    """Principal moments ``[I1, I2, I3]`` (ascending) [kg m^2] as a ``Vector3Stamped``."""
+    return vector3_stamped(t_ns, moments, frame_id)
+
+
+def principal_axes_msg(axes: Any, t_ns: int, frame_id: str) -> QuaternionStamped:
+    """Principal axes as the ``QuaternionStamped`` rotating ``frame_id`` onto them.
+
+    Parameters
+    ----------
+    axes : array_like, shape (3, 3)
+        Columns are the principal axes (a proper rotation, DESIGN.md sign convention),
+        expressed in ``frame_id``; column k is the image of unit vector k.
+    t_ns : int
+        Header stamp [ns].
+    frame_id : str
+        Frame of the gyro.
+
+    Returns
+    -------
+    geometry_msgs.msg.QuaternionStamped
+        Unit quaternion with ``w >= 0`` (:func:`inertia_ros.core.inertia.axes_to_quaternion`).
+
+    Raises
+    ------
+    ValueError
+        If ``axes`` is not a proper rotation matrix.
+    """
+    x, y, z, w = axes_to_quaternion(axes)
+    msg = QuaternionStamped(header=header(t_ns, frame_id))
+    msg.quaternion.x, msg.quaternion.y = float(x), float(y)
+    msg.quaternion.z, msg.quaternion.w = float(z), float(w)
+    return msg

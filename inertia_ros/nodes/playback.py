@@ -1,0 +1,332 @@
+"""Timed playback of gyro and torque arrays as ROS messages: the base of both players.
+
+:class:`StreamPlayer` publishes ``imu`` (sensor_msgs/Imu; or ``omega``, geometry_msgs/
+Vector3Stamped), ``torque`` (geometry_msgs/WrenchStamped) with sensor-data QoS and
+``~/truth`` (geometry_msgs/InertiaStamped, latched) on a steady-clock timer, in real time or
+faster/slower by ``rate``.  :class:`PlaybackNode` declares the playback parameters shared by
+``scene_simulator`` and ``bag_player``, gates the start on subscribers, and ends the process
+at the end of the data when asked (:func:`spin_until_done`).
+"""
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+import rclpy
+from geometry_msgs.msg import InertiaStamped, Vector3Stamped, WrenchStamped
+from rcl_interfaces.msg import (
+    FloatingPointRange,
+    IntegerRange,
+    ParameterDescriptor,
+    SetParametersResult,
+)
+from rclpy.clock import Clock
+from rclpy.clock_type import ClockType
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from sensor_msgs.msg import Imu
+
+from inertia_ros.nodes import messages
+from inertia_ros.nodes._ros import latched_qos, sensor_qos
+
+__all__ = ['PlaybackNode', 'StreamPlayer', 'declare_playback_parameters', 'double_descriptor',
+           'integer_descriptor',
+           'spin_until_done', 'validate_playback']
+
+_NS = 1_000_000_000
+
+
+class StreamPlayer:
+    """Play gyro and torque arrays back on a node with their original relative timing.
+
+    Parameters
+    ----------
+    node : rclpy.node.Node
+        Owner of the publishers and the timer.
+    t_gyro : numpy.ndarray, shape (N,)
+        Gyro stamps [s] relative to ``epoch_ns``, non-decreasing.
+    omega : numpy.ndarray, shape (N, 3)
+        Angular velocity [rad/s].
+    t_torque : numpy.ndarray, shape (M,)
+        Torque stamps [s] relative to ``epoch_ns``, non-decreasing.
+    torque : numpy.ndarray, shape (M, 3)
+        Torque [N m].
+    frame_id : str
+        Frame written into every header.
+    omega_msg_type : {'imu', 'vector3'}
+        Gyro message type (topic ``imu`` or ``omega``).
+    rate : float
+        Playback speed factor (> 0): 2 plays twice as fast as recorded.
+    loop : bool
+        Restart from the beginning (same stamps) when the end is reached.
+    tick : float
+        Timer period [s].
+    truth : list of (t [s], inertia (3, 3)), optional
+        True tensors to publish on ``~/truth`` when playback passes their time.
+    qos_depth : int
+        History depth of the sensor publishers.
+    on_finish : callable, optional
+        Called once when the end is reached without ``loop``.
+
+    Raises
+    ------
+    ValueError
+        On mismatched shapes, unsorted stamps, a bad rate/tick or message type.
+    """
+
+    def __init__(self, node: Node, t_gyro: np.ndarray, omega: np.ndarray,
+                 t_torque: np.ndarray, torque: np.ndarray, frame_id: str, *,
+                 omega_msg_type: str = 'imu', rate: float = 1.0, loop: bool = False,
+                 tick: float = 0.005, truth: list[tuple[float, np.ndarray]] | None = None,
+                 qos_depth: int = 100, on_finish: Callable[[], None] | None = None) -> None:
+        t_gyro = np.asarray(t_gyro, dtype=float)
+        t_torque = np.asarray(t_torque, dtype=float)
+        omega = np.asarray(omega, dtype=float)
+        torque = np.asarray(torque, dtype=float)
+        if omega.shape != (t_gyro.size, 3):
+            raise ValueError(f'omega must have shape ({t_gyro.size}, 3), got {omega.shape}')
+        if torque.shape != (t_torque.size, 3):
+            raise ValueError(f'torque must have shape ({t_torque.size}, 3), got {torque.shape}')
+        for name, t in (('t_gyro', t_gyro), ('t_torque', t_torque)):
+            if t.size and np.any(np.diff(t) < 0):
+                raise ValueError(f'{name} must be non-decreasing')
+        if omega_msg_type not in ('imu', 'vector3'):
+            raise ValueError(f"omega_msg_type must be 'imu' or 'vector3', got {omega_msg_type!r}")
+        self.node = node
+        self.frame_id = frame_id
+        self.loop = loop
+        self.tick = float(tick)
+        self.set_rate(rate)
+        # One merged, time-ordered event list: (time [s], kind 0 = gyro / 1 = torque, index).
+        times = np.concatenate([t_gyro, t_torque])
+        kinds = np.concatenate([np.zeros(t_gyro.size, int), np.ones(t_torque.size, int)])
+        idx = np.concatenate([np.arange(t_gyro.size), np.arange(t_torque.size)])
+        order = np.lexsort((kinds, times))
+        self._times = times[order]
+        self._kinds = kinds[order].tolist()
+        self._index = idx[order].tolist()
+        self._t_ns = [np.round(t_gyro * _NS).astype(np.int64).tolist(),
+                      np.round(t_torque * _NS).astype(np.int64).tolist()]
+        self._vals = [omega.tolist(), torque.tolist()]
+        self._truth = sorted(truth or [], key=lambda x: x[0])
+        self._on_finish = on_finish
+        if omega_msg_type == 'imu':
+            self._pub_gyro = node.create_publisher(Imu, 'imu', sensor_qos(qos_depth))
+            self._make_gyro = messages.imu_msg
+        else:
+            self._pub_gyro = node.create_publisher(Vector3Stamped, 'omega', sensor_qos(qos_depth))
+            self._make_gyro = messages.vector3_stamped
+        self._pub_torque = node.create_publisher(WrenchStamped, 'torque', sensor_qos(qos_depth))
+        self._pub_truth = node.create_publisher(InertiaStamped, '~/truth', latched_qos())
+        self.epoch_ns = 0
+        self.published = [0, 0]
+        self.loops = 0
+        self.finished = False
+        self._timer = None
+        self._steady = Clock(clock_type=ClockType.STEADY_TIME)
+
+    @property
+    def gyro_publisher(self) -> Any:
+        """The gyro publisher (for subscription counts)."""
+        return self._pub_gyro
+
+    @property
+    def torque_publisher(self) -> Any:
+        """The torque publisher (for subscription counts)."""
+        return self._pub_torque
+
+    @property
+    def duration(self) -> float:
+        """Time span of the data [s]."""
+        return float(self._times[-1]) if self._times.size else 0.0
+
+    def set_rate(self, rate: float) -> None:
+        """Change the speed factor (> 0) without a jump in the data time."""
+        if not (rate > 0 and np.isfinite(rate)):
+            raise ValueError(f'rate must be a positive finite speed factor, got {rate!r}')
+        if getattr(self, '_timer', None) is not None:
+            now = time.monotonic()
+            self._t0 = now - (now - self._t0) * self.rate / rate
+        self.rate = float(rate)
+
+    def start(self, epoch_ns: int) -> None:
+        """Start playback now with stamps ``epoch_ns + t`` [ns]."""
+        self.epoch_ns = int(epoch_ns)
+        self._t0 = time.monotonic()
+        self._next = 0
+        self._next_truth = 0
+        self._timer = self.node.create_timer(self.tick, self._on_tick, clock=self._steady)
+        self._on_tick()
+
+    def stop(self) -> None:
+        """Stop the timer (idempotent)."""
+        if self._timer is not None:
+            self._timer.cancel()
+            self.node.destroy_timer(self._timer)
+            self._timer = None
+
+    def _on_tick(self) -> None:
+        t_now = (time.monotonic() - self._t0) * self.rate
+        while self._next_truth < len(self._truth) and self._truth[self._next_truth][0] <= t_now:
+            t, inertia = self._truth[self._next_truth]
+            self._pub_truth.publish(messages.inertia_stamped(
+                inertia, self.epoch_ns + round(t * _NS), self.frame_id))
+            self._next_truth += 1
+        end = int(np.searchsorted(self._times, t_now, side='right'))
+        frame, epoch = self.frame_id, self.epoch_ns
+        for k in range(self._next, end):
+            kind, i = self._kinds[k], self._index[k]
+            stamp = epoch + self._t_ns[kind][i]
+            if kind == 0:
+                self._pub_gyro.publish(self._make_gyro(stamp, self._vals[0][i], frame))
+            else:
+                self._pub_torque.publish(messages.wrench_msg(stamp, self._vals[1][i], frame))
+            self.published[kind] += 1
+        self._next = end
+        if end >= len(self._kinds) and self._next_truth >= len(self._truth):
+            if self.loop:
+                self.loops += 1
+                self._t0 = time.monotonic()
+                self._next = 0
+                self._next_truth = 0
+                self.node.get_logger().info(f'end of data: loop {self.loops} starts')
+            elif not self.finished:
+                self.finished = True
+                self.stop()
+                self.node.get_logger().info(
+                    f'end of data: published {self.published[0]} gyro and '
+                    f'{self.published[1]} torque messages')
+                if self._on_finish is not None:
+                    self._on_finish()
+
+
+def double_descriptor(description: str, lo: float, hi: float, read_only: bool = False
+            ) -> ParameterDescriptor:
+    """A floating-point parameter descriptor with range ``[lo, hi]``."""
+    return ParameterDescriptor(description=description, read_only=read_only,
+                               floating_point_range=[FloatingPointRange(
+                                   from_value=lo, to_value=hi, step=0.0)])
+
+
+def integer_descriptor(description: str, lo: int, hi: int, read_only: bool = False
+             ) -> ParameterDescriptor:
+    """An integer parameter descriptor with range ``[lo, hi]``."""
+    return ParameterDescriptor(description=description, read_only=read_only,
+                               integer_range=[IntegerRange(from_value=lo, to_value=hi, step=0)])
+
+
+def declare_playback_parameters(node: Node) -> None:
+    """Declare the playback parameters shared by ``scene_simulator`` and ``bag_player``."""
+    node.declare_parameter('rate', 1.0, double_descriptor(
+        'playback speed factor (2 = twice real time) [dimensionless]', 0.01, 1000.0))
+    node.declare_parameter('loop', False, ParameterDescriptor(
+        description='restart from the beginning at the end (stamps jump back)'))
+    node.declare_parameter('omega_msg_type', 'imu', ParameterDescriptor(
+        description="gyro output: 'imu' (sensor_msgs/Imu on 'imu') or 'vector3' "
+                    "(geometry_msgs/Vector3Stamped on 'omega')",
+        additional_constraints='one of: imu, vector3', read_only=True))
+    node.declare_parameter('tick', 0.002, double_descriptor(
+        'playback timer period [s]', 0.0002, 1.0, read_only=True))
+    node.declare_parameter('qos_depth', 1000, integer_descriptor(
+        'history depth of the sensor publishers [messages]', 1, 100000, read_only=True))
+    node.declare_parameter('wait_for_subscribers', 0, integer_descriptor(
+        'subscribers to wait for on both the gyro and the torque topic before playback '
+        'starts', 0, 1000))
+    node.declare_parameter('start_delay', 0.0, double_descriptor(
+        'extra wait before playback starts [s]', 0.0, 3600.0, read_only=True))
+    node.declare_parameter('exit_on_end', False, ParameterDescriptor(
+        description='exit the process when the data end (ignored with loop)', read_only=True))
+
+
+def validate_playback(params: list[Parameter]) -> str:
+    """Return '' when the playback parameter changes are valid, else the reason."""
+    for p in params:
+        if p.name == 'omega_msg_type' and p.value not in ('imu', 'vector3'):
+            return f"omega_msg_type must be 'imu' or 'vector3', got {p.value!r}"
+        if p.name == 'rate' and not (0.01 <= p.value <= 1000.0):
+            return f'rate must be in [0.01, 1000], got {p.value!r}'
+    return ''
+
+
+class PlaybackNode(Node):
+    """Base of the two players: parameters, start gating, rate changes, exit at the end."""
+
+    def __init__(self, name: str, **kwargs: Any) -> None:
+        super().__init__(name, **kwargs)
+        declare_playback_parameters(self)
+        self.player: StreamPlayer | None = None
+        self.done = False
+        self._created = time.monotonic()
+        self._gate = None
+        self.add_on_set_parameters_callback(self._on_set_parameters)
+
+    def param(self, name: str) -> Any:
+        """Current value of a parameter."""
+        return self.get_parameter(name).value
+
+    def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
+        problem = validate_playback(params) or self.validate_more(params)
+        if problem:
+            return SetParametersResult(successful=False, reason=problem)
+        for p in params:
+            if self.player is not None and p.name == 'rate':
+                self.player.set_rate(float(p.value))
+            if self.player is not None and p.name == 'loop':
+                self.player.loop = bool(p.value)
+        return SetParametersResult(successful=True)
+
+    def validate_more(self, params: list[Parameter]) -> str:
+        """Node-specific validation; '' when valid."""
+        return ''
+
+    def make_player(self, t_gyro: np.ndarray, omega: np.ndarray, t_torque: np.ndarray,
+                    torque: np.ndarray, frame_id: str,
+                    truth: list[tuple[float, np.ndarray]]) -> StreamPlayer:
+        """Create the player from the parameters and arm the start gate."""
+        self.player = StreamPlayer(
+            self, t_gyro, omega, t_torque, torque, frame_id,
+            omega_msg_type=self.param('omega_msg_type'), rate=self.param('rate'),
+            loop=self.param('loop'), tick=self.param('tick'), truth=truth,
+            qos_depth=self.param('qos_depth'), on_finish=self._finished)
+        self._gate = self.create_timer(0.05, self._try_start,
+                                       clock=Clock(clock_type=ClockType.STEADY_TIME))
+        return self.player
+
+    def _try_start(self) -> None:
+        assert self.player is not None
+        want = self.param('wait_for_subscribers')
+        if min(self.player.gyro_publisher.get_subscription_count(),
+               self.player.torque_publisher.get_subscription_count()) < want:
+            return  # discovery is per topic: wait until both streams are matched
+        if time.monotonic() - self._created < self.param('start_delay'):
+            return
+        self._gate.cancel()
+        self.destroy_timer(self._gate)
+        self._gate = None
+        self.player.start(self.start_epoch_ns())
+        self.get_logger().info(
+            f'playing {self.player.duration:.1f} s of data at rate {self.player.rate:g}')
+
+    def start_epoch_ns(self) -> int:
+        """Stamp [ns] of data time zero."""
+        return self.get_clock().now().nanoseconds
+
+    def _finished(self) -> None:
+        if self.param('exit_on_end'):
+            self.done = True
+
+
+def spin_until_done(node: PlaybackNode) -> None:
+    """Spin until shutdown or, with ``exit_on_end``, until the data end (+2 s linger).
+
+    The linger matters: a process that exits right after its last publish can take the
+    last messages with it before a busy subscriber has pulled them from the transport.
+    """
+    while rclpy.ok() and not node.done:
+        rclpy.spin_once(node, timeout_sec=0.1)
+    if node.done:
+        end = time.monotonic() + 2.0
+        while rclpy.ok() and time.monotonic() < end:
+            rclpy.spin_once(node, timeout_sec=0.05)
