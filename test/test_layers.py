@@ -68,3 +68,83 @@ def test_core_source_has_no_forbidden_imports():
                 if root in FORBIDDEN or (root == 'inertia_ros' and not inside):
                     offenders.append(f'{path.relative_to(ROOT)}:{node.lineno}: {n}')
     assert offenders == []
+
+
+# --------------------------------------------------------------------------- ROS in one place
+PKG = ROOT / 'inertia_ros'
+ROS_ROOTS = ('rclpy', 'rcl_interfaces', 'builtin_interfaces', 'std_srvs',
+             'ament_index_python', 'rosidl_runtime_py')
+#: Modules outside nodes/ that may reach the nodes, inside a function only (lazily).
+LAZY_NODE_USERS = ('inertia_ros/inertia_estimator_node.py', 'inertia_ros/scene_simulator_node.py',
+                   'inertia_ros/bag_player_node.py', 'inertia_ros/cli/demo.py')
+
+
+def _is_ros(name):
+    root = name.split('.')[0]
+    return root in ROS_ROOTS or root.endswith('_msgs')
+
+
+def _imports(path):
+    """(module name, line, at module level?) of every import in a source file."""
+    tree = ast.parse(path.read_text(), filename=str(path))
+    top = {id(n) for n in tree.body}
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            for a in node.names:
+                yield a.name, node.lineno, id(node) in top
+        elif isinstance(node, ast.ImportFrom):
+            yield _absolute(path, node), node.lineno, id(node) in top
+
+
+def _sources(under):
+    return sorted((PKG / under).rglob('*.py')) if under else sorted(PKG.rglob('*.py'))
+
+
+def test_io_never_imports_ros_or_nodes():
+    """io/ imports no rclpy, no ROS message package and not inertia_ros.nodes, even lazily."""
+    offenders = [f'{p.relative_to(ROOT)}:{line}: {name}'
+                 for p in _sources('io') for name, line, _ in _imports(p)
+                 if _is_ros(name) or name == 'inertia_ros.nodes'
+                 or name.startswith('inertia_ros.nodes.')]
+    assert offenders == []
+
+
+def test_ros_is_imported_only_under_nodes():
+    """rclpy and message packages only in inertia_ros/nodes/; the node shims and the demo
+    reach nodes/ lazily (inside a function), nobody else reaches it at all."""
+    offenders = []
+    for p in _sources(''):
+        rel = p.relative_to(ROOT).as_posix()
+        if rel.startswith('inertia_ros/nodes/'):
+            continue
+        for name, line, top in _imports(p):
+            to_nodes = name == 'inertia_ros.nodes' or name.startswith('inertia_ros.nodes.')
+            if _is_ros(name) or (to_nodes and (top or rel not in LAZY_NODE_USERS)):
+                offenders.append(f'{rel}:{line}: {name}')
+    assert offenders == []
+
+
+def test_options_module_imports_nothing():
+    """core/estimation/options.py imports nothing (it keeps --help and parameter tables fast)."""
+    path = PKG / 'core' / 'estimation' / 'options.py'
+    names = [name for name, _, _ in _imports(path) if name != '__future__']
+    assert names == []
+
+
+def test_entry_points_and_cli_load_no_ros_until_run():
+    """Importing the node shims, io and the CLI (with --help) loads neither rclpy nor nodes/."""
+    mods = ['inertia_ros.inertia_estimator_node', 'inertia_ros.scene_simulator_node',
+            'inertia_ros.bag_player_node', 'inertia_ros.cli', 'inertia_ros.cli.demo']
+    mods += [f'inertia_ros.io.{p.stem}' for p in _sources('io') if p.stem != '__init__']
+    code = (
+        'import importlib, json, sys\n'
+        f'for m in {mods!r}:\n'
+        '    importlib.import_module(m)\n'
+        'bad = sorted(m for m in sys.modules if m.split(".")[0] in ("rclpy",)\n'
+        '             or m.split(".")[0].endswith("_msgs") or m.startswith("inertia_ros.nodes"))\n'
+        'print(json.dumps(bad))\n'
+    )
+    proc = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
+                          cwd=ROOT, check=False)
+    assert proc.returncode == 0, proc.stderr
+    assert json.loads(proc.stdout.strip().splitlines()[-1]) == []
