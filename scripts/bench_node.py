@@ -110,7 +110,7 @@ def main() -> int:
 
     def on_diag(msg: DiagnosticArray) -> None:
         for st in msg.status:
-            if st.name == 'inertia_estimator':
+            if st.name.startswith('inertia_estimator'):  # '<node>: <task>'
                 diags.append({kv.key: kv.value for kv in st.values})
 
     sub_node.create_subscription(InertiaStamped, '/inertia_estimator/inertia', on_estimate, 100)

@@ -73,6 +73,43 @@ def _reason(result: Mapping[str, Any]) -> str:
     return ''
 
 
+def _estimate_values(result: Mapping[str, Any], status: str) -> list[tuple[str, Any]]:
+    """The contract fields of an estimate as (key, value) pairs, in display order."""
+    values: list[tuple[str, Any]] = [('status', status)]
+    diag: Mapping[str, Any] = result.get('diagnostics') or {}
+    for key in ('model', 'method'):
+        if key in result:
+            values.append((key, result[key]))
+    cond = next((diag[k] for k in ('condition_number', 'condition', 'cond') if k in diag), None)
+    values.append(('condition_number', cond))
+    std = result.get('inertia_std')
+    std_arr = None if std is None else np.asarray(
+        [[np.nan if v is None else v for v in row] for row in std], dtype=float)
+    std_theta = None if std_arr is None else matrix_to_theta(std_arr, rtol=np.inf,
+                                                             check_finite=False)
+    for k, el in enumerate(THETA_NAMES):
+        values.append((f'std_{el}', None if std_theta is None else std_theta[k]))
+    samples = result.get('samples') or {}
+    values.append(('samples_used', samples.get('used')))
+    values.append(('samples_dropped', samples.get('dropped')))
+    for key in ('principal_moments_std', 'principal_ratios', 'principal_ratios_std'):
+        if diag.get(key) is not None:
+            values.append((key, diag[key]))
+    axes_std = diag.get('principal_axes_std')
+    if axes_std is not None:      # [deg]: how far each principal axis may be off (1 sigma)
+        values.append(('principal_axes_std_deg',
+                       [None if v is None else math.degrees(float(v)) for v in axes_std]))
+    if 'torque_bias' in result:
+        values.append(('torque_bias', result['torque_bias']))
+    if 'identifiable' in result:
+        values.append(('identifiable', result['identifiable']))
+    if result.get('ratios') is not None and status != 'ok':
+        values.append(('ratios', result['ratios']))  # what torque-free data still gives
+        if result.get('ratios_std') is not None:
+            values.append(('ratios_std', result['ratios_std']))
+    return values
+
+
 def diagnostic_status(result: Mapping[str, Any] | None, *, name: str, hardware_id: str = '',
                       extra: Mapping[str, Any] | None = None,
                       problems: Sequence[tuple[bytes, str]] = ()) -> DiagnosticStatus:
@@ -117,39 +154,9 @@ def diagnostic_status(result: Mapping[str, Any] | None, *, name: str, hardware_i
     if problems:
         message = '; '.join([m for _, m in problems] + [message])
 
-    values: list[tuple[str, Any]] = [('status', status)]
-    diag: Mapping[str, Any] = result.get('diagnostics') or {}
-    for key in ('model', 'method'):
-        if key in result:
-            values.append((key, result[key]))
-    cond = next((diag[k] for k in ('condition_number', 'condition', 'cond') if k in diag), None)
-    values.append(('condition_number', cond))
-    std = result.get('inertia_std')
-    std_arr = None if std is None else np.asarray(
-        [[np.nan if v is None else v for v in row] for row in std], dtype=float)
-    std_theta = None if std_arr is None else matrix_to_theta(std_arr, rtol=np.inf,
-                                                             check_finite=False)
-    for k, el in enumerate(THETA_NAMES):
-        values.append((f'std_{el}', None if std_theta is None else std_theta[k]))
-    samples = result.get('samples') or {}
-    values.append(('samples_used', samples.get('used')))
-    values.append(('samples_dropped', samples.get('dropped')))
-    for key in ('principal_moments_std', 'principal_ratios', 'principal_ratios_std'):
-        if diag.get(key) is not None:
-            values.append((key, diag[key]))
-    axes_std = diag.get('principal_axes_std')
-    if axes_std is not None:      # [deg]: how far each principal axis may be off (1 sigma)
-        values.append(('principal_axes_std_deg',
-                       [None if v is None else math.degrees(float(v)) for v in axes_std]))
-    if 'torque_bias' in result:
-        values.append(('torque_bias', result['torque_bias']))
-    if 'identifiable' in result:
-        values.append(('identifiable', result['identifiable']))
-    if result.get('ratios') is not None and status != 'ok':
-        values.append(('ratios', result['ratios']))  # what torque-free data still gives
-        if result.get('ratios_std') is not None:
-            values.append(('ratios_std', result['ratios_std']))
+    values = _estimate_values(result, status)
     values.append(('reason', reason))
+    diag: Mapping[str, Any] = result.get('diagnostics') or {}
     seen = {k for k, _ in values}
     for key, val in diag.items():
         if key not in seen and isinstance(val, (int, float, str, bool, np.number, np.bool_)):

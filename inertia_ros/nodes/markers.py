@@ -49,6 +49,30 @@ MARKER_IDS = {'ellipsoid': 0, 'axis1': 1, 'axis2': 2, 'axis3': 3, 'omega': 4,
               'momentum': 5, 'label': 6}
 
 
+def _body_markers(hdr: Header, ns: str, moments: np.ndarray, axes: Any, scale: float,
+                  shaft: float) -> list[Marker]:
+    """The inertia ellipsoid (when every moment is positive) and the principal-axis arrows."""
+    quat = axes_to_quaternion(axes)  # also checks that axes is a proper rotation
+    rot = np.asarray(axes, dtype=float)
+    out = []
+    if np.all(np.isfinite(moments)) and np.all(moments > 0):
+        semi = 1.0 / np.sqrt(moments)
+        semi = semi * (scale / semi.max())
+        m = Marker(header=hdr, ns=ns, id=MARKER_IDS['ellipsoid'], type=Marker.SPHERE,
+                   action=Marker.ADD)
+        x, y, z, w = quat
+        m.pose.orientation.x, m.pose.orientation.y = float(x), float(y)
+        m.pose.orientation.z, m.pose.orientation.w = float(z), float(w)
+        m.scale.x, m.scale.y, m.scale.z = (float(2.0 * s) for s in semi)
+        m.color = _color(0.3, 0.6, 1.0, 0.35)
+        out.append(m)
+    colors = (_color(1, 0, 0), _color(0, 0.8, 0), _color(0, 0, 1))
+    for k in range(3):
+        out.append(_arrow(MARKER_IDS[f'axis{k + 1}'], ns, hdr, rot[:, k], 1.3 * scale,
+                          colors[k], shaft))
+    return out
+
+
 def inertia_markers(t_ns: int, frame_id: str, *, inertia: Any = None, moments: Any = None,
                     axes: Any = None, omega: Any = None, scale: float = 0.5,
                     ns: str = 'inertia', label: str = '') -> MarkerArray:
@@ -99,26 +123,8 @@ def inertia_markers(t_ns: int, frame_id: str, *, inertia: Any = None, moments: A
     hdr = header(t_ns, frame_id)
     out = [Marker(header=hdr, ns=ns, id=0, action=Marker.DELETEALL)]
     shaft = 0.04 * scale
-    rot = None
     if moments is not None and axes is not None:
-        mom = vec3(moments, 'moments')
-        quat = axes_to_quaternion(axes)
-        rot = np.asarray(axes, dtype=float)
-        if np.all(np.isfinite(mom)) and np.all(mom > 0):
-            semi = 1.0 / np.sqrt(mom)
-            semi = semi * (scale / semi.max())
-            m = Marker(header=hdr, ns=ns, id=MARKER_IDS['ellipsoid'], type=Marker.SPHERE,
-                       action=Marker.ADD)
-            x, y, z, w = quat
-            m.pose.orientation.x, m.pose.orientation.y = float(x), float(y)
-            m.pose.orientation.z, m.pose.orientation.w = float(z), float(w)
-            m.scale.x, m.scale.y, m.scale.z = (float(2.0 * s) for s in semi)
-            m.color = _color(0.3, 0.6, 1.0, 0.35)
-            out.append(m)
-        colors = (_color(1, 0, 0), _color(0, 0.8, 0), _color(0, 0, 1))
-        for k in range(3):
-            out.append(_arrow(MARKER_IDS[f'axis{k + 1}'], ns, hdr, rot[:, k], 1.3 * scale,
-                              colors[k], shaft))
+        out += _body_markers(hdr, ns, vec3(moments, 'moments'), axes, scale, shaft)
     w_unit = None
     if omega is not None:
         w_vec = vec3(omega, 'omega')
