@@ -183,6 +183,7 @@ def _result(status='ok', **kw):
     ('ok', DiagnosticStatus.OK),
     ('insufficient_data', DiagnosticStatus.WARN),
     ('partially_identifiable', DiagnosticStatus.WARN),
+    ('model_mismatch', DiagnosticStatus.WARN),
     ('scale_unobservable', DiagnosticStatus.ERROR),
     ('insufficient_excitation', DiagnosticStatus.ERROR),
 ])
@@ -235,6 +236,13 @@ def test_diagnostic_problems_raise_level():
                               problems=[(DiagnosticStatus.WARN, 'torque stream timed out')])
     assert st.level == DiagnosticStatus.WARN
     assert st.message.startswith('torque stream timed out')
+
+
+def test_every_estimate_status_has_a_level():
+    """The level table covers exactly the core's statuses (options.STATUSES)."""
+    from inertia_ros.core.estimation.options import STATUSES
+
+    assert set(dg.DIAGNOSTIC_LEVELS) == set(STATUSES)
 
 
 def test_status_name_follows_diagnostic_updater():
