@@ -36,7 +36,8 @@ from typing import Any
 
 import numpy as np
 
-from inertia_ros.core.inertia import InertiaTensor, _as_mass, _as_vector3
+from inertia_ros.core._validate import as_mass, as_vector3
+from inertia_ros.core.inertia import InertiaTensor
 
 __all__ = [
     'hollow_cylinder',
@@ -87,8 +88,8 @@ def point_mass(m: float, position: Any = (0.0, 0.0, 0.0)) -> InertiaTensor:
     InertiaTensor
         Zero matrix about ``position``; shift it to get ``m (|r|^2 1 - r r^T)``.
     """
-    mass = _as_mass(m, 'm', positive=True)
-    p = _as_vector3(position, 'position')
+    mass = as_mass(m, 'm', positive=True)
+    p = as_vector3(position, 'position')
     return InertiaTensor(np.zeros((3, 3)), mass, p, p)
 
 
@@ -113,7 +114,7 @@ def thin_rod(m: float, length: float, about: str = 'center') -> InertiaTensor:
     -------
     InertiaTensor
     """
-    mass = _as_mass(m, 'm', positive=True)
+    mass = as_mass(m, 'm', positive=True)
     L = _length(length, 'length')
     if about == 'center':
         return _diag(mass, mass * L**2 / 12.0, mass * L**2 / 12.0, 0.0)
@@ -140,7 +141,7 @@ def rectangular_lamina(m: float, a: float, b: float) -> InertiaTensor:
     InertiaTensor
         About the centre of mass (the plate's centre).
     """
-    mass = _as_mass(m, 'm', positive=True)
+    mass = as_mass(m, 'm', positive=True)
     a, b = _length(a, 'a'), _length(b, 'b')
     return _diag(mass, mass * b**2 / 12.0, mass * a**2 / 12.0, mass * (a**2 + b**2) / 12.0)
 
@@ -162,7 +163,7 @@ def thin_disc(m: float, r: float) -> InertiaTensor:
     InertiaTensor
         About the centre.
     """
-    mass = _as_mass(m, 'm', positive=True)
+    mass = as_mass(m, 'm', positive=True)
     r = _length(r, 'r')
     return _diag(mass, mass * r**2 / 4.0, mass * r**2 / 4.0, mass * r**2 / 2.0)
 
@@ -184,7 +185,7 @@ def thin_ring(m: float, r: float) -> InertiaTensor:
     InertiaTensor
         About the centre.
     """
-    mass = _as_mass(m, 'm', positive=True)
+    mass = as_mass(m, 'm', positive=True)
     r = _length(r, 'r')
     return _diag(mass, mass * r**2 / 2.0, mass * r**2 / 2.0, mass * r**2)
 
@@ -203,7 +204,7 @@ def solid_sphere(m: float, r: float) -> InertiaTensor:
     -------
     InertiaTensor
     """
-    mass = _as_mass(m, 'm', positive=True)
+    mass = as_mass(m, 'm', positive=True)
     r = _length(r, 'r')
     i = 0.4 * mass * r**2
     return _diag(mass, i, i, i)
@@ -223,7 +224,7 @@ def hollow_sphere(m: float, r: float) -> InertiaTensor:
     -------
     InertiaTensor
     """
-    mass = _as_mass(m, 'm', positive=True)
+    mass = as_mass(m, 'm', positive=True)
     r = _length(r, 'r')
     i = 2.0 / 3.0 * mass * r**2
     return _diag(mass, i, i, i)
@@ -246,7 +247,7 @@ def solid_box(m: float, a: float, b: float, c: float) -> InertiaTensor:
     InertiaTensor
         About the centre.
     """
-    mass = _as_mass(m, 'm', positive=True)
+    mass = as_mass(m, 'm', positive=True)
     a, b, c = _length(a, 'a'), _length(b, 'b'), _length(c, 'c')
     return _diag(mass, mass * (b**2 + c**2) / 12.0, mass * (a**2 + c**2) / 12.0,
                  mass * (a**2 + b**2) / 12.0)
@@ -271,7 +272,7 @@ def solid_cylinder(m: float, r: float, h: float) -> InertiaTensor:
     InertiaTensor
         About the centre.
     """
-    mass = _as_mass(m, 'm', positive=True)
+    mass = as_mass(m, 'm', positive=True)
     r, h = _length(r, 'r'), _length(h, 'h')
     it = mass * (3.0 * r**2 + h**2) / 12.0
     return _diag(mass, it, it, mass * r**2 / 2.0)
@@ -296,7 +297,7 @@ def thin_walled_cylinder(m: float, r: float, h: float) -> InertiaTensor:
     InertiaTensor
         About the centre.
     """
-    mass = _as_mass(m, 'm', positive=True)
+    mass = as_mass(m, 'm', positive=True)
     r, h = _length(r, 'r'), _length(h, 'h')
     it = mass * (6.0 * r**2 + h**2) / 12.0
     return _diag(mass, it, it, mass * r**2)
@@ -325,7 +326,7 @@ def hollow_cylinder(m: float, r_outer: float, r_inner: float, h: float) -> Inert
     InertiaTensor
         About the centre.
     """
-    mass = _as_mass(m, 'm', positive=True)
+    mass = as_mass(m, 'm', positive=True)
     r2, r1 = _length(r_outer, 'r_outer'), _length(r_inner, 'r_inner', allow_zero=True)
     h = _length(h, 'h')
     if r1 > r2:
@@ -356,7 +357,7 @@ def solid_cone(m: float, r: float, h: float) -> InertiaTensor:
     InertiaTensor
         About the centre of mass.
     """
-    mass = _as_mass(m, 'm', positive=True)
+    mass = as_mass(m, 'm', positive=True)
     r, h = _length(r, 'r'), _length(h, 'h')
     it = 3.0 / 80.0 * mass * (4.0 * r**2 + h**2)
     return _diag(mass, it, it, 0.3 * mass * r**2)

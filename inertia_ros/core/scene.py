@@ -38,6 +38,8 @@ from typing import Any
 
 import numpy as np
 
+from inertia_ros.core.tensor import MATRIX_INDEX
+
 __all__ = [
     'TORQUE_TYPES',
     'GyroSpec',
@@ -167,7 +169,7 @@ def matrix_from_inertia_value(value: Any, key: str) -> np.ndarray:
         m = 0.5 * (m + m.T)
     else:
         th = _vector(value, key, 6)
-        m = np.array([[th[0], th[3], th[4]], [th[3], th[1], th[5]], [th[4], th[5], th[2]]])
+        m = th[MATRIX_INDEX]
     ev = np.linalg.eigvalsh(m)
     if ev[0] <= 0.0:
         raise SceneError(f'{key}: not positive definite (principal moments {ev.tolist()})')

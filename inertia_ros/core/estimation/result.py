@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from ..inertia import THETA_NAMES
+from ..tensor import THETA_COLS, THETA_NAMES, THETA_ROWS
 from .options import STATUSES
 
 __all__ = ['STATUSES', 'InertiaEstimate', 'to_jsonable']
@@ -147,16 +147,14 @@ class InertiaEstimate:
         """``[ixx, iyy, izz, ixy, ixz, iyz]`` [kg m^2] (NaN where unidentified), or None."""
         if self.inertia is None:
             return None
-        i = self.inertia
-        return np.array([i[0, 0], i[1, 1], i[2, 2], i[0, 1], i[0, 2], i[1, 2]])
+        return self.inertia[THETA_ROWS, THETA_COLS]
 
     @property
     def theta_std(self) -> np.ndarray | None:
         """One-sigma standard errors in ``theta`` order [kg m^2], or None."""
         if self.inertia_std is None:
             return None
-        s = self.inertia_std
-        return np.array([s[0, 0], s[1, 1], s[2, 2], s[0, 1], s[0, 2], s[1, 2]])
+        return self.inertia_std[THETA_ROWS, THETA_COLS]
 
     def to_dict(self) -> dict[str, Any]:
         """The JSON contract of DESIGN.md as plain Python types.

@@ -1,0 +1,213 @@
+"""Argument validators shared by the core: arrays, times, noise levels, masses, rotations.
+
+Every validator converts its argument and raises one ``ValueError`` whose message starts with
+the argument's name (``'omega: expected shape (N, 3), got (5, 2)'``), so user-facing code can
+show it without a traceback.  Used by :mod:`.tensor`, :mod:`.dynamics`, :mod:`.inertia`,
+:mod:`.bodies`, :mod:`.crlb` and the estimators.
+"""
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+__all__ = ['as_float_array', 'as_mass', 'as_matrix33', 'as_noise_std', 'as_rotation',
+           'as_sample_block', 'as_samples', 'as_times', 'as_unit_axis', 'as_vector3',
+           'as_vectors', 'check_symmetric', 'max_asymmetry', 'require_finite']
+
+
+def as_float_array(x: Any, name: str) -> np.ndarray:
+    """Convert ``x`` to a float64 array, raising ValueError naming ``name`` on failure."""
+    try:
+        arr = np.asarray(x, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f'{name}: expected an array of real numbers, got {type(x).__name__} '
+                         f'({exc})') from None
+    return arr
+
+
+def require_finite(arr: np.ndarray, name: str) -> None:
+    """Raise ValueError naming ``name`` if ``arr`` holds NaN or infinity."""
+    if not np.all(np.isfinite(arr)):
+        bad = int(np.size(arr) - np.count_nonzero(np.isfinite(arr)))
+        raise ValueError(f'{name}: must be finite, found {bad} NaN/inf value(s)')
+
+
+def as_vectors(x: Any, name: str, *, check_finite: bool = True) -> np.ndarray:
+    """A float array of shape (..., 3), validated; ValueError names ``name``."""
+    arr = as_float_array(x, name)
+    if arr.ndim < 1 or arr.shape[-1] != 3:
+        raise ValueError(f'{name}: expected shape (..., 3), got {arr.shape}')
+    if check_finite:
+        require_finite(arr, name)
+    return arr
+
+
+def as_vector3(x: Any, name: str) -> np.ndarray:
+    """A finite float array of shape exactly (3,); ValueError names ``name``."""
+    arr = as_float_array(x, name)
+    if arr.shape != (3,):
+        raise ValueError(f'{name}: expected shape (3,), got {arr.shape}')
+    require_finite(arr, name)
+    return arr
+
+
+def max_asymmetry(m: np.ndarray) -> float:
+    """Largest |M_ij - M_ji| of a (..., 3, 3) array (0 for an empty stack)."""
+    if m.size == 0:
+        return 0.0
+    return float(np.max(np.abs(m - np.swapaxes(m, -1, -2))))
+
+
+def check_symmetric(m: np.ndarray, name: str, rtol: float) -> None:
+    """Raise ValueError if a (..., 3, 3) array is not symmetric within ``rtol`` of max |M_ij|."""
+    if m.size == 0:
+        return
+    asym = max_asymmetry(m)
+    scale = float(np.max(np.abs(m)))
+    if asym > rtol * scale:
+        raise ValueError(f'{name}: not symmetric: max |I_ij - I_ji| = {asym:.3g} exceeds '
+                         f'rtol * max|I_ij| = {rtol:.1g} * {scale:.3g}')
+
+
+def as_matrix33(I: Any, name: str) -> np.ndarray:
+    """``I`` (array-like or anything with ``.matrix``) as a finite float (3, 3) array."""
+    if hasattr(I, 'matrix') and not isinstance(I, np.ndarray):
+        I = I.matrix
+    arr = as_float_array(I, name)
+    if arr.shape != (3, 3):
+        raise ValueError(f'{name}: expected shape (3, 3), got {arr.shape}')
+    require_finite(arr, name)
+    return arr
+
+
+def as_mass(m: Any, name: str = 'mass', *, positive: bool = False) -> float:
+    """A finite mass >= 0 (> 0 when ``positive``) as float; ValueError names ``name``."""
+    try:
+        val = float(m)
+    except (TypeError, ValueError):
+        raise ValueError(f'{name}: expected a number [kg], got {m!r}') from None
+    if not np.isfinite(val):
+        raise ValueError(f'{name}: must be finite, got {val!r}')
+    if val < 0.0 or (positive and val == 0.0):
+        raise ValueError(f'{name}: must be {"> 0" if positive else ">= 0"} kg, got {val!r}')
+    return val
+
+
+def as_unit_axis(n: Any, name: str = 'axis') -> np.ndarray:
+    """Normalise a non-zero finite (..., 3) direction; ValueError names ``name``."""
+    v = as_vectors(n, name)
+    norm = np.linalg.norm(v, axis=-1, keepdims=True)
+    if np.any(norm == 0.0):
+        raise ValueError(f'{name}: zero vector has no direction; pass a non-zero axis')
+    return v / norm
+
+
+def as_rotation(R: Any, name: str = 'rotation', atol: float = 1e-9) -> np.ndarray:
+    """A (3, 3) proper rotation matrix (orthonormal within ``atol``, det +1)."""
+    arr = as_float_array(R, name)
+    if arr.shape != (3, 3):
+        raise ValueError(f'{name}: expected shape (3, 3), got {arr.shape}')
+    require_finite(arr, name)
+    err = float(np.max(np.abs(arr @ arr.T - np.eye(3))))
+    if err > atol:
+        raise ValueError(f'{name}: not orthonormal: max |R R^T - 1| = {err:.3g} '
+                         f'exceeds {atol:.1g}')
+    if np.linalg.det(arr) < 0.0:
+        raise ValueError(f'{name}: det = -1 is a reflection, not a proper rotation')
+    return arr
+
+def as_times(t: Any, name: str, *, min_samples: int = 0, detail: bool = True) -> np.ndarray:
+    """Validated 1-D, finite, strictly increasing sample times.
+
+    Parameters
+    ----------
+    t : array_like, shape (N,)
+        Times [s].
+    name : str
+        Argument name for the messages.
+    min_samples : int
+        Fewer samples raise ``ValueError`` (``expected shape (N,) with N >= min_samples``).
+    detail : bool
+        Name the first non-increasing pair in the message.
+
+    Returns
+    -------
+    ndarray, shape (N,)
+    """
+    arr = np.asarray(t, dtype=float)
+    if arr.ndim != 1 or arr.size < min_samples:
+        more = f' with N >= {min_samples}' if min_samples else ''
+        raise ValueError(f'{name}: expected shape (N,){more}, got {arr.shape}')
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f'{name}: contains NaN or inf')
+    if len(arr) > 1 and np.any(np.diff(arr) <= 0):
+        if not detail:
+            raise ValueError(f'{name}: times must be strictly increasing')
+        k = int(np.argmax(np.diff(arr) <= 0))
+        raise ValueError(f'{name}: times must be strictly increasing (t[{k + 1}] = '
+                         f'{arr[k + 1]!r} <= t[{k}] = {arr[k]!r})')
+    return arr
+
+
+def as_samples(x: Any, n: int, name: str, tname: str) -> np.ndarray:
+    """Validated (n, 3) finite float samples matching ``n`` times named ``tname``.
+
+    Returns
+    -------
+    ndarray, shape (n, 3)
+    """
+    arr = np.asarray(x, dtype=float)
+    if arr.ndim != 2 or arr.shape[1] != 3:
+        raise ValueError(f'{name}: expected shape (N, 3), got {arr.shape}')
+    if arr.shape[0] != n:
+        raise ValueError(f'{name}: has {arr.shape[0]} rows but {tname} has {n} samples')
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f'{name}: contains NaN or inf')
+    return arr
+
+
+def as_sample_block(t: Any, x: Any, name: str) -> tuple[np.ndarray, np.ndarray]:
+    """One sample (``t`` scalar, ``x`` (3,)) or a block (``t`` (n,), ``x`` (n, 3)), validated.
+
+    Returns
+    -------
+    t : ndarray, shape (n,)
+        Strictly increasing finite times [s].
+    x : ndarray, shape (n, 3)
+        Finite values.
+    """
+    ta = np.atleast_1d(np.asarray(t, dtype=float))
+    xa = np.asarray(x, dtype=float)
+    if xa.ndim == 1:
+        xa = xa[None, :]
+    if ta.ndim != 1 or xa.ndim != 2 or xa.shape[1] != 3 or len(ta) != len(xa):
+        raise ValueError(f'{name}: expected t (n,) and values (n, 3) or (3,), got '
+                         f'{ta.shape} and {np.shape(x)}')
+    if not (np.isfinite(ta).all() and np.isfinite(xa).all()):
+        raise ValueError(f'{name}: contains NaN or inf')
+    if len(ta) > 1 and (ta[1:] <= ta[:-1]).any():
+        raise ValueError(f'{name}: times must be strictly increasing')
+    return ta, xa
+
+
+def as_noise_std(x: Any, name: str, *, what: str = '') -> np.ndarray:
+    """Validated per-axis noise standard deviation: a scalar or 3 values, finite, >= 0.
+
+    Parameters
+    ----------
+    x : float or array_like, shape (3,)
+        Standard deviation per axis (units of the stream).
+    name : str
+        Argument name for the message.
+    what : str
+        Extra words after ``>= 0`` in the message (e.g. ``' (scalar or 3 values)'``).
+
+    Returns
+    -------
+    ndarray, shape (3,)
+    """
+    arr = np.broadcast_to(np.asarray(x, dtype=float), (3,)).copy()
+    if not np.all(np.isfinite(arr)) or np.any(arr < 0):
+        raise ValueError(f'{name}: must be finite and >= 0{what}, got {x!r}')
+    return arr
