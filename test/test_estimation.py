@@ -19,13 +19,13 @@ from inertia_ros.core.estimation import (
     RecursiveEstimator,
     estimate,
 )
+from inertia_ros.core.estimation.noise import noise_std_from_differences
 from inertia_ros.core.estimation.regressors import (
     cumulative_monomials,
     cumulative_torque,
     gyroscopic_matrix,
     momentum_matrix,
     monomials,
-    noise_std_from_differences,
 )
 from inertia_ros.core.inertia import THETA_NAMES, matrix_to_theta, principal_axes, theta_to_matrix
 from inertia_ros.core.scene import Scene
@@ -325,13 +325,14 @@ def test_bad_input_raises_value_error(args, kwargs, match):
 
 def test_physical_projection_reported():
     """A non-physical unconstrained solution is projected and the failure is reported."""
-    from inertia_ros.core.estimation.batch import _assemble, _Fit
+    from inertia_ros.core.estimation.assemble import assemble
+    from inertia_ros.core.estimation.fit import Fit
     theta = np.array([1.0, 1.0, 3.0, 0.0, 0.0, 0.0])        # violates I1 + I2 >= I3
-    f = _Fit(beta=theta, cov=np.eye(6) * 1e-6, H=np.eye(6), H0=np.eye(6), basis=np.eye(6),
-             bias=False, resid_rms=np.zeros(3), n_eq=100)
-    est = _assemble('ok', f, 'full', np.ones(6, dtype=bool), {'warnings': []},
-                    {'method': 'integral', 'samples_used': 100, 'samples_dropped': 0},
-                    physical=True)
+    f = Fit(beta=theta, cov=np.eye(6) * 1e-6, H=np.eye(6), H0=np.eye(6), basis=np.eye(6),
+            bias=False, resid_rms=np.zeros(3), n_eq=100)
+    est = assemble('ok', f, 'full', np.ones(6, dtype=bool), {'warnings': []},
+                   {'method': 'integral', 'samples_used': 100, 'samples_dropped': 0},
+                   physical=True)
     assert est.diagnostics['physical']['projected'] is True
     assert est.diagnostics['physical']['failures']
     m = est.principal_moments

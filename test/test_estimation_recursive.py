@@ -10,9 +10,8 @@ import pytest
 import yaml
 
 from conftest import ROOT
-from inertia_ros.core.estimation import RecursiveEstimator, estimate
-from inertia_ros.core.estimation import batch as batch_mod
-from inertia_ros.core.estimation.regressors import noise_std_from_differences
+from inertia_ros.core.estimation import RecursiveEstimator, estimate, regressors
+from inertia_ros.core.estimation.noise import noise_std_from_differences
 from inertia_ros.core.inertia import principal_axes
 from inertia_ros.core.scene import Scene
 from inertia_ros.core.simulation import simulate
@@ -54,11 +53,11 @@ def test_incremental_torque_walk_matches_definition(cuts):
 
 
 def test_lift_is_the_variable_map_sandwich():
-    """``_lift`` (two matrix products) equals its defining einsum (rtol 1e-12)."""
+    """``regressors.lift`` (two matrix products) equals its defining einsum (rtol 1e-12)."""
     G = np.random.default_rng(5).normal(size=(13, 13))
     G = G @ G.T
-    ref = np.einsum('irq,ij,jsp->rsqp', batch_mod._VMAP, G, batch_mod._VMAP)
-    np.testing.assert_allclose(batch_mod._lift(G), ref, rtol=0,
+    ref = np.einsum('irq,ij,jsp->rsqp', regressors.VARIABLE_MAP, G, regressors.VARIABLE_MAP)
+    np.testing.assert_allclose(regressors.lift(G), ref, rtol=0,
                                atol=1e-12 * np.abs(ref).max())
 
 

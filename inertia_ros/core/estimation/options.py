@@ -8,6 +8,7 @@ Vocabularies
     :data:`METHODS`, :data:`MODELS`, :data:`TORQUE_BIAS`, :data:`HOLDS`, :data:`STATUSES`.
 Rules
     :data:`MIN_GYRO_SAMPLES` (fewer used gyro samples is ``insufficient_data``),
+    :data:`MIN_EQUATIONS` (fewer equations is ``insufficient_data``),
     :data:`GAP_FACTOR` (a sample interval over this many median intervals is a gap),
     :data:`TORQUE_FREE_SIGMAS` (a torque stream whose RMS is within this many noise sigmas of
     zero is torque-free), :data:`ALPHA` (level of the model-selection tests),
@@ -17,9 +18,9 @@ Rules
 from __future__ import annotations
 
 __all__ = ['ADEQUACY_ALPHA', 'ADEQUACY_MIN_WINDOW_S', 'ADEQUACY_WINDOWS', 'ALPHA', 'GAP_FACTOR',
-           'HOLDS', 'IDENTIFIABILITY_TOL', 'MAX_RESIDUAL_EXCESS', 'METHODS', 'MIN_GYRO_SAMPLES',
-           'ML_AUTO_MAX_SAMPLES', 'MODELS', 'STATUSES', 'TORQUE_BIAS', 'TORQUE_FREE_SIGMAS',
-           'check_choice']
+           'HOLDS', 'IDENTIFIABILITY_TOL', 'MAX_RESIDUAL_EXCESS', 'METHODS', 'MIN_EQUATIONS',
+           'MIN_GYRO_SAMPLES', 'ML_AUTO_MAX_SAMPLES', 'MODELS', 'STATUSES', 'TORQUE_BIAS',
+           'TORQUE_FREE_SIGMAS', 'check_choice']
 
 #: Batch methods (``estimate(method=...)``, ``--method``).
 METHODS: tuple[str, ...] = ('auto', 'ml', 'integral', 'integral_ls', 'integral_sliding',
@@ -41,6 +42,9 @@ STATUSES: tuple[str, ...] = ('ok', 'model_mismatch', 'scale_unobservable',
 ML_AUTO_MAX_SAMPLES = 100_000
 #: Fewer used gyro samples than this gives ``insufficient_data`` (batch and online).
 MIN_GYRO_SAMPLES = 20
+#: Fewer equations (net of segment intercepts) than this gives ``insufficient_data``: three
+#: per parameter of the general model (6 tensor elements and 3 bias components).
+MIN_EQUATIONS = 3 * (6 + 3)
 #: A sample interval longer than this many median (nominal) intervals is a gap.
 GAP_FACTOR = 5.0
 #: Torque-free when every axis' torque RMS is within this many torque-noise sigmas.

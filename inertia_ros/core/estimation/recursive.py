@@ -19,7 +19,7 @@ estimate follow a changing tensor.
 
 Everything ``estimate()`` needs is kept up to date as samples are merged, so its cost does not
 grow with the record: closed segments are folded into fixed sums, and the open segment's
-torque-noise statistics (the batch ``_torque_stats`` of its demeaned variables) are
+torque-noise statistics (:func:`.statistics.torque_stats` of its demeaned variables) are
 accumulated per torque interval in closed form (see :meth:`RecursiveEstimator._walk_add`)
 instead of being recomputed from the segment's samples, which are no longer stored.
 Torque-free data (torque RMS within five times its noise, the batch rule) gives
@@ -37,26 +37,26 @@ from typing import Any
 
 import numpy as np
 
-from .batch import (
+from .._validate import as_noise_std, as_sample_block
+from .assemble import conclude, status_only
+from .fit import Fit, fit_two_pass
+from .homogeneous import homogeneous_estimate, is_torque_free
+from .model import symmetry_axis as unit_axis
+from .noise import StreamingDifferenceNoise, median_rows, noise_std_from_differences
+from .options import (
+    ALPHA,
+    GAP_FACTOR,
     HOLDS,
-    _axis,
-    _conclude,
-    _Equations,
-    _Fit,
-    _fit2,
-    _gram,
-    _homogeneous_from_stats,
-    _lift,
-    _Stats,
+    MIN_EQUATIONS,
+    MIN_GYRO_SAMPLES,
+    MODELS,
+    TORQUE_BIAS,
+    check_choice,
 )
-from .options import GAP_FACTOR, MODELS
-from .regressors import (
-    cumulative_torque,
-    median_rows,
-    monomials,
-    noise_std_from_differences,
-)
+from .regressors import cumulative_torque, gram, lift, monomials
 from .result import InertiaEstimate
+from .selection import SelectionPolicy
+from .statistics import SufficientStats
 
 __all__ = ['RecursiveEstimator']
 
@@ -100,24 +100,21 @@ class RecursiveEstimator:
 
     def __init__(self, model: str = 'full', torque_bias: bool | str = False,
                  forgetting: float = 1.0, window: float | None = None, hold: str = 'zoh',
-                 symmetry_axis: Any = None, gyro_noise: Any = None, alpha: float = 1e-3,
+                 symmetry_axis: Any = None, gyro_noise: Any = None, alpha: float = ALPHA,
                  block: int = 256, segment: float | None = None,
                  reselect_every: int = 1) -> None:
-        if model not in MODELS:
-            raise ValueError(f'model: must be one of {MODELS}, got {model!r}')
+        check_choice('model', model, MODELS)
         if isinstance(torque_bias, bool):
             torque_bias = 'on' if torque_bias else 'off'
-        if torque_bias not in ('auto', 'on', 'off'):
+        if torque_bias not in TORQUE_BIAS:
             raise ValueError(f"torque_bias: must be a bool or 'auto'/'on'/'off', got "
                              f'{torque_bias!r}')
         if not (0.0 < forgetting <= 1.0):
             raise ValueError(f'forgetting: must be in (0, 1], got {forgetting!r}')
         if window is not None and not window > 0:
             raise ValueError(f'window: must be > 0 s, got {window!r}')
-        if hold not in HOLDS:
-            raise ValueError(f'hold: must be one of {HOLDS}, got {hold!r}')
-        if not 0.0 < alpha < 1.0:
-            raise ValueError(f'alpha: must be in (0, 1), got {alpha!r}')
+        check_choice('hold', hold, HOLDS)
+        self.policy = SelectionPolicy(alpha)
         if segment is not None and not segment > 0:
             raise ValueError(f'segment: must be > 0 s, got {segment!r}')
         self.segment = float(segment if segment is not None else (window or 10.0))
@@ -132,13 +129,12 @@ class RecursiveEstimator:
         self.forgetting = float(forgetting)
         self.window = window
         self.hold = hold
-        self.axis = _axis(symmetry_axis)
+        self.axis = unit_axis(symmetry_axis)
         if model == 'axisymmetric' and self.axis is None:
             raise ValueError("symmetry_axis: required for model='axisymmetric'")
-        self.alpha = alpha
         self.block = int(block)
-        self._gyro_noise = None if gyro_noise is None else np.broadcast_to(
-            np.asarray(gyro_noise, dtype=float), (3,)).copy()
+        self._gyro_noise = None if gyro_noise is None else as_noise_std(gyro_noise,
+                                                                          'gyro_noise')
         self.reset()
 
     # -----------------------------------------------------------------------------------------
@@ -180,30 +176,12 @@ class RecursiveEstimator:
         self._t_last: float | None = None
         self._last_t_in: float | None = None
         self._last_tau_in: float | None = None
-        self._nv_sum = np.zeros(3)
-        self._nv_n = 0
-        self._wtail = np.empty((0, 3))
+        self._gyro_nv = StreamingDifferenceNoise()     # gyro noise (unless given)
         self.samples_used = 0
         self.samples_dropped = 0
         # model selection reused between re-selections: (torque_bias, model, its record)
         self._selection: tuple[str, str, dict[str, Any]] | None = None
         self._selection_left = 0
-
-    @staticmethod
-    def _block(t: Any, x: Any, name: str) -> tuple[np.ndarray, np.ndarray]:
-        """Validate one sample or a block of samples."""
-        ta = np.atleast_1d(np.asarray(t, dtype=float))
-        xa = np.asarray(x, dtype=float)
-        if xa.ndim == 1:
-            xa = xa[None, :]
-        if ta.ndim != 1 or xa.ndim != 2 or xa.shape[1] != 3 or len(ta) != len(xa):
-            raise ValueError(f'{name}: expected t (n,) and values (n, 3) or (3,), got '
-                             f'{ta.shape} and {np.shape(x)}')
-        if not (np.isfinite(ta).all() and np.isfinite(xa).all()):
-            raise ValueError(f'{name}: contains NaN or inf')
-        if len(ta) > 1 and (ta[1:] <= ta[:-1]).any():
-            raise ValueError(f'{name}: times must be strictly increasing')
-        return ta, xa
 
     def add_gyro(self, t: Any, omega: Any) -> None:
         """Add gyro samples.
@@ -230,7 +208,7 @@ class RecursiveEstimator:
                 self._process()
             return
         self._flush_single()
-        ta, wa = self._block(t, omega, 'omega')
+        ta, wa = as_sample_block(t, omega, 'omega')
         if len(ta) == 0:
             return
         if self._last_t_in is not None and ta[0] <= self._last_t_in:
@@ -282,7 +260,7 @@ class RecursiveEstimator:
             self._pt.append(np.array([tf]))
             self._ptau.append(np.asarray(tau, dtype=float).reshape(1, 3))
             return
-        ta, xa = self._block(t, tau, 'torque')
+        ta, xa = as_sample_block(t, tau, 'torque')
         if len(ta) == 0:
             return
         if self._last_tau_in is not None and ta[0] <= self._last_tau_in:
@@ -339,14 +317,7 @@ class RecursiveEstimator:
         if len(t) == 0:
             return
         if self._gyro_noise is None:
-            # running mean square of third differences across blocks (white noise:
-            # variance 20 sigma^2; independent of how the stream was cut into blocks)
-            ww = np.concatenate([self._wtail, w]) if len(self._wtail) else w
-            if len(ww) >= 4:
-                d3 = ww[3:] - 3.0 * ww[2:-1] + 3.0 * ww[1:-2] - ww[:-3]
-                self._nv_sum = self._nv_sum + np.sum(d3 * d3, axis=0) / 20.0
-                self._nv_n += len(d3)
-            self._wtail = ww[-3:].copy()
+            self._gyro_nv.add(w)
         # torque integral at the gyro times, relative to self._ts[0]
         T = self._T_base + cumulative_torque(self._ts, self._tau, t, self.hold)
         # monomial integral (trapezoid) continuing from the previous processed sample
@@ -462,7 +433,7 @@ class RecursiveEstimator:
     def _walk_add(self, t: np.ndarray, V: np.ndarray) -> None:
         """Accumulate the open segment's torque-noise statistics over new equations.
 
-        The segment's torque-noise sums (:func:`.batch._torque_stats` on the segment-demeaned
+        The segment's torque-noise sums (:func:`.statistics.torque_stats` on the segment-demeaned
         variables) are ``P_j = [1 | -mean] R_j`` with ``R_j = sum_b o_j(b) x_b``,
         ``o_j(b) = clip(t_b - s_j, 0, h_j)`` and ``x_b = [v_b - ref, 1]``.  Once torque interval
         ``j`` is closed (a gyro sample at or after its end has arrived), ``R_j = h_j S + Q_j``
@@ -566,7 +537,7 @@ class RecursiveEstimator:
         w_old = old * self._w0
         total = w_old + wb
         delta = mb - self._mean
-        self._C = old * self._C + _gram(D) + (w_old * wb / total) * np.outer(delta, delta)
+        self._C = old * self._C + gram(D) + (w_old * wb / total) * np.outer(delta, delta)
         self._mean = self._mean + delta * (wb / total)
         self._w0 = total
         self._w00 = old * old * self._w00 + float(np.sum(wts * wts))
@@ -580,6 +551,27 @@ class RecursiveEstimator:
         self._neffc *= old
 
     # -----------------------------------------------------------------------------------------
+    def _gyro_var(self) -> np.ndarray:
+        """Gyro white-noise variance per axis [rad^2/s^2]: given, or the streaming estimate."""
+        if self._gyro_noise is not None:
+            return self._gyro_noise ** 2
+        return self._gyro_nv.variance()
+
+    def _stats(self, nv: np.ndarray, n_eff: float) -> SufficientStats:
+        """The weighted statistics of everything merged, in the batch estimator's form.
+
+        The gyro-noise correction of the squared-rate integrals, ``m_c -> m_c - sigma_c^2 s``,
+        is linear in the 13 variables (``K``) and applied here with the current noise level.
+        """
+        K = np.eye(13)
+        K[9, 3:6] = -nv
+        C_all = lift(K.T @ (self._C + self._Cc) @ K)
+        gp, walk = self._segment_walk()
+        CP = lift(K.T @ (self._GPc + gp) @ K) if self._tau_var is not None else None
+        return SufficientStats(C_all, CP, int(round(self._w0 + self._wc)), int(round(n_eff)), 1,
+                               kind='anchored', eiv_var=nv, weighted=True,
+                               walk_time=self._walkc + walk, torque_dt=self._tau_dt)
+
     def estimate(self) -> InertiaEstimate:
         """Current estimate from everything merged so far (flushes covered samples first).
 
@@ -593,63 +585,50 @@ class RecursiveEstimator:
         self._process()
         base = dict(method='recursive', samples_used=self.samples_used,
                     samples_dropped=self.samples_dropped)
-        if self._gyro_noise is not None:
-            nv = self._gyro_noise ** 2
-        elif self._nv_n:
-            nv = self._nv_sum / self._nv_n
-            nv = np.maximum(nv, 0.01 * float(np.max(nv)))         # isotropy floor (as batch)
-        else:
-            nv = np.zeros(3)
-        # gyro-noise correction of the squared-rate integrals: m_c -> m_c - sigma_c^2 s
-        K = np.eye(13)
-        K[9, 3:6] = -nv
+        nv = self._gyro_var()
         diag: dict[str, Any] = {'gyro_noise_std': np.sqrt(nv), 'warnings': [],
                                 'effective_samples': self._w0 + self._wc}
         if self.gaps:
             diag['warnings'].append(f'{self.gaps} gap(s) in the streams: each started a new '
                                     'segment; gyro samples inside torque gaps were dropped')
         n_eff = self._neffc + (self._w0 - self._w00 / self._w0 if self._w0 > 0 else 0.0)
-        w_all = self._w0 + self._wc
-        C_all = _lift(K.T @ (self._C + self._Cc) @ K)
-        if self.samples_used < 30 or n_eff < 3 * (6 + 3):
+        if self.samples_used < MIN_GYRO_SAMPLES or n_eff < MIN_EQUATIONS:
             diag['reason'] = f'only {self.samples_used} gyro samples covered by torque so far'
-            return InertiaEstimate(status='insufficient_data', diagnostics=diag,
-                                   **base)   # type: ignore[arg-type]
-        # torque-free data (as the batch rule): the scale is unobservable, the ratios and the
+            return status_only('insufficient_data', diag, base)
+        # torque-free data (the batch rule): the scale is unobservable, the ratios and the
         # principal axes come from the null vector of the homogeneous problem
         torque_rms = np.sqrt(self._tq_ss / max(self._tq_n, 1e-300))
         diag['torque_rms'] = torque_rms
         tq_std = np.sqrt(self._tau_var) if self._tau_var is not None else np.zeros(3)
         diag['torque_noise_std'] = tq_std
-        eq = _Equations(np.zeros((0, 13)), np.zeros(0), np.zeros(0, dtype=bool),
-                        'anchored', eiv_var=nv, weighted=True)
-        gp, walk = self._segment_walk()
+        st = self._stats(nv, n_eff)
+        # the meat of weighted sums scales by w^2 / w
+        ratio = (self._w00 + self._w00c) / (self._w0 + self._wc)
+        if is_torque_free(torque_rms, tq_std):
+            return homogeneous_estimate(st, nv, diag, base, cov_scale=ratio)
         tv = self._tau_var if self._tau_var is not None else np.zeros(3)
-        CP = _lift(K.T @ (self._GPc + gp) @ K) if self._tau_var is not None else None
-        st = _Stats(C_all, CP, int(round(w_all)), int(round(n_eff)), 1, eq, None,
-                    walk_time=self._walkc + walk, torque_dt=self._tau_dt)
-        ratio = (self._w00 + self._w00c) / w_all
-        if float(np.max(torque_rms)) <= 5.0 * float(np.max(tq_std)):
-            return _homogeneous_from_stats(st, nv, diag, base, cov_scale=ratio)
 
         def fit(basis: np.ndarray, bias: bool, offset: np.ndarray | None = None,
-                theta0: np.ndarray | None = None) -> _Fit:
+                theta0: np.ndarray | None = None) -> Fit:
             """Fit on the weighted statistics; the meat of weighted sums scales by w^2/w."""
-            f = _fit2(st, basis, bias, nv, tv, offset, theta0)
+            f = fit_two_pass(st, basis, bias, nv, tv, offset, theta0)
             f.cov = f.cov * ratio
             return f
 
+        return self._conclude(fit, diag, base)
+
+    def _conclude(self, fit: Any, diag: dict[str, Any], base: dict[str, Any]) -> InertiaEstimate:
+        """Model selection (reused between re-selections) and the result."""
         auto = self.model == 'auto' or self.torque_bias == 'auto'
         if auto and self._selection is not None and self._selection_left > 0:
             self._selection_left -= 1
             bias, model, record = self._selection
-            est = _conclude(fit, model, bias, self.axis, self.alpha, 0.1, True,
-                            dict(diag, warnings=list(diag['warnings'])), base)
+            est = conclude(fit, model, bias, self.axis, self.policy,
+                           dict(diag, warnings=list(diag['warnings'])), base)
             if est.status == 'ok':
                 est.diagnostics['model_selection'] = dict(record, reused=True)
                 return est
-        est = _conclude(fit, self.model, self.torque_bias, self.axis, self.alpha, 0.1, True,
-                        diag, base)
+        est = conclude(fit, self.model, self.torque_bias, self.axis, self.policy, diag, base)
         self._selection = None
         if auto and est.status == 'ok':
             record = dict(est.diagnostics.get('model_selection') or {},

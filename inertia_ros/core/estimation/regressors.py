@@ -12,32 +12,48 @@ So the integral (momentum) form over ``[a, b]``,
 the cumulative integral of the monomials and the cumulative integral of the torque: with
 cumulative sums every window of every length costs O(1) after O(N) preprocessing.
 The differential form uses the same two matrices with ``w_dot`` and the monomials themselves.
+
+Every equation block of the batch and recursive estimators, ``A_b = [X6 | Xd | y]`` (3 x 10),
+is a fixed linear map (:data:`VARIABLE_MAP`) of 13 per-sample variables
+``v_b = [w (3), m (6), s (1), y (3)]`` (:func:`variables`), so every statistic of the
+equations is a quadratic form in ``v``: the data are reduced to 13 x 13 Gram matrices
+(:func:`gram`) and lifted to the blocks' cross Grams (:func:`lift`).
 """
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
-from ..inertia import theta_to_matrix
+from ..tensor import THETA_COLS, THETA_ROWS, theta_to_matrix
 
 __all__ = [
+    'BLAS_MIN_ROWS',
+    'GYROSCOPIC_MAP',
+    'MOMENTUM_BASIS',
+    'MOMENTUM_MAP',
+    'MONOMIAL_I',
+    'MONOMIAL_J',
     'MONOMIAL_NAMES',
+    'N_REGRESSOR_VARIABLES',
+    'VARIABLE_MAP',
+    'blocks',
     'cumulative_monomials',
     'cumulative_torque',
+    'gram',
     'gyroscopic_matrix',
+    'lift',
+    'metric',
     'momentum_matrix',
     'monomials',
-    'noise_std_from_differences',
+    'variables',
 ]
 
 MONOMIAL_NAMES: tuple[str, ...] = ('xx', 'yy', 'zz', 'xy', 'xz', 'yz')
 
 # E[k] = d I / d theta_k, shape (6, 3, 3).
 _E = theta_to_matrix(np.eye(6))
-# Index pairs of the monomials.
-_MONO_I = np.array([0, 1, 2, 0, 0, 1])
-_MONO_J = np.array([0, 1, 2, 1, 2, 2])
+#: Index pairs ``(i, j)`` of the monomials ``w_i w_j``: the tensor's element order.
+MONOMIAL_I = THETA_ROWS
+MONOMIAL_J = THETA_COLS
 
 
 def _gyro_coefficients() -> np.ndarray:
@@ -47,7 +63,7 @@ def _gyro_coefficients() -> np.ndarray:
 
     eye = np.eye(3)
     A = np.zeros((3, 6, 6))
-    for m, (i, j) in enumerate(zip(_MONO_I, _MONO_J, strict=True)):
+    for m, (i, j) in enumerate(zip(MONOMIAL_I, MONOMIAL_J, strict=True)):
         if i == j:
             A[:, :, m] = f(eye[i])
         else:
@@ -56,8 +72,11 @@ def _gyro_coefficients() -> np.ndarray:
 
 
 _A = _gyro_coefficients()
-_E_MAT = np.ascontiguousarray(_E.transpose(2, 1, 0).reshape(3, 18))   # (c, r*6 + k)
-_A_MAT = np.ascontiguousarray(_A.transpose(2, 0, 1).reshape(6, 18))   # (m, r*6 + k)
+#: ``L(v) = (v @ MOMENTUM_MAP).reshape(3, 6)``: shape (3, 18), entry ``(c, r*6 + k)``.
+MOMENTUM_MAP = np.ascontiguousarray(_E.transpose(2, 1, 0).reshape(3, 18))
+#: ``Q(m) = (m @ GYROSCOPIC_MAP).reshape(3, 6)``: shape (6, 18), entry ``(m, r*6 + k)``.
+GYROSCOPIC_MAP = np.ascontiguousarray(_A.transpose(2, 0, 1).reshape(6, 18))
+_E_MAT, _A_MAT = MOMENTUM_MAP, GYROSCOPIC_MAP
 
 
 def momentum_matrix(v: np.ndarray) -> np.ndarray:
@@ -93,7 +112,7 @@ def monomials(omega: np.ndarray) -> np.ndarray:
     """
     omega = np.asarray(omega, dtype=float)
     out = np.empty(omega.shape[:-1] + (6,))
-    for k, (i, j) in enumerate(zip(_MONO_I, _MONO_J, strict=True)):   # no fancy-index copies
+    for k, (i, j) in enumerate(zip(MONOMIAL_I, MONOMIAL_J, strict=True)):   # no fancy-index copies
         np.multiply(omega[..., i], omega[..., j], out=out[..., k])
     return out
 
@@ -230,49 +249,82 @@ def cumulative_torque(t_tau: np.ndarray, tau: np.ndarray, t: np.ndarray,
     return cum[j] + tau[j] * u + np.where(inside[:, None], 0.5 * slope[j] * u * u, 0.0)
 
 
-def median_rows(d: np.ndarray) -> np.ndarray:
-    """Column medians of ``d`` (n, c) by one partition: ``np.median(d, axis=0)`` bit for bit
-    on finite input, without its overhead (it runs on every block of the online estimator).
+# ---------------------------------------------------------------------------------------------
+# the 13 per-sample variables and their Gram matrices
+# ---------------------------------------------------------------------------------------------
+#: Regressor variables ``[w, m, s]`` among the 13 (the torque integral ``y`` is the rest).
+N_REGRESSOR_VARIABLES = 10
+#: Rows from which a Gram matrix goes to BLAS (below: numpy's own loop).
+BLAS_MIN_ROWS = 400_000
+
+
+def _variable_map() -> np.ndarray:
+    """``E`` (13, 3, 10): equation block ``A_b = [X6 | Xd | y]`` from 13 per-sample variables.
+
+    ``v_b = [w (3), m (6), s (1), y (3)]``: ``X6 = L(w) + Q(m)``, ``Xd = -s * 1``, ``y``.
     """
-    n = len(d)
-    lo, hi = (n - 1) // 2, n // 2
-    p = np.partition(d, [lo, hi] if hi != lo else lo, axis=0)
-    return p[lo] if hi == lo else (p[lo] + p[hi]) / 2.0
+    E = np.zeros((13, 3, 10))
+    E[:3, :, :6] = momentum_matrix(np.eye(3))
+    E[3:9, :, :6] = gyroscopic_matrix(np.eye(6))
+    for r in range(3):
+        E[9, r, 6 + r] = -1.0
+        E[10 + r, r, 9] = 1.0
+    return E
 
 
-def noise_std_from_differences(x: np.ndarray, orders: tuple[int, ...] = (2, 3, 4),
-                               max_samples: int = 50_000) -> np.ndarray:
-    """Robust white-noise standard deviation per column from high-order differences.
+#: ``A_b[r, q] = sum_i v_b[i] VARIABLE_MAP[i, r, q]``, shape (13, 3, 10).
+VARIABLE_MAP = _variable_map()
+_VMAP2 = np.ascontiguousarray(VARIABLE_MAP.reshape(13, 30))
+#: ``L(e_c)`` for the three axes, shape (3, 3, 6): the gyro-noise bias of ``L(w)' L(w)``.
+MOMENTUM_BASIS = momentum_matrix(np.eye(3))
 
-    For white noise of variance ``s^2`` the k-th difference has variance ``C(2k, k) s^2``;
-    a smooth signal contributes little to high-order differences.  The median absolute
-    deviation makes the estimate robust to occasional jumps (steps, PRBS); the smallest
-    estimate over ``orders`` is returned (signal only adds variance).
+
+def variables(w: np.ndarray, m: np.ndarray, s: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Stack the 13 per-sample variables ``[w, m, s, y]``.
 
     Parameters
     ----------
-    x : ndarray, shape (N, C)
-        Uniformly (or nearly) sampled signal.
-    orders : tuple of int
-        Difference orders to try.
-    max_samples : int
-        Only the first ``max_samples`` rows are used (plenty for a robust estimate).
+    w : ndarray, shape (n, 3)
+        Angular velocity (or its increment / derivative) [rad/s].
+    m : ndarray, shape (n, 6)
+        Monomials or their integrals.
+    s : ndarray, shape (n,)
+        Coefficient of the torque bias (time since the anchor [s], or 1).
+    y : ndarray, shape (n, 3)
+        Torque (or its integral).
 
     Returns
     -------
-    ndarray, shape (C,)
-        Noise standard deviation, in the units of ``x`` (0 for fewer than ``max(orders)+2``
-        samples).
+    ndarray, shape (n, 13)
     """
-    x = np.asarray(x, dtype=float)[:max_samples]
-    best = np.full(x.shape[1], np.inf)
-    d = x
-    for k in range(1, max(orders, default=0) + 1):
-        if len(d) < 2:
-            break
-        d = d[1:] - d[:-1]                            # the k-th difference, as np.diff(x, k)
-        if k in orders and len(x) >= k + 2:
-            mad = median_rows(np.abs(d - median_rows(d)[None]))
-            best = np.minimum(best, 1.4826 * mad / math.sqrt(math.comb(2 * k, k)))
-    best[~np.isfinite(best)] = 0.0
-    return best
+    return np.concatenate([w, m, s[:, None], y], axis=1)
+
+
+def blocks(V: np.ndarray) -> np.ndarray:
+    """Equation blocks ``A`` (n, 3, 10) of the variables ``V`` (n, 13)."""
+    return (V @ _VMAP2).reshape(-1, 3, 10)
+
+
+def gram(V: np.ndarray) -> np.ndarray:
+    """``V' V`` (thin matrices: numpy's loop below :data:`BLAS_MIN_ROWS` rows, else BLAS)."""
+    if len(V) >= BLAS_MIN_ROWS:
+        return V.T @ V
+    # multithreaded BLAS on a thin matrix costs more in thread start-up than it saves,
+    # badly so on a loaded machine
+    return np.einsum('ni,nj->ij', V, V)
+
+
+def lift(G13: np.ndarray) -> np.ndarray:
+    """Cross Grams (3, 3, 10, 10) of the equation blocks from a 13 x 13 Gram of ``V``.
+
+    ``C[r, s, q, p] = sum_ij VARIABLE_MAP[i, r, q] G13[i, j] VARIABLE_MAP[j, s, p]``, as two
+    small matrix products (a tenth of the time of the three-operand ``einsum``; the recursive
+    estimator runs it twice per ``estimate()``).
+    """
+    C = _VMAP2.T @ G13 @ _VMAP2                       # (30, 30): [r q] x [s p]
+    return np.ascontiguousarray(C.reshape(3, 10, 3, 10).transpose(0, 2, 1, 3))
+
+
+def metric(C: np.ndarray, M: np.ndarray) -> np.ndarray:
+    """``sum_b A_b' M A_b`` (q, q) from the cross Grams ``C`` (3, 3, q, q) and ``M`` (3, 3)."""
+    return np.einsum('rs,rsij->ij', M, C)

@@ -1,0 +1,236 @@
+"""From fits to the result: identifiability, model choice, status and the estimate.
+
+:func:`conclude` runs the rules of :mod:`.selection` on a ``fit`` function (fixed statistics,
+any parameter set) and returns the :class:`InertiaEstimate` with its status:
+
+``insufficient_excitation``
+    no principal-diagonal element is determined;
+``partially_identifiable``
+    some elements are not: they are reported NaN (held at a plausible value while the rest is
+    estimated, with the covariance that costs);
+``ok``
+    every element: the bias and the parameter set chosen by Wald tests, then :func:`assemble`
+    (principal moments and axes with their std, ratios, physical projection).
+
+Used by the batch estimator and the recursive one alike.
+"""
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from ..tensor import THETA_NAMES, check_physical, nearest_physical, principal_axes, theta_to_matrix
+from .fit import Fit
+from .model import model_basis, parameter_names
+from .result import InertiaEstimate
+from .selection import (
+    FitFunction,
+    SelectionPolicy,
+    conditioning,
+    held_leak,
+    identifiable,
+    select_bias,
+    select_model,
+    undetermined,
+    wald,
+)
+from .uncertainty import axis_std, moment_std, ratio_cov
+
+__all__ = ['assemble', 'conclude', 'status_only']
+
+_NONE_DETERMINED = 'no principal-diagonal element is determined by the data'
+
+
+def _matrix(theta: np.ndarray) -> np.ndarray:
+    """theta (6,) -> (3, 3) letting NaN through (unidentified elements)."""
+    return theta_to_matrix(theta, check_finite=False)
+
+
+def status_only(status: str, diag: dict[str, Any], base: dict[str, Any]) -> InertiaEstimate:
+    """A result without a tensor (``insufficient_*``): the status, its diagnostics and counts."""
+    return InertiaEstimate(status=status, diagnostics=diag, **base)   # type: ignore[arg-type]
+
+
+def _hold_undetermined(fit: FitFunction, f: Fit, und: np.ndarray, bias: bool,
+                       diag: dict[str, Any]) -> Fit:
+    """Refit with the undetermined elements held at a plausible value.
+
+    The held moments take the mean determined moment, the held products zero, so that the
+    weights and the other elements see a physical tensor (two passes).
+    """
+    free = ~und
+    det = [abs(float(f.beta[i])) for i in range(3) if free[i]]
+    hold = float(np.median(det))
+    offset = np.zeros(6)
+    for _ in range(2):
+        offset = np.zeros(6)
+        offset[:3][und[:3]] = hold
+        f = fit(np.eye(6)[:, free], bias, offset)
+        theta_f = np.eye(6)[:, free] @ f.beta[:int(np.sum(free))]
+        hold = float(np.mean([abs(theta_f[i]) for i in range(3) if free[i]]))
+    diag['undetermined_held_at'] = dict(zip(
+        [n for n, u in zip(THETA_NAMES, und, strict=True) if u], offset[und], strict=True))
+    return f
+
+
+def _scale(f: Fit, free: np.ndarray) -> float | None:
+    """The tensor scale: the largest principal-diagonal element determined to 20 %, or None."""
+    k = int(np.sum(free))
+    basis = np.eye(6)[:, free]
+    theta = basis @ f.beta[:k]
+    se = basis @ np.sqrt(np.maximum(np.diag(f.cov)[:k], 0.0))
+    good = [float(theta[i]) for i in range(3)
+            if free[i] and theta[i] > 0 and se[i] < 0.2 * theta[i]]
+    return max(good) if good else None
+
+
+def _partial(fit: FitFunction, f: Fit, free: np.ndarray, scale: float, torque_bias: str,
+             bias: bool, alpha: float, diag: dict[str, Any]) -> Fit:
+    """The fit of a partially identifiable tensor: the bias kept only if a Wald test says so."""
+    if torque_bias == 'auto' and bias:
+        k = f.basis.shape[1]
+        stat, dof, pval = wald(f.beta, f.cov, np.eye(len(f.beta))[k:])
+        diag['model_selection'] = {'bias': {'wald': stat, 'dof': dof, 'p_value': pval,
+                                            'kept': bool(pval < alpha)}}
+        if pval >= alpha:
+            held = f.offset if f.offset is not None else np.zeros(6)
+            f = fit(np.eye(6)[:, free], False, held)
+            f.cov = f.cov + held_leak(f, free, scale)
+    return f
+
+
+def _select(fit: FitFunction, f: Fit, model: str, torque_bias: str, axis: np.ndarray | None,
+            alpha: float, diag: dict[str, Any]) -> tuple[Fit, str]:
+    """Bias first, then the parameter set (Wald tests at ``alpha``); returns the final fit."""
+    selection: dict[str, Any] = {}
+    bias_on = torque_bias == 'on'
+    if torque_bias == 'auto':
+        f, bias_on, selection['bias'] = select_bias(fit, f, alpha)
+    chosen = model
+    if model == 'auto':
+        chosen, record = select_model(f, axis, alpha)
+        selection.update(record)
+    if selection:
+        diag['model_selection'] = selection
+    if chosen != 'full':
+        f = fit(model_basis(chosen, axis), bias_on, theta0=f.basis @ f.beta[:6])
+    return f, chosen
+
+
+def conclude(fit: FitFunction, model: str, torque_bias: str, axis: np.ndarray | None,
+             policy: SelectionPolicy, diag: dict[str, Any],
+             base: dict[str, Any]) -> InertiaEstimate:
+    """Identifiability, model selection and the result, given ``fit(basis, bias) -> Fit``.
+
+    Parameters
+    ----------
+    fit : callable
+        ``fit(basis (6, k), bias, offset=None, theta0=None) -> Fit`` on fixed statistics.
+    model : {'auto', 'full', 'diagonal', 'axisymmetric'}
+        Requested parameter set.
+    torque_bias : {'auto', 'on', 'off'}
+        Requested torque-bias handling.
+    axis : ndarray, shape (3,), optional
+        Unit symmetry axis.
+    policy : SelectionPolicy
+        Test level, identifiability tolerance, physical projection.
+    diag, base : dict
+        Diagnostics (updated in place) and the common result fields.
+
+    Returns
+    -------
+    InertiaEstimate
+    """
+    gen_bias = torque_bias != 'off'
+    # ---- identifiability on the general model
+    f = fit(np.eye(6), gen_bias)
+    diag.update(conditioning(f, parameter_names(np.eye(6), gen_bias, 'full')))
+    und = undetermined(f)
+    none_determined = dict(diag, reason=_NONE_DETERMINED)
+    if not np.any(~und[:3]):
+        return status_only('insufficient_excitation', none_determined, base)
+    if np.any(und):
+        f = _hold_undetermined(fit, f, und, gen_bias, diag)
+    free = ~und
+    scale = _scale(f, free)
+    if scale is None:
+        return status_only('insufficient_excitation', none_determined, base)
+    if np.any(und):
+        f.cov = f.cov + held_leak(f, free, scale)
+    free = identifiable(f, free, scale, policy.identifiability_tol)
+    if not np.any(free[:3]):
+        diag['reason'] = _NONE_DETERMINED
+        return status_only('insufficient_excitation', diag, base)
+    if not np.all(free):
+        f = _partial(fit, f, free, scale, torque_bias, gen_bias, policy.alpha, diag)
+        return assemble('partially_identifiable', f, 'full', free, diag, base, physical=False)
+    f, chosen = _select(fit, f, model, torque_bias, axis, policy.alpha, diag)
+    return assemble('ok', f, chosen, free, diag, base, physical=policy.physical)
+
+
+def assemble(status: str, f: Fit, model: str, free: np.ndarray, diag: dict[str, Any],
+              base: dict[str, Any], physical: bool) -> InertiaEstimate:
+    """Build the :class:`InertiaEstimate` from a fit of the elements in ``free``.
+
+    Parameters
+    ----------
+    status : str
+        ``'ok'`` or ``'partially_identifiable'``.
+    f : Fit
+        The final fit.
+    model : str
+        Its parameter set's name (``'+bias'`` is appended when the bias was fitted).
+    free : ndarray of bool, shape (6,)
+        Identifiable elements (the others are reported NaN).
+    diag, base : dict
+        Diagnostics (updated in place) and the common result fields.
+    physical : bool
+        Project an impossible tensor onto the nearest physical one.
+    """
+    k = f.basis.shape[1]
+    theta = f.basis @ f.beta[:k]
+    cov6 = f.basis @ f.cov[:k, :k] @ f.basis.T
+    se = np.sqrt(np.maximum(np.diag(cov6), 0.0))
+    theta = np.where(free, theta, np.nan)
+    se = np.where(free, se, np.nan)
+    I = _matrix(theta)
+    I_std = _matrix(se)
+    diag['residual_rms'] = f.resid_rms
+    diag['residual_excess'] = f.excess
+    if f.excess > 1.5:
+        diag['warnings'].append(f'residuals are {f.excess:.3g} times the noise model: '
+                                'standard errors inflated accordingly')
+    diag['equations'] = f.n_eq
+    moments = axes = ratios = None
+    if np.all(free):
+        chk = check_physical(I)
+        if not chk.valid:
+            diag['physical'] = {'valid': False, 'failures': list(chk.failures),
+                                'projected': bool(physical)}
+            if physical:
+                I = nearest_physical(I, min_moment=1e-9 * float(np.max(np.abs(chk.moments))))
+        else:
+            diag['physical'] = {'valid': True, 'projected': False}
+        moments, axes = principal_axes(I)
+        diag['principal_moments_std'] = moment_std(I, cov6)
+        diag['principal_axes_std'] = axis_std(I, cov6)
+    else:
+        undetermined = [n for n, ok in zip(THETA_NAMES, free, strict=True) if not ok]
+        diag['undetermined'] = undetermined
+        diag['reason'] = ('the excitation does not determine ' + ', '.join(undetermined)
+                          + ' (reported as null)')
+    ratios = I / np.trace(I)
+    # undetermined products leave the other ratios defined; an undetermined moment, none
+    r_se = np.sqrt(np.maximum(np.diag(ratio_cov(np.where(free, theta, 0.0), cov6)), 0.0))
+    ratios_std = _matrix(np.where(free & bool(np.all(free[:3])), r_se, np.nan))
+    bias = f.beta[k:k + 3] if f.bias else None
+    if f.bias:
+        diag['torque_bias_std'] = np.sqrt(np.maximum(np.diag(f.cov)[k:k + 3], 0.0))
+    name = model + ('+bias' if f.bias else '')
+    return InertiaEstimate(status=status, inertia=I, inertia_std=I_std,
+                           principal_moments=moments, principal_axes=axes, ratios=ratios,
+                           ratios_std=ratios_std,
+                           identifiable=dict(zip(THETA_NAMES, map(bool, free), strict=True)),
+                           torque_bias=bias, model=name, diagnostics=diag,
+                           **base)   # type: ignore[arg-type]

@@ -1,0 +1,250 @@
+"""Equation builders of the batch methods: the stacked blocks ``y_b = X6_b theta + Xd_b d + e_b``.
+
+Every method's equations are stored as the 13 per-sample variables ``V`` of
+:func:`.regressors.variables` (``A = V @ VARIABLE_MAP``); see :mod:`.batch` for the methods.
+
+``integral``, ``integral_ls``
+    Momentum form anchored per segment (:func:`integral_equations`; ``kind='anchored'``).
+``integral_sliding``
+    Overlapping windows of fixed length (:func:`sliding_equations`; ``kind='hac'``).
+``differential_fd``, ``differential_sg``
+    Euler's equation at each gyro sample with a differentiated gyro
+    (:func:`differential_equations`; ``kind='hac'``).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from .regressors import blocks, cumulative_monomials, cumulative_torque, monomials, variables
+
+__all__ = ['Equations', 'build_equations', 'differential_equations', 'integral_equations',
+           'segment_starts', 'sliding_equations']
+
+
+@dataclass
+class Equations:
+    """Stacked 3-row equation blocks ``y_b = X6_b theta + Xd_b d + e_b``.
+
+    Attributes
+    ----------
+    V : ndarray, shape (n, 13)
+        Per-sample variables; the blocks are ``A = V @ VARIABLE_MAP`` (:attr:`A`).
+    t : ndarray, shape (n,)
+        Time of each equation [s].
+    breaks : ndarray of bool, shape (n - 1,)
+        A segment must start after this equation (gaps).
+    kind : {'anchored', 'hac'}
+        Anchored segments with intercepts and the model covariance, or overlapping /
+        differentiated equations with the Newey-West (HAC) covariance.
+    hac_lag : int
+        HAC lag (``kind='hac'``).
+    eiv_var : ndarray, shape (3,), optional
+        Gyro-noise variance in the regressor per axis [rad^2/s^2] (errors in variables).
+    weighted : bool
+        Weighted by ``(I S_g I)^-1`` and bias-compensated (the ``integral`` method).
+    info : dict
+        Diagnostics of the builder (windows, noise shares).
+    raw : dict, optional
+        Statistics every segmentation shares (:func:`.statistics.shared_raw`), cached.
+    """
+
+    V: np.ndarray
+    t: np.ndarray
+    breaks: np.ndarray
+    kind: str
+    hac_lag: int = 0
+    eiv_var: np.ndarray | None = None
+    weighted: bool = False
+    info: dict[str, Any] = field(default_factory=dict)
+    raw: dict[str, Any] | None = None
+
+    def head(self, n: int) -> Equations:
+        """The first ``n`` equations (without the cached statistics)."""
+        return Equations(self.V[:n].copy(), self.t[:n], self.breaks[:max(n - 1, 0)], self.kind,
+                         self.hac_lag, self.eiv_var, self.weighted, dict(self.info))
+
+    @property
+    def A(self) -> np.ndarray:
+        """Equation blocks, shape (n, 3, 10)."""
+        return blocks(self.V)
+
+
+def segment_starts(t: np.ndarray, keep_break: np.ndarray, max_len: float | None) -> np.ndarray:
+    """Segment start indices: at ``keep_break`` positions and every ``max_len`` seconds.
+
+    Parameters
+    ----------
+    t : ndarray, shape (n,)
+        Equation times [s].
+    keep_break : ndarray of bool, shape (n - 1,)
+        A segment must start after these equations.
+    max_len : float, optional
+        Longest segment [s] (segments between breaks are cut into equal parts).
+
+    Returns
+    -------
+    ndarray of int
+        Sorted unique start indices, beginning with 0.
+    """
+    starts = [0, *(np.flatnonzero(keep_break) + 1).tolist()]
+    if max_len is not None and max_len > 0:
+        out: list[int] = []
+        bounds = [*starts, len(t)]
+        for a, b in zip(bounds[:-1], bounds[1:], strict=True):
+            n_sub = max(1, int(np.floor((t[b - 1] - t[a]) / max_len + 0.5)))
+            edges = np.linspace(t[a], t[b - 1], n_sub + 1)[1:-1]
+            out += [a, *(a + np.searchsorted(t[a:b], edges)).tolist()]
+        starts = out
+    return np.unique(np.asarray(starts, dtype=int))
+
+
+def integral_equations(tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.ndarray,
+                       idx: slice | np.ndarray, breaks: np.ndarray, hold: str,
+                       gyro_var: np.ndarray | None) -> Equations:
+    """Anchored momentum equations of the gyro samples ``idx``.
+
+    ``I w_b + int w x (I w) dt - d t_b - h0 = int tau dt`` from the start of the record
+    (``h0`` removed per segment later).  With ``gyro_var`` (the ``integral`` method) the
+    squared-rate integrals are corrected for the gyro noise and the equations are weighted
+    and bias-compensated; without it (``integral_ls``) neither.
+
+    Parameters
+    ----------
+    tg, w : ndarray, shape (N,), (N, 3)
+        Gyro times [s] and angular velocity [rad/s].
+    ts, tau : ndarray, shape (M,), (M, 3)
+        Torque times [s] and torque [N m].
+    idx : slice or ndarray of int
+        The gyro samples used.
+    breaks : ndarray of bool
+        Forced segment starts between the used samples.
+    hold : {'zoh', 'linear'}
+        Torque between samples.
+    gyro_var : ndarray, shape (3,), optional
+        Gyro white-noise variance [rad^2/s^2].
+    """
+    t = tg[idx]
+    M = cumulative_monomials(tg, w, gyro_var)[idx]
+    T = cumulative_torque(ts, tau, t, hold)
+    return Equations(variables(w[idx], M, t - t[0], T), t, breaks, 'anchored',
+                     eiv_var=gyro_var, weighted=gyro_var is not None)
+
+
+def sliding_equations(tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.ndarray,
+                      idx: slice | np.ndarray, breaks: np.ndarray, hold: str,
+                      window: float | None) -> Equations:
+    """Windows ``I (w_b - w_a) + int_a^b w x I w = int_a^b tau`` of ``window`` s (default 2 s),
+    a quarter window apart, never across a break; parameters as :func:`integral_equations`.
+    """
+    t = tg[idx]
+    dt = float(np.median(np.diff(t)))
+    wl = max(2, round((window or 2.0) / dt))
+    stride = max(1, wl // 4)
+    M = cumulative_monomials(tg, w)[idx]
+    T = cumulative_torque(ts, tau, t, hold)
+    seg = np.cumsum(np.append(0, breaks.astype(int)))
+    a = np.arange(0, max(len(t) - wl, 0), stride)
+    a = a[seg[a] == seg[a + wl]]
+    b = a + wl
+    wi = w[idx]
+    V = variables(wi[b] - wi[a], M[b] - M[a], t[b] - t[a], T[b] - T[a])
+    return Equations(V, t[b], np.zeros(max(len(b) - 1, 0), dtype=bool), 'hac',
+                     hac_lag=int(np.ceil(wl / stride)),
+                     info={'window_s': wl * dt, 'windows': len(a)})
+
+
+def _savitzky_golay(t: np.ndarray, w: np.ndarray, tq: np.ndarray, window: float | None
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, int, dict[str, Any], float]:
+    """Smoothed gyro, its derivative and the smoothed torque by a cubic Savitzky-Golay filter.
+
+    Returns ``(w_smooth, w_dot, torque, lag, info, noise_gain)``; the noise gain is the
+    variance factor of the differentiator on white noise [1/s^2].
+    """
+    from scipy import signal  # lazily: scipy.signal costs ~0.8 s to import
+
+    dt = float(np.median(np.diff(t)))
+    wl = max(5, round((window or 1.0) / dt))
+    wl += 1 - wl % 2
+    wl = min(wl, len(t) - (1 - len(t) % 2))
+    ws = signal.savgol_filter(w, wl, 3, axis=0)
+    wd = signal.savgol_filter(w, wl, 3, deriv=1, delta=dt, axis=0)
+    tq = signal.savgol_filter(tq, wl, 3, axis=0)
+    noise_gain = float(np.sum(signal.savgol_coeffs(wl, 3, deriv=1, delta=dt) ** 2))
+    return ws, wd, tq, wl, {'window_s': wl * dt}, noise_gain
+
+
+def differential_equations(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray,
+                           tau: np.ndarray, idx: slice | np.ndarray, hold: str,
+                           gyro_var: np.ndarray, window: float | None) -> Equations:
+    """``tau(t_b) = I w_dot_b + w_b x I w_b`` at each used gyro sample.
+
+    ``differential_fd`` differentiates by central differences, ``differential_sg`` by a
+    Savitzky-Golay filter of ``window`` s (default 1 s; the same filter smooths the torque).
+    ``info['regressor_noise_share']`` is the share of the differentiated gyro's power that
+    is gyro noise (errors in variables), per axis.
+    """
+    t = tg[idx]
+    # torque value in effect at each gyro time
+    j = np.clip(np.searchsorted(ts, t, side='right') - 1, 0, len(ts) - 1)
+    if hold == 'zoh':
+        tq = tau[j]
+    else:
+        tq = np.column_stack([np.interp(t, ts, tau[:, c]) for c in range(3)])
+    wi = w[idx]
+    if method == 'differential_fd':
+        wd = np.gradient(wi, t, axis=0)
+        m = monomials(wi)
+        lag = 2
+        info: dict[str, Any] = {}
+        # central difference: var = 2 sigma^2 / (t_{k+1} - t_{k-1})^2 per sample
+        span = np.empty(len(t))
+        span[1:-1] = t[2:] - t[:-2]
+        span[0], span[-1] = 2.0 * (t[1] - t[0]), 2.0 * (t[-1] - t[-2])
+        noise_gain = float(np.mean(2.0 / span ** 2))
+    else:
+        ws, wd, tq, lag, info, noise_gain = _savitzky_golay(t, wi, tq, window)
+        m = monomials(ws)
+    noise_pow = noise_gain * gyro_var
+    info['regressor_noise_share'] = noise_pow / np.maximum(np.mean(wd ** 2, axis=0), 1e-300)
+    V = variables(wd, m, np.ones(len(t)), tq)
+    return Equations(V, t, np.zeros(len(t) - 1, dtype=bool), 'hac', hac_lag=lag, info=info)
+
+
+def build_equations(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray,
+                    tau: np.ndarray, mask: np.ndarray, breaks: np.ndarray, hold: str,
+                    gyro_var: np.ndarray, window: float | None) -> Equations:
+    """Equations of ``method`` from the gyro samples selected by ``mask`` (N,) bool.
+
+    Parameters
+    ----------
+    method : str
+        A batch method other than ``auto`` and ``ml``.
+    tg, w, ts, tau : ndarray
+        Gyro times [s] (N,), angular velocity [rad/s] (N, 3), torque times [s] (M,) and
+        torque [N m] (M, 3).
+    mask : ndarray of bool, shape (N,)
+        Gyro samples inside the torque coverage.
+    breaks : ndarray of bool
+        Forced segment starts between the used samples.
+    hold : {'zoh', 'linear'}
+        Torque between samples.
+    gyro_var : ndarray, shape (3,)
+        Gyro white-noise variance [rad^2/s^2].
+    window : float, optional
+        Window [s] of ``integral_sliding`` and ``differential_sg``.
+
+    Returns
+    -------
+    Equations
+    """
+    # every sample used (the common case): views instead of fancy-indexed copies
+    idx: slice | np.ndarray = slice(None) if mask.all() else np.flatnonzero(mask)
+    if method in ('integral', 'integral_ls'):
+        return integral_equations(tg, w, ts, tau, idx, breaks, hold,
+                                  gyro_var if method == 'integral' else None)
+    if method == 'integral_sliding':
+        return sliding_equations(tg, w, ts, tau, idx, breaks, hold, window)
+    return differential_equations(method, tg, w, ts, tau, idx, hold, gyro_var, window)

@@ -1,0 +1,198 @@
+"""Weighted least squares on the sufficient statistics, with its covariance.
+
+``y = X6 (T psi + offset) + Xd d + e`` is solved from the cross Grams of
+:class:`~.statistics.SufficientStats`:
+
+* weights ``W = (I S_g I)^-1`` (``S_g`` the gyro-noise covariance, ``I`` from a first pass:
+  :func:`fit_two_pass`), the equation error's white part being ``I n_b``;
+* errors in variables: the gyro noise in the regressor biases ``X6' W X6`` by ``n B``, which is
+  subtracted (``H = Phi' W Phi - n B``);
+* the covariance is the sandwich ``H^-1 M H^-T`` with the exact noise model of the anchored
+  equations (white gyro noise plus the integrated torque noise of each torque interval),
+  inflated (never deflated) by the excess of the residuals over that model; the ``hac``
+  equations use the Newey-West meat of their scores.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..tensor import check_physical, nearest_physical, theta_to_matrix
+from .model import selector
+from .regressors import MOMENTUM_BASIS, metric
+from .statistics import SufficientStats
+
+__all__ = ['Fit', 'equation_weight', 'fit_two_pass', 'fit_weighted', 'solve_symmetric']
+
+
+@dataclass
+class Fit:
+    """One weighted least-squares fit of a parameter set ``[psi (k), d (3, optional)]``.
+
+    ``beta``/``cov`` are the estimate and its covariance (p = k (+ 3)), ``H`` the
+    bias-compensated information and ``H0`` the raw one (conditioning), ``basis`` the
+    parameter set (6, k), ``resid_rms`` the residual RMS per axis, ``n_eq`` the equations,
+    ``excess`` the residual variance over the noise model's, ``offset`` a held part of theta
+    and ``H_full`` the information of all six elements (fits with an offset).
+    """
+
+    beta: np.ndarray               # (p,)
+    cov: np.ndarray                # (p, p)
+    H: np.ndarray                  # (p, p) (bias-compensated) information
+    H0: np.ndarray                 # (p, p) uncompensated, for conditioning
+    basis: np.ndarray              # (6, k)
+    bias: bool
+    resid_rms: np.ndarray          # (3,)
+    n_eq: int
+    excess: float = 1.0            # residual variance / noise-model prediction
+    offset: np.ndarray | None = None  # (6,) fixed part of theta
+    H_full: np.ndarray | None = None  # information of the full model (fits with an offset)
+
+
+def solve_symmetric(H: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+    """Solve ``H x = rhs`` with column scaling; least squares if singular."""
+    d = np.sqrt(np.abs(np.diag(H)))
+    d[d == 0] = 1.0
+    Hs = H / d[:, None] / d[None, :]
+    rs = rhs / (d[:, None] if rhs.ndim == 2 else d)
+    try:
+        x = np.linalg.solve(Hs, rs)
+        if not np.all(np.isfinite(x)):
+            raise np.linalg.LinAlgError
+    except np.linalg.LinAlgError:
+        x = np.linalg.lstsq(Hs, rs, rcond=1e-12)[0]
+    return x / (d[:, None] if rhs.ndim == 2 else d)
+
+
+def _anchored_meat(st: SufficientStats, T: np.ndarray, p: int, W: np.ndarray, G: np.ndarray,
+                   c: np.ndarray, theta: np.ndarray, gyro_var: np.ndarray,
+                   torque_var: np.ndarray) -> tuple[np.ndarray, float]:
+    """Middle of the sandwich and the residual excess under the anchored noise model."""
+    Im = theta_to_matrix(theta)
+    S = Im @ np.diag(gyro_var) @ Im                           # white part of e_b
+    meat = (T.T @ metric(st.C, W @ S @ W) @ T)[:p, :p]
+    if st.CP is not None:
+        meat += (T.T @ metric(st.CP, W @ np.diag(torque_var) @ W) @ T)[:p, :p]
+    # residuals larger than the noise model predicts (misfit, unmodelled effects):
+    # inflate the covariance by the excess, never deflate it
+    rss_w = float(c @ G @ c)
+    expected = st.n_eff * float(np.trace(W @ S)) + st.walk_time * st.torque_dt * float(
+        np.trace(W @ np.diag(torque_var)))
+    excess = rss_w / expected if expected > 0 else 1.0
+    return meat, excess
+
+
+def _hac_meat(st: SufficientStats, T: np.ndarray, p: int, W: np.ndarray,
+              c: np.ndarray) -> np.ndarray:
+    """Newey-West (Bartlett) middle of the sandwich from the scores of the blocks."""
+    assert st.A is not None
+    X = st.A @ T                                               # (n, 3, p + 1)
+    e = X @ c                                                  # (n, 3) residuals
+    scores = np.einsum('nrp,rs,ns->np', X[..., :p], W, e)
+    meat = scores.T @ scores
+    for lag in range(1, st.hac_lag + 1):
+        wgt = 1.0 - lag / (st.hac_lag + 1.0)
+        Gl = scores[lag:].T @ scores[:-lag]
+        meat += wgt * (Gl + Gl.T)
+    return meat
+
+
+def fit_weighted(st: SufficientStats, basis: np.ndarray, bias: bool, W: np.ndarray,
+                 gyro_var: np.ndarray, torque_var: np.ndarray, bias_comp: bool,
+                 offset: np.ndarray | None = None) -> Fit:
+    """Weighted LS of ``y = X6 (T psi + offset) (+ Xd d)`` with its covariance.
+
+    Parameters
+    ----------
+    st : SufficientStats
+        Statistics of the equations.
+    basis : ndarray, shape (6, k)
+        Parameter set.
+    bias : bool
+        Fit the constant torque bias.
+    W : ndarray, shape (3, 3)
+        Equation weight.
+    gyro_var, torque_var : ndarray, shape (3,)
+        Noise variances [rad^2/s^2], [N^2 m^2].
+    bias_comp : bool
+        Subtract the gyro-noise bias of the information (errors in variables).
+    offset : ndarray, shape (6,), optional
+        Fixed part of ``theta``.
+
+    Returns
+    -------
+    Fit
+    """
+    k = basis.shape[1]
+    T = selector(basis, bias, offset)
+    p = T.shape[1] - 1
+    G = T.T @ metric(st.C, W) @ T
+    H0 = G[:p, :p]
+    g = G[:p, p]
+    H = H0.copy()
+    compensate = bias_comp and st.eiv_var is not None
+    if compensate:
+        B6 = np.einsum('c,crk,rs,csl->kl', st.eiv_var, MOMENTUM_BASIS, W, MOMENTUM_BASIS)
+        H[:k, :k] -= st.n_eff * (basis.T @ B6 @ basis)
+        if offset is not None:
+            # the held part's regressor carries the same gyro noise: g = -B' X6'X6 offset
+            # is compensated like H (B' (X6'X6 - n B6) offset)
+            g = g.copy()
+            g[:k] += st.n_eff * (basis.T @ B6 @ offset)
+    beta = solve_symmetric(H, g)
+    Hinv = solve_symmetric(H, np.eye(p))
+    c = np.append(-beta, 1.0)
+    rss = np.array([c @ (T.T @ st.C[r, r] @ T) @ c for r in range(3)])
+    if st.kind == 'anchored':
+        theta = basis @ beta[:k] + (0.0 if offset is None else offset)
+        meat, excess = _anchored_meat(st, T, p, W, G, c, theta, gyro_var, torque_var)
+    else:
+        meat, excess = _hac_meat(st, T, p, W, c), 1.0
+    cov = Hinv @ meat @ Hinv.T
+    cov = 0.5 * (cov + cov.T) * max(excess, 1.0)
+    dof = max(st.n_eff - p, 1)
+    H_full = None
+    if offset is not None:
+        # information of all six elements under the same weights: how the held elements
+        # leak into the estimated ones (see selection.held_leak)
+        Tf = selector(np.eye(6), bias)
+        pf = Tf.shape[1] - 1
+        H_full = (Tf.T @ metric(st.C, W) @ Tf)[:pf, :pf]
+        if compensate:
+            H_full[:6, :6] -= st.n_eff * B6
+    return Fit(beta=beta, cov=cov, H=H, H0=H0, basis=basis, bias=bias, offset=offset,
+               resid_rms=np.sqrt(np.maximum(rss, 0.0) / dof), n_eq=st.n, excess=excess,
+               H_full=H_full)
+
+
+def equation_weight(theta: np.ndarray, gyro_var: np.ndarray) -> np.ndarray:
+    """Equation weight ``(I S_g I)^-1`` (3, 3), scaled to max 1, from a first-pass ``theta``."""
+    Im = theta_to_matrix(theta)
+    if not check_physical(Im).valid:
+        Im = nearest_physical(Im, min_moment=1e-3 * max(float(np.sum(np.abs(Im))), 1e-30))
+    S = Im @ np.diag(gyro_var) @ Im
+    W = np.linalg.inv(S)
+    return 0.5 * (W + W.T) / np.max(np.abs(W))
+
+
+def fit_two_pass(st: SufficientStats, basis: np.ndarray, bias: bool, gyro_var: np.ndarray,
+                 torque_var: np.ndarray, offset: np.ndarray | None = None,
+                 theta0: np.ndarray | None = None) -> Fit:
+    """Two-pass fit: unweighted, then weighted by the first pass's tensor (weighted methods).
+
+    ``theta0`` (6,), a tensor from an earlier fit of the same data, gives the weights at once
+    (one weighted pass; model selection refits the same equations several times).  Other
+    parameters as :func:`fit_weighted`.
+    """
+    if theta0 is not None and st.weighted and np.all(gyro_var > 0) \
+            and np.all(np.isfinite(theta0)) and np.any(theta0[:3] != 0):
+        return fit_weighted(st, basis, bias, equation_weight(theta0, gyro_var), gyro_var,
+                            torque_var, st.weighted, offset)
+    f = fit_weighted(st, basis, bias, np.eye(3), gyro_var, torque_var, st.weighted, offset)
+    if st.weighted and np.all(gyro_var > 0):
+        theta = basis @ f.beta[:basis.shape[1]] + (0.0 if offset is None else offset)
+        if np.all(np.isfinite(theta)) and np.any(theta[:3] != 0):
+            f = fit_weighted(st, basis, bias, equation_weight(theta, gyro_var), gyro_var,
+                             torque_var, st.weighted, offset)
+    return f

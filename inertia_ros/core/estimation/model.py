@@ -1,0 +1,168 @@
+"""Parameter sets of the estimators: bases, names, the selector onto the equation columns.
+
+A parameter set (``model``) is a basis ``T`` (6, k) with ``theta = T @ psi``
+(:func:`model_basis`); the fitted parameters are ``psi`` followed by the optional constant
+torque bias ``d`` (3).  :func:`selector` maps ``[psi, d, 1]`` onto the 10 columns
+``[X6 | Xd | y]`` of an equation block (:mod:`.regressors`), optionally with a fixed part of
+``theta`` moved to the right-hand side.  Torque-free fits use the trace-free directions
+(:data:`TRACE_FREE`) around ``TRACE / 3``.
+"""
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from ..tensor import THETA_COLS, THETA_NAMES, THETA_ROWS
+from .options import MODELS
+
+__all__ = ['BIAS_NAMES', 'TRACE', 'TRACE_FREE', 'describe_direction', 'model_basis',
+           'parameter_names', 'selector', 'symmetry_axis']
+
+#: Names of the constant torque-bias parameters [N m].
+BIAS_NAMES: tuple[str, ...] = ('dx', 'dy', 'dz')
+#: ``theta -> trace`` of the tensor, shape (6,).
+TRACE = np.array([1.0, 1.0, 1.0, 0.0, 0.0, 0.0])
+
+_AXES = {'x': np.array([1.0, 0.0, 0.0]), 'y': np.array([0.0, 1.0, 0.0]),
+         'z': np.array([0.0, 0.0, 1.0])}
+
+
+def symmetry_axis(value: Any) -> np.ndarray | None:
+    """Unit symmetry axis from ``'x'``/``'y'``/``'z'`` or a 3-vector, or None.
+
+    Parameters
+    ----------
+    value : {'x', 'y', 'z'} or array_like (3,) or None
+        Body axis of symmetry (any non-zero length).
+
+    Returns
+    -------
+    ndarray, shape (3,), or None
+        The unit axis.
+    """
+    if value is None:
+        return None
+    if isinstance(value, str):
+        if value.lower() not in _AXES:
+            raise ValueError(f"symmetry_axis: must be 'x', 'y', 'z' or a 3-vector, got "
+                             f'{value!r}')
+        return _AXES[value.lower()]
+    v = np.asarray(value, dtype=float)
+    if v.shape != (3,) or not np.all(np.isfinite(v)) or np.linalg.norm(v) == 0:
+        raise ValueError(f'symmetry_axis: must be a finite non-zero 3-vector, got {value!r}')
+    return v / np.linalg.norm(v)
+
+
+def model_basis(model: str, symmetry_axis: np.ndarray | None = None) -> np.ndarray:
+    """Basis ``T`` (6, k) of a parameter set: ``theta = T @ psi``.
+
+    Parameters
+    ----------
+    model : {'full', 'diagonal', 'axisymmetric'}
+        ``full``: the six elements; ``diagonal``: ixx, iyy, izz; ``axisymmetric``:
+        ``I = a (1 - n n') + b n n'`` with ``psi = [a, b]`` (transverse, axial) [kg m^2].
+    symmetry_axis : ndarray, shape (3,), optional
+        Unit axis ``n``, required for ``axisymmetric``.
+
+    Returns
+    -------
+    ndarray, shape (6, k)
+    """
+    if model == 'full':
+        return np.eye(6)
+    if model == 'diagonal':
+        return np.eye(6)[:, :3]
+    if model == 'axisymmetric':
+        if symmetry_axis is None:
+            raise ValueError("symmetry_axis: required for model='axisymmetric'")
+        nn = np.outer(symmetry_axis, symmetry_axis)
+        return np.column_stack([(np.eye(3) - nn)[THETA_ROWS, THETA_COLS],
+                                nn[THETA_ROWS, THETA_COLS]])
+    raise ValueError(f'model: must be one of {MODELS}, got {model!r}')
+
+
+def parameter_names(basis: np.ndarray, bias: bool, model: str) -> list[str]:
+    """Names of the fitted parameters ``[psi, d]`` of a parameter set.
+
+    Parameters
+    ----------
+    basis : ndarray, shape (6, k)
+        The set's basis (:func:`model_basis`, or columns of the identity).
+    bias : bool
+        Whether the torque bias is fitted.
+    model : str
+        ``'axisymmetric'`` names ``i_transverse, i_axial``; otherwise the elements.
+
+    Returns
+    -------
+    list of str
+        ``k`` (+ 3) names.
+    """
+    if model == 'axisymmetric':
+        names = ['i_transverse', 'i_axial']
+    else:
+        names = [THETA_NAMES[int(np.argmax(basis[:, i]))] for i in range(basis.shape[1])]
+    return names + (list(BIAS_NAMES) if bias else [])
+
+
+def selector(basis: np.ndarray, bias: bool, offset: np.ndarray | None = None) -> np.ndarray:
+    """Map (10, p + 1) from ``[psi, d, 1]`` to the columns ``[X6 | Xd | y]`` of a block.
+
+    Parameters
+    ----------
+    basis : ndarray, shape (6, k)
+        Parameter set.
+    bias : bool
+        Fit the torque bias (``p = k + 3``; else ``p = k``).
+    offset : ndarray, shape (6,), optional
+        A fixed part of ``theta`` moved to the right-hand side.
+
+    Returns
+    -------
+    ndarray, shape (10, p + 1)
+    """
+    k = basis.shape[1]
+    p = k + (3 if bias else 0)
+    T = np.zeros((10, p + 1))
+    T[:6, :k] = basis
+    if bias:
+        T[6:9, k:k + 3] = np.eye(3)
+    T[9, p] = 1.0
+    if offset is not None:
+        T[:6, p] = -offset
+    return T
+
+
+def _trace_free_basis() -> np.ndarray:
+    """Orthonormal basis (6, 5) of the theta directions that leave the trace unchanged."""
+    q, _ = np.linalg.qr(np.array([[1.0, 0.0], [-1.0, 1.0], [0.0, -1.0]]))
+    basis = np.zeros((6, 5))
+    basis[:3, :2] = q
+    basis[3:, 2:] = np.eye(3)
+    return basis
+
+
+#: Orthonormal basis (6, 5) of the trace-free directions of ``theta``.
+TRACE_FREE = _trace_free_basis()
+
+
+def describe_direction(v: np.ndarray, names: list[str]) -> str:
+    """A parameter direction as readable text, largest coefficients first.
+
+    Parameters
+    ----------
+    v : ndarray, shape (p,)
+        Direction in parameter space (any scale).
+    names : list of str
+        The ``p`` parameter names.
+
+    Returns
+    -------
+    str
+        E.g. ``'+1.00 ixx -0.50 iyy'`` (coefficients under 0.05 of the largest left out).
+    """
+    v = v / np.max(np.abs(v))
+    order = np.argsort(-np.abs(v))
+    parts = [f'{v[i]:+.2f} {names[i]}' for i in order if abs(v[i]) >= 0.05]
+    return ' '.join(parts)

@@ -1,0 +1,231 @@
+"""Identifiability and model selection on the general model's fit.
+
+* Identifiability: which tensor elements the data determine (:func:`undetermined`: the share
+  of each element's conditional information that is signal rather than gyro noise; then the
+  standard error against :attr:`SelectionPolicy.identifiability_tol` of the tensor scale),
+  and what holding the others at a plausible value costs (:func:`held_leak`).
+* Model selection: Wald tests on the general model (full tensor plus bias) with its
+  calibrated covariance; the smallest parameter set the data does not reject at level
+  :attr:`SelectionPolicy.alpha` is used (:func:`select_bias`, :func:`select_model`).
+
+The rules' numbers come from one :class:`SelectionPolicy`, shared by the batch and the
+recursive estimators (defaults :data:`.options.ALPHA`, :data:`.options.IDENTIFIABILITY_TOL`).
+"""
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from scipy.special import chdtrc
+
+from .fit import Fit
+from .model import describe_direction, model_basis
+from .options import ALPHA, IDENTIFIABILITY_TOL
+
+__all__ = ['FitFunction', 'SelectionPolicy', 'complement', 'conditioning', 'held_leak',
+           'identifiable', 'select_bias', 'select_model', 'undetermined', 'wald']
+
+_SIGNAL_SHARE = 0.5                            # conditional signal share of a determined element
+_NULL_FRACTION = 0.01                          # signal fraction of an empty direction
+_NOISE_SHARE = 0.01                            # gyro-noise share that makes a column suspect
+
+#: ``fit(basis (6, k), bias, offset=None, theta0=None) -> Fit`` on fixed statistics.
+FitFunction = Callable[..., Fit]
+
+
+@dataclass(frozen=True)
+class SelectionPolicy:
+    """The numbers of the identifiability and model-selection rules.
+
+    Attributes
+    ----------
+    alpha : float
+        Level of the Wald tests (0 < alpha < 1).
+    identifiability_tol : float
+        An element is identifiable when its standard error is below this share of the
+        largest well-determined principal-diagonal element (> 0).
+    physical : bool
+        Project a physically impossible tensor onto the nearest valid one.
+    """
+
+    alpha: float = ALPHA
+    identifiability_tol: float = IDENTIFIABILITY_TOL
+    physical: bool = True
+
+    def __post_init__(self) -> None:
+        """Check the numbers (one clear ValueError each)."""
+        if not 0.0 < self.alpha < 1.0:
+            raise ValueError(f'alpha: must be in (0, 1), got {self.alpha!r}')
+        if not 0.0 < self.identifiability_tol:
+            raise ValueError(f'identifiability_tol: must be > 0, got '
+                             f'{self.identifiability_tol!r}')
+
+
+def conditioning(fit: Fit, names: list[str]) -> dict[str, Any]:
+    """Condition number and weakest direction of the column-scaled information matrix."""
+    d = np.sqrt(np.diag(fit.H0))
+    if np.any(d == 0):
+        k = int(np.argmin(d))
+        return {'condition_number': float('inf'), 'weakest_direction': names[k]}
+    Hs = fit.H0 / d[:, None] / d[None, :]
+    lam, vec = np.linalg.eigh(Hs)
+    cond = float(lam[-1] / lam[0]) if lam[0] > 0 else float('inf')
+    return {'condition_number': cond, 'weakest_direction': describe_direction(vec[:, 0], names)}
+
+
+def undetermined(f: Fit) -> np.ndarray:
+    """Elements (6,) of a full-model fit that the data does not determine.
+
+    For each element, the conditional information (the other parameters partialled out) with
+    the gyro-noise contribution removed, ``1 / (H^-1)_kk``, is compared with the same
+    information including the noise, ``1 / (H0^-1)_kk``.  Their ratio is the share of what the
+    data says about the element that is signal rather than gyro noise; collinear but clean
+    columns keep a ratio near 1 (their standard errors say the rest), noise-dominated ones fall
+    towards 0 or below.  The element with the smallest ratio under ``_SIGNAL_SHARE`` is
+    declared undetermined and removed, and the test is repeated on the rest.  Also, while the
+    scaled noise-free information has a direction with less than ``_NULL_FRACTION`` signal,
+    the gyro-noise-carrying element loading most on it is removed.
+
+    Returns the mask (the bias is not judged here, but by its Wald test).
+    """
+    out = np.zeros(6, dtype=bool)
+    p = len(f.beta)
+    h0 = np.diag(f.H0)
+    if np.any(h0[:6] <= 0):
+        out[:6] = h0[:6] <= 0
+        return out
+    d = 1.0 / np.sqrt(h0)
+    Hs = 0.5 * (f.H + f.H.T) * d[:, None] * d[None, :]
+    H0s = 0.5 * (f.H0 + f.H0.T) * d[:, None] * d[None, :]
+    share = np.zeros(p)                                # gyro-noise share of each column
+    share[:6] = 1.0 - np.diag(f.H)[:6] / h0[:6]
+    keep = list(range(p))
+    while any(k < 6 for k in keep):
+        idx = np.ix_(keep, keep)
+        theta_pos = [i for i in range(len(keep)) if keep[i] < 6]
+        # first: a direction with (almost) no signal once the noise is removed, loaded by
+        # columns that carry gyro noise (errors in variables, not mere collinearity)
+        lam, vec = np.linalg.eigh(Hs[idx])
+        if lam[0] < _NULL_FRACTION:
+            v = np.abs(vec[:, 0])
+            cand = [i for i in theta_pos if share[keep[i]] >= _NOISE_SHARE]
+            if cand:
+                keep.remove(keep[max(cand, key=lambda i: v[i])])
+                continue
+        # then: each element's conditional signal share
+        try:
+            inv0 = np.diag(np.linalg.inv(H0s[idx]))
+            inv = np.diag(np.linalg.pinv(Hs[idx]))
+        except np.linalg.LinAlgError:
+            break
+        ratio = np.where(inv > 0, inv0 / np.where(inv > 0, inv, 1.0), -1.0)
+        worst = min(theta_pos, key=lambda i: ratio[i])
+        if ratio[worst] >= _SIGNAL_SHARE:
+            break
+        keep.remove(keep[worst])
+    out[sorted(set(range(6)) - set(keep))] = True
+    return out
+
+
+def held_leak(f: Fit, free: np.ndarray, scale: float) -> np.ndarray:
+    """Covariance the estimated elements inherit from the held (undetermined) ones.
+
+    The held elements are uncertain by a plausible spread (diagonal: +-scale/2, products:
+    +-scale/4, uniform); through the coupling ``H_FF^-1 H_FU`` of the full-model information
+    that uncertainty moves the estimated elements.
+    """
+    p = len(f.beta)
+    if f.H_full is None:
+        return np.zeros((p, p))
+    Fi = [*np.flatnonzero(free).tolist(), *range(6, f.H_full.shape[0])]
+    Ui = np.flatnonzero(~free)
+    sens = np.linalg.lstsq(f.H_full[np.ix_(Fi, Fi)], f.H_full[np.ix_(Fi, Ui)], rcond=None)[0]
+    spread = np.where(Ui < 3, 0.5 * scale, 0.25 * scale) / np.sqrt(3.0)
+    return (sens * spread ** 2) @ sens.T              # (p, p): estimated elements + bias
+
+
+def wald(theta: np.ndarray, cov: np.ndarray, R: np.ndarray) -> tuple[float, int, float]:
+    """Wald statistic, degrees of freedom and p-value of ``R theta = 0``."""
+    r = R @ theta
+    V = R @ cov @ R.T
+    try:
+        stat = float(r @ np.linalg.solve(V, r))
+    except np.linalg.LinAlgError:
+        stat = float(r @ np.linalg.pinv(V) @ r)
+    dof = R.shape[0]
+    return stat, dof, float(chdtrc(dof, stat))      # chi-square upper tail
+
+
+def complement(basis: np.ndarray) -> np.ndarray:
+    """Rows spanning the orthogonal complement of the columns of ``basis`` (6, k)."""
+    q, _ = np.linalg.qr(basis, mode='complete')
+    return q[:, basis.shape[1]:].T
+
+
+def identifiable(f: Fit, free: np.ndarray, scale: float, tol: float) -> np.ndarray:
+    """Narrow ``free`` (6,) to the elements whose standard error is below ``tol * scale``.
+
+    Parameters
+    ----------
+    f : Fit
+        Fit of the elements in ``free`` (columns of the identity).
+    free : ndarray of bool, shape (6,)
+        Elements estimated in ``f``.
+    scale : float
+        Tensor scale: the largest well-determined principal-diagonal element [kg m^2].
+    tol : float
+        :attr:`SelectionPolicy.identifiability_tol`.
+    """
+    k = int(np.sum(free))
+    se = np.eye(6)[:, free] @ np.sqrt(np.maximum(np.diag(f.cov)[:k], 0.0))
+    return free & (se < tol * scale)
+
+
+def select_bias(fit: FitFunction, f: Fit, alpha: float) -> tuple[Fit, bool, dict[str, Any]]:
+    """Keep the torque bias of the full-model fit ``f`` only if a Wald test rejects ``d = 0``.
+
+    Returns
+    -------
+    f : Fit
+        ``f``, or the refit without bias.
+    kept : bool
+        The bias stays.
+    record : dict
+        ``wald, dof, p_value, kept``.
+    """
+    stat, dof, pval = wald(f.beta, f.cov, np.eye(9)[6:])
+    kept = pval < alpha
+    if not kept:
+        f = fit(np.eye(6), False, theta0=f.basis @ f.beta[:6])
+    return f, bool(kept), {'wald': stat, 'dof': dof, 'p_value': pval, 'kept': bool(kept)}
+
+
+def select_model(f: Fit, axis: np.ndarray | None, alpha: float) -> tuple[str, dict[str, Any]]:
+    """The smallest parameter set whose restriction of the full fit ``f`` is not rejected.
+
+    Candidates: ``axisymmetric`` (only with a symmetry ``axis``), then ``diagonal``; each is
+    tested by a Wald test at level ``alpha`` on the six elements of ``f``.
+
+    Returns
+    -------
+    chosen : str
+        ``'axisymmetric'``, ``'diagonal'`` or ``'full'``.
+    record : dict
+        ``models`` (the tests), ``rule`` and ``chosen``.
+    """
+    candidates = (['axisymmetric'] if axis is not None else []) + ['diagonal']
+    tested = {}
+    chosen = 'full'
+    cov6 = f.cov[:6, :6]
+    for cand in candidates:
+        stat, dof, pval = wald(f.beta[:6], cov6, complement(model_basis(cand, axis)))
+        tested[cand] = {'wald': stat, 'dof': dof, 'p_value': pval,
+                        'rejected': bool(pval < alpha)}
+        if pval >= alpha and chosen == 'full':
+            chosen = cand
+    return chosen, {'models': tested,
+                    'rule': (f'smallest parameter set whose restriction of the full model is '
+                             f'not rejected by a Wald test at alpha={alpha:g}'),
+                    'chosen': chosen}

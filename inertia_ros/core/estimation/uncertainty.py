@@ -1,0 +1,56 @@
+"""First-order uncertainty of derived quantities from the covariance of ``theta``.
+
+Principal moments and axes (perturbation of the symmetric eigenproblem) and the ratios
+``theta / trace``; every function takes the tensor (3, 3) or ``theta`` (6,) and the
+covariance of ``theta`` (6, 6) [kg^2 m^4].
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .model import TRACE
+
+__all__ = ['axis_std', 'moment_std', 'ratio_cov']
+
+
+def moment_std(I: np.ndarray, cov6: np.ndarray) -> np.ndarray:
+    """First-order std of the principal moments from the theta covariance."""
+    _, vec = np.linalg.eigh(I)
+    out = np.empty(3)
+    for i in range(3):
+        v = vec[:, i]
+        grad = np.array([v[0] ** 2, v[1] ** 2, v[2] ** 2, 2 * v[0] * v[1], 2 * v[0] * v[2],
+                         2 * v[1] * v[2]])
+        out[i] = np.sqrt(max(float(grad @ cov6 @ grad), 0.0))
+    return out
+
+
+def axis_std(I: np.ndarray, cov6: np.ndarray) -> np.ndarray:
+    """First-order angular std [rad] of each principal axis (ascending moments' order).
+
+    Perturbation of a symmetric eigenproblem: ``dv_i = sum_{j != i} (v_j' dI v_i) /
+    (l_i - l_j) v_j``, so ``E|dv_i|^2 = sum_j var(v_j' dI v_i) / (l_i - l_j)^2``: the RMS
+    angle between the estimated and the true axis.  Infinite for repeated moments (the axes
+    of a degenerate subspace are not determined).
+    """
+    lam, vec = np.linalg.eigh(I)
+    out = np.empty(3)
+    for i in range(3):
+        var = 0.0
+        for j in range(3):
+            if j == i:
+                continue
+            a, b = vec[:, i], vec[:, j]
+            g = np.array([a[0] * b[0], a[1] * b[1], a[2] * b[2], a[0] * b[1] + a[1] * b[0],
+                          a[0] * b[2] + a[2] * b[0], a[1] * b[2] + a[2] * b[1]])
+            gap = float(lam[i] - lam[j])
+            var += max(float(g @ cov6 @ g), 0.0) / gap ** 2 if gap != 0.0 else np.inf
+        out[i] = np.sqrt(var)
+    return out
+
+
+def ratio_cov(theta: np.ndarray, cov6: np.ndarray) -> np.ndarray:
+    """First-order covariance (6, 6) of ``theta / trace`` from that of ``theta``."""
+    tr = float(TRACE @ theta)
+    J = (np.eye(6) - np.outer(theta / tr, TRACE)) / tr
+    return J @ cov6 @ J.T
