@@ -60,12 +60,13 @@ from typing import Any
 
 import numpy as np
 
-from .inertia import THETA_NAMES, theta_to_matrix
+from ._validate import as_noise_std, as_times
+from .estimation.regressors import GYROSCOPIC_MAP, MOMENTUM_MAP, MONOMIAL_I, MONOMIAL_J
+from .tensor import THETA_COLS, THETA_NAMES, THETA_ROWS
 
 __all__ = ['FisherResult', 'PredictionErrorStep', 'fisher_information', 'frobenius_weights',
            'prediction_error_step', 'scene_fisher']
 
-_E = theta_to_matrix(np.eye(6))                 # (6, 3, 3): dI / dtheta_k
 _MAX_STEP_ANGLE = 0.02                          # rad turned per RK4 substep, at most
 _TIME_TOL = 1e-9                                # s: times closer than this are merged
 
@@ -127,59 +128,14 @@ def frobenius_weights() -> np.ndarray:
     return np.array([1.0, 1.0, 1.0, 2.0, 2.0, 2.0])
 
 
-def _as_std(x: Any, name: str) -> np.ndarray:
-    """Validated per-axis std (scalar or (3,)), >= 0."""
-    arr = np.broadcast_to(np.asarray(x, dtype=float), (3,)).copy()
-    if not np.all(np.isfinite(arr)) or np.any(arr < 0):
-        raise ValueError(f'{name}: must be finite and >= 0 (scalar or 3 values), got {x!r}')
-    return arr
+# The bilinear terms of Euler's equation as products with constant matrices (the regressor
+# maps of the estimators): for any ``v`` and ``w``, ``([v, mono(w)] @ _Y_MAP).reshape(3, 6)``
+# has columns ``E_k v + w x (E_k w)``, and ``w x (I w) = mono(w) @ (_GYRO_MAP @ theta)``.
+_Y_MAP = np.vstack([MOMENTUM_MAP, GYROSCOPIC_MAP])          # (9, 18)
+_GYRO_MAP = GYROSCOPIC_MAP.reshape(6, 3, 6)
 
 
-def _as_times(t: Any, name: str) -> np.ndarray:
-    """Validated strictly increasing finite 1-D times."""
-    arr = np.asarray(t, dtype=float)
-    if arr.ndim != 1 or arr.size < 2:
-        raise ValueError(f'{name}: expected shape (N,) with N >= 2, got {arr.shape}')
-    if not np.all(np.isfinite(arr)):
-        raise ValueError(f'{name}: contains NaN or inf')
-    if np.any(np.diff(arr) <= 0):
-        raise ValueError(f'{name}: times must be strictly increasing')
-    return arr
-
-
-_MONO_I = np.array([0, 1, 2, 0, 0, 1])
-_MONO_J = np.array([0, 1, 2, 1, 2, 2])
-
-
-def _linear_maps() -> tuple[np.ndarray, np.ndarray]:
-    """Constant matrices that turn the bilinear terms of Euler's equation into products.
-
-    Returns ``(Y_map (9, 18), gyro_map (6, 3, 6))``: for any ``v`` and ``w``,
-    ``([v, mono(w)] @ Y_map).reshape(3, 6)`` has columns ``E_k v + w x (E_k w)`` and
-    ``w x (I w) = mono(w) @ (gyro_map @ theta)``, with ``mono(w)`` the six quadratic monomials
-    ``[wx^2, wy^2, wz^2, wx wy, wx wz, wy wz]``.
-    """
-    eye = np.eye(3)
-
-    def gyro(w: np.ndarray) -> np.ndarray:            # (3, 6): columns w x (E_k w)
-        return np.cross(w, _E @ w).T
-
-    Y_map = np.zeros((9, 18))
-    for c in range(3):                                 # E_k v, linear in v
-        Y_map[c] = (_E @ eye[c]).T.ravel()
-    for m, (i, j) in enumerate(zip(_MONO_I, _MONO_J, strict=True)):
-        if i == j:
-            g = gyro(eye[i])
-        else:
-            g = gyro(eye[i] + eye[j]) - gyro(eye[i]) - gyro(eye[j])
-        Y_map[3 + m] = g.ravel()
-    return Y_map, Y_map[3:].reshape(6, 3, 6)
-
-
-_Y_MAP, _GYRO_MAP = _linear_maps()
-
-
-class _Dynamics:
+class Dynamics:
     """Right-hand side of the state, sensitivity, transition and input equations.
 
     ``w x (I w) = G(mono(w)) theta`` and its Jacobian in ``w`` are linear in ``w`` (or in the
@@ -189,14 +145,13 @@ class _Dynamics:
     def __init__(self, inertia: np.ndarray, n_par: int, bias: bool) -> None:
         self.I = inertia
         self.Ii = np.linalg.inv(inertia)
-        theta = np.array([inertia[0, 0], inertia[1, 1], inertia[2, 2], inertia[0, 1],
-                          inertia[0, 2], inertia[1, 2]])
+        theta = inertia[THETA_ROWS, THETA_COLS]
         # w x (I w) = mono(w) @ gyro_w  (6, 3)
         self.gyro_w = _GYRO_MAP @ theta
         # Jacobian of w x (I w) in w: d/dw_c of mono(w) @ gyro_w, linear in w:
         # dmono_m/dw_c = w_i [c == j] + w_j [c == i]  ->  jac(w)[r, c] = sum_a w_a Jm[a, r, c]
         Jm = np.zeros((3, 3, 3))
-        for m, (i, j) in enumerate(zip(_MONO_I, _MONO_J, strict=True)):
+        for m, (i, j) in enumerate(zip(MONOMIAL_I, MONOMIAL_J, strict=True)):
             Jm[i, :, j] += self.gyro_w[m]
             Jm[j, :, i] += self.gyro_w[m]
         self.jac_w = -np.einsum('rs,asc->arc', self.Ii, Jm).reshape(3, 9)   # Jw = -Ii jac
@@ -216,7 +171,7 @@ class _Dynamics:
         ``w (..., 3)``, ``Z (..., 3, p + 6)``, ``Iiu (..., 3)`` (many intervals at once, as
         :mod:`inertia_ros.core.estimation.ml` integrates them).
         """
-        mono = w[..., _MONO_I] * w[..., _MONO_J]
+        mono = w[..., MONOMIAL_I] * w[..., MONOMIAL_J]
         wd = Iiu + mono @ self.gyro_wd
         Jw = (w @ self.jac_w).reshape(w.shape[:-1] + (3, 3))
         # Y[:, k] = E_k wd + w x (E_k w): regressor of Euler's equation in theta
@@ -250,7 +205,7 @@ class _Dynamics:
 def _validated(t_gyro: Any, t_torque: Any, torque: Any, inertia: Any, omega0: Any,
                gyro_std: Any, torque_std: Any, disturbance: Any) -> tuple[Any, ...]:
     """Validate the common arguments; return ``(tg, ts, tau, I, w0, sg, st, d)``."""
-    tg = _as_times(t_gyro, 't_gyro')
+    tg = as_times(t_gyro, 't_gyro', min_samples=2, detail=False)
     ts = np.asarray(t_torque, dtype=float)
     if ts.ndim != 1 or not np.all(np.isfinite(ts)) or np.any(np.diff(ts) <= 0):
         raise ValueError('t_torque: expected strictly increasing finite times, shape (M,)')
@@ -265,10 +220,10 @@ def _validated(t_gyro: Any, t_torque: Any, torque: Any, inertia: Any, omega0: An
     w0 = np.asarray(omega0, dtype=float)
     if w0.shape != (3,) or not np.all(np.isfinite(w0)):
         raise ValueError(f'omega0: expected a finite 3-vector, got shape {w0.shape}')
-    sg = _as_std(gyro_std, 'gyro_std')
+    sg = as_noise_std(gyro_std, 'gyro_std', what=' (scalar or 3 values)')
     if np.any(sg <= 0):
         raise ValueError(f'gyro_std: must be > 0, got {gyro_std!r}')
-    st = _as_std(torque_std, 'torque_std')
+    st = as_noise_std(torque_std, 'torque_std', what=' (scalar or 3 values)')
     d = np.zeros(3) if disturbance is None else np.asarray(disturbance, dtype=float)
     if d.shape != (3,) or not np.all(np.isfinite(d)):
         raise ValueError(f'disturbance: expected a finite 3-vector, got {disturbance!r}')
@@ -288,18 +243,19 @@ class _Pass:
     cost: float
 
 
-def _kalman_pass(tg: np.ndarray, ts: np.ndarray, tau: np.ndarray, I: np.ndarray,
-                 w0: np.ndarray, sg: np.ndarray, st: np.ndarray, d: np.ndarray, *, bias: bool,
-                 y: np.ndarray | None) -> _Pass:
-    """Trajectory, sensitivities and the Kalman filter; with data ``y`` also the innovations.
+def _merged_grid(tg: np.ndarray, ts: np.ndarray, tau: np.ndarray, d: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The filter's time grid: gyro times and the torque samples inside the record.
 
-    ``F = sum de' S^-1 de``; with ``y`` the gradient ``sum de' S^-1 e`` and the cost
-    ``1/2 sum e' S^-1 e`` of the prediction-error criterion at these parameters.
+    Returns
+    -------
+    grid : ndarray, shape (G,)
+        Merged times [s] (closer than ``_TIME_TOL`` merged).
+    is_gyro, new_tau : ndarray of bool, shape (G,)
+        A gyro sample at ``grid[i]``; a new torque sample takes effect at ``grid[i]``.
+    u_grid : ndarray, shape (G, 3)
+        Torque (plus ``d``) in effect on ``[grid_i, grid_{i+1})`` [N m].
     """
-    n_par = 12 if bias else 9
-    names = tuple(THETA_NAMES) + ('wx0', 'wy0', 'wz0') + (('dx', 'dy', 'dz') if bias else ())
-
-    # merged grid: gyro times and the torque samples inside the record
     inside = ts[(ts > tg[0] + _TIME_TOL) & (ts < tg[-1] - _TIME_TOL)]
     grid = np.union1d(tg, inside)
     grid = grid[np.concatenate([[True], np.diff(grid) > _TIME_TOL])]
@@ -311,8 +267,35 @@ def _kalman_pass(tg: np.ndarray, ts: np.ndarray, tau: np.ndarray, I: np.ndarray,
     new_tau[0] = j_of[0] >= 0
     new_tau[1:] = (j_of[1:] != j_of[:-1]) & (j_of[1:] >= 0)
     u_grid = np.where((j_of >= 0)[:, None], tau[np.clip(j_of, 0, None)], 0.0) + d
+    return grid, is_gyro, new_tau, u_grid
 
-    dyn = _Dynamics(I, n_par, bias)
+
+def _step(dyn: Dynamics, w: np.ndarray, S: np.ndarray, Z: np.ndarray, u: np.ndarray,
+          h_total: float, Ii_norm: float) -> tuple[np.ndarray, np.ndarray]:
+    """State and ``Z = [S, Phi, Psi]`` over one grid interval, in RK4 substeps of at most
+    ``_MAX_STEP_ANGLE`` of rotation (``Z`` (3, n_par + 6) is reused as the work array)."""
+    n_par = dyn.n_par
+    wmax = float(np.linalg.norm(w)) + Ii_norm * float(np.linalg.norm(u)) * h_total
+    n = max(1, math.ceil(wmax * h_total / _MAX_STEP_ANGLE))
+    Z[:, :n_par] = S
+    Z[:, n_par:n_par + 3] = np.eye(3)
+    Z[:, n_par + 3:] = 0.0
+    return dyn.rk4(w, Z, dyn.Ii @ u, h_total / n, n)
+
+
+def _kalman_pass(tg: np.ndarray, ts: np.ndarray, tau: np.ndarray, I: np.ndarray,
+                 w0: np.ndarray, sg: np.ndarray, st: np.ndarray, d: np.ndarray, *, bias: bool,
+                 y: np.ndarray | None) -> _Pass:
+    """Trajectory, sensitivities and the Kalman filter; with data ``y`` also the innovations.
+
+    ``F = sum de' S^-1 de``; with ``y`` the gradient ``sum de' S^-1 e`` and the cost
+    ``1/2 sum e' S^-1 e`` of the prediction-error criterion at these parameters.
+    """
+    n_par = 12 if bias else 9
+    names = tuple(THETA_NAMES) + ('wx0', 'wy0', 'wz0') + (('dx', 'dy', 'dz') if bias else ())
+
+    grid, is_gyro, new_tau, u_grid = _merged_grid(tg, ts, tau, d)
+    dyn = Dynamics(I, n_par, bias)
     Ii_norm = float(np.linalg.norm(dyn.Ii, 2))
     R = np.diag(sg ** 2)
     Qnu = np.diag(st ** 2)
@@ -362,16 +345,7 @@ def _kalman_pass(tg: np.ndarray, ts: np.ndarray, tau: np.ndarray, I: np.ndarray,
             xhat[3:] = 0.0
         if i == grid.size - 1:
             break
-        h_total = grid[i + 1] - grid[i]
-        u = u_grid[i]
-        wmax = float(np.linalg.norm(w)) + Ii_norm * float(np.linalg.norm(u)) * h_total
-        Iiu = dyn.Ii @ u
-        n = max(1, math.ceil(wmax * h_total / _MAX_STEP_ANGLE))
-        h = h_total / n
-        Z[:, :n_par] = S
-        Z[:, n_par:n_par + 3] = np.eye(3)
-        Z[:, n_par + 3:] = 0.0
-        w, Z = dyn.rk4(w, Z, Iiu, h, n)
+        w, Z = _step(dyn, w, S, Z, u_grid[i], grid[i + 1] - grid[i], Ii_norm)
         S = Z[:, :n_par].copy()
         if noisy:
             Phi = Z[:, n_par:n_par + 3]

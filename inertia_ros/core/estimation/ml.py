@@ -9,7 +9,7 @@ same Gauss-Newton step is computed without a sequential filter:
 
 * **multiple shooting**: every torque interval ``[s_j, s_{j+1})`` is integrated from its own
   reference state ``r_j`` (smoothed gyro at the first pass, the smoothed state afterwards),
-  all intervals at once (vectorised RK4, :class:`~inertia_ros.core.crlb._Dynamics`), with the
+  all intervals at once (vectorised RK4, :class:`~inertia_ros.core.crlb.Dynamics`), with the
   transition ``Phi``, the torque-noise input ``Psi`` and the parameter sensitivities ``S``;
 * the deviations ``delta_j = w(s_j) - r_j`` are unknowns linked by the exact linearised
   continuity ``delta_{j+1} = Phi_j delta_j + g_j + S_j dp + Psi_j nu_j``; eliminating
@@ -30,10 +30,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import linalg, signal
+from scipy import linalg
 
-from ..crlb import _Dynamics
-from ..inertia import theta_to_matrix
+from ..crlb import Dynamics
+from ..tensor import theta_to_matrix
 
 __all__ = ['MLRefinement', 'refine']
 
@@ -96,7 +96,7 @@ def _events(tg: np.ndarray, s: np.ndarray, t_end: float
     return T, j, col
 
 
-def _shoot(dyn: _Dynamics, r0: np.ndarray, s: np.ndarray, T: np.ndarray, iiu: np.ndarray,
+def _shoot(dyn: Dynamics, r0: np.ndarray, s: np.ndarray, T: np.ndarray, iiu: np.ndarray,
            jg: np.ndarray, cg: np.ndarray, q: int
            ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Integrate every interval from its reference; states and ``Z`` at gyro times and ends."""
@@ -236,89 +236,21 @@ def refine(tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.ndarray,
         raise ValueError('tg: gyro samples before the first torque sample')
     if max_iter < 2:
         raise ValueError(f'max_iter: must be >= 2, got {max_iter!r}')
-    basis = np.asarray(basis, dtype=float)
-    k = basis.shape[1]
-    bias = bias0 is not None
-    keep = ts < tg[-1]
-    s, u = ts[keep], tau[keep]
-    M = len(s)
-    T, jg, cg = _events(tg, s, float(tg[-1]))
-    g_int, g_start = np.unique(jg, return_index=True)     # intervals holding gyro samples
-    beta = np.linalg.lstsq(basis, np.asarray(theta0, dtype=float), rcond=None)[0]
+    pb = _Problem.build(tg, w, ts, tau, np.asarray(basis, dtype=float), bias0 is not None,
+                        gyro_std, torque_std)
+    k, bias = pb.k, pb.bias
+    beta = np.linalg.lstsq(pb.basis, np.asarray(theta0, dtype=float), rcond=None)[0]
     d = np.zeros(3) if bias0 is None else np.asarray(bias0, dtype=float).copy()
-    n_par = 12 if bias else 9
-    q = n_par + 6
-    npar = k + (3 if bias else 0)
-    wg = 1.0 / np.asarray(gyro_std, dtype=float) ** 2
-    st = np.asarray(torque_std, dtype=float)
-    floor = _SIGMA_T_FLOOR * max(float(np.max(st)), float(np.max(np.sqrt(np.mean(u ** 2, 0)))))
-    wt = 1.0 / np.maximum(st, floor) ** 2
-    # reference states at the interval starts and the end: the smoothed gyro
-    wl = min(9, len(tg) - (1 - len(tg) % 2))
-    ws = signal.savgol_filter(w, wl, 2, axis=0) if wl >= 5 else w
-    bounds = np.append(s, tg[-1])
-    r = np.column_stack([np.interp(bounds, tg, ws[:, c]) for c in range(3)])
+    r = _reference_states(tg, w, pb.s)
     steps: list[float] = []
-    cov = np.full((npar, npar), np.nan)
+    cov = np.full((pb.npar, pb.npar), np.nan)
     excess = float('nan')
-    Tp = np.zeros((n_par, npar))            # S columns -> dp
-    Tp[:6, :k] = basis
-    if bias:
-        Tp[9:12, k:] = np.eye(3)
     for it in range(1, max_iter + 1):
-        theta = basis @ beta
-        Im = theta_to_matrix(theta)
-        if np.linalg.eigvalsh(Im)[0] <= 0 or not np.all(np.isfinite(Im)):
-            return MLRefinement(False, beta, d if bias else None, cov, it, excess, steps,
-                                'the tensor left the positive-definite set')
-        dyn = _Dynamics(Im, n_par, bias)
-        iiu = (u + d) @ dyn.Ii.T
-        wk, Zk, wend, Zend = _shoot(dyn, r[:-1], s, T, iiu, jg, cg, q)
-        Phb, Psb = Zend[:, :, n_par:n_par + 3], Zend[:, :, n_par + 3:]
-        Sb = Zend[:, :, :n_par] @ Tp
-        gj = wend - r[1:]
         try:
-            Pinv = np.linalg.inv(Psb)
-        except np.linalg.LinAlgError:
+            dp, delta, cov, excess = _gauss_newton_pass(pb, beta, d, r)
+        except _PassError as exc:
             return MLRefinement(False, beta, d if bias else None, cov, it, excess, steps,
-                                'singular torque-noise input matrix')
-        # prior rows of nu_j: coefficients on delta_j, delta_{j+1}, dp and the target
-        pa, pb, pc, pz = -Pinv @ Phb, Pinv, -Pinv @ Sb, (Pinv @ gj[:, :, None])[..., 0]
-        # gyro rows
-        G = Zk[:, :, n_par + 3:] @ Pinv[jg]
-        ga = Zk[:, :, n_par:n_par + 3] - G @ Phb[jg]
-        gc = Zk[:, :, :n_par] @ Tp - G @ Sb[jg]
-        gz = w - wk + (G @ gj[jg][:, :, None])[..., 0]
-        nrm = _Normal(M, npar)
-        Fp1, bp1, zz1 = nrm.add(pa, pb, pc, pz, wt, None)
-        Fp2, bp2, zz2 = nrm.add(ga, G, gc, gz, wg, (g_int, g_start))
-        D, O, Dp, bd, B = nrm.D, nrm.O, nrm.Dp, nrm.bd, M + 1
-        Fpp, bp, zz = Fp1 + Fp2, bp1 + bp2, zz1 + zz2
-        try:
-            cb = linalg.cholesky_banded(_banded(D, O), lower=False)
-        except linalg.LinAlgError:
-            return MLRefinement(False, beta, d if bias else None, cov, it, excess, steps,
-                                'the path normal equations are not positive definite')
-        Dpf = Dp.reshape(3 * B, npar)
-        X = linalg.cho_solve_banded((cb, False), np.column_stack([bd.ravel(), Dpf]))
-        F = Fpp - Dpf.T @ X[:, 1:]
-        F = 0.5 * (F + F.T)
-        rhs = bp - Dpf.T @ X[:, 0]
-        sc = np.sqrt(np.abs(np.diag(F)))
-        if np.any(sc == 0) or not np.all(np.isfinite(F)):
-            return MLRefinement(False, beta, d if bias else None, cov, it, excess, steps,
-                                'the Fisher information is singular')
-        Fs = F / sc[:, None] / sc[None, :]
-        try:
-            cov = np.linalg.inv(Fs) / sc[:, None] / sc[None, :]
-        except np.linalg.LinAlgError:
-            return MLRefinement(False, beta, d if bias else None, cov, it, excess, steps,
-                                'the Fisher information is singular')
-        dp = cov @ rhs
-        delta = X[:, 0] - X[:, 1:] @ dp
-        rss = zz - float(bd.ravel() @ delta) - float(bp @ dp)
-        dof = max(3 * len(tg) - 3 - npar, 1)
-        excess = rss / dof
+                                str(exc))
         se = np.sqrt(np.maximum(np.diag(cov), 0.0))
         step = float(np.max(np.abs(dp) / np.where(se > 0, se, np.inf)))
         steps.append(step)
@@ -328,9 +260,149 @@ def refine(tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.ndarray,
         beta = beta + dp[:k]
         if bias:
             d = d + dp[k:]
-        r = r + delta.reshape(B, 3)
+        r = r + delta.reshape(pb.M + 1, 3)
         if it >= 2 and step < tol:
             cov = cov * max(excess, 1.0)
             return MLRefinement(True, beta, d if bias else None, cov, it, excess, steps)
     return MLRefinement(False, beta, d if bias else None, cov * max(excess, 1.0), max_iter,
                         excess, steps, f'no convergence in {max_iter} Gauss-Newton passes')
+
+
+class _PassError(Exception):
+    """A Gauss-Newton pass that cannot go on; the message is the reason."""
+
+
+@dataclass(frozen=True, eq=False)
+class _Problem:
+    """The fixed parts of the refinement: data, interval events, weights, parameter map."""
+
+    tg: np.ndarray             # (N,) gyro times [s]
+    w: np.ndarray              # (N, 3) measured angular velocity [rad/s]
+    s: np.ndarray              # (M,) torque samples before the last gyro sample [s]
+    u: np.ndarray              # (M, 3) their torque [N m]
+    T: np.ndarray              # event times (see _events)
+    jg: np.ndarray             # interval of each gyro sample
+    cg: np.ndarray             # event index of each gyro sample
+    g_int: np.ndarray          # intervals holding gyro samples
+    g_start: np.ndarray        # first gyro sample of each of those
+    basis: np.ndarray          # (6, k)
+    Tp: np.ndarray             # (n_par, npar): sensitivity columns -> dp
+    wg: np.ndarray             # (3,) gyro weights [s^2/rad^2]
+    wt: np.ndarray             # (3,) torque weights [1/(N^2 m^2)]
+    bias: bool
+
+    @property
+    def k(self) -> int:
+        """Tensor coordinates."""
+        return self.basis.shape[1]
+
+    @property
+    def M(self) -> int:
+        """Torque intervals."""
+        return len(self.s)
+
+    @property
+    def n_par(self) -> int:
+        """Sensitivity columns of the dynamics: theta, w0 (, d)."""
+        return 12 if self.bias else 9
+
+    @property
+    def npar(self) -> int:
+        """Estimated parameters: beta (, d)."""
+        return self.k + (3 if self.bias else 0)
+
+    @staticmethod
+    def build(tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.ndarray,
+              basis: np.ndarray, bias: bool, gyro_std: np.ndarray,
+              torque_std: np.ndarray) -> _Problem:
+        """Events, weights (torque-noise std floored) and the parameter map."""
+        keep = ts < tg[-1]
+        s, u = ts[keep], tau[keep]
+        T, jg, cg = _events(tg, s, float(tg[-1]))
+        g_int, g_start = np.unique(jg, return_index=True)
+        k = basis.shape[1]
+        n_par, npar = (12 if bias else 9), k + (3 if bias else 0)
+        Tp = np.zeros((n_par, npar))
+        Tp[:6, :k] = basis
+        if bias:
+            Tp[9:12, k:] = np.eye(3)
+        st = np.asarray(torque_std, dtype=float)
+        floor = _SIGMA_T_FLOOR * max(float(np.max(st)),
+                                     float(np.max(np.sqrt(np.mean(u ** 2, 0)))))
+        return _Problem(tg, w, s, u, T, jg, cg, g_int, g_start, basis, Tp,
+                        1.0 / np.asarray(gyro_std, dtype=float) ** 2,
+                        1.0 / np.maximum(st, floor) ** 2, bias)
+
+
+def _reference_states(tg: np.ndarray, w: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """Reference states (M + 1, 3) at the interval starts and the end: the smoothed gyro."""
+    wl = min(9, len(tg) - (1 - len(tg) % 2))
+    if wl >= 5:
+        from scipy import signal  # lazily: scipy.signal costs ~0.8 s to import
+        ws = signal.savgol_filter(w, wl, 2, axis=0)
+    else:
+        ws = w
+    bounds = np.append(s, tg[-1])
+    return np.column_stack([np.interp(bounds, tg, ws[:, c]) for c in range(3)])
+
+
+def _gauss_newton_pass(pb: _Problem, beta: np.ndarray, d: np.ndarray,
+                       r: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    """One pass: the step ``dp``, the path correction ``delta``, the covariance and excess.
+
+    Raises :class:`_PassError` when the tensor, the torque-noise input or the information
+    matrix make the pass impossible.
+    """
+    n_par, npar, M = pb.n_par, pb.npar, pb.M
+    Im = theta_to_matrix(pb.basis @ beta)
+    if np.linalg.eigvalsh(Im)[0] <= 0 or not np.all(np.isfinite(Im)):
+        raise _PassError('the tensor left the positive-definite set')
+    dyn = Dynamics(Im, n_par, pb.bias)
+    iiu = (pb.u + d) @ dyn.Ii.T
+    wk, Zk, wend, Zend = _shoot(dyn, r[:-1], pb.s, pb.T, iiu, pb.jg, pb.cg, n_par + 6)
+    Phb, Psb = Zend[:, :, n_par:n_par + 3], Zend[:, :, n_par + 3:]
+    Sb = Zend[:, :, :n_par] @ pb.Tp
+    gj = wend - r[1:]
+    try:
+        Pinv = np.linalg.inv(Psb)
+    except np.linalg.LinAlgError:
+        raise _PassError('singular torque-noise input matrix') from None
+    # prior rows of nu_j: coefficients on delta_j, delta_{j+1}, dp and the target
+    pa, pc, pz = -Pinv @ Phb, -Pinv @ Sb, (Pinv @ gj[:, :, None])[..., 0]
+    # gyro rows
+    jg = pb.jg
+    G = Zk[:, :, n_par + 3:] @ Pinv[jg]
+    ga = Zk[:, :, n_par:n_par + 3] - G @ Phb[jg]
+    gc = Zk[:, :, :n_par] @ pb.Tp - G @ Sb[jg]
+    gz = pb.w - wk + (G @ gj[jg][:, :, None])[..., 0]
+    nrm = _Normal(M, npar)
+    Fp1, bp1, zz1 = nrm.add(pa, Pinv, pc, pz, pb.wt, None)
+    Fp2, bp2, zz2 = nrm.add(ga, G, gc, gz, pb.wg, (pb.g_int, pb.g_start))
+    try:
+        cb = linalg.cholesky_banded(_banded(nrm.D, nrm.O), lower=False)
+    except linalg.LinAlgError:
+        raise _PassError('the path normal equations are not positive definite') from None
+    Dpf = nrm.Dp.reshape(3 * (M + 1), npar)
+    X = linalg.cho_solve_banded((cb, False), np.column_stack([nrm.bd.ravel(), Dpf]))
+    F = Fp1 + Fp2 - Dpf.T @ X[:, 1:]
+    F = 0.5 * (F + F.T)
+    bp = bp1 + bp2
+    rhs = bp - Dpf.T @ X[:, 0]
+    cov = _inverse_information(F)
+    dp = cov @ rhs
+    delta = X[:, 0] - X[:, 1:] @ dp
+    rss = zz1 + zz2 - float(nrm.bd.ravel() @ delta) - float(bp @ dp)
+    excess = rss / max(3 * len(pb.tg) - 3 - npar, 1)
+    return dp, delta, cov, excess
+
+
+def _inverse_information(F: np.ndarray) -> np.ndarray:
+    """``F^-1`` by column scaling; :class:`_PassError` when ``F`` is singular."""
+    sc = np.sqrt(np.abs(np.diag(F)))
+    if np.any(sc == 0) or not np.all(np.isfinite(F)):
+        raise _PassError('the Fisher information is singular')
+    Fs = F / sc[:, None] / sc[None, :]
+    try:
+        return np.linalg.inv(Fs) / sc[:, None] / sc[None, :]
+    except np.linalg.LinAlgError:
+        raise _PassError('the Fisher information is singular') from None
