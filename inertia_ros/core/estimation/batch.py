@@ -174,11 +174,7 @@ def estimate(t_gyro: Any, omega: Any, t_torque: Any, torque: Any, *,
     tau = as_samples(torque, len(ts), 'torque', 't_torque')
     policy, axis = _check_options(method, model, torque_bias, hold, alpha, identifiability_tol,
                                   physical, symmetry_axis)
-    if len(tg) < 6:
-        raise ValueError(f't_gyro: {len(tg)} samples is fewer than the 6 inertia parameters')
-    if len(ts) == 1:
-        raise ValueError('t_torque: a single torque sample covers no time; give at least 2 '
-                         '(or none for torque-free data)')
+    _check_counts(tg, ts)
     selection = None
     if method == 'auto':
         method = 'ml' if len(tg) <= ML_AUTO_MAX_SAMPLES else 'integral'
@@ -190,15 +186,20 @@ def estimate(t_gyro: Any, omega: Any, t_torque: Any, torque: Any, *,
                          alpha=alpha, gyro_noise=gyro_noise, torque_noise=torque_noise,
                          segment=segment, window=window,
                          identifiability_tol=identifiability_tol, physical=physical)
-        res = _maximum_likelihood(first, tg, w, ts, tau, hold, axis)
-        if selection is not None:
-            res.diagnostics['method_selection'] = selection
-        return res
+        return _maximum_likelihood(first, tg, w, ts, tau, hold, axis, selection)
+    return _estimate_direct(method, tg, w, ts, tau, hold, gyro_noise, torque_noise, segment,
+                            window, model, torque_bias, axis, policy, selection)
+
+
+def _estimate_direct(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray,
+                     tau: np.ndarray, hold: str, gyro_noise: Any, torque_noise: Any,
+                     segment: float | None, window: float | None, model: str,
+                     torque_bias: str, axis: np.ndarray | None, policy: SelectionPolicy,
+                     selection: dict[str, Any] | None) -> InertiaEstimate:
+    """Every method but ``ml``: noise levels, then :func:`_estimate_shifted` from ``t = 0``."""
     # work relative to the first stamp: ROS times are ~1.7e9 s, and prefix sums of absolute
     # times would lose the sub-millisecond differences everything depends on
     t_origin = float(min(tg[0], ts[0])) if len(ts) else float(tg[0])
-    tg = tg - t_origin
-    ts = ts - t_origin
     if segment is not None and not segment > 0:
         raise ValueError(f'segment: must be > 0 s, got {segment!r}')
     if window is not None and not window > 0:
@@ -208,8 +209,18 @@ def estimate(t_gyro: Any, omega: Any, t_torque: Any, torque: Any, *,
                             'warnings': []}
     if selection is not None:
         diag['method_selection'] = selection
-    return _estimate_direct(method, tg, w, ts, tau, hold, gyro_std ** 2, torque_std ** 2,
-                            segment, window, model, torque_bias, axis, policy, diag)
+    return _estimate_shifted(method, tg - t_origin, w, ts - t_origin, tau, hold, gyro_std ** 2,
+                             torque_std ** 2, segment, window, model, torque_bias, axis,
+                             policy, diag)
+
+
+def _check_counts(tg: np.ndarray, ts: np.ndarray) -> None:
+    """Enough gyro samples for the parameters; no single torque sample."""
+    if len(tg) < 6:
+        raise ValueError(f't_gyro: {len(tg)} samples is fewer than the 6 inertia parameters')
+    if len(ts) == 1:
+        raise ValueError('t_torque: a single torque sample covers no time; give at least 2 '
+                         '(or none for torque-free data)')
 
 
 def _check_options(method: str, model: str, torque_bias: str, hold: str, alpha: float,
@@ -265,11 +276,11 @@ def _coverage(tg: np.ndarray, ts: np.ndarray, hold: str,
     return mask, tau_end
 
 
-def _estimate_direct(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray,
-                     tau: np.ndarray, hold: str, gyro_var: np.ndarray, torque_var: np.ndarray,
-                     segment: float | None, window: float | None, model: str,
-                     torque_bias: str, axis: np.ndarray | None, policy: SelectionPolicy,
-                     diag: dict[str, Any]) -> InertiaEstimate:
+def _estimate_shifted(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray,
+                      tau: np.ndarray, hold: str, gyro_var: np.ndarray, torque_var: np.ndarray,
+                      segment: float | None, window: float | None, model: str,
+                      torque_bias: str, axis: np.ndarray | None, policy: SelectionPolicy,
+                      diag: dict[str, Any]) -> InertiaEstimate:
     """Every method but ``ml`` on validated, origin-shifted data: coverage, rules, fit."""
     mask, tau_end = _coverage(tg, ts, hold, diag)
     used = int(np.sum(mask))
@@ -381,8 +392,21 @@ def _homogeneous(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau
 
 
 def _maximum_likelihood(first: InertiaEstimate, tg: np.ndarray, w: np.ndarray, ts: np.ndarray,
-                        tau: np.ndarray, hold: str, axis: np.ndarray | None) -> InertiaEstimate:
-    """Refine an ``integral`` estimate by maximum likelihood (:func:`.ml.refine`)."""
+                        tau: np.ndarray, hold: str, axis: np.ndarray | None,
+                        selection: dict[str, Any] | None) -> InertiaEstimate:
+    """Refine an ``integral`` estimate by maximum likelihood (:func:`.ml.refine`).
+
+    ``selection`` (the ``method='auto'`` record) goes to ``diagnostics['method_selection']``.
+    """
+    res = _refine(first, tg, w, ts, tau, hold, axis)
+    if selection is not None:
+        res.diagnostics['method_selection'] = selection
+    return res
+
+
+def _refine(first: InertiaEstimate, tg: np.ndarray, w: np.ndarray, ts: np.ndarray,
+            tau: np.ndarray, hold: str, axis: np.ndarray | None) -> InertiaEstimate:
+    """The ``ml`` result from the ``integral`` one (that one, reasoned, when not refined)."""
     diag = dict(first.diagnostics)
     diag['warnings'] = list(diag.get('warnings', []))
     info: dict[str, Any] = {'refined': False, 'start': 'integral'}

@@ -277,71 +277,17 @@ class RecursiveEstimator:
         self._flush_single()
         self._new_torque = False
         if self._pt:
-            new_t = np.concatenate(self._pt)
-            new_tau = np.concatenate(self._ptau)
-            self._ts = np.concatenate([self._ts, new_t])
-            self._tau = np.concatenate([self._tau, new_tau])
-            self._pt, self._ptau = [], []
-            self._tq_ss = self._tq_ss + np.einsum('ij,ij->j', new_tau, new_tau)
-            self._tq_n += len(new_t)
-            edges = new_t if self._tq_last is None else np.concatenate([[self._tq_last],
-                                                                         new_t])
-            self._tq_dts = np.concatenate([self._tq_dts, np.diff(edges)])[-_DT_HISTORY:]
-            self._tq_last = float(new_t[-1])
-            if len(new_t) >= 16:
-                v = noise_std_from_differences(new_tau) ** 2
-                self._tau_var = v if self._tau_var is None else 0.8 * self._tau_var + 0.2 * v
-                dt = float(median_rows(np.diff(new_t)[:, None])[0])
-                self._tau_dt = dt if self._tau_dt == 0.0 else 0.8 * self._tau_dt + 0.2 * dt
+            self._take_torque()
         if not self._gt:
             return
-        t = np.concatenate(self._gt)
-        w = np.concatenate(self._gw)
-        self._gt, self._gw = [], []
-        self._n_buf = 0
-        if len(self._ts) == 0:
-            self._gt, self._gw = [t], [w]
-            self._n_buf = len(t)
-            return
-        # gyro samples before the first torque sample can never be used
-        early = t < self._ts[0]
-        if np.any(early):
-            self.samples_dropped += int(np.sum(early))
-            t, w = t[~early], w[~early]
-        ready = t <= self._ts[-1]
-        if not np.all(ready):
-            self._gt, self._gw = [t[~ready]], [w[~ready]]
-            self._n_buf = int(np.sum(~ready))
-            t, w = t[ready], w[ready]
-        t, w, breaks = self._gaps(t, w)
+        t, w, breaks = self._ready_gyro()
         if len(t) == 0:
             return
         if self._gyro_noise is None:
             self._gyro_nv.add(w)
         # torque integral at the gyro times, relative to self._ts[0]
         T = self._T_base + cumulative_torque(self._ts, self._tau, t, self.hold)
-        # monomial integral (trapezoid) continuing from the previous processed sample
-        m = monomials(w)
-        if self._prev is None:
-            tt = t
-            mm = m
-            start = np.zeros(6)
-            self._t0 = float(t[0])
-        else:
-            tt = np.concatenate([[self._prev[0]], t])
-            mm = np.concatenate([monomials(self._prev[1][None, :]), m])
-            start = self._M
-        inc = 0.5 * (mm[1:] + mm[:-1]) * np.diff(tt)[:, None]
-        M = np.empty((len(t), 6))
-        if self._prev is None:
-            M[0] = start
-            np.cumsum(inc, axis=0, out=M[1:])
-            M[1:] += start
-        else:
-            np.cumsum(inc, axis=0, out=M)
-            M += start
-        self._M = M[-1].copy()
-        self._prev = (float(t[-1]), w[-1].copy())
+        M = self._monomial_integral(t, w)
         # raw monomial integrals: the gyro-noise correction m - s sigma^2 is linear in the
         # variables, applied to the statistics at estimate() with the final noise estimate
         V = np.concatenate([w, M, (t - self._t0)[:, None], T], axis=1)
@@ -363,6 +309,75 @@ class RecursiveEstimator:
                                                             self._ts[j:j + 1], self.hold)[0]
             self._ts = self._ts[j:]
             self._tau = self._tau[j:]
+
+    def _take_torque(self) -> None:
+        """Move the pending torque samples into the held stream; update the torque noise."""
+        new_t = np.concatenate(self._pt)
+        new_tau = np.concatenate(self._ptau)
+        self._ts = np.concatenate([self._ts, new_t])
+        self._tau = np.concatenate([self._tau, new_tau])
+        self._pt, self._ptau = [], []
+        self._tq_ss = self._tq_ss + np.einsum('ij,ij->j', new_tau, new_tau)
+        self._tq_n += len(new_t)
+        edges = new_t if self._tq_last is None else np.concatenate([[self._tq_last], new_t])
+        self._tq_dts = np.concatenate([self._tq_dts, np.diff(edges)])[-_DT_HISTORY:]
+        self._tq_last = float(new_t[-1])
+        if len(new_t) >= 16:
+            v = noise_std_from_differences(new_tau) ** 2
+            self._tau_var = v if self._tau_var is None else 0.8 * self._tau_var + 0.2 * v
+            dt = float(median_rows(np.diff(new_t)[:, None])[0])
+            self._tau_dt = dt if self._tau_dt == 0.0 else 0.8 * self._tau_dt + 0.2 * dt
+
+    def _ready_gyro(self) -> tuple[np.ndarray, np.ndarray, list[int]]:
+        """Buffered gyro samples now covered by torque (the rest stays buffered), with gaps.
+
+        Returns the samples ``t`` (n,), ``w`` (n, 3) and the indices where a gap starts a
+        new segment (see :meth:`_gaps`).
+        """
+        t = np.concatenate(self._gt)
+        w = np.concatenate(self._gw)
+        self._gt, self._gw = [], []
+        self._n_buf = 0
+        if len(self._ts) == 0:
+            self._gt, self._gw = [t], [w]
+            self._n_buf = len(t)
+            return t[:0], w[:0], []
+        # gyro samples before the first torque sample can never be used
+        early = t < self._ts[0]
+        if np.any(early):
+            self.samples_dropped += int(np.sum(early))
+            t, w = t[~early], w[~early]
+        ready = t <= self._ts[-1]
+        if not np.all(ready):
+            self._gt, self._gw = [t[~ready]], [w[~ready]]
+            self._n_buf = int(np.sum(~ready))
+            t, w = t[ready], w[ready]
+        return self._gaps(t, w)
+
+    def _monomial_integral(self, t: np.ndarray, w: np.ndarray) -> np.ndarray:
+        """Trapezoid integral (n, 6) of the monomials, continuing from the last sample."""
+        m = monomials(w)
+        if self._prev is None:
+            tt = t
+            mm = m
+            start = np.zeros(6)
+            self._t0 = float(t[0])
+        else:
+            tt = np.concatenate([[self._prev[0]], t])
+            mm = np.concatenate([monomials(self._prev[1][None, :]), m])
+            start = self._M
+        inc = 0.5 * (mm[1:] + mm[:-1]) * np.diff(tt)[:, None]
+        M = np.empty((len(t), 6))
+        if self._prev is None:
+            M[0] = start
+            np.cumsum(inc, axis=0, out=M[1:])
+            M[1:] += start
+        else:
+            np.cumsum(inc, axis=0, out=M)
+            M += start
+        self._M = M[-1].copy()
+        self._prev = (float(t[-1]), w[-1].copy())
+        return M
 
     def _gaps(self, t: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[int]]:
         """Drop gyro samples inside torque gaps; find where gaps force a new segment.
