@@ -642,51 +642,13 @@ class Scene:
         disturbance = _vector(d.get('disturbance', [0.0, 0.0, 0.0]), 'disturbance')
         command_rate = _number(d.get('command_rate', 50.0), 'command_rate', positive=True)
 
-        g = _mapping(d.get('gyro'), 'gyro', ('rate', 'noise_std', 'bias', 'frame_id'))
-        gyro = GyroSpec(
-            rate=_number(g.get('rate', 200.0), 'gyro.rate', positive=True),
-            noise_std=_number(g.get('noise_std', 0.0), 'gyro.noise_std', nonneg=True),
-            bias=tuple(_vector(g.get('bias', [0.0, 0.0, 0.0]), 'gyro.bias').tolist()),
-            frame_id=_string(g.get('frame_id', 'base_link'), 'gyro.frame_id'))
-        if not gyro.frame_id:
-            raise SceneError('gyro.frame_id: must not be empty')
-        ts = _mapping(d.get('torque_sensor'), 'torque_sensor', ('rate', 'noise_rel', 'noise_std'))
-        torque_sensor = TorqueSensorSpec(
-            rate=_number(ts.get('rate', 50.0), 'torque_sensor.rate', positive=True),
-            noise_rel=_number(ts.get('noise_rel', 0.0), 'torque_sensor.noise_rel', nonneg=True),
-            noise_std=_number(ts.get('noise_std', 0.0), 'torque_sensor.noise_std', nonneg=True))
-        im = _mapping(d.get('imperfections'), 'imperfections',
-                      ('timestamp_jitter', 'torque_delay', 'drop_rate'))
-        imperfections = Imperfections(
-            timestamp_jitter=_number(im.get('timestamp_jitter', 0.0),
-                                     'imperfections.timestamp_jitter', nonneg=True),
-            torque_delay=_number(im.get('torque_delay', 0.0), 'imperfections.torque_delay'),
-            drop_rate=_number(im.get('drop_rate', 0.0), 'imperfections.drop_rate', nonneg=True))
-        if imperfections.drop_rate >= 1.0:
-            raise SceneError(f'imperfections.drop_rate: must be < 1, got '
-                             f'{imperfections.drop_rate}')
-        min_period = 1.0 / max(gyro.rate, torque_sensor.rate)
-        if imperfections.timestamp_jitter > 0.25 * min_period:
-            raise SceneError(f'imperfections.timestamp_jitter: must be <= a quarter of the '
-                             f'fastest sample period ({0.25 * min_period:g} s) so stamps stay '
-                             f'increasing, got {imperfections.timestamp_jitter}')
+        gyro, torque_sensor, imperfections = _sensors(d)
         n_events = duration * (gyro.rate + torque_sensor.rate + command_rate)
         if n_events > MAX_EVENTS:
             raise SceneError(f'duration: {duration:g} s at these rates makes about '
                              f'{n_events:.3g} samples, more than the simulator allows '
                              f'({MAX_EVENTS:.0e}); shorten the run or lower the rates')
-        change = None
-        if d.get('inertia_change') is not None:
-            c = _mapping(d['inertia_change'], 'inertia_change', ('time', 'inertia', 'parts'))
-            if 'time' not in c:
-                raise SceneError('inertia_change.time: missing (s)')
-            t_c = _number(c['time'], 'inertia_change.time', positive=True)
-            if t_c >= duration:
-                raise SceneError(f'inertia_change.time: must be before the end of the run '
-                                 f'({duration} s), got {t_c}')
-            i_c, _, m_c, com_c = _body_inertia({k: v for k, v in c.items() if k != 'time'},
-                                               'inertia_change')
-            change = InertiaChange(t_c, i_c, m_c, com_c)
+        change = _inertia_change(d.get('inertia_change'), duration)
         return cls(name=name, seed=seed, duration=duration, inertia=inertia,
                    initial_omega=omega0, torque=torque, disturbance=disturbance,
                    command_rate=command_rate, gyro=gyro, torque_sensor=torque_sensor,
@@ -697,3 +659,52 @@ class Scene:
     def to_dict(self) -> dict[str, Any]:
         """Return a copy of the dict the scene was built from (``Scene.from_dict`` round-trips)."""
         return copy.deepcopy(dict(self.source))
+
+
+def _sensors(d: Mapping[str, Any]) -> tuple[GyroSpec, TorqueSensorSpec, Imperfections]:
+    """The ``gyro``, ``torque_sensor`` and ``imperfections`` sections, validated."""
+    g = _mapping(d.get('gyro'), 'gyro', ('rate', 'noise_std', 'bias', 'frame_id'))
+    gyro = GyroSpec(
+        rate=_number(g.get('rate', 200.0), 'gyro.rate', positive=True),
+        noise_std=_number(g.get('noise_std', 0.0), 'gyro.noise_std', nonneg=True),
+        bias=tuple(_vector(g.get('bias', [0.0, 0.0, 0.0]), 'gyro.bias').tolist()),
+        frame_id=_string(g.get('frame_id', 'base_link'), 'gyro.frame_id'))
+    if not gyro.frame_id:
+        raise SceneError('gyro.frame_id: must not be empty')
+    ts = _mapping(d.get('torque_sensor'), 'torque_sensor', ('rate', 'noise_rel', 'noise_std'))
+    torque_sensor = TorqueSensorSpec(
+        rate=_number(ts.get('rate', 50.0), 'torque_sensor.rate', positive=True),
+        noise_rel=_number(ts.get('noise_rel', 0.0), 'torque_sensor.noise_rel', nonneg=True),
+        noise_std=_number(ts.get('noise_std', 0.0), 'torque_sensor.noise_std', nonneg=True))
+    im = _mapping(d.get('imperfections'), 'imperfections',
+                  ('timestamp_jitter', 'torque_delay', 'drop_rate'))
+    imperfections = Imperfections(
+        timestamp_jitter=_number(im.get('timestamp_jitter', 0.0),
+                                 'imperfections.timestamp_jitter', nonneg=True),
+        torque_delay=_number(im.get('torque_delay', 0.0), 'imperfections.torque_delay'),
+        drop_rate=_number(im.get('drop_rate', 0.0), 'imperfections.drop_rate', nonneg=True))
+    if imperfections.drop_rate >= 1.0:
+        raise SceneError(f'imperfections.drop_rate: must be < 1, got '
+                         f'{imperfections.drop_rate}')
+    min_period = 1.0 / max(gyro.rate, torque_sensor.rate)
+    if imperfections.timestamp_jitter > 0.25 * min_period:
+        raise SceneError(f'imperfections.timestamp_jitter: must be <= a quarter of the '
+                         f'fastest sample period ({0.25 * min_period:g} s) so stamps stay '
+                         f'increasing, got {imperfections.timestamp_jitter}')
+    return gyro, torque_sensor, imperfections
+
+
+def _inertia_change(value: Any, duration: float) -> InertiaChange | None:
+    """The optional ``inertia_change`` section, validated against the run's ``duration``."""
+    if value is None:
+        return None
+    c = _mapping(value, 'inertia_change', ('time', 'inertia', 'parts'))
+    if 'time' not in c:
+        raise SceneError('inertia_change.time: missing (s)')
+    t_c = _number(c['time'], 'inertia_change.time', positive=True)
+    if t_c >= duration:
+        raise SceneError(f'inertia_change.time: must be before the end of the run '
+                         f'({duration} s), got {t_c}')
+    i_c, _, m_c, com_c = _body_inertia({k: v for k, v in c.items() if k != 'time'},
+                                       'inertia_change')
+    return InertiaChange(t_c, i_c, m_c, com_c)

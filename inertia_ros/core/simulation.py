@@ -338,13 +338,36 @@ def simulate(scene: Scene, seed: int | None = None) -> SimResult:
     if np.any(std > 0.0):
         torque += r_tnoise.standard_normal(size=torque.shape) * std
 
-    # Imperfections on the stamps, then drops.
+    stamp_g, stamp_t, keep_g, keep_t = _imperfections(scene, t_g, t_s, r_gjit, r_tjit,
+                                                      r_gdrop, r_tdrop)
+    return SimResult(
+        t_gyro=stamp_g[keep_g], omega=omega[keep_g], omega_true=omega_true[keep_g],
+        attitude_true=attitude[keep_g], t_torque=stamp_t[keep_t], torque=torque[keep_t],
+        torque_command=torque_command[keep_t], inertia=np.array(scene.inertia),
+        inertia_changes=changes, torque_bias_true=np.array(scene.disturbance),
+        frame_id=scene.gyro.frame_id, scene=scene, seed=int(seed))
+
+
+def _imperfections(scene: Scene, t_g: np.ndarray, t_s: np.ndarray, r_gjit: np.random.Generator,
+                   r_tjit: np.random.Generator, r_gdrop: np.random.Generator,
+                   r_tdrop: np.random.Generator
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Imperfections on the stamps (delay, jitter), then drops.
+
+    Returns
+    -------
+    stamp_g, stamp_t : ndarray
+        Gyro and torque stamps [s], shapes of ``t_g`` and ``t_s``.
+    keep_g, keep_t : ndarray of bool
+        Samples not dropped.
+    """
     im = scene.imperfections
+    n_g = t_g.size
     stamp_g = t_g.copy()
     stamp_t = t_s + im.torque_delay
     if im.timestamp_jitter > 0.0:
         lim_g = 0.45 / scene.gyro.rate
-        lim_t = 0.45 / ts.rate
+        lim_t = 0.45 / scene.torque_sensor.rate
         stamp_g += np.clip(r_gjit.normal(0.0, im.timestamp_jitter, n_g), -lim_g, lim_g)
         stamp_t += np.clip(r_tjit.normal(0.0, im.timestamp_jitter, t_s.size), -lim_t, lim_t)
         stamp_g[0] = max(stamp_g[0], 0.0)
@@ -353,10 +376,4 @@ def simulate(scene: Scene, seed: int | None = None) -> SimResult:
     if im.drop_rate > 0.0:
         keep_g = r_gdrop.random(n_g) >= im.drop_rate
         keep_t = r_tdrop.random(t_s.size) >= im.drop_rate
-
-    return SimResult(
-        t_gyro=stamp_g[keep_g], omega=omega[keep_g], omega_true=omega_true[keep_g],
-        attitude_true=attitude[keep_g], t_torque=stamp_t[keep_t], torque=torque[keep_t],
-        torque_command=torque_command[keep_t], inertia=np.array(scene.inertia),
-        inertia_changes=changes, torque_bias_true=np.array(scene.disturbance),
-        frame_id=scene.gyro.frame_id, scene=scene, seed=int(seed))
+    return stamp_g, stamp_t, keep_g, keep_t
