@@ -22,7 +22,7 @@ grow with the record: closed segments are folded into fixed sums, and the open s
 torque-noise statistics (:func:`.statistics.torque_stats` of its demeaned variables) are
 accumulated per torque interval in closed form (see :meth:`RecursiveEstimator._walk_add`)
 instead of being recomputed from the segment's samples, which are no longer stored.
-Torque-free data (torque RMS within five times its noise, the batch rule) gives
+Torque-free data (:func:`.homogeneous.is_torque_free`, the batch rule) gives
 ``scale_unobservable`` with the ratios and principal axes from the null vector of the same
 statistics, as the batch estimator does.
 
@@ -504,7 +504,7 @@ class RecursiveEstimator:
         self._wk_tl = float(t[-1])
 
     def _segment_walk(self) -> tuple[np.ndarray, float]:
-        """Torque-noise Gram (13 x 13) and walk time of the open segment (see batch)."""
+        """Torque-noise Gram (13 x 13) and walk time of the open segment (as statistics)."""
         if self._wk_n == 0 or self._tau_var is None or self._wk_ntt < 2 or not self._wk_ok:
             return np.zeros((13, 13)), 0.0
         S, hQ = self._wk_S, self._wk_hQ
