@@ -81,3 +81,13 @@ def test_estimation_face_is_lazy() -> None:
     assert out[0] == 'False'
     assert out[1] == ('inertia_ros.core.estimation.batch '
                       'inertia_ros.core.estimation.recursive auto')
+
+
+def test_online_estimator_import_loads_no_scipy() -> None:
+    """The online path (the node's) imports numpy only: scipy.sparse, scipy.special and
+    scipy.linalg are imported where the batch path first needs them."""
+    code = ('import sys, inertia_ros.core.estimation.recursive\n'
+            "print(sorted(m for m in sys.modules if m.split('.')[0] == 'scipy'))\n")
+    out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
+                         check=True, cwd=ROOT)
+    assert out.stdout.strip() == '[]', out.stdout

@@ -18,7 +18,6 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from scipy.special import chdtrc
 
 from .fit import Fit
 from .model import describe_direction, model_basis
@@ -148,6 +147,8 @@ def held_leak(f: Fit, free: np.ndarray, scale: float) -> np.ndarray:
 
 def wald(theta: np.ndarray, cov: np.ndarray, R: np.ndarray) -> tuple[float, int, float]:
     """Wald statistic, degrees of freedom and p-value of ``R theta = 0``."""
+    from scipy.special import chdtrc  # lazily: scipy.special costs start-up time
+
     r = R @ theta
     V = R @ cov @ R.T
     try:

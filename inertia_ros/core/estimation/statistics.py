@@ -12,7 +12,6 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from scipy import sparse
 
 from .equations import Equations, segment_starts
 from .regressors import N_REGRESSOR_VARIABLES, gram, lift
@@ -74,6 +73,8 @@ def range_sums(V: np.ndarray, bounds: np.ndarray) -> np.ndarray:
     A sparse indicator product: a compiled loop over contiguous rows, several times faster
     than ``np.add.reduceat`` on a thin matrix.
     """
+    from scipy import sparse  # lazily: the online estimator never needs it
+
     n = V.shape[0]
     ind = sparse.csr_matrix((np.ones(n), np.arange(n), bounds), shape=(len(bounds) - 1, n))
     return ind @ V
@@ -88,6 +89,8 @@ def torque_stats(V: np.ndarray, t: np.ndarray, t_tau: np.ndarray,
     With segment-demeaned variables the constant part of every segment cancels, so one global
     sum serves all segments.
     """
+    from scipy import sparse  # lazily: the online estimator never needs it
+
     n, q = V.shape
     m = len(t_tau)
     ends = np.append(t_tau[1:], max(tau_end, t_tau[-1]))
