@@ -61,6 +61,7 @@ from typing import Any
 import numpy as np
 
 from ._validate import as_noise_std, as_times
+from .estimation.model import BIAS_NAMES
 from .estimation.regressors import GYROSCOPIC_MAP, MOMENTUM_MAP, MONOMIAL_I, MONOMIAL_J
 from .tensor import THETA_COLS, THETA_NAMES, THETA_ROWS
 
@@ -292,7 +293,7 @@ def _kalman_pass(tg: np.ndarray, ts: np.ndarray, tau: np.ndarray, I: np.ndarray,
     ``1/2 sum e' S^-1 e`` of the prediction-error criterion at these parameters.
     """
     n_par = 12 if bias else 9
-    names = tuple(THETA_NAMES) + ('wx0', 'wy0', 'wz0') + (('dx', 'dy', 'dz') if bias else ())
+    names = tuple(THETA_NAMES) + ('wx0', 'wy0', 'wz0') + (BIAS_NAMES if bias else ())
 
     grid, is_gyro, new_tau, u_grid = _merged_grid(tg, ts, tau, d)
     dyn = Dynamics(I, n_par, bias)

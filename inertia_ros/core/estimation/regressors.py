@@ -76,7 +76,6 @@ _A = _gyro_coefficients()
 MOMENTUM_MAP = np.ascontiguousarray(_E.transpose(2, 1, 0).reshape(3, 18))
 #: ``Q(m) = (m @ GYROSCOPIC_MAP).reshape(3, 6)``: shape (6, 18), entry ``(m, r*6 + k)``.
 GYROSCOPIC_MAP = np.ascontiguousarray(_A.transpose(2, 0, 1).reshape(6, 18))
-_E_MAT, _A_MAT = MOMENTUM_MAP, GYROSCOPIC_MAP
 
 
 def momentum_matrix(v: np.ndarray) -> np.ndarray:
@@ -94,7 +93,7 @@ def momentum_matrix(v: np.ndarray) -> np.ndarray:
     """
     # L[..., r, k] = sum_c E[k, r, c] v_c, as one matrix product
     v = np.asarray(v, dtype=float)
-    return (v @ _E_MAT).reshape(v.shape[:-1] + (3, 6))
+    return (v @ MOMENTUM_MAP).reshape(v.shape[:-1] + (3, 6))
 
 
 def monomials(omega: np.ndarray) -> np.ndarray:
@@ -132,7 +131,7 @@ def gyroscopic_matrix(m: np.ndarray) -> np.ndarray:
     ndarray, shape (..., 3, 6)
     """
     m = np.asarray(m, dtype=float)
-    return (m @ _A_MAT).reshape(m.shape[:-1] + (3, 6))
+    return (m @ GYROSCOPIC_MAP).reshape(m.shape[:-1] + (3, 6))
 
 
 def cumulative_monomials(t: np.ndarray, omega: np.ndarray,
