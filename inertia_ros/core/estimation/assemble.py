@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from ..tensor import THETA_NAMES, check_physical, nearest_physical, principal_axes, theta_to_matrix
+from ..tensor import THETA_NAMES, check_physical, nearest_physical, theta_to_matrix
 from .fit import Fit
 from .model import model_basis, parameter_names
 from .result import InertiaEstimate
@@ -35,7 +35,7 @@ from .selection import (
     undetermined,
     wald,
 )
-from .uncertainty import axis_std, moment_std, ratio_cov
+from .uncertainty import principal_with_std, ratio_cov
 
 __all__ = ['assemble', 'conclude', 'status_only']
 
@@ -212,9 +212,7 @@ def assemble(status: str, f: Fit, model: str, free: np.ndarray, diag: dict[str, 
                 I = nearest_physical(I, min_moment=1e-9 * float(np.max(np.abs(chk.moments))))
         else:
             diag['physical'] = {'valid': True, 'projected': False}
-        moments, axes = principal_axes(I)
-        diag['principal_moments_std'] = moment_std(I, cov6)
-        diag['principal_axes_std'] = axis_std(I, cov6)
+        moments, axes = principal_with_std(I, cov6, diag)
     else:
         undetermined = [n for n, ok in zip(THETA_NAMES, free, strict=True) if not ok]
         diag['undetermined'] = undetermined

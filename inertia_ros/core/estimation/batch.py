@@ -76,7 +76,7 @@ from typing import Any
 import numpy as np
 
 from .._validate import as_noise_std, as_samples, as_times
-from ..tensor import check_physical, principal_axes, theta_to_matrix
+from ..tensor import check_physical, theta_to_matrix
 from .assemble import conclude, status_only
 from .equations import Equations, build_equations
 from .fit import Fit, fit_two_pass
@@ -100,7 +100,7 @@ from .options import (
 from .result import InertiaEstimate
 from .selection import SelectionPolicy
 from .statistics import sufficient_stats
-from .uncertainty import axis_std, moment_std
+from .uncertainty import principal_with_std
 
 __all__ = ['HOLDS', 'METHODS', 'ML_AUTO_MAX_SAMPLES', 'MODELS', 'TORQUE_BIAS', 'estimate',
            'model_basis']
@@ -447,9 +447,7 @@ def _refine(first: InertiaEstimate, tg: np.ndarray, w: np.ndarray, ts: np.ndarra
     if res.excess > 1.5:
         diag['warnings'].append(f'likelihood residuals are {res.excess:.3g} times the noise '
                                 'model: standard errors inflated accordingly')
-    moments, axes = principal_axes(I)
-    diag['principal_moments_std'] = moment_std(I, cov6)
-    diag['principal_axes_std'] = axis_std(I, cov6)
+    moments, axes = principal_with_std(I, cov6, diag)
     diag['physical'] = {'valid': True, 'projected': False}
     if res.bias is not None:
         diag['torque_bias_std'] = np.sqrt(np.maximum(np.diag(res.cov)[k:k + 3], 0.0))

@@ -6,11 +6,14 @@ covariance of ``theta`` (6, 6) [kg^2 m^4].
 """
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
+from ..tensor import principal_axes
 from .model import TRACE
 
-__all__ = ['axis_std', 'moment_std', 'ratio_cov']
+__all__ = ['axis_std', 'moment_std', 'principal_with_std', 'ratio_cov']
 
 
 def moment_std(I: np.ndarray, cov6: np.ndarray) -> np.ndarray:
@@ -54,3 +57,22 @@ def ratio_cov(theta: np.ndarray, cov6: np.ndarray) -> np.ndarray:
     tr = float(TRACE @ theta)
     J = (np.eye(6) - np.outer(theta / tr, TRACE)) / tr
     return J @ cov6 @ J.T
+
+
+def principal_with_std(I: np.ndarray, cov6: np.ndarray,
+                       diag: dict[str, Any]) -> tuple[np.ndarray, np.ndarray]:
+    """Principal moments and axes of ``I`` (3, 3), their std recorded in ``diag``.
+
+    Sets ``diag['principal_moments_std']`` (3,) and ``diag['principal_axes_std']`` (3,) [rad].
+
+    Returns
+    -------
+    moments : ndarray, shape (3,)
+        Ascending principal moments (units of ``I``).
+    axes : ndarray, shape (3, 3)
+        Principal axes as the columns of a proper rotation.
+    """
+    moments, axes = principal_axes(I)
+    diag['principal_moments_std'] = moment_std(I, cov6)
+    diag['principal_axes_std'] = axis_std(I, cov6)
+    return moments, axes
