@@ -13,9 +13,8 @@ each rule in its one home:
 and check that the batch and the recursive estimators give the same status on either side of
 each boundary.
 
-The source checks cover ``inertia_ros/core`` strictly.  Outside core, :data:`PENDING` lists
-the copies that the other parts of issue 12 (nodes, io, cli) are replacing; an entry there is
-a known duplicate, not an allowed one.
+The vocabulary and shared-function checks cover the whole package; the threshold-literal,
+default and index-table checks cover ``inertia_ros/core``.
 """
 from __future__ import annotations
 
@@ -41,11 +40,6 @@ PACKAGE = ROOT / 'inertia_ros'
 CORE = PACKAGE / 'core'
 VOCABULARIES = {name: getattr(options, name)
                 for name in ('METHODS', 'MODELS', 'TORQUE_BIAS', 'HOLDS', 'STATUSES')}
-#: Known copies outside core (file relative to inertia_ros, name or literal) being replaced
-#: by the nodes / io / cli parts of issue 12.
-PENDING = {('inertia_estimator_node.py', 'METHODS'), ('inertia_estimator_node.py', 'HOLDS'),
-           ('inertia_estimator_node.py', ('linear', 'zoh')),
-           ('inertia_estimator_node.py', ('auto', 'off', 'on'))}
 #: The tensor-element index table, as literals (rows, columns, matrix index).
 INDEX_TABLES = ([0, 1, 2, 0, 0, 1], [0, 1, 2, 1, 2, 2], [[0, 3, 4], [3, 1, 5], [4, 5, 2]])
 
@@ -91,8 +85,7 @@ def test_vocabularies_are_defined_once() -> None:
                         and all(isinstance(v, str) for v in value) \
                         and any(set(value) == set(voc) for voc in VOCABULARIES.values()):
                     found.append((rel, tuple(sorted(value))))
-    unexpected = [f for f in found if f not in PENDING]
-    assert not unexpected, f'vocabularies written outside options.py: {unexpected}'
+    assert not found, f'vocabularies written outside options.py: {found}'
 
 
 def test_thresholds_have_no_literal_copies_in_core() -> None:
