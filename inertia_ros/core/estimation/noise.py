@@ -5,13 +5,13 @@ The quantity is the white-noise standard deviation of a sampled signal (gyro [ra
 ``C(2k, k) s^2`` (20 s^2 for k = 3), while a smooth signal contributes little to high-order
 differences.  The two forms are one estimator of that quantity:
 
-* :func:`noise_std_from_differences` (batch: :func:`~.batch.estimate`, and the torque stream of
-  :class:`~.recursive.RecursiveEstimator` block by block): robust, the median absolute
-  deviation of the 2nd, 3rd and 4th differences, the smallest of the three (signal only adds
-  variance);
-* :class:`StreamingDifferenceNoise` (the gyro stream of the online estimator): the running mean
-  square of the third differences across blocks, so the answer does not depend on how the
-  stream was cut into blocks and costs O(1) memory.
+* :func:`noise_std_from_differences` (batch: :func:`~.batch.estimate`): robust, the median
+  absolute deviation of the 2nd, 3rd and 4th differences, the smallest of the three (signal
+  only adds variance);
+* :class:`StreamingNoise` (both streams of the online estimator): the same function on the
+  most recent :data:`STREAM_NOISE_SAMPLES` samples of the stream, kept across blocks, so the
+  answer does not depend on how the stream was cut into blocks (the node hands over 5 torque
+  samples at a time; a per-block estimate would be no estimate) and memory stays bounded.
 
 Both gyro estimates are floored at :data:`ISOTROPY_FLOOR` of the largest axis
 (:func:`isotropy_floor`): a nearly noise-free axis would otherwise get an absurd weight.
@@ -22,11 +22,13 @@ import math
 
 import numpy as np
 
-__all__ = ['ISOTROPY_FLOOR', 'StreamingDifferenceNoise', 'isotropy_floor', 'median_rows',
-           'noise_std_from_differences']
+__all__ = ['ISOTROPY_FLOOR', 'STREAM_NOISE_SAMPLES', 'StreamingNoise', 'isotropy_floor',
+           'median_rows', 'noise_std_from_differences']
 
 #: Smallest gyro-noise std of an axis, as a share of the largest axis' std.
 ISOTROPY_FLOOR = 0.1
+#: Samples of a stream the online noise estimate looks at (the most recent ones).
+STREAM_NOISE_SAMPLES = 4096
 
 
 def isotropy_floor(std: np.ndarray) -> np.ndarray:
@@ -82,42 +84,56 @@ def noise_std_from_differences(x: np.ndarray, orders: tuple[int, ...] = (2, 3, 4
     return best
 
 
-class StreamingDifferenceNoise:
-    """Running white-noise variance per axis from third differences, fed block by block.
+class StreamingNoise:
+    """White-noise std per axis of a stream fed block by block: :func:`noise_std_from_differences`
+    on the most recent ``keep`` samples.
 
-    The streaming form of :func:`noise_std_from_differences` (see the module docstring):
-    ``var = mean(d3^2) / 20`` over every third difference of the concatenated stream, the
-    last three samples of each block kept to bridge to the next.
+    The estimate is recomputed lazily, when a tenth of the kept samples is new, so a node that
+    asks ten times a second pays for one robust estimate per few hundred samples.
+
+    Parameters
+    ----------
+    floor : bool
+        Apply :func:`isotropy_floor` (the gyro stream; not the torque, whose axes may be idle).
+    keep : int
+        Recent samples kept (default :data:`STREAM_NOISE_SAMPLES`).
 
     Attributes
     ----------
     count : int
-        Third differences accumulated so far.
+        Samples seen so far.
     """
 
-    def __init__(self) -> None:
-        self._sum = np.zeros(3)
+    def __init__(self, floor: bool = True, keep: int = STREAM_NOISE_SAMPLES) -> None:
+        self.floor = floor
+        self.keep = int(keep)
         self.count = 0
-        self._tail = np.empty((0, 3))
+        self._buf = np.empty((0, 3))
+        self._new = 0
+        self._std = np.zeros(3)
 
     def add(self, x: np.ndarray) -> None:
         """Add consecutive samples (n, 3) of the stream."""
-        xx = np.concatenate([self._tail, x]) if len(self._tail) else x
-        if len(xx) >= 4:
-            d3 = xx[3:] - 3.0 * xx[2:-1] + 3.0 * xx[1:-2] - xx[:-3]
-            self._sum = self._sum + np.sum(d3 * d3, axis=0) / 20.0
-            self.count += len(d3)
-        self._tail = xx[-3:].copy()
+        if len(x) == 0:
+            return
+        self._buf = np.concatenate([self._buf, x])[-self.keep:]
+        self.count += len(x)
+        self._new += len(x)
 
-    def variance(self) -> np.ndarray:
-        """Noise variance per axis, floored as :func:`isotropy_floor` (zeros before any data).
+    def std(self) -> np.ndarray:
+        """Noise std per axis (zeros before 6 samples), in the units of the stream.
 
         Returns
         -------
         ndarray, shape (3,)
-            [units of the stream squared].
         """
-        if not self.count:
-            return np.zeros(3)
-        nv = self._sum / self.count
-        return np.maximum(nv, ISOTROPY_FLOOR ** 2 * float(np.max(nv)))
+        if self._new and (self._new * 10 >= len(self._buf) or len(self._buf) < 64
+                          or not np.any(self._std)):
+            est = noise_std_from_differences(self._buf)
+            self._std = isotropy_floor(est) if self.floor else est
+            self._new = 0
+        return self._std
+
+    def variance(self) -> np.ndarray:
+        """Noise variance per axis, shape (3,) [units of the stream squared]."""
+        return self.std() ** 2

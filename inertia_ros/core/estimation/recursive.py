@@ -42,7 +42,7 @@ from .assemble import conclude, status_only
 from .fit import Fit, fit_two_pass
 from .homogeneous import homogeneous_estimate, is_torque_free
 from .model import symmetry_axis as unit_axis
-from .noise import StreamingDifferenceNoise, median_rows, noise_std_from_differences
+from .noise import StreamingNoise
 from .options import (
     ALPHA,
     GAP_FACTOR,
@@ -176,7 +176,8 @@ class RecursiveEstimator:
         self._t_last: float | None = None
         self._last_t_in: float | None = None
         self._last_tau_in: float | None = None
-        self._gyro_nv = StreamingDifferenceNoise()     # gyro noise (unless given)
+        self._gyro_nv = StreamingNoise(floor=True)      # gyro noise (unless given)
+        self._tau_nv = StreamingNoise(floor=False)     # torque noise
         self.samples_used = 0
         self.samples_dropped = 0
         # model selection reused between re-selections: (torque_bias, model, its record)
@@ -322,11 +323,12 @@ class RecursiveEstimator:
         edges = new_t if self._tq_last is None else np.concatenate([[self._tq_last], new_t])
         self._tq_dts = np.concatenate([self._tq_dts, np.diff(edges)])[-_DT_HISTORY:]
         self._tq_last = float(new_t[-1])
-        if len(new_t) >= 16:
-            v = noise_std_from_differences(new_tau) ** 2
-            self._tau_var = v if self._tau_var is None else 0.8 * self._tau_var + 0.2 * v
-            dt = float(median_rows(np.diff(new_t)[:, None])[0])
-            self._tau_dt = dt if self._tau_dt == 0.0 else 0.8 * self._tau_dt + 0.2 * dt
+        # the same robust estimator as batch, on the recent samples whatever the block size
+        self._tau_nv.add(new_tau)
+        if self._tau_nv.count >= 16:
+            self._tau_var = self._tau_nv.variance()
+        if len(self._tq_dts):
+            self._tau_dt = float(np.median(self._tq_dts))
 
     def _ready_gyro(self) -> tuple[np.ndarray, np.ndarray, list[int]]:
         """Buffered gyro samples now covered by torque (the rest stays buffered), with gaps.
@@ -539,8 +541,10 @@ class RecursiveEstimator:
         self._walk_add(t, V)
         if self.window:
             wts = np.exp(-(t[-1] - t) / self.window)
+            # nothing merged yet: nothing to decay (the torque statistics gathered before the
+            # first merge must survive it)
             old = float(np.exp(-(t[-1] - self._t_last) / self.window)) \
-                if self._t_last is not None else 0.0
+                if self._t_last is not None else 1.0
         else:
             lam = self.forgetting
             wts = lam ** np.arange(n - 1, -1, -1, dtype=float)
