@@ -10,6 +10,7 @@ where no distribution package exists).
 from __future__ import annotations
 
 import ast
+import functools
 import os
 import re
 import sys
@@ -209,8 +210,10 @@ def test_setup_py_version_matches_package_xml():
     assert m and m.group(1) == _pkg().version
 
 
+@functools.lru_cache(maxsize=1)
 def setup_kwargs() -> dict:
-    """The keyword arguments setup.py gives ``setuptools.setup`` (nothing is built)."""
+    """The keyword arguments setup.py gives ``setuptools.setup`` (nothing is built; cached,
+    do not modify)."""
     import runpy
 
     import setuptools
