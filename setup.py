@@ -30,7 +30,7 @@ setup(
     # package.xml).  colcon picks pytest as the test runner from this extra.
     extras_require={
         'test': ['pytest', 'pytest-timeout', 'hypothesis', 'catkin-pkg', 'rosbags',
-                 'mcap-ros2-support', 'ruff'],
+                 'mcap-ros2-support', 'ruff', 'urdfdom-py'],
     },
     zip_safe=True,
     maintainer='inertia_ros maintainers',

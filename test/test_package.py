@@ -49,7 +49,7 @@ IMPORT_KEYS: dict[str, str] = {
     'catkin_pkg': 'python3-catkin-pkg',
     'rosbags': 'python3-rosbags-pip',
     'ruff': 'python3-ruff-pip',
-    'yourdfpy': 'python3-yourdfpy-pip',
+    'urdf_parser_py': 'urdfdom_py',
     'setuptools': 'python3-setuptools',
 }
 
