@@ -17,7 +17,6 @@ import sys
 from pathlib import Path
 
 import pytest
-from catkin_pkg.package import parse_package
 
 from conftest import ROOT
 
@@ -67,7 +66,9 @@ OPTIONAL_IMPORTS: dict[str, str] = {
 
 
 def _pkg():
-    return parse_package(str(ROOT / 'package.xml'))
+    """package.xml parsed by catkin_pkg (the parser colcon and rosdep use)."""
+    catkin = pytest.importorskip('catkin_pkg.package')  # optional test dependency
+    return catkin.parse_package(str(ROOT / 'package.xml'))
 
 
 def _first_party() -> set[str]:
