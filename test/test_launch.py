@@ -260,7 +260,7 @@ def test_checker_catches_mistakes(tmp_path):
 def estimator_publications() -> dict[str, str]:
     """Topic -> message class (``pkg.msg.Type``) of every ``create_publisher`` call of the
     estimator node with a literal topic, ``~/`` expanded with the default node name."""
-    path = ROOT / 'inertia_ros' / 'inertia_estimator_node.py'
+    path = ROOT / 'inertia_ros' / 'nodes' / 'estimator.py'
     tree = ast.parse(path.read_text())
     modules = {a.asname or a.name: n.module for n in ast.walk(tree)
                if isinstance(n, ast.ImportFrom) and n.module for a in n.names}
