@@ -3,6 +3,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+
+pytest.importorskip('mcap_ros2')  # optional test dependency
+pytest.importorskip('rosbags')  # optional test dependency
 from mcap.records import Schema
 from mcap_ros2.decoder import DecoderFactory
 from rosbags.typesys import Stores, get_typestore

@@ -7,6 +7,8 @@ import re
 
 import numpy as np
 import pytest
+
+pytest.importorskip('hypothesis')  # optional test dependency
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 from scipy.optimize import minimize

@@ -5,6 +5,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+
+pytest.importorskip('rosbags')  # optional test dependency
 import yaml
 from mcap.writer import CompressionType, Writer
 from rosbags.typesys import Stores, get_typestore
@@ -106,6 +108,7 @@ def test_clean_log_round_trip(tmp_path: Path) -> None:
 
 def test_same_values_as_mcap_ros2_on_a_committed_bag() -> None:
     """read_log's omega/torque on bags/default.mcap equal mcap_ros2's decoding bit for bit."""
+    pytest.importorskip('mcap_ros2')  # optional test dependency
     from mcap.reader import make_reader
     from mcap_ros2.decoder import DecoderFactory
 

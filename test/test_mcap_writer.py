@@ -6,6 +6,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+
+pytest.importorskip('mcap_ros2')  # optional test dependency
+pytest.importorskip('rosbags')  # optional test dependency
 import yaml
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory

@@ -5,6 +5,8 @@ import copy
 
 import numpy as np
 import pytest
+
+pytest.importorskip('hypothesis')  # optional test dependency
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 from scipy.integrate import solve_ivp
