@@ -41,7 +41,7 @@ def test_incremental_torque_walk_matches_definition(cuts):
     V = rng.normal(size=(600, 13)) + np.arange(13) * 10.0
     rec = RecursiveEstimator()
     rec._ts = t_tau
-    rec._tau_var = np.ones(3)
+    rec._tau_nv.count = 1          # a torque stream has been seen
     start = 0
     for stop in cuts:
         rec._walk_add(t[start:stop], V[start:stop])

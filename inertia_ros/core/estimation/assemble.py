@@ -10,17 +10,23 @@ any parameter set) and returns the :class:`InertiaEstimate` with its status:
     estimated, with the covariance that costs);
 ``ok``
     every element: the bias and the parameter set chosen by Wald tests, then :func:`assemble`
-    (principal moments and axes with their std, ratios, physical projection).
+    (principal moments and axes with their std, ratios, physical projection);
+``model_mismatch``
+    as ``ok``, but the model-adequacy tests (:mod:`.adequacy`, through the ``adequacy``
+    callable) say the model does not explain the data: the covariance is inflated by what
+    the tests saw and the reason names the likely cause.
 
 Used by the batch estimator and the recursive one alike.
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
 
 from ..tensor import THETA_NAMES, check_physical, nearest_physical, theta_to_matrix
+from .adequacy import Adequacy
 from .fit import Fit
 from .model import model_basis, parameter_names
 from .result import InertiaEstimate
@@ -118,9 +124,13 @@ def _select(fit: FitFunction, f: Fit, model: str, torque_bias: str, axis: np.nda
     return f, chosen
 
 
+#: ``adequacy(final_fit, model_name) -> Adequacy``: the model-adequacy tests of a final fit.
+AdequacyFunction = Callable[[Fit, str], Adequacy]
+
+
 def conclude(fit: FitFunction, model: str, torque_bias: str, axis: np.ndarray | None,
-             policy: SelectionPolicy, diag: dict[str, Any],
-             base: dict[str, Any]) -> InertiaEstimate:
+             policy: SelectionPolicy, diag: dict[str, Any], base: dict[str, Any],
+             adequacy: AdequacyFunction | None = None) -> InertiaEstimate:
     """Identifiability, model selection and the result, given ``fit(basis, bias) -> Fit``.
 
     Parameters
@@ -137,6 +147,9 @@ def conclude(fit: FitFunction, model: str, torque_bias: str, axis: np.ndarray | 
         Test level, identifiability tolerance, physical projection.
     diag, base : dict
         Diagnostics (updated in place) and the common result fields.
+    adequacy : callable, optional
+        ``adequacy(fit, model) -> Adequacy`` on the final fit of a fully identified tensor;
+        a failed test gives ``model_mismatch`` (see the module docstring).
 
     Returns
     -------
@@ -166,7 +179,24 @@ def conclude(fit: FitFunction, model: str, torque_bias: str, axis: np.ndarray | 
         f = _partial(fit, f, free, scale, torque_bias, gen_bias, policy.alpha, diag)
         return assemble('partially_identifiable', f, 'full', free, diag, base, physical=False)
     f, chosen = _select(fit, f, model, torque_bias, axis, policy.alpha, diag)
-    return assemble('ok', f, chosen, free, diag, base, physical=policy.physical)
+    status = 'ok' if adequacy is None else _adequate(adequacy, f, chosen, diag)
+    return assemble(status, f, chosen, free, diag, base, physical=policy.physical)
+
+
+def _adequate(adequacy: AdequacyFunction, f: Fit, chosen: str, diag: dict[str, Any]) -> str:
+    """Run the adequacy tests on the final fit: ``'ok'`` or ``'model_mismatch'``.
+
+    On a mismatch the covariance is inflated to the larger of the window scatter (Birge
+    ratio) and the residual excess; the fit's own excess inflation is not counted twice.
+    """
+    a = adequacy(f, chosen)
+    diag['adequacy'] = a.as_dict()
+    if a.ok:
+        return 'ok'
+    f.cov = f.cov * max(1.0, a.inflation / max(f.excess, 1.0))
+    diag['reason'] = 'the model does not explain the data: ' + a.reason
+    return 'model_mismatch'
+
 
 
 def assemble(status: str, f: Fit, model: str, free: np.ndarray, diag: dict[str, Any],

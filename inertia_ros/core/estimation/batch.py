@@ -77,6 +77,7 @@ import numpy as np
 
 from .._validate import as_noise_std, as_samples, as_times
 from ..tensor import check_physical, theta_to_matrix
+from .adequacy import Adequacy, check_adequacy
 from .assemble import conclude, status_only
 from .equations import Equations, build_equations
 from .fit import Fit, fit_two_pass
@@ -85,6 +86,8 @@ from .ml import refine
 from .model import model_basis, symmetry_axis
 from .noise import isotropy_floor, noise_std_from_differences
 from .options import (
+    ADEQUACY_MIN_WINDOW_S,
+    ADEQUACY_WINDOWS,
     ALPHA,
     GAP_FACTOR,
     HOLDS,
@@ -318,7 +321,52 @@ def _estimate_shifted(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray
         """Fit one parameter set on the statistics (weights from ``theta0`` when given)."""
         return fit_two_pass(st, basis, bias, gyro_var, torque_var, offset, theta0)
 
-    return conclude(fit, model, torque_bias, axis, policy, diag, base)
+    def adequacy(f: Fit, chosen: str) -> Adequacy:
+        """The model-adequacy tests of the final fit (window consistency, residual excess)."""
+        return _window_adequacy(eq, segment, ts, gyro_var, torque_var, f)
+
+    return conclude(fit, model, torque_bias, axis, policy, diag, base, adequacy)
+
+
+def _window_adequacy(eq: Equations, segment: float | None, ts: np.ndarray,
+                     gyro_var: np.ndarray, torque_var: np.ndarray, f: Fit) -> Adequacy:
+    """Refit ``f``'s parameter set on consecutive time windows and test their agreement.
+
+    Up to :data:`ADEQUACY_WINDOWS` windows of at least :data:`ADEQUACY_MIN_WINDOW_S` each,
+    weighted as the final fit (its tensor gives the weights), each with its own anchored
+    segments and torque-noise statistics.  Equations that are not anchored (the sliding and
+    differential methods) get the residual-excess test only.
+    """
+    k = f.basis.shape[1]
+    p = len(f.beta)
+    empty = np.zeros((0, p)), np.zeros((0, p, p)), np.zeros(0)
+    span = float(eq.t[-1] - eq.t[0])
+    n_win = min(ADEQUACY_WINDOWS, int(span // ADEQUACY_MIN_WINDOW_S))
+    if eq.kind != 'anchored' or n_win < 2 or len(ts) < 2:
+        return check_adequacy(*empty, f.excess)
+    theta0 = f.basis @ f.beta[:k]
+    cuts = np.searchsorted(eq.t, np.linspace(eq.t[0], eq.t[-1], n_win + 1)[1:-1])
+    bounds = [0, *cuts.tolist(), len(eq.t)]
+    thetas, covs, mids = [], [], []
+    for a, b in zip(bounds[:-1], bounds[1:], strict=True):
+        if b - a < MIN_EQUATIONS:
+            continue
+        sub = Equations(eq.V[a:b].copy(), eq.t[a:b], eq.breaks[a:b - 1], eq.kind, eq.hac_lag,
+                        eq.eiv_var, eq.weighted)
+        j0 = max(int(np.searchsorted(ts, sub.t[0], side='right')) - 1, 0)
+        tsk = ts[j0:int(np.searchsorted(ts, sub.t[-1], side='right'))]
+        if len(tsk) < 2:
+            continue
+        st = sufficient_stats(sub, segment, tsk, float(sub.t[-1]), torque_var)
+        if st.n_eff < MIN_EQUATIONS:
+            continue
+        fk = fit_two_pass(st, f.basis, f.bias, gyro_var, torque_var, None, theta0)
+        thetas.append(fk.beta)
+        covs.append(fk.cov)
+        mids.append(0.5 * float(sub.t[0] + sub.t[-1]))
+    if len(thetas) < 2:
+        return check_adequacy(*empty, f.excess)
+    return check_adequacy(np.array(thetas), np.array(covs), np.array(mids), f.excess)
 
 
 def _equation_rules(eq: Equations, method: str, diag: dict[str, Any],
@@ -413,13 +461,14 @@ def _refine(first: InertiaEstimate, tg: np.ndarray, w: np.ndarray, ts: np.ndarra
     diag['ml'] = info
 
     def keep(reason: str) -> InertiaEstimate:
+        # the method name says what ran: the integral estimate, not a likelihood one
         info['reason'] = reason + '; the integral estimate is reported'
-        return replace(first, method='ml', diagnostics=diag)
+        return replace(first, method='integral', diagnostics=diag)
 
-    if first.status != 'ok' or first.inertia is None:
-        return keep(f'the starting estimate is {first.status!r}, only ok estimates are refined')
     if hold != 'zoh':
         return keep("the likelihood model holds each torque sample (hold='zoh' only)")
+    if first.status != 'ok' or first.inertia is None:
+        return keep(f'the starting estimate is {first.status!r}, only ok estimates are refined')
     if any('torque gap' in str(m) for m in diag['warnings']):
         return keep('torque gaps: the held-torque model does not cover them')
     t0 = float(min(tg[0], ts[0]))

@@ -88,8 +88,8 @@ class StreamingNoise:
     """White-noise std per axis of a stream fed block by block: :func:`noise_std_from_differences`
     on the most recent ``keep`` samples.
 
-    The estimate is recomputed lazily, when a tenth of the kept samples is new, so a node that
-    asks ten times a second pays for one robust estimate per few hundred samples.
+    The estimate is a function of the kept samples only (recomputed when new samples came), so
+    it does not depend on how the stream was cut into blocks or how often it was asked for.
 
     Parameters
     ----------
@@ -127,8 +127,7 @@ class StreamingNoise:
         -------
         ndarray, shape (3,)
         """
-        if self._new and (self._new * 10 >= len(self._buf) or len(self._buf) < 64
-                          or not np.any(self._std)):
+        if self._new:
             est = noise_std_from_differences(self._buf)
             self._std = isotropy_floor(est) if self.floor else est
             self._new = 0

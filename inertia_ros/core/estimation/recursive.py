@@ -324,9 +324,8 @@ class RecursiveEstimator:
         self._tq_dts = np.concatenate([self._tq_dts, np.diff(edges)])[-_DT_HISTORY:]
         self._tq_last = float(new_t[-1])
         # the same robust estimator as batch, on the recent samples whatever the block size
+        # (the variance itself is taken in estimate())
         self._tau_nv.add(new_tau)
-        if self._tau_nv.count >= 16:
-            self._tau_var = self._tau_nv.variance()
         if len(self._tq_dts):
             self._tau_dt = float(np.median(self._tq_dts))
 
@@ -507,7 +506,7 @@ class RecursiveEstimator:
 
     def _segment_walk(self) -> tuple[np.ndarray, float]:
         """Torque-noise Gram (13 x 13) and walk time of the open segment (as statistics)."""
-        if self._wk_n == 0 or self._tau_var is None or self._wk_ntt < 2 or not self._wk_ok:
+        if self._wk_n == 0 or self._tau_nv.count == 0 or self._wk_ntt < 2 or not self._wk_ok:
             return np.zeros((13, 13)), 0.0
         S, hQ = self._wk_S, self._wk_hQ
         RR = self._wk_h2 * np.outer(S, S) + np.outer(S, hQ) + np.outer(hQ, S) + self._wk_QQ \
@@ -611,6 +610,7 @@ class RecursiveEstimator:
             diag['warnings'].append(f'{self.gaps} gap(s) in the streams: each started a new '
                                     'segment; gyro samples inside torque gaps were dropped')
         n_eff = self._neffc + (self._w0 - self._w00 / self._w0 if self._w0 > 0 else 0.0)
+        self._tau_var = self._tau_nv.variance() if self._tau_nv.count >= 16 else None
         if self.samples_used < MIN_GYRO_SAMPLES or n_eff < MIN_EQUATIONS:
             diag['reason'] = f'only {self.samples_used} gyro samples covered by torque so far'
             return status_only('insufficient_data', diag, base)
