@@ -30,14 +30,25 @@ relative to :attr:`LogData.epoch_ns`, the integer-nanosecond stamp of the first 
 from __future__ import annotations
 
 import json
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from inertia_ros.io import cdr_decode
-from inertia_ros.io.mcap_reader import Channel, Damage, McapError, McapReader, Schema
+from inertia_ros.io.mcap_reader import (
+    Channel,
+    ChannelFilter,
+    CodecMissingError,
+    Damage,
+    McapError,
+    McapReader,
+    MessageBatch,
+    Schema,
+)
+from inertia_ros.io.rosbag2 import BagInfo, BagMetadataError, read_bag_info
+from inertia_ros.io.rosbags_source import RosbagsError, RosbagsSource
 
 #: Angular-velocity message types and the field holding omega [rad/s].
 OMEGA_TYPES: dict[str, str] = {
@@ -231,13 +242,24 @@ class _Raw:
                      (self.stamp, self.frame, self.values, self.ok, self.ordinal))
 
 
+def _bag(path: str | Path) -> BagInfo | None:
+    """The validated metadata of a bag directory (None for a file or a bare directory)."""
+    p = Path(path)
+    if not p.is_dir():
+        return None
+    try:
+        return read_bag_info(p)
+    except BagMetadataError as exc:
+        raise LogError(str(exc)) from None
+
+
 def log_files(path: str | Path) -> list[Path]:
-    """The MCAP files of a log: the file itself, or a rosbag2 directory's files in order.
+    """The storage files of a log: the file itself, or a rosbag2 directory's files in order.
 
     Parameters
     ----------
     path : str or Path
-        A ``.mcap`` file or a rosbag2 directory.
+        A ``.mcap`` file or a rosbag2 directory (any storage: mcap, sqlite3, compressed).
 
     Returns
     -------
@@ -246,35 +268,25 @@ def log_files(path: str | Path) -> list[Path]:
     Raises
     ------
     LogError
-        Missing path, a directory that is not an MCAP rosbag2 bag, or no files.
+        Missing path, unusable ``metadata.yaml``, or a directory with no storage files.
     """
     p = Path(path)
     if not p.exists():
         raise LogError(f'{p}: no such file or directory')
     if p.is_file():
+        if p.suffix == '.db3' or p.name.endswith(('.mcap.zstd', '.db3.zstd')):
+            raise LogError(f'{p}: a {p.suffix} file is read as part of its rosbag2 bag; pass '
+                           f'the bag directory {p.parent} (with its metadata.yaml)')
         return [p]
-    meta = p / 'metadata.yaml'
-    if meta.is_file():
-        import yaml
-
-        try:
-            info = yaml.safe_load(meta.read_text()) or {}
-            info = info.get('rosbag2_bagfile_information', info)
-        except (yaml.YAMLError, AttributeError) as exc:
-            raise LogError(f'{meta}: not valid rosbag2 metadata ({exc.__class__.__name__}); '
-                           'fix or remove it') from None
-        storage = info.get('storage_identifier', 'mcap')
-        if storage != 'mcap':
-            raise LogError(f'{p}: rosbag2 storage {storage!r} is not supported; convert it '
-                           'with "ros2 bag convert" to mcap')
-        if info.get('compression_format'):
-            raise LogError(f'{p}: file-compressed bags ({info["compression_format"]}) are not '
-                           'supported; decompress the files first')
-        rel = info.get('relative_file_paths') or []
-        files = [p / r for r in rel]
-        present = [f for f in files if f.is_file()]
+    info = _bag(p)
+    if info is not None and info.files:
+        present = [f for f in info.files if f.is_file()]
         if present:
             return present
+    if info is not None and not info.own_mcap_path:
+        raise LogError(f'{p}: none of the files metadata.yaml lists '
+                       f'({", ".join(f.name for f in info.files) or "none"}) is in the '
+                       'directory')
     files = sorted(p.glob('*.mcap'))
     if not files:
         raise LogError(f'{p}: directory holds no .mcap files (expected a rosbag2 bag)')
@@ -331,8 +343,9 @@ def read_log(path: str | Path, omega_topic: str | None = None,
     if min_window < 2:
         raise ValueError(f'min_window: must be >= 2, got {min_window}')
     files = log_files(path)
+    info = _bag(path)
     raws, topics, metadata, damage, warnings = _read_files(files, omega_topic, torque_topic,
-                                                           progress)
+                                                           progress, info)
     if damage.any:
         for note in damage.notes:
             warnings.append(f'damaged log: {note}')
@@ -343,7 +356,7 @@ def read_log(path: str | Path, omega_topic: str | None = None,
     om_type = topics[om_topic]
     tq_type = topics.get(tq_topic, '')
 
-    expected = _bag_counts(path)
+    expected = info.message_counts if info is not None else {}
     for t in (om_topic, tq_topic):
         got = raws[t].count if t in raws else 0
         if t in expected and got < expected[t]:
@@ -373,27 +386,32 @@ def read_log(path: str | Path, omega_topic: str | None = None,
                    damage, warnings)
 
 
-def _bag_counts(path: str | Path) -> dict[str, int]:
-    """Per-topic message counts a rosbag2 directory's metadata.yaml promises ({} if none)."""
-    meta = Path(path) / 'metadata.yaml'
-    if not meta.is_file():
-        return {}
-    import yaml
-
+def _open(f: Path, info: BagInfo | None, prog: Callable[[int, int], None]
+          ) -> McapReader | RosbagsSource:
+    """A batch source for one MCAP file, or for the whole bag when rosbags must read it."""
+    if info is not None and not info.own_mcap_path:
+        try:
+            return RosbagsSource(info, progress=prog)
+        except RosbagsError as exc:
+            raise LogError(str(exc)) from None
     try:
-        info = yaml.safe_load(meta.read_text()) or {}
-        info = info.get('rosbag2_bagfile_information', info)
-        return {t['topic_metadata']['name']: int(t['message_count'])
-                for t in info.get('topics_with_message_count') or []}
-    except (yaml.YAMLError, AttributeError, KeyError, TypeError, ValueError):
-        return {}
+        return McapReader(f, progress=prog)
+    except McapError as exc:
+        raise LogError(str(exc)) from None
 
 
 def _read_files(files: list[Path], omega_topic: str | None, torque_topic: str | None,
-                progress: Callable[[int, int], None] | None
+                progress: Callable[[int, int], None] | None, info: BagInfo | None = None
                 ) -> tuple[dict[str, _Raw], dict[str, str], dict[str, dict[str, str]],
                            Damage, list[str]]:
-    """One pass over every file: decode every topic of a type we can use."""
+    """One pass over every file: decode every topic of a type we can use.
+
+    Plain MCAP goes through our own reader, file by file; any other rosbag2 storage (sqlite3,
+    compressed) through :class:`~inertia_ros.io.rosbags_source.RosbagsSource`, once for the
+    whole bag.
+    """
+    if info is not None and not info.own_mcap_path:
+        files = [info.directory]
     wanted_types = set(OMEGA_TYPES) | set(TORQUE_TYPES) | {TRUTH_TYPE}
     # with both topics named only those (and the truth) are decoded; else every candidate
     named = {omega_topic, torque_topic} if omega_topic and torque_topic else set()
@@ -402,7 +420,7 @@ def _read_files(files: list[Path], omega_topic: str | None, torque_topic: str | 
     metadata: dict[str, dict[str, str]] = {}
     damage = Damage()
     warnings: list[str] = []
-    sizes = [f.stat().st_size for f in files]
+    sizes = [f.stat().st_size if f.is_file() else 0 for f in files]
     total = sum(sizes)
     done = 0
     ordinal_base = 0
@@ -411,10 +429,7 @@ def _read_files(files: list[Path], omega_topic: str | None, torque_topic: str | 
             if progress is not None:
                 progress(_done + b, total)
 
-        try:
-            reader = McapReader(f, progress=prog)
-        except McapError as exc:
-            raise LogError(str(exc)) from None
+        reader = _open(f, info, prog)
         with reader:
             def select(ch: Channel, schema: Schema | None) -> bool:
                 typ = cdr_decode.normalise_type(schema.name) if schema else ''
@@ -424,7 +439,7 @@ def _read_files(files: list[Path], omega_topic: str | None, torque_topic: str | 
                     return False
                 return True
 
-            for b in reader.iter_batches(select):
+            for b in _batches(reader, select):
                 typ = cdr_decode.normalise_type(b.schema.name)
                 raw = raws.setdefault(b.channel.topic, _Raw(typ))
                 if typ != raw.msg_type:
@@ -455,6 +470,17 @@ def _read_files(files: list[Path], omega_topic: str | None, torque_topic: str | 
             damage.notes.extend(f'{f.name}: {n}' for n in d0.notes)
         done += size
     return raws, topics, metadata, damage, warnings
+
+
+def _batches(reader: McapReader | RosbagsSource, select: ChannelFilter
+             ) -> Iterator[MessageBatch]:
+    """``reader.iter_batches(select)`` with reader failures as one-line :class:`LogError`."""
+    try:
+        yield from reader.iter_batches(select)
+    except CodecMissingError as exc:
+        raise LogError(str(exc)) from None
+    except RosbagsError as exc:
+        raise LogError(str(exc)) from None
 
 
 def _field_for(msg_type: str, topic: str) -> str:
