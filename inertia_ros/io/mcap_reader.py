@@ -717,6 +717,9 @@ class MessageBatch:
     ordinal : numpy.ndarray
         int64 array (n,), the position of each message in the file (0 = first message), so
         that arrival order can be restored across batches.
+    sequence : numpy.ndarray or None
+        uint32 array (n,), the Message records' ``sequence`` fields (the publisher's or
+        recorder's counter; 0 when the writer does not set it), None when unknown.
     """
 
     channel: Channel
@@ -726,6 +729,7 @@ class MessageBatch:
     lengths: np.ndarray
     log_time: np.ndarray
     ordinal: np.ndarray
+    sequence: np.ndarray | None = None
 
     def __len__(self) -> int:
         return int(self.starts.shape[0])
@@ -1070,9 +1074,10 @@ class McapReader:
             starts = np.zeros(len(ks), dtype=np.int64)
             np.cumsum(lens[:-1], out=starts[1:])
             log_time = np.array([_U64.unpack_from(b, 6)[0] for b in bodies], dtype=np.uint64)
+            seq = np.array([_U32.unpack_from(b, 2)[0] for b in bodies], dtype=np.uint32)
             ch = self.channels[ch_id]
             yield MessageBatch(ch, self.schemas.get(ch.schema_id), buf, starts, lens, log_time,
-                               np.asarray([ords[k] for k in ks], dtype=np.int64))
+                               np.asarray([ords[k] for k in ks], dtype=np.int64), seq)
 
     def _chunk_batches(self, off: int, chunk: Chunk, indexes: dict[int, np.ndarray],
                        wanted: Callable[[int], bool]) -> Iterator[MessageBatch]:
@@ -1110,9 +1115,10 @@ class McapReader:
             o = offs[sel]
             rec_len = _gather_u64(arr, o + 1).astype(np.int64)
             log_time = _gather_u64(arr, o + 15)
+            seq = sliding_window_view(arr, 4)[o + 11].view('<u4').ravel()
             ch = self.channels[ch_id]
             yield MessageBatch(ch, self.schemas.get(ch.schema_id), arr, o + _MSG_HEAD,
-                               rec_len - _MSG.size, log_time, base + sel.astype(np.int64))
+                               rec_len - _MSG.size, log_time, base + sel.astype(np.int64), seq)
 
     def _locate_messages(self, raw: bytes, arr: np.ndarray,
                          indexes: dict[int, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
