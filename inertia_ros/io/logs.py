@@ -1,8 +1,11 @@
 """Recorded logs -> clean numpy arrays for the estimator.
 
 :func:`read_log` reads a single ``.mcap`` file or a rosbag2 directory (``metadata.yaml`` plus
-``.mcap`` files), finds the angular-velocity and torque topics by message type, decodes them
-with the vectorised CDR path, and cleans what real recordings contain:
+its storage files), finds the angular-velocity and torque topics by message type, decodes
+them with the vectorised CDR path, and cleans what real recordings contain.  Plain MCAP is
+read by our own bounded reader (:mod:`inertia_ros.io.mcap_reader`); sqlite3 (``.db3``) and
+compressed bags go through ``rosbags`` (:mod:`inertia_ros.io.rosbags_source`) into the same
+batches; ``metadata.yaml`` is validated once (:mod:`inertia_ros.io.rosbag2`).
 
 ======================  ===================================================================
 problem                 handling (each counted in :attr:`StreamCounts`)
@@ -12,20 +15,33 @@ NaN / Inf sample        dropped (``nonfinite``)
 wrong ``frame_id``      a few stray messages are dropped (``wrong_frame``); two frames in
                         earnest, or different frames on the two streams, raise
                         :class:`LogError` unless ``ignore_frames``
-clock jump backwards    a looped or restarted recording: the log is split into pieces at
-                        every backward jump of the merged stamp sequence larger than
-                        ``max_backward_jump``; later pieces are shifted to start after the
-                        previous one (``clock_jumps``)
+clock restart           both streams' stamps step back together (a looped or restarted
+                        recording): the later part is placed one second after the earlier
+                        and estimated as a separate segment (``clock_jumps``)
+clock fault             one stream's stamps step back while the other runs on, seen in
+                        file order or, for files stored in stamp order, in the messages'
+                        sequence numbers: the stream is realigned by continuity and the log
+                        segmented there (``clock_faults``); without either order, samples
+                        whose stamps collide or interleave are dropped from the first on
+                        (``stamp_conflicts``)
 out-of-order arrival    sorted by header stamp (``out_of_order`` counts late arrivals)
-duplicate               same header stamp twice on a stream: the first kept (``duplicates``)
+duplicate               same header stamp and same values twice: the first kept
+                        (``duplicates``); same stamp, other values: both dropped
+                        (``stamp_conflicts``)
 gap                     a stamp step over ``gap_factor`` times the median step splits the
                         stream; the estimator's windows are the intersections of the two
                         streams' gap-free runs (``gaps``)
+long pause              a pause between windows over ``max_gap`` is shortened to an
+                        ordinary gap (1 s), moving the rest of the log earlier, so the
+                        estimator's accumulated integrals never cross it
+                        (``pauses_shortened``, ``time_removed_s``)
 stream stops early      samples outside the common windows are dropped (``outside``)
 ======================  ===================================================================
 
 Times are the messages' header stamps (never MCAP log times), returned as float seconds
-relative to :attr:`LogData.epoch_ns`, the integer-nanosecond stamp of the first sample kept.
+relative to :attr:`LogData.epoch_ns`, the integer-nanosecond stamp of the first sample kept;
+after a clock restart, a clock fault or a long pause, later times are shifted as described
+(the warnings say by how much).
 """
 from __future__ import annotations
 

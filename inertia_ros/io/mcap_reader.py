@@ -61,6 +61,11 @@ _MSG = struct.Struct('<HIQQ')
 _MSG_HEAD = 9 + _MSG.size  # opcode + length + fixed message fields = 31 bytes
 
 
+#: Top-level records the batch reader reads; others (attachments, indexes, statistics) are
+#: skipped without being read.
+_READ_OPS = frozenset((0x01, 0x03, 0x04, 0x05, 0x06, 0x07, 0x0C, 0x0F))
+
+
 class McapError(ValueError):
     """The file is not a readable MCAP file (bad magic, or nothing intact to read)."""
 
@@ -903,9 +908,24 @@ class McapReader:
                 pos = nxt
                 fh.seek(pos)
                 continue
-            body = fh.read(ln)
             if op == OP_FOOTER:
                 return
+            if op not in _READ_OPS or ln > self.max_chunk_bytes + (1 << 20):
+                # attachments and the like are never needed: skipped unread, whatever their
+                # size; a needed record over the ceiling is damage, not an allocation
+                if op in _READ_OPS:
+                    what = 'chunk' if op == OP_CHUNK else f'record (opcode 0x{op:02x})'
+                    if op == OP_CHUNK:
+                        self._bad_chunk(pos, None, ln, f'{ln} bytes, over the limit of '
+                                        f'{self.max_chunk_bytes}')
+                    else:
+                        self.damage.bytes_lost += 9 + ln
+                        self.damage.notes.append(f'{what} at byte {pos} skipped: {ln} bytes, '
+                                                 f'over the limit of {self.max_chunk_bytes}')
+                pos += 9 + ln
+                fh.seek(pos)
+                continue
+            body = fh.read(ln)
             yield op, pos, body
             pos += 9 + ln
             if self._progress is not None:
