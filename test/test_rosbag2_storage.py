@@ -135,3 +135,36 @@ def test_metadata_is_parsed_once_into_types(tmp_path: Path) -> None:
     assert info.message_counts == {t['topic_metadata']['name']: t['message_count']
                                    for t in meta['topics_with_message_count']}
     assert read_bag_info(tmp_path) is None
+
+
+_RSS_RUNNER = r'''
+import resource, sys
+from inertia_ros.io.logs import LogError, read_log
+try:
+    read_log(sys.argv[1])
+    print('read')
+except LogError as exc:
+    print('error', exc)
+print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024)
+'''
+
+
+def test_message_compressed_bomb_is_one_line_and_bounded(tmp_path: Path) -> None:
+    """A 1 GiB zstd bomb in a message-compressed .db3: one line, peak memory < 1 GiB."""
+    import sqlite3
+    import subprocess
+
+    from fuzz_corpus import zstd_stream
+
+    bag = write_twin(BAG, tmp_path / 'twin', mode='MESSAGE')
+    db3 = next(bag.glob('*.db3'))
+    con = sqlite3.connect(db3)
+    with con:
+        con.execute('UPDATE messages SET data = ? WHERE id = 5', (zstd_stream(1 << 30),))
+    con.close()
+    proc = subprocess.run([sys.executable, '-c', _RSS_RUNNER, str(bag)], capture_output=True,
+                          text=True, cwd=ROOT, timeout=120)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    first, rss = proc.stdout.strip().splitlines()
+    assert first.startswith('error ') and 'decompression bomb' in first, first
+    assert int(rss) < 1 << 30, f'peak {int(rss) / 2 ** 20:.0f} MiB'

@@ -15,7 +15,16 @@ from typing import Any
 
 import numpy as np
 
-from inertia_ros.io.mcap_reader import Channel, ChannelFilter, Damage, MessageBatch, Schema
+from inertia_ros.io.mcap_reader import (
+    MAX_CHUNK_BYTES,
+    Channel,
+    ChannelFilter,
+    Damage,
+    McapError,
+    MessageBatch,
+    Schema,
+    decompress,
+)
 from inertia_ros.io.rosbag2 import BagInfo
 
 #: The rosbags release this code is tested with (requirements.txt pins it).
@@ -36,6 +45,97 @@ def _import_rosbag2(info: BagInfo) -> Any:
         raise RosbagsError(f'{info.directory}: reading {what} needs the Python package '
                            f'{missing!r} (missing): pip install {ROSBAGS_PIN}') from None
     return rosbag2
+
+
+class _BoundedZstd:
+    """Stands in for the ``zstd`` module inside rosbags' reader: bounded output.
+
+    rosbags decompresses message-compressed payloads with ``zstd.decompress(data)`` and
+    file-compressed storage files with ``zstd.open``, trusting the frame's own size; here a
+    payload is limited to ``per_message`` bytes and a file to ``per_file`` bytes (the free
+    space of the temporary directory it is written to), so a bomb is an error, not a memory
+    or disk spike.
+    """
+
+    def __init__(self, real: Any, per_message: int, per_file: int) -> None:
+        self._real = real
+        self._per_message = per_message
+        self._per_file = per_file
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._real, name)
+
+    def decompress(self, data: bytes) -> bytes:
+        d = self._real.ZstdDecompressor()
+        out = d.decompress(data, max_length=self._per_message + 1)
+        if len(out) > self._per_message:
+            raise McapError(f'a zstd-compressed message expands past {self._per_message} '
+                            'bytes (a decompression bomb or damaged data)')
+        if not d.eof:
+            raise McapError('a zstd-compressed message is truncated')
+        return out
+
+    def open(self, fh: Any, mode: str = 'rb') -> Any:
+        return _CappedReader(self._real.open(fh, mode), self._per_file)
+
+
+class _CappedReader:
+    """A file-like reader that raises once more than ``limit`` bytes were read."""
+
+    def __init__(self, inner: Any, limit: int) -> None:
+        self._inner = inner
+        self._left = limit
+
+    def __enter__(self) -> _CappedReader:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self._inner.close()
+
+    def read(self, n: int = -1) -> bytes:
+        data = self._inner.read(n if n is not None and n >= 0 else 1 << 20)
+        self._left -= len(data)
+        if self._left < 0:
+            raise McapError('a zstd-compressed bag file expands past the free space of the '
+                            'temporary directory (a decompression bomb or a huge bag)')
+        return data
+
+    def readinto(self, buf: Any) -> int:
+        data = self.read(len(buf))
+        buf[:len(data)] = data
+        return len(data)
+
+
+class _Bounded:
+    """Context manager: rosbags' decompression bounded while one of our reads runs."""
+
+    def __init__(self, per_message: int = MAX_CHUNK_BYTES) -> None:
+        self._per_message = per_message
+        self._saved: list[tuple[Any, str, Any]] = []
+
+    def __enter__(self) -> _Bounded:
+        import shutil
+        import tempfile
+
+        from rosbags.rosbag2 import reader, storage_mcap
+
+        free = shutil.disk_usage(tempfile.gettempdir()).free
+        self._saved = [(reader, 'zstd', reader.zstd)]
+        reader.zstd = _BoundedZstd(reader.zstd, self._per_message, max(free - (1 << 30), 0))
+        table = storage_mcap.DECOMPRESSORS
+        for codec in ('lz4', 'zstd'):
+            self._saved.append((table, codec, table[codec]))
+            table[codec] = (lambda c: lambda data, size: decompress(
+                c, data, size, limit=self._per_message))(codec)
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        for owner, key, val in reversed(self._saved):
+            if isinstance(owner, dict):
+                owner[key] = val
+            else:
+                setattr(owner, key, val)
+        self._saved = []
 
 
 class RosbagsSource:
@@ -76,9 +176,10 @@ class RosbagsSource:
         self.damage = Damage()
         self.messages_read = 0
         rosbag2 = _import_rosbag2(info)
-        self._reader = rosbag2.Reader(self.path)
         try:
-            self._reader.open()
+            self._reader = rosbag2.Reader(self.path)
+            with _Bounded():
+                self._reader.open()
         except Exception as exc:  # rosbags raises ReaderError, apsw/sqlite and codec errors
             raise RosbagsError(self._explain(exc)) from None
         for c in self._reader.connections:
@@ -128,6 +229,8 @@ class RosbagsSource:
         total = int(sum(getattr(c, 'msgcount', 0) or 0 for c in conns))
         pend: dict[int, tuple[list[bytes], list[int], list[int]]] = {}
         try:
+            bounded = _Bounded()
+            bounded.__enter__()
             for conn, stamp, data in self._reader.messages(connections=conns):
                 p = pend.setdefault(conn.id, ([], [], []))
                 p[0].append(bytes(data))
@@ -140,6 +243,8 @@ class RosbagsSource:
                         self._progress(self.messages_read, max(total, self.messages_read))
         except Exception as exc:  # sqlite/apsw errors, zstd errors, rosbags ReaderError
             raise RosbagsError(self._explain(exc)) from None
+        finally:
+            bounded.__exit__()
         for cid in list(pend):
             yield self._make(cid, pend.pop(cid))
 
