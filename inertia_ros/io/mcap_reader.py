@@ -374,6 +374,9 @@ def parse_record(opcode: int, body: bytes | memoryview) -> Record:
     return UnknownRecord(opcode, bytes(body))
 
 
+#: Largest piece an LZ4 frame is decompressed in [bytes].
+_PIECE = 16 << 20
+
 #: Default ceiling on one chunk's uncompressed size [bytes]: a chunk declaring more, or a
 #: compressed stream producing more than its chunk declares, is a damaged chunk (a
 #: decompression bomb), never an allocation.
@@ -438,8 +441,21 @@ def decompress(compression: str, data: bytes | memoryview, size: int, *,
             del buf[got:]
             out = buf
         else:
+            # in pieces into one buffer: peak memory is the chunk plus one piece
+            buf = bytearray(size + 1)
+            got = 0
             dec = codec.LZ4FrameDecompressor()
-            out = dec.decompress(bytes(data), max_length=size + 1)
+            piece = dec.decompress(bytes(data), max_length=min(size + 1, _PIECE))
+            while True:
+                buf[got:got + len(piece)] = piece
+                got += len(piece)
+                if dec.eof or got > size or dec.needs_input:
+                    break
+                piece = dec.decompress(b'', max_length=min(size + 1 - got, _PIECE))
+                if not piece:
+                    break
+            del buf[got:]
+            out = buf
     except Exception as exc:  # the codecs raise their own error types
         raise McapError(f'{compression} decompression failed: {exc}') from exc
     if len(out) > size:
