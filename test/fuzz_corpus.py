@@ -8,9 +8,10 @@ known about it:
     The family (``truncate``, ``flip``, ``bomb``, ``metadata``, ``short_record``,
     ``footer``, ``clock``, ``pause``, ``garbage``).
 ``truth``
-    The true inertia tensor (3, 3) [kg m^2] when the damage cannot have changed the answer's
-    meaning (clock faults and pauses): a report with status ``ok`` must then lie within
-    5 standard deviations of it, element by element.
+    The true inertia tensor (3, 3) [kg m^2] when whatever is read is still genuine data
+    (truncations and byte flips, as chunk CRCs catch the flips; clock faults, pauses and
+    damaged footers): a report with status ``ok`` must then lie within 5 standard
+    deviations of it, element by element.
 
 The base log is 20 s of the nominal scene (gyro 100 Hz, torque 50 Hz), written with the
 ``mcap`` package's writer (not ours) so that sequence numbers, log times, chunking and
@@ -220,7 +221,7 @@ def build_corpus(out: Path, seed: int = 16) -> tuple[list[Case], Base]:
         for k, cut in enumerate(cuts.tolist()):
             p = out / f'trunc_{c}_{k}.mcap'
             p.write_bytes(data[:cut])
-            cases.append(Case(f'trunc_{c}_{cut}', 'truncate', p))
+            cases.append(Case(f'trunc_{c}_{cut}', 'truncate', p, b.inertia))
     # byte flips: 1, 3, 16 or 200 random bytes set to random values
     for c, data in raw.items():
         for k in range(24):
@@ -230,7 +231,7 @@ def build_corpus(out: Path, seed: int = 16) -> tuple[list[Case], Base]:
             buf[at] = rng.integers(0, 256, n, dtype=np.uint8)
             p = out / f'flip_{c}_{k}.mcap'
             p.write_bytes(buf.tobytes())
-            cases.append(Case(f'flip_{c}_{k}', 'flip', p))
+            cases.append(Case(f'flip_{c}_{k}', 'flip', p, b.inertia))
     cases += metadata_cases(out, base['zstd'])
     cases += short_record_cases(out, b)
     cases += footer_cases(out, raw['zstd'], b)

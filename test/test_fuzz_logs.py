@@ -5,9 +5,9 @@ flips, decompression bombs, bad ``metadata.yaml`` of every type, short records, 
 footers, clock faults and pauses goes through ``inertia_ros.cli.main(['estimate', ...])``.
 Every run must end with exit 0 and the JSON contract, or exit 2 and exactly one stderr
 line; the input must be byte-for-byte unchanged; each run must take < 10 s; where the truth
-is known (intact logs, damaged footers, clock faults, pauses) a report with status ``ok``
-must lie within 5 standard deviations of it in every tensor element.  The bombs run in a
-subprocess whose peak resident memory must stay below 1 GiB.
+is known (intact and truncated logs, byte flips, damaged footers, clock faults, pauses) a
+report with status ``ok`` must lie within 5 standard deviations of it in every element.
+The bombs run in a subprocess whose peak resident memory must stay below 1 GiB.
 """
 from __future__ import annotations
 
