@@ -1,8 +1,11 @@
 """Recorded logs -> clean numpy arrays for the estimator.
 
 :func:`read_log` reads a single ``.mcap`` file or a rosbag2 directory (``metadata.yaml`` plus
-``.mcap`` files), finds the angular-velocity and torque topics by message type, decodes them
-with the vectorised CDR path, and cleans what real recordings contain:
+its storage files), finds the angular-velocity and torque topics by message type, decodes
+them with the vectorised CDR path, and cleans what real recordings contain.  Plain MCAP is
+read by our own bounded reader (:mod:`inertia_ros.io.mcap_reader`); sqlite3 (``.db3``) and
+compressed bags go through ``rosbags`` (:mod:`inertia_ros.io.rosbags_source`) into the same
+batches; ``metadata.yaml`` is validated once (:mod:`inertia_ros.io.rosbag2`).
 
 ======================  ===================================================================
 problem                 handling (each counted in :attr:`StreamCounts`)
@@ -12,32 +15,56 @@ NaN / Inf sample        dropped (``nonfinite``)
 wrong ``frame_id``      a few stray messages are dropped (``wrong_frame``); two frames in
                         earnest, or different frames on the two streams, raise
                         :class:`LogError` unless ``ignore_frames``
-clock jump backwards    a looped or restarted recording: the log is split into pieces at
-                        every backward jump of the merged stamp sequence larger than
-                        ``max_backward_jump``; later pieces are shifted to start after the
-                        previous one (``clock_jumps``)
+clock restart           both streams' stamps step back together (a looped or restarted
+                        recording): the later part is placed one second after the earlier
+                        and estimated as a separate segment (``clock_jumps``)
+clock fault             one stream's stamps step back while the other runs on, seen in
+                        file order or, for files stored in stamp order, in the messages'
+                        sequence numbers: the stream is realigned by continuity and the log
+                        segmented there (``clock_faults``); without either order, samples
+                        whose stamps collide or interleave are dropped from the first on
+                        (``stamp_conflicts``)
 out-of-order arrival    sorted by header stamp (``out_of_order`` counts late arrivals)
-duplicate               same header stamp twice on a stream: the first kept (``duplicates``)
+duplicate               same header stamp and same values twice: the first kept
+                        (``duplicates``); same stamp, other values: both dropped
+                        (``stamp_conflicts``)
 gap                     a stamp step over ``gap_factor`` times the median step splits the
                         stream; the estimator's windows are the intersections of the two
                         streams' gap-free runs (``gaps``)
+long pause              a pause between windows over ``max_gap`` is shortened to an
+                        ordinary gap (1 s), moving the rest of the log earlier, so the
+                        estimator's accumulated integrals never cross it
+                        (``pauses_shortened``, ``time_removed_s``)
 stream stops early      samples outside the common windows are dropped (``outside``)
 ======================  ===================================================================
 
 Times are the messages' header stamps (never MCAP log times), returned as float seconds
-relative to :attr:`LogData.epoch_ns`, the integer-nanosecond stamp of the first sample kept.
+relative to :attr:`LogData.epoch_ns`, the integer-nanosecond stamp of the first sample kept;
+after a clock restart, a clock fault or a long pause, later times are shifted as described
+(the warnings say by how much).
 """
 from __future__ import annotations
 
 import json
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from inertia_ros.io import cdr_decode
-from inertia_ros.io.mcap_reader import Channel, Damage, McapError, McapReader, Schema
+from inertia_ros.io.mcap_reader import (
+    Channel,
+    ChannelFilter,
+    CodecMissingError,
+    Damage,
+    McapError,
+    McapReader,
+    MessageBatch,
+    Schema,
+)
+from inertia_ros.io.rosbag2 import BagInfo, BagMetadataError, read_bag_info
+from inertia_ros.io.rosbags_source import RosbagsError, RosbagsSource
 
 #: Angular-velocity message types and the field holding omega [rad/s].
 OMEGA_TYPES: dict[str, str] = {
@@ -76,6 +103,8 @@ class StreamCounts:
     outside: int = 0
     used: int = 0
     gaps: int = 0
+    clock_faults: int = 0
+    stamp_conflicts: int = 0
 
     @property
     def dropped(self) -> int:
@@ -143,6 +172,13 @@ class LogData:
         What could not be read from damaged files (summed over files).
     warnings : list of str
         One line per thing the user should know.
+    clock_faults : int
+        Backward clock steps of one stream alone (realigned and segmented), plus streams
+        dropped from an unresolvable stamp conflict on (see :func:`_repair_clocks`).
+    pauses_shortened : int
+        Pauses longer than ``max_gap`` shortened (everything after moved earlier).
+    time_removed_s : float
+        Total time those pauses lost [s]: the stamps after a pause are ``t + removed``.
     """
 
     paths: list[Path]
@@ -156,6 +192,9 @@ class LogData:
     metadata: dict[str, dict[str, str]] = field(default_factory=dict)
     damage: Damage = field(default_factory=Damage)
     warnings: list[str] = field(default_factory=list)
+    clock_faults: int = 0
+    pauses_shortened: int = 0
+    time_removed_s: float = 0.0
 
     @property
     def scene(self) -> dict | None:
@@ -179,6 +218,9 @@ class LogData:
                        **self.torque.counts.as_dict()},
             'windows': len(self.windows),
             'clock_jumps': self.clock_jumps,
+            'clock_faults': self.clock_faults,
+            'pauses_shortened': self.pauses_shortened,
+            'time_removed_s': round(float(self.time_removed_s), 9),
             'damage': {'truncated': self.damage.truncated,
                        'corrupt_chunks': self.damage.corrupt_chunks,
                        'bytes_lost': self.damage.bytes_lost,
@@ -204,9 +246,11 @@ class _Raw:
     values: list[np.ndarray] = field(default_factory=list)
     ok: list[np.ndarray] = field(default_factory=list)
     ordinal: list[np.ndarray] = field(default_factory=list)
+    seq: list[np.ndarray] = field(default_factory=list)
     frames: dict[str, int] = field(default_factory=dict)
 
-    def add(self, d: cdr_decode.DecodedBatch, field_name: str, ordinal: np.ndarray) -> None:
+    def add(self, d: cdr_decode.DecodedBatch, field_name: str, ordinal: np.ndarray,
+            sequence: np.ndarray | None = None) -> None:
         remap = np.array([self.frames.setdefault(f, len(self.frames)) for f in d.frame_ids]
                          + [-1], dtype=np.int32)
         self.stamp.append(d.stamp_ns)
@@ -215,6 +259,8 @@ class _Raw:
         self.values.append(v if v.shape[1] != 1 else v.reshape(-1, 1))
         self.ok.append(d.ok)
         self.ordinal.append(ordinal)
+        self.seq.append(np.zeros(ordinal.size, np.int64) if sequence is None
+                        else sequence.astype(np.int64))
 
     @property
     def count(self) -> int:
@@ -222,22 +268,33 @@ class _Raw:
         return int(sum(a.size for a in self.stamp))
 
     def arrays(self) -> tuple[np.ndarray, ...]:
-        """(stamp, frame, values, ok, ordinal) in arrival (file) order."""
+        """(stamp, frame, values, ok, ordinal, sequence) in file order."""
         if not self.stamp:
             z = np.zeros(0, np.int64)
-            return z, z.astype(np.int32), np.zeros((0, 3)), z.astype(bool), z
+            return z, z.astype(np.int32), np.zeros((0, 3)), z.astype(bool), z, z
         order = np.argsort(np.concatenate(self.ordinal), kind='stable')
         return tuple(np.concatenate(a)[order] for a in
-                     (self.stamp, self.frame, self.values, self.ok, self.ordinal))
+                     (self.stamp, self.frame, self.values, self.ok, self.ordinal, self.seq))
+
+
+def _bag(path: str | Path) -> BagInfo | None:
+    """The validated metadata of a bag directory (None for a file or a bare directory)."""
+    p = Path(path)
+    if not p.is_dir():
+        return None
+    try:
+        return read_bag_info(p)
+    except BagMetadataError as exc:
+        raise LogError(str(exc)) from None
 
 
 def log_files(path: str | Path) -> list[Path]:
-    """The MCAP files of a log: the file itself, or a rosbag2 directory's files in order.
+    """The storage files of a log: the file itself, or a rosbag2 directory's files in order.
 
     Parameters
     ----------
     path : str or Path
-        A ``.mcap`` file or a rosbag2 directory.
+        A ``.mcap`` file or a rosbag2 directory (any storage: mcap, sqlite3, compressed).
 
     Returns
     -------
@@ -246,35 +303,25 @@ def log_files(path: str | Path) -> list[Path]:
     Raises
     ------
     LogError
-        Missing path, a directory that is not an MCAP rosbag2 bag, or no files.
+        Missing path, unusable ``metadata.yaml``, or a directory with no storage files.
     """
     p = Path(path)
     if not p.exists():
         raise LogError(f'{p}: no such file or directory')
     if p.is_file():
+        if p.suffix == '.db3' or p.name.endswith(('.mcap.zstd', '.db3.zstd')):
+            raise LogError(f'{p}: a {p.suffix} file is read as part of its rosbag2 bag; pass '
+                           f'the bag directory {p.parent} (with its metadata.yaml)')
         return [p]
-    meta = p / 'metadata.yaml'
-    if meta.is_file():
-        import yaml
-
-        try:
-            info = yaml.safe_load(meta.read_text()) or {}
-            info = info.get('rosbag2_bagfile_information', info)
-        except (yaml.YAMLError, AttributeError) as exc:
-            raise LogError(f'{meta}: not valid rosbag2 metadata ({exc.__class__.__name__}); '
-                           'fix or remove it') from None
-        storage = info.get('storage_identifier', 'mcap')
-        if storage != 'mcap':
-            raise LogError(f'{p}: rosbag2 storage {storage!r} is not supported; convert it '
-                           'with "ros2 bag convert" to mcap')
-        if info.get('compression_format'):
-            raise LogError(f'{p}: file-compressed bags ({info["compression_format"]}) are not '
-                           'supported; decompress the files first')
-        rel = info.get('relative_file_paths') or []
-        files = [p / r for r in rel]
-        present = [f for f in files if f.is_file()]
+    info = _bag(p)
+    if info is not None and info.files:
+        present = [f for f in info.files if f.is_file()]
         if present:
             return present
+    if info is not None and not info.own_mcap_path:
+        raise LogError(f'{p}: none of the files metadata.yaml lists '
+                       f'({", ".join(f.name for f in info.files) or "none"}) is in the '
+                       'directory')
     files = sorted(p.glob('*.mcap'))
     if not files:
         raise LogError(f'{p}: directory holds no .mcap files (expected a rosbag2 bag)')
@@ -284,7 +331,7 @@ def log_files(path: str | Path) -> list[Path]:
 def read_log(path: str | Path, omega_topic: str | None = None,
              torque_topic: str | None = None, *, ignore_frames: bool = False,
              torque_delay: float = 0.0, gap_factor: float = 5.0,
-             max_backward_jump: float = 0.5, min_window: int = 10,
+             max_backward_jump: float = 0.5, min_window: int = 10, max_gap: float = 10.0,
              progress: Callable[[int, int], None] | None = None) -> LogData:
     """Read a log into cleaned angular-velocity and torque streams.
 
@@ -307,6 +354,10 @@ def read_log(path: str | Path, omega_topic: str | None = None,
         piece of the log); smaller ones are out-of-order arrival (> 0).
     min_window : int
         Windows with fewer gyro samples are dropped (>= 2).
+    max_gap : float
+        Pauses between windows longer than this [s] are shortened to an ordinary gap (1 s
+        or 10 sample intervals), moving everything after them earlier, so that the
+        estimator's accumulated integrals never cross hours of nothing (> 0).
     progress : callable, optional
         ``progress(bytes_done, bytes_total)`` while reading.
 
@@ -330,9 +381,12 @@ def read_log(path: str | Path, omega_topic: str | None = None,
         raise ValueError(f'max_backward_jump: must be > 0, got {max_backward_jump}')
     if min_window < 2:
         raise ValueError(f'min_window: must be >= 2, got {min_window}')
+    if not (np.isfinite(max_gap) and max_gap > 0):
+        raise ValueError(f'max_gap: must be > 0 s, got {max_gap}')
     files = log_files(path)
+    info = _bag(path)
     raws, topics, metadata, damage, warnings = _read_files(files, omega_topic, torque_topic,
-                                                           progress)
+                                                           progress, info)
     if damage.any:
         for note in damage.notes:
             warnings.append(f'damaged log: {note}')
@@ -343,7 +397,7 @@ def read_log(path: str | Path, omega_topic: str | None = None,
     om_type = topics[om_topic]
     tq_type = topics.get(tq_topic, '')
 
-    expected = _bag_counts(path)
+    expected = info.message_counts if info is not None else {}
     for t in (om_topic, tq_topic):
         got = raws[t].count if t in raws else 0
         if t in expected and got < expected[t]:
@@ -352,7 +406,7 @@ def read_log(path: str | Path, omega_topic: str | None = None,
     om = _prepare(om_topic, om_type, raws.get(om_topic), ignore_frames, warnings)
     if no_torque:
         z = np.zeros(0, np.int64)
-        tq = (z, np.zeros((0, 3)), z.astype(bool), StreamCounts(), om[4], z)
+        tq = (z, np.zeros((0, 3)), z.astype(bool), StreamCounts(), om[4], z, z)
         warnings.append('no torque stream (--torque-topic none): torque-free data, only the '
                         'ratios and principal axes are observable')
     else:
@@ -363,37 +417,46 @@ def read_log(path: str | Path, omega_topic: str | None = None,
                        '--ignore-frames if they are the same frame under two names)')
     if torque_delay:
         tq = (tq[0] - int(round(torque_delay * 1e9)), *tq[1:])
+    om, tq, restarts = _repair_clocks(om, tq, int(max_backward_jump * 1e9), gap_factor,
+                                      max_gap, (om_topic, tq_topic), warnings)
     data = _clean(om, tq, gap_factor=gap_factor, max_backward_jump=max_backward_jump,
-                  min_window=min_window, warnings=warnings)
-    epoch, (t_om, v_om, c_om), (t_tq, v_tq, c_tq), windows, jumps = data
+                  min_window=min_window, warnings=warnings, max_gap=max_gap)
+    epoch, (t_om, v_om, c_om), (t_tq, v_tq, c_tq), windows, jumps, (pauses, removed) = data
+    jumps += restarts
     omega = Stream(om_topic, om_type, om[4], t_om, v_om, c_om, _rate(t_om))
     torque = Stream(tq_topic, tq_type, tq[4], t_tq, v_tq, c_tq, _rate(t_tq))
     truth = _truth(raws.get(TRUTH_TOPIC), epoch)
     return LogData(files, epoch, omega, torque, windows, jumps, truth, topics, metadata,
-                   damage, warnings)
+                   damage, warnings, c_om.clock_faults + c_tq.clock_faults, pauses,
+                   removed / 1e9)
 
 
-def _bag_counts(path: str | Path) -> dict[str, int]:
-    """Per-topic message counts a rosbag2 directory's metadata.yaml promises ({} if none)."""
-    meta = Path(path) / 'metadata.yaml'
-    if not meta.is_file():
-        return {}
-    import yaml
-
+def _open(f: Path, info: BagInfo | None, prog: Callable[[int, int], None]
+          ) -> McapReader | RosbagsSource:
+    """A batch source for one MCAP file, or for the whole bag when rosbags must read it."""
+    if info is not None and not info.own_mcap_path:
+        try:
+            return RosbagsSource(info, progress=prog)
+        except RosbagsError as exc:
+            raise LogError(str(exc)) from None
     try:
-        info = yaml.safe_load(meta.read_text()) or {}
-        info = info.get('rosbag2_bagfile_information', info)
-        return {t['topic_metadata']['name']: int(t['message_count'])
-                for t in info.get('topics_with_message_count') or []}
-    except (yaml.YAMLError, AttributeError, KeyError, TypeError, ValueError):
-        return {}
+        return McapReader(f, progress=prog)
+    except McapError as exc:
+        raise LogError(str(exc)) from None
 
 
 def _read_files(files: list[Path], omega_topic: str | None, torque_topic: str | None,
-                progress: Callable[[int, int], None] | None
+                progress: Callable[[int, int], None] | None, info: BagInfo | None = None
                 ) -> tuple[dict[str, _Raw], dict[str, str], dict[str, dict[str, str]],
                            Damage, list[str]]:
-    """One pass over every file: decode every topic of a type we can use."""
+    """One pass over every file: decode every topic of a type we can use.
+
+    Plain MCAP goes through our own reader, file by file; any other rosbag2 storage (sqlite3,
+    compressed) through :class:`~inertia_ros.io.rosbags_source.RosbagsSource`, once for the
+    whole bag.
+    """
+    if info is not None and not info.own_mcap_path:
+        files = [info.directory]
     wanted_types = set(OMEGA_TYPES) | set(TORQUE_TYPES) | {TRUTH_TYPE}
     # with both topics named only those (and the truth) are decoded; else every candidate
     named = {omega_topic, torque_topic} if omega_topic and torque_topic else set()
@@ -402,7 +465,7 @@ def _read_files(files: list[Path], omega_topic: str | None, torque_topic: str | 
     metadata: dict[str, dict[str, str]] = {}
     damage = Damage()
     warnings: list[str] = []
-    sizes = [f.stat().st_size for f in files]
+    sizes = [f.stat().st_size if f.is_file() else 0 for f in files]
     total = sum(sizes)
     done = 0
     ordinal_base = 0
@@ -411,10 +474,7 @@ def _read_files(files: list[Path], omega_topic: str | None, torque_topic: str | 
             if progress is not None:
                 progress(_done + b, total)
 
-        try:
-            reader = McapReader(f, progress=prog)
-        except McapError as exc:
-            raise LogError(str(exc)) from None
+        reader = _open(f, info, prog)
         with reader:
             def select(ch: Channel, schema: Schema | None) -> bool:
                 typ = cdr_decode.normalise_type(schema.name) if schema else ''
@@ -424,7 +484,7 @@ def _read_files(files: list[Path], omega_topic: str | None, torque_topic: str | 
                     return False
                 return True
 
-            for b in reader.iter_batches(select):
+            for b in _batches(reader, select):
                 typ = cdr_decode.normalise_type(b.schema.name)
                 raw = raws.setdefault(b.channel.topic, _Raw(typ))
                 if typ != raw.msg_type:
@@ -440,7 +500,7 @@ def _read_files(files: list[Path], omega_topic: str | None, torque_topic: str | 
                     d = cdr_decode.DecodedBatch(d.msg_type, d.stamp_ns, d.frame_index,
                                                 d.frame_ids, {'inertia': vals}, d.ok)
                     fname = 'inertia'
-                raw.add(d, fname, ordinal_base + b.ordinal)
+                raw.add(d, fname, ordinal_base + b.ordinal, b.sequence)
             for ch in reader.channels.values():
                 sc = reader.schemas.get(ch.schema_id)
                 topics.setdefault(ch.topic, cdr_decode.normalise_type(sc.name) if sc else '')
@@ -455,6 +515,17 @@ def _read_files(files: list[Path], omega_topic: str | None, torque_topic: str | 
             damage.notes.extend(f'{f.name}: {n}' for n in d0.notes)
         done += size
     return raws, topics, metadata, damage, warnings
+
+
+def _batches(reader: McapReader | RosbagsSource, select: ChannelFilter
+             ) -> Iterator[MessageBatch]:
+    """``reader.iter_batches(select)`` with reader failures as one-line :class:`LogError`."""
+    try:
+        yield from reader.iter_batches(select)
+    except CodecMissingError as exc:
+        raise LogError(str(exc)) from None
+    except RosbagsError as exc:
+        raise LogError(str(exc)) from None
 
 
 def _field_for(msg_type: str, topic: str) -> str:
@@ -530,8 +601,8 @@ def _prepare(topic: str, msg_type: str, raw: _Raw | None, ignore_frames: bool,
     """(stamp, values, keep, counts, frame, ordinal-free arrays) with bad messages marked."""
     if raw is None:
         raise LogError(f'{topic}: no messages of type {msg_type} in the log (empty stream)')
-    stamp, frame, values, ok, ordinal = raw.arrays()
-    raw.stamp, raw.frame, raw.values, raw.ok, raw.ordinal = [], [], [], [], []  # free
+    stamp, frame, values, ok, ordinal, seq = raw.arrays()
+    raw.stamp, raw.frame, raw.values, raw.ok, raw.ordinal, raw.seq = [], [], [], [], [], []
     counts = StreamCounts(received=int(stamp.size))
     if stamp.size == 0:
         raise LogError(f'{topic}: the stream is empty')
@@ -566,7 +637,7 @@ def _prepare(topic: str, msg_type: str, raw: _Raw | None, ignore_frames: bool,
     if not keep.any():
         raise LogError(f'{topic}: no usable messages ({counts.received} received, all '
                        'malformed or non-finite)')
-    return stamp, values, keep, counts, frame_name, ordinal
+    return stamp, values, keep, counts, frame_name, ordinal, seq
 
 
 def _median_step(s: np.ndarray) -> float:
@@ -590,10 +661,10 @@ def _runs(stamps: np.ndarray, limit: float) -> list[tuple[int, int]]:
 
 
 def _clean(om: tuple, tq: tuple, *, gap_factor: float, max_backward_jump: float,
-           min_window: int, warnings: list[str]):
+           min_window: int, warnings: list[str], max_gap: float = 10.0):
     """Pieces, sorting, de-duplication, gaps and windows; returns times relative to epoch."""
-    s_om, v_om, k_om, c_om, _, o_om = om
-    s_tq, v_tq, k_tq, c_tq, _, o_tq = tq
+    s_om, v_om, k_om, c_om, _, o_om, _ = om
+    s_tq, v_tq, k_tq, c_tq, _, o_tq, _ = tq
     idx_om = np.flatnonzero(k_om)
     idx_tq = np.flatnonzero(k_tq)
     free = s_tq.size == 0  # no torque stream: torque-free data
@@ -627,6 +698,7 @@ def _clean(om: tuple, tq: tuple, *, gap_factor: float, max_backward_jump: float,
                             'neighbours dropped')
     out_t_om, out_v_om, out_t_tq, out_v_tq = [], [], [], []
     windows_ns: list[tuple[int, int]] = []
+    steps: list[float] = []
     shift = 0
     last_end: int | None = None
     epoch: int | None = None
@@ -637,14 +709,17 @@ def _clean(om: tuple, tq: tuple, *, gap_factor: float, max_backward_jump: float,
             c_om.outside += int(a.size)
             c_tq.outside += int(b.size)
             continue
-        a, oo_a, dup_a = _sort_dedup(s_om, a)
-        b, oo_b, dup_b = _sort_dedup(s_tq, b)
+        a, oo_a, dup_a = _sort_dedup(s_om, a, v_om, c_om, 'angular velocity', warnings)
+        b, oo_b, dup_b = _sort_dedup(s_tq, b, v_tq, c_tq, 'torque', warnings)
         c_om.out_of_order += oo_a
         c_om.duplicates += dup_a
         c_tq.out_of_order += oo_b
         c_tq.duplicates += dup_b
+        if a.size == 0 or (b.size == 0 and not free):
+            continue  # everything of a stream in this piece was a conflict (counted)
         sa, sb = s_om[a], s_tq[b]
         step_a, step_b = _median_step(sa), _median_step(sb)
+        steps.extend((step_a, step_b))
         runs_a = _runs(sa, gap_factor * step_a) if np.isfinite(step_a) else [(0, sa.size)]
         runs_b = (_runs(sb, gap_factor * step_b) if np.isfinite(step_b) else [(0, sb.size)]
                   ) if not free else [(0, 0)]
@@ -699,11 +774,26 @@ def _clean(om: tuple, tq: tuple, *, gap_factor: float, max_backward_jump: float,
         if free:
             raise LogError('the angular-velocity stream has no window of at least '
                            f'{min_window} samples without a gap')
+        if c_om.stamp_conflicts or c_tq.stamp_conflicts:
+            raise LogError(f'no usable window: {c_om.stamp_conflicts + c_tq.stamp_conflicts} '
+                           'samples lie where two runs of stamps collide or interleave (a clock '
+                           'that stepped back, in a file stored in stamp order); record the '
+                           'receive time as log time, or the sequence numbers, so that the runs '
+                           'can be told apart')
         raise LogError('the angular-velocity and torque streams never overlap in time (header '
                        'stamps); check the clocks, or --torque-delay')
     del s_om, v_om, s_tq, v_tq, om, tq
-    t_om = (_cat(out_t_om) - epoch) / 1e9
-    t_tq = (_cat(out_t_tq) - epoch) / 1e9 if out_t_tq else np.zeros(0)
+    t_om_ns = _cat(out_t_om)
+    t_tq_ns = _cat(out_t_tq) if out_t_tq else np.zeros(0, np.int64)
+    windows_ns, pauses, removed = _shorten_pauses(windows_ns, (t_om_ns, t_tq_ns),
+                                                  int(max_gap * 1e9), steps)
+    if pauses:
+        warnings.append(f'{pauses} pause(s) longer than {max_gap:g} s in the log: each is '
+                        f'shortened to {_pause_ns(steps) / 1e9:g} s ({removed / 1e9:.6g} s '
+                        'removed from the times after it) and ends a segment, so no equation '
+                        'spans it')
+    t_om = (t_om_ns - epoch) / 1e9
+    t_tq = (t_tq_ns - epoch) / 1e9
     c_om.used = int(t_om.size)
     c_tq.used = int(t_tq.size)
     windows = [((lo - epoch) / 1e9, (hi - epoch) / 1e9) for lo, hi in windows_ns]
@@ -719,7 +809,63 @@ def _clean(om: tuple, tq: tuple, *, gap_factor: float, max_backward_jump: float,
         warnings.append(f'{100 * frac:.0f}% of the angular-velocity samples lie outside the '
                         'torque coverage (a stream stops early or starts late) and were dropped')
     v_tq = _cat(out_v_tq) if out_v_tq else np.zeros((0, 3))
-    return (epoch, (t_om, _cat(out_v_om), c_om), (t_tq, v_tq, c_tq), windows, jumps)
+    return (epoch, (t_om, _cat(out_v_om), c_om), (t_tq, v_tq, c_tq), windows, jumps,
+            (pauses, removed))
+
+
+def _pause_ns(steps: list[float]) -> int:
+    """Length a long pause is shortened to [ns]: 1 s, or 10 sample intervals if longer.
+
+    Longer than both the log's gap rule and the estimator's (5 median intervals), so the
+    shortened pause still ends every window and segment.
+    """
+    finite = [x for x in steps if np.isfinite(x)]
+    return int(max(1e9, 10.0 * max(finite, default=0.0)))
+
+
+def _shorten_pauses(windows_ns: list[tuple[int, int]], streams: tuple[np.ndarray, ...],
+                    max_gap_ns: int, steps: list[float]
+                    ) -> tuple[list[tuple[int, int]], int, int]:
+    """Shorten every pause between windows longer than ``max_gap_ns`` (in place).
+
+    The estimator's integral equations accumulate from the start of the record, so a pause of
+    hours inside a log is numerical cancellation (a one-day pause cost 22 %) even though no
+    equation spans it.  Moving everything after such a pause earlier, by the same amount for
+    both streams (their alignment is kept), leaves an ordinary gap that still ends every
+    window and segment.
+
+    Parameters
+    ----------
+    windows_ns : list of (int, int)
+        Windows [ns], sorted; every kept sample lies in one.
+    streams : tuple of numpy.ndarray
+        int64 stamp arrays [ns], shifted in place.
+    max_gap_ns : int
+        Pauses longer than this are shortened [ns].
+    steps : list of float
+        Median sample intervals of the streams [ns].
+
+    Returns
+    -------
+    (windows_ns, pauses, removed_ns)
+    """
+    if len(windows_ns) < 2:
+        return windows_ns, 0, 0
+    keep_ns = _pause_ns(steps)
+    max_gap_ns = max(max_gap_ns, 2 * keep_ns)
+    lo = np.array([w[0] for w in windows_ns], dtype=np.int64)
+    hi = np.array([w[1] for w in windows_ns], dtype=np.int64)
+    gap = lo[1:] - hi[:-1]
+    cut = np.where(gap > max_gap_ns, gap - keep_ns, 0)
+    if not cut.any():
+        return windows_ns, 0, 0
+    cum = np.concatenate(([0], np.cumsum(cut)))
+    for st in streams:
+        if st.size:
+            k = np.clip(np.searchsorted(lo, st, side='right') - 1, 0, lo.size - 1)
+            st -= cum[k]
+    out = [(int(a - c), int(b - c)) for a, b, c in zip(lo, hi, cum, strict=True)]
+    return out, int((cut > 0).sum()), int(cum[-1])
 
 
 def _cat(parts: list[np.ndarray]) -> np.ndarray:
@@ -756,8 +902,143 @@ def _pieces(stamps: np.ndarray, jump_ns: int) -> tuple[np.ndarray, np.ndarray]:
     return np.cumsum(jump), spike
 
 
-def _sort_dedup(stamps: np.ndarray, idx: np.ndarray) -> tuple[np.ndarray, int, int]:
-    """Sort indexes ``idx`` by stamp (stable) and drop repeated stamps.
+def _arrival(stamp: np.ndarray, keep: np.ndarray, seq: np.ndarray) -> tuple[np.ndarray, bool]:
+    """Indexes of the kept samples in arrival order, and whether that differs from file order.
+
+    Files written in log-time order lose the arrival order when log time is the header
+    stamp; the Message records' sequence numbers keep it, when the writer set them (unique
+    and not all zero on the stream).
+    """
+    idx = np.flatnonzero(keep)
+    if seq.size and idx.size > 1:
+        sq = seq[idx]
+        if sq.any() and np.unique(sq).size == sq.size:
+            order = np.argsort(sq, kind='stable')
+            if np.any(order != np.arange(order.size)):
+                return idx[order], True
+    return idx, False
+
+
+def _jumps(s: np.ndarray, jump_ns: int) -> list[tuple[int, int, int]]:
+    """Backward clock steps of an arrival-ordered stamp sequence: (position, before, after).
+
+    One-sample spikes are not steps (see :func:`_pieces`); ``before`` is the last stamp
+    before the step that is not a spike, ``after`` the first stamp after it.
+    """
+    piece, spike = _pieces(s, jump_ns)
+    out = []
+    for k in (np.flatnonzero(np.diff(piece)) + 1).tolist():
+        j = k - 1
+        while j > 0 and spike[j]:
+            j -= 1
+        out.append((k, int(s[j]), int(s[k])))
+    return out
+
+
+def _repair_clocks(om: tuple, tq: tuple, jump_ns: int, gap_factor: float, max_gap: float,
+                   topics: tuple[str, str], warnings: list[str]) -> tuple[tuple, tuple, int]:
+    """Find backward clock steps per stream (in arrival order) and undo them.
+
+    * A step in both streams by about the same amount is a restarted or looped recording:
+      the later part of both streams is moved one second after the earlier part (the same
+      shift for both, so their alignment is kept).  Counted as a clock jump.
+    * A step in one stream only is a clock fault of that sensor (its clock was set back while
+      the other ran on): its later samples are realigned by continuity (the first sample
+      after the step is placed one median sample interval after the last before it), and the
+      log is segmented there by moving everything after the step a gap further, so that no
+      estimation window or equation spans the fault.  Counted in ``clock_faults``.
+
+    Returns
+    -------
+    (om, tq, restarts) with the stamps of ``om`` and ``tq`` replaced (copies) and, when a
+    stream's arrival order differs from file order, its ordinals replaced by the repaired
+    stamps (so that the merged-order checks of :func:`_clean` see the repaired sequence).
+    """
+    s_om, s_tq = om[0].copy(), tq[0].copy()
+    # file order is arrival order unless the file is stored in stamp order; then only the
+    # sequence numbers show a step
+    a_om, a_tq = np.flatnonzero(om[2]), np.flatnonzero(tq[2])
+    re_om = re_tq = False
+    j_om = _jumps(s_om[a_om], jump_ns)
+    j_tq = _jumps(s_tq[a_tq], jump_ns) if a_tq.size else []
+    if not j_om and not j_tq:
+        a_om, re_om = _arrival(s_om, om[2], om[6])
+        a_tq, re_tq = _arrival(s_tq, tq[2], tq[6])
+        if not (re_om or re_tq):
+            return om, tq, 0
+        j_om = _jumps(s_om[a_om], jump_ns) if re_om else []
+        j_tq = _jumps(s_tq[a_tq], jump_ns) if re_tq else []
+        if not j_om and not j_tq:
+            return om, tq, 0
+    med = [_median_step(np.sort(s_om[a_om])), _median_step(np.sort(s_tq[a_tq]))]
+    med = [int(m) if np.isfinite(m) else 0 for m in med]
+    gap_ns = int(max(1e9, 2 * gap_factor * max(med)))
+    # pair the steps of the two streams: similar size and similar place = a restart
+    events: list[tuple[int, int | None, int | None]] = []  # (before, k_om, k_tq)
+    used: set[int] = set()
+    for k, b, a in j_om:
+        d = b - a
+        match = None
+        for m, (_, b2, a2) in enumerate(j_tq):
+            d2 = b2 - a2
+            if m not in used and abs(d - d2) <= max(1e9, 0.1 * d) \
+                    and abs(b - b2) <= max(2e9, 0.1 * d):
+                match = m
+                break
+        if match is not None:
+            used.add(match)
+            events.append((b, k, j_tq[match][0]))
+        else:
+            events.append((b, k, None))
+    events.extend((b, None, k) for m, (k, b, _) in enumerate(j_tq) if m not in used)
+    events.sort(key=lambda e: e[0])
+    restarts = faults = 0
+    counts = (om[3], tq[3])
+    for _, k_om, k_tq in events:
+        if k_om is not None and k_tq is not None:
+            before = max(int(s_om[a_om[k_om - 1]]), int(s_tq[a_tq[k_tq - 1]]))
+            after = min(int(s_om[a_om[k_om]]), int(s_tq[a_tq[k_tq]]))
+            shift = before + 1_000_000_000 - after
+            s_om[a_om[k_om:]] += shift
+            s_tq[a_tq[k_tq:]] += shift
+            restarts += 1
+            continue
+        w = 0 if k_om is not None else 1
+        s, a, k = ((s_om, a_om, k_om) if w == 0 else (s_tq, a_tq, k_tq))
+        before, after = int(s[a[k - 1]]), int(s[a[k]])
+        step = before - after
+        s[a[k:]] += step + med[w]
+        cut = before + med[w] // 2
+        for ss, aa in ((s_om, a_om), (s_tq, a_tq)):
+            later = aa[ss[aa] > cut]
+            ss[later] += gap_ns
+        counts[w].clock_faults += 1
+        faults += 1
+        warnings.append(
+            f'{topics[w] or "torque"}: clock fault: the stamps step back {step / 1e9:.6g} s '
+            f'after {(before - int(s_om[a_om[0]])) / 1e9:.6g} s of log while the other stream '
+            'runs on; the later samples are realigned by continuity and the log is segmented '
+            f'there (a {gap_ns / 1e9:g} s gap, so no equation spans the fault)')
+    if restarts:
+        warnings.append(f'{restarts} backward clock jump(s) in both streams (restarted or '
+                        'looped recording): the later part is placed one second after the '
+                        'earlier one and estimated as a separate segment')
+    om = (s_om, *om[1:5], s_om.copy() if (re_om or re_tq) else om[5], om[6])
+    tq = (s_tq, *tq[1:5], s_tq.copy() if (re_om or re_tq) else tq[5], tq[6])
+    return om, tq, restarts
+
+
+def _sort_dedup(stamps: np.ndarray, idx: np.ndarray, values: np.ndarray | None = None,
+                counts: StreamCounts | None = None, name: str = '',
+                warnings: list[str] | None = None) -> tuple[np.ndarray, int, int]:
+    """Sort indexes ``idx`` by stamp (stable); drop exact duplicates and resolve conflicts.
+
+    An exact duplicate (same stamp and same values as the sample before it) is dropped.
+    Samples sharing a stamp with different values are a stamp conflict: two samples cannot
+    both be right, so a few conflicts drop every sample of the conflicting stamps, and many
+    (a clock that stepped back in a file stored in stamp order, where the two runs of stamps
+    interleave and cannot be told apart) drop the stream from the first conflict on.  Both
+    are counted in ``counts.stamp_conflicts`` (and the latter in ``counts.clock_faults``).
 
     Returns
     -------
@@ -768,16 +1049,104 @@ def _sort_dedup(stamps: np.ndarray, idx: np.ndarray) -> tuple[np.ndarray, int, i
     order = np.argsort(s, kind='stable')
     idx = idx[order]
     s = s[order]
-    dup = np.zeros(s.size, bool)
-    dup[1:] = s[1:] == s[:-1]
-    return idx[~dup], late, int(dup.sum())
+    same = np.zeros(s.size, bool)
+    same[1:] = s[1:] == s[:-1]
+    if values is None:
+        return idx[~same], late, int(same.sum())
+    if not same.any():
+        return _overlap(idx, s, counts, name, warnings), late, 0
+    # exact duplicates: equal to the first sample of their stamp
+    first = np.maximum.accumulate(np.where(~same, np.arange(s.size), 0))
+    v = values[idx]
+    equal = np.all((v == v[first]) | (np.isnan(v) & np.isnan(v[first])), axis=1)
+    dup = same & equal
+    conflict = same & ~equal
+    if not conflict.any():
+        keep = ~dup
+        return _overlap(idx[keep], s[keep], counts, name, warnings), late, int(dup.sum())
+    bad_stamp = np.isin(s, s[conflict])
+    n_bad = int(bad_stamp.sum())
+    keep = ~dup & ~bad_stamp
+    unresolved = int(conflict.sum()) > max(3, 0.001 * s.size)
+    if unresolved:
+        cut = int(np.flatnonzero(bad_stamp)[0])
+        keep[cut:] = False
+    if counts is not None:
+        counts.stamp_conflicts += int((~dup & ~keep).sum())
+        counts.clock_faults += int(unresolved)
+    if warnings is not None:
+        if unresolved:
+            warnings.append(
+                f'{name}: clock fault: {int(conflict.sum())} samples share a stamp with a '
+                'different sample (the clock stepped back and the file is stored in stamp '
+                'order, so the two runs of stamps cannot be told apart); the stream from the '
+                f'first conflict on ({int(s.size - cut)} samples) is dropped')
+        else:
+            warnings.append(f'{name}: {n_bad} samples sharing a stamp with different values '
+                            'dropped (which one is right is unknown)')
+    return idx[keep], late, int(dup.sum())
+
+
+#: Overlap test of :func:`_overlap`: in any run of this many sample intervals ...
+_DENSE_RUN = 20
+#: ... at least this many shorter than half the median interval mean two interleaved clocks.
+_DENSE_MIN = 8
+
+
+def _overlap(idx: np.ndarray, s: np.ndarray, counts: StreamCounts | None, name: str,
+             warnings: list[str] | None) -> np.ndarray:
+    """Drop a stream from where two runs of its stamps interleave (a hidden clock fault).
+
+    A clock that stepped back by a time that is not a whole number of sample intervals,
+    in a file stored in stamp order without sequence numbers, leaves no equal stamps: the
+    two runs interleave, and the stamp-sorted stream shows a stretch of doubled rate (every
+    other interval under half the median).  The samples from that stretch on cannot be
+    aligned with the other stream and are dropped; counted as a clock fault.
+
+    Parameters
+    ----------
+    idx, s : numpy.ndarray
+        Sample indexes and their stamps [ns], sorted by stamp, no repeated stamps.
+
+    Returns
+    -------
+    numpy.ndarray
+        The indexes kept.
+    """
+    if s.size < 4 * _DENSE_RUN:
+        return idx
+    d = np.diff(s)
+    dense = d < 0.5 * np.median(d)
+    run = np.convolve(dense.astype(np.int32), np.ones(_DENSE_RUN, np.int32), 'valid')
+    hit = np.flatnonzero(run >= _DENSE_MIN)
+    if hit.size == 0:
+        # the whole stream interleaved (the median is halved too): consecutive intervals
+        # alternate between two lengths (delta, T - delta) instead of repeating one
+        lo, hi = np.minimum(d[1:], d[:-1]), np.maximum(d[1:], d[:-1])
+        alt = np.zeros(d.size, bool)
+        alt[1:] = lo < 0.7 * hi
+        run = np.convolve(alt.astype(np.int32), np.ones(_DENSE_RUN, np.int32), 'valid')
+        hit = np.flatnonzero(run >= _DENSE_RUN - 2)
+        dense = alt
+    if hit.size == 0:
+        return idx
+    cut = int(hit[0] + np.argmax(dense[hit[0]:hit[0] + _DENSE_RUN]))
+    if counts is not None:
+        counts.clock_faults += 1
+        counts.stamp_conflicts += int(s.size - cut)
+    if warnings is not None:
+        warnings.append(f'{name}: clock fault: from sample {cut} on the stamps of two runs '
+                        'interleave (the clock stepped back and the file is stored in stamp '
+                        f'order); the stream from there on ({int(s.size - cut)} samples) is '
+                        'dropped, as it cannot be aligned')
+    return idx[:cut]
 
 
 def _truth(raw: _Raw | None, epoch: int) -> list[tuple[float, np.ndarray]]:
     """The true tensors recorded on /truth/inertia, as (t [s], (3, 3)) in stamp order."""
     if raw is None:
         return []
-    stamp, _, vals, ok, _ = raw.arrays()
+    stamp, _, vals, ok, _, _ = raw.arrays()
     out = []
     for k in np.argsort(stamp, kind='stable'):
         if not ok[k]:

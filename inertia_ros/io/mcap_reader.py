@@ -30,7 +30,7 @@ import zlib
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import BinaryIO
+from typing import Any, BinaryIO
 
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
@@ -61,8 +61,20 @@ _MSG = struct.Struct('<HIQQ')
 _MSG_HEAD = 9 + _MSG.size  # opcode + length + fixed message fields = 31 bytes
 
 
+#: Top-level records the batch reader reads; others (attachments, indexes, statistics) are
+#: skipped without being read.
+_READ_OPS = frozenset((0x01, 0x03, 0x04, 0x05, 0x06, 0x07, 0x0C, 0x0F))
+
+
 class McapError(ValueError):
     """The file is not a readable MCAP file (bad magic, or nothing intact to read)."""
+
+
+class CodecMissingError(McapError):
+    """A chunk's compression needs a Python package that is not installed."""
+
+
+_CODEC_PACKAGES = {'zstd': ('zstandard', 'zstandard'), 'lz4': ('lz4.frame', 'lz4')}
 
 
 # --------------------------------------------------------------------------------------------
@@ -362,8 +374,22 @@ def parse_record(opcode: int, body: bytes | memoryview) -> Record:
     return UnknownRecord(opcode, bytes(body))
 
 
-def decompress(compression: str, data: bytes | memoryview, size: int) -> bytes:
-    """Decompress a chunk's records.
+#: Largest piece an LZ4 frame is decompressed in [bytes].
+_PIECE = 16 << 20
+
+#: Default ceiling on one chunk's uncompressed size [bytes]: a chunk declaring more, or a
+#: compressed stream producing more than its chunk declares, is a damaged chunk (a
+#: decompression bomb), never an allocation.
+MAX_CHUNK_BYTES = 256 << 20
+
+
+def decompress(compression: str, data: bytes | memoryview, size: int, *,
+               limit: int = MAX_CHUNK_BYTES) -> bytes | bytearray:
+    """Decompress a chunk's records, never producing more than ``size`` bytes.
+
+    The declared size is checked against ``limit`` before anything is allocated, and the
+    codecs are driven through bounded APIs (the size a zstd or LZ4 frame claims for itself
+    is never trusted), so a decompression bomb costs at most ``size + 1`` bytes of memory.
 
     Parameters
     ----------
@@ -373,37 +399,83 @@ def decompress(compression: str, data: bytes | memoryview, size: int) -> bytes:
         The compressed records.
     size : int
         The uncompressed size the chunk declares [bytes].
+    limit : int
+        Largest uncompressed chunk accepted [bytes] (default :data:`MAX_CHUNK_BYTES`).
 
     Returns
     -------
-    bytes
+    bytes or bytearray
         The uncompressed records, exactly ``size`` bytes long.
 
     Raises
     ------
     McapError
-        Unknown compression, a decompression failure, or a size mismatch.
+        Unknown compression, a declared size over ``limit``, a decompression failure, or
+        output longer or shorter than declared.
+    CodecMissingError
+        The codec package (``zstandard`` or ``lz4``) is not installed.
     """
+    if size > limit:
+        raise McapError(f'chunk declares {size} uncompressed bytes, over the limit of '
+                        f'{limit} (a decompression bomb or a damaged chunk header)')
+    if compression == '':
+        if len(data) != size:
+            raise McapError(f'uncompressed chunk holds {len(data)} bytes, declared {size}')
+        return bytes(data)
+    if compression not in ('zstd', 'lz4'):
+        raise McapError(f'unsupported chunk compression {compression!r}')
+    codec = _codec(compression)
     try:
-        if compression == '':
-            out = bytes(data)
-        elif compression == 'zstd':
-            import zstandard
-
-            out = zstandard.ZstdDecompressor().decompress(bytes(data), max_output_size=size)
-        elif compression == 'lz4':
-            import lz4.frame
-
-            out = lz4.frame.decompress(bytes(data))
+        if compression == 'zstd':
+            buf = bytearray(size + 1)
+            view = memoryview(buf)
+            got = 0
+            with codec.ZstdDecompressor().stream_reader(bytes(data),
+                                                        read_across_frames=True) as r:
+                while got <= size:
+                    n = r.readinto(view[got:])
+                    if not n:
+                        break
+                    got += n
+            view.release()
+            del buf[got:]
+            out = buf
         else:
-            raise McapError(f'unsupported chunk compression {compression!r}')
-    except McapError:
-        raise
+            # in pieces into one buffer: peak memory is the chunk plus one piece
+            buf = bytearray(size + 1)
+            got = 0
+            dec = codec.LZ4FrameDecompressor()
+            piece = dec.decompress(bytes(data), max_length=min(size + 1, _PIECE))
+            while True:
+                buf[got:got + len(piece)] = piece
+                got += len(piece)
+                if dec.eof or got > size or dec.needs_input:
+                    break
+                piece = dec.decompress(b'', max_length=min(size + 1 - got, _PIECE))
+                if not piece:
+                    break
+            del buf[got:]
+            out = buf
     except Exception as exc:  # the codecs raise their own error types
         raise McapError(f'{compression} decompression failed: {exc}') from exc
+    if len(out) > size:
+        raise McapError(f'{compression} data decompresses to more than the {size} bytes the '
+                        'chunk declares (a decompression bomb or a damaged chunk)')
     if len(out) != size:
         raise McapError(f'chunk decompressed to {len(out)} bytes, declared {size}')
     return out
+
+
+def _codec(compression: str) -> Any:
+    """Import the codec module of ``compression`` or raise :class:`CodecMissingError`."""
+    import importlib
+
+    module, package = _CODEC_PACKAGES[compression]
+    try:
+        return importlib.import_module(module)
+    except ImportError:
+        raise CodecMissingError(f'{compression}-compressed chunks need the Python package '
+                                f'{package!r}: pip install {package}') from None
 
 
 def _scan(buf: bytes | memoryview, start: int = 0,
@@ -428,6 +500,124 @@ def _scan(buf: bytes | memoryview, start: int = 0,
             raise McapError(f'record at byte {body - 9} (opcode 0x{op:02x}, {ln} bytes) runs '
                             f'past the end ({end})')
         yield op, body, pos
+
+
+def _u64_at(arr: np.ndarray, pos: int) -> int:
+    return int(arr[pos:pos + 8].view('<u8')[0]) if pos + 8 <= arr.size else -1
+
+
+#: Longest record-length pattern the chunk scan recognises and verifies in bulk.
+_MAX_PERIOD = 8
+
+
+def _record_offsets(arr: np.ndarray, start: int = 0, end: int | None = None,
+                    keep: tuple[int, ...] | None = None) -> np.ndarray:
+    """Byte offsets of the records in ``arr[start:end]``, in order (vectorised).
+
+    Chunks usually repeat a short pattern of records (the messages of a few fixed-size
+    topics, interleaved).  Records are walked one by one only until such a pattern shows;
+    its continuation is then verified in bulk (opcode and length of every predicted record),
+    so a chunk of 256 MiB costs milliseconds, not a Python step per record, whatever it holds.
+
+    Parameters
+    ----------
+    arr : numpy.ndarray
+        uint8 array, the buffer (a decompressed chunk).
+    start, end : int
+        Byte range to scan (``end`` defaults to the buffer's end).
+    keep : tuple of int, optional
+        Return only the records with these opcodes (all if None); the others are checked and
+        skipped without being stored, so memory stays proportional to what is kept.
+
+    Returns
+    -------
+    numpy.ndarray
+        int64 (k,) offsets of the record headers (opcode byte).
+
+    Raises
+    ------
+    McapError
+        An opcode 0 (not a record: zero fill or garbage) or a record running past ``end``.
+    """
+    end = arr.size if end is None else end
+    found: list[np.ndarray] = []
+    hist: list[int] = []
+    pos = start
+    retry_at = 2
+    while pos < end:
+        if pos + 9 > end:
+            raise McapError(f'record header at byte {pos} runs past the end ({end})')
+        op = int(arr[pos])
+        ln = _u64_at(arr, pos + 1)
+        if op == 0:
+            raise McapError(f'invalid record at byte {pos} (opcode 0x00: zero fill or '
+                            'garbage)')
+        if ln < 0 or ln > end - pos - 9:
+            raise McapError(f'record at byte {pos} (opcode 0x{op:02x}, {ln} bytes) runs past '
+                            f'the end ({end})')
+        hist.append(pos)
+        pos += 9 + ln
+        if len(hist) >= retry_at and pos < end:
+            jumped = _jump(arr, hist, pos, end)
+            if jumped is None:
+                retry_at = len(hist) + 2 * _MAX_PERIOD  # not periodic here: walk on a while
+                continue
+            pos = int(jumped[-1]) + 9 + _u64_at(arr, int(jumped[-1]) + 1)
+            found.append(_only(arr, np.asarray(hist, dtype=np.int64), keep))
+            found.append(_only(arr, jumped, keep))
+            hist = []
+            retry_at = 2
+    found.append(_only(arr, np.asarray(hist, dtype=np.int64), keep))
+    return np.concatenate(found) if len(found) > 1 else found[0]
+
+
+def _only(arr: np.ndarray, offs: np.ndarray, keep: tuple[int, ...] | None) -> np.ndarray:
+    """The record offsets ``offs`` whose opcode is in ``keep`` (all if None)."""
+    return offs if keep is None else offs[np.isin(arr[offs], keep)]
+
+
+def _jump(arr: np.ndarray, hist: list[int], pos: int, end: int,
+          max_block: int = 1 << 17) -> np.ndarray | None:
+    """Offsets of the records continuing the periodic pattern that ends ``hist`` (or None).
+
+    ``hist`` holds the offsets of the records walked so far, ``pos`` the offset of the next.
+    The smallest period ``P`` whose last two repetitions agree in opcodes and lengths is
+    extrapolated and checked in blocks; the offsets of the verified records are returned
+    (None if no pattern or not even one more repetition verifies).
+    """
+    tail = [*hist[-2 * _MAX_PERIOD:], pos]
+    steps = [b - a for a, b in zip(tail[:-1], tail[1:], strict=True)]
+    for p in range(1, _MAX_PERIOD + 1):
+        if 2 * p > len(steps) or steps[-p:] != steps[-2 * p:-p]:
+            continue
+        tmpl = np.asarray(hist[-p:], dtype=np.int64) - hist[-p]
+        ops = arr[np.asarray(hist[-p:])]
+        if not np.array_equal(ops, arr[np.asarray(hist[-2 * p:-p])]):
+            continue
+        lens = np.asarray(steps[-p:], dtype=np.int64) - 9
+        period = int(pos - hist[-p])
+        out: list[np.ndarray] = []
+        base = pos
+        block = 64
+        while True:
+            reps = min(block, (end - base) // period)
+            if reps <= 0:
+                break
+            q = (base + period * np.arange(reps, dtype=np.int64))[:, None] + tmpl[None, :]
+            ok = (arr[q] == ops[None, :]) & (_gather_u64(arr, q.ravel() + 1).reshape(q.shape)
+                                             .astype(np.int64) == lens[None, :])
+            good = ok.all(axis=1)
+            m = reps if good.all() else int(np.argmin(good))
+            if m:
+                out.append(q[:m].ravel())
+                base += m * period
+            if m < reps or sum(o.size for o in out) >= max_block * 8:
+                break
+            block = min(4 * block, max_block)
+        if not out:
+            return None
+        return np.concatenate(out)
+    return None
 
 
 # --------------------------------------------------------------------------------------------
@@ -513,8 +703,10 @@ def iter_records(path: str | Path, *, expand_chunks: bool = True,
             if check_crc and chunk.uncompressed_crc and \
                     zlib.crc32(inner) != chunk.uncompressed_crc:
                 raise McapError(f'{path}: chunk CRC mismatch')
-            for iop, i0, i1 in _scan(inner):
-                yield parse_record(iop, memoryview(inner)[i0:i1])
+            arr = np.frombuffer(inner, dtype=np.uint8)
+            for o in _record_offsets(arr).tolist():
+                body_end = o + 9 + _u64_at(arr, o + 1)
+                yield parse_record(int(arr[o]), memoryview(inner)[o + 9:body_end])
             continue
         yield parse_record(op, body)
 
@@ -546,6 +738,9 @@ class MessageBatch:
     ordinal : numpy.ndarray
         int64 array (n,), the position of each message in the file (0 = first message), so
         that arrival order can be restored across batches.
+    sequence : numpy.ndarray or None
+        uint32 array (n,), the Message records' ``sequence`` fields (the publisher's or
+        recorder's counter; 0 when the writer does not set it), None when unknown.
     """
 
     channel: Channel
@@ -555,6 +750,7 @@ class MessageBatch:
     lengths: np.ndarray
     log_time: np.ndarray
     ordinal: np.ndarray
+    sequence: np.ndarray | None = None
 
     def __len__(self) -> int:
         return int(self.starts.shape[0])
@@ -587,6 +783,10 @@ class McapReader:
         The MCAP file.  It is opened read-only and never modified.
     progress : callable, optional
         Called as ``progress(bytes_done, bytes_total)`` after each top-level record batch.
+    max_chunk_bytes : int
+        Largest uncompressed chunk read [bytes]; larger ones (or chunks whose compressed data
+        expands past their declared size) are counted as damaged chunks.  Memory use is
+        bounded by a few times this, whatever the file holds.
 
     Examples
     --------
@@ -602,8 +802,10 @@ class McapReader:
     BLOCK = 1 << 20
 
     def __init__(self, path: str | Path, *,
-                 progress: Callable[[int, int], None] | None = None) -> None:
+                 progress: Callable[[int, int], None] | None = None,
+                 max_chunk_bytes: int = MAX_CHUNK_BYTES) -> None:
         self.path = Path(path)
+        self.max_chunk_bytes = int(max_chunk_bytes)
         try:
             self._fh: BinaryIO = open(self.path, 'rb')
         except FileNotFoundError as exc:
@@ -627,6 +829,7 @@ class McapReader:
         self.damage = Damage()
         self.messages_read = 0
         self._bytes_per_message = 0.0
+        self._summary_ok = False
         self._read_summary()
 
     # context manager ----------------------------------------------------------------------
@@ -653,7 +856,12 @@ class McapReader:
             footer = parse_record(OP_FOOTER, tail[9:29])
             assert isinstance(footer, Footer)
             self.footer = footer
-            if footer.summary_start == 0 or footer.summary_start >= self.size:
+            if footer.summary_start == 0:
+                return
+            if not 8 <= footer.summary_start <= self.size - 8 - 29:
+                self.damage.notes.append(
+                    f'footer damaged (summary start {footer.summary_start} outside the file): '
+                    'summary ignored, the data section is read forward')
                 return
             self._fh.seek(footer.summary_start)
             summary = self._fh.read(self.size - 8 - 29 - footer.summary_start)
@@ -672,6 +880,7 @@ class McapReader:
                     self.statistics = rec
                 elif isinstance(rec, ChunkIndex):
                     self.chunk_indexes.append(rec)
+            self._summary_ok = True
         except (McapError, struct.error, UnicodeDecodeError) as exc:
             self.damage.notes.append(f'summary unreadable ({exc}): ignored')
             self.schemas.clear()
@@ -686,7 +895,7 @@ class McapReader:
         pos = 8
         fh.seek(pos)
         end = self.size
-        if self.footer is not None and self.footer.summary_start:
+        if self._summary_ok and self.footer is not None and self.footer.summary_start:
             end = self.footer.summary_start
         chunk_starts = sorted(ci.chunk_start_offset for ci in self.chunk_indexes)
         chunk_len = {ci.chunk_start_offset: ci.chunk_length for ci in self.chunk_indexes}
@@ -715,9 +924,24 @@ class McapReader:
                 pos = nxt
                 fh.seek(pos)
                 continue
-            body = fh.read(ln)
             if op == OP_FOOTER:
                 return
+            if op not in _READ_OPS or ln > self.max_chunk_bytes + (1 << 20):
+                # attachments and the like are never needed: skipped unread, whatever their
+                # size; a needed record over the ceiling is damage, not an allocation
+                if op in _READ_OPS:
+                    what = 'chunk' if op == OP_CHUNK else f'record (opcode 0x{op:02x})'
+                    if op == OP_CHUNK:
+                        self._bad_chunk(pos, None, ln, f'{ln} bytes, over the limit of '
+                                        f'{self.max_chunk_bytes}')
+                    else:
+                        self.damage.bytes_lost += 9 + ln
+                        self.damage.notes.append(f'{what} at byte {pos} skipped: {ln} bytes, '
+                                                 f'over the limit of {self.max_chunk_bytes}')
+                pos += 9 + ln
+                fh.seek(pos)
+                continue
+            body = fh.read(ln)
             yield op, pos, body
             pos += 9 + ln
             if self._progress is not None:
@@ -806,6 +1030,13 @@ class McapReader:
                 continue
             yield from finish_chunk()
             if op == OP_MESSAGE:
+                if len(body) < _MSG.size:
+                    self.damage.notes.append(
+                        f'message record at byte {off} is {len(body)} bytes, shorter than '
+                        f'its {_MSG.size}-byte header: skipped')
+                    self.damage.messages_lost += 1
+                    self.damage.bytes_lost += 9 + len(body)
+                    continue
                 ch_id = _U16.unpack_from(body, 0)[0]
                 pend_ord.append(self.messages_read)
                 self.messages_read += 1
@@ -879,18 +1110,23 @@ class McapReader:
             starts = np.zeros(len(ks), dtype=np.int64)
             np.cumsum(lens[:-1], out=starts[1:])
             log_time = np.array([_U64.unpack_from(b, 6)[0] for b in bodies], dtype=np.uint64)
+            seq = np.array([_U32.unpack_from(b, 2)[0] for b in bodies], dtype=np.uint32)
             ch = self.channels[ch_id]
             yield MessageBatch(ch, self.schemas.get(ch.schema_id), buf, starts, lens, log_time,
-                               np.asarray([ords[k] for k in ks], dtype=np.int64))
+                               np.asarray([ords[k] for k in ks], dtype=np.int64), seq)
 
     def _chunk_batches(self, off: int, chunk: Chunk, indexes: dict[int, np.ndarray],
                        wanted: Callable[[int], bool]) -> Iterator[MessageBatch]:
         """Decompress one chunk and yield a batch per wanted channel."""
         n_idx = sum(len(v) for v in indexes.values()) or None
         try:
-            raw = decompress(chunk.compression, chunk.records, chunk.uncompressed_size)
+            raw = decompress(chunk.compression, chunk.records, chunk.uncompressed_size,
+                             limit=self.max_chunk_bytes)
+        except CodecMissingError as exc:
+            raise CodecMissingError(f'{self.path}: {exc}') from None
         except McapError as exc:
-            self._bad_chunk(off, n_idx, chunk.uncompressed_size, str(exc))
+            self._bad_chunk(off, n_idx, min(chunk.uncompressed_size, len(chunk.records)),
+                            str(exc))
             return
         if chunk.uncompressed_crc and zlib.crc32(raw) != chunk.uncompressed_crc:
             self._bad_chunk(off, n_idx, chunk.uncompressed_size,
@@ -915,9 +1151,10 @@ class McapReader:
             o = offs[sel]
             rec_len = _gather_u64(arr, o + 1).astype(np.int64)
             log_time = _gather_u64(arr, o + 15)
+            seq = sliding_window_view(arr, 4)[o + 11].view('<u4').ravel()
             ch = self.channels[ch_id]
             yield MessageBatch(ch, self.schemas.get(ch.schema_id), arr, o + _MSG_HEAD,
-                               rec_len - _MSG.size, log_time, base + sel.astype(np.int64))
+                               rec_len - _MSG.size, log_time, base + sel.astype(np.int64), seq)
 
     def _locate_messages(self, raw: bytes, arr: np.ndarray,
                          indexes: dict[int, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
@@ -936,7 +1173,10 @@ class McapReader:
             if good:
                 good = bool(np.all(arr[offs] == OP_MESSAGE)) and bool(np.all(np.diff(offs) > 0))
             if good:
-                ends = offs + 9 + _gather_u64(arr, offs + 1).astype(np.int64)
+                lens = _gather_u64(arr, offs + 1)
+                good = bool(np.all((lens >= _MSG.size) & (lens <= size)))
+            if good:
+                ends = offs + 9 + lens.astype(np.int64)
                 good = bool(np.all(ends[:-1] <= offs[1:])) and int(ends[-1]) <= size
             if good:
                 offs_list.append(offs)
@@ -948,18 +1188,22 @@ class McapReader:
                 spans = [(0, size)]
         else:
             spans = [(0, size)]
-        scanned: list[int] = []
         for s0, s1 in spans:
-            for op, b0, b1 in _scan(raw, s0, s1):
-                if op == OP_MESSAGE:
-                    scanned.append(b0 - 9)
-                elif op in (OP_SCHEMA, OP_CHANNEL):
-                    self._other_record(op, raw[b0:b1])
-        if scanned:
-            offs_list.append(np.asarray(scanned, dtype=np.int64))
+            recs = _record_offsets(arr, s0, s1, keep=(OP_MESSAGE, OP_SCHEMA, OP_CHANNEL))
+            ops = arr[recs]
+            for o in recs[(ops == OP_SCHEMA) | (ops == OP_CHANNEL)].tolist():
+                ln = _u64_at(arr, o + 1)
+                self._other_record(int(arr[o]), raw[o + 9:o + 9 + ln])
+            msgs = recs[ops == OP_MESSAGE]
+            if msgs.size:
+                offs_list.append(msgs)
         if not offs_list:
             return np.zeros(0, np.int64), np.zeros(0, np.int64)
         offs = np.sort(np.concatenate(offs_list)) if len(offs_list) > 1 else offs_list[0]
+        short = _gather_u64(arr, offs + 1) < _MSG.size
+        if short.any():
+            raise McapError(f'{int(short.sum())} message record(s) shorter than the '
+                            f'{_MSG.size}-byte message header')
         chans = _gather_u16(arr, offs + 9).astype(np.int64)
         return offs, chans
 
