@@ -80,6 +80,27 @@ def _hold_undetermined(fit: FitFunction, f: Fit, und: np.ndarray, bias: bool,
     return f
 
 
+def _without_inseparable_bias(fit: FitFunction, f: Fit, und: np.ndarray, diag: dict[str, Any]
+                              ) -> tuple[Fit, np.ndarray, bool, str]:
+    """Drop the bias when it is what leaves elements undetermined (``torque_bias='auto'``).
+
+    A constant known torque cannot be told from a constant disturbance: ``(1 + c) I`` with
+    ``d = c tau`` fits as well as ``I`` with ``d = 0``, so the scale is lost with the bias and
+    found without it.  Then the bias is left out, with a warning, instead of refusing.
+    Returns the fit, the undetermined mask, whether the bias stays and the bias setting.
+    """
+    f0 = fit(np.eye(6), False)
+    und0 = undetermined(f0)
+    if int(np.sum(und0)) >= int(np.sum(und)):
+        return f, und, True, 'auto'
+    diag['warnings'].append(
+        'a constant disturbance torque cannot be told apart from the known torque here (it '
+        'does not vary enough): estimated without the torque bias; if a disturbance is '
+        'present the tensor scale absorbs it')
+    diag['bias_inseparable'] = True
+    return f0, und0, False, 'off'
+
+
 def _scale(f: Fit, free: np.ndarray) -> float | None:
     """The tensor scale: the largest principal-diagonal element determined to 20 %, or None."""
     k = int(np.sum(free))
@@ -158,8 +179,10 @@ def conclude(fit: FitFunction, model: str, torque_bias: str, axis: np.ndarray | 
     gen_bias = torque_bias != 'off'
     # ---- identifiability on the general model
     f = fit(np.eye(6), gen_bias)
-    diag.update(conditioning(f, parameter_names(np.eye(6), gen_bias, 'full')))
     und = undetermined(f)
+    if torque_bias == 'auto' and np.any(und):
+        f, und, gen_bias, torque_bias = _without_inseparable_bias(fit, f, und, diag)
+    diag.update(conditioning(f, parameter_names(np.eye(6), gen_bias, 'full')))
     none_determined = dict(diag, reason=_NONE_DETERMINED)
     if not np.any(~und[:3]):
         return status_only('insufficient_excitation', none_determined, base)

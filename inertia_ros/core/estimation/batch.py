@@ -301,6 +301,8 @@ def _estimate_shifted(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray
         return _homogeneous(method, tg, w, ts, tau, mask, breaks, hold, gyro_var,
                             segment or 10.0, window, diag, base)
     eq = build_equations(method, tg, w, ts, tau, mask, breaks, hold, gyro_var, window)
+    wm = w[mask]
+    eq.motion = (wm.T @ wm / len(wm), med_g)          # gyroscopic noise walk (fit meat)
     diag.update(eq.info)
     early = _equation_rules(eq, method, diag, base)
     if early is not None:
@@ -351,8 +353,7 @@ def _window_adequacy(eq: Equations, segment: float | None, ts: np.ndarray,
     for a, b in zip(bounds[:-1], bounds[1:], strict=True):
         if b - a < MIN_EQUATIONS:
             continue
-        sub = Equations(eq.V[a:b].copy(), eq.t[a:b], eq.breaks[a:b - 1], eq.kind, eq.hac_lag,
-                        eq.eiv_var, eq.weighted)
+        sub = eq.rows(a, b)
         j0 = max(int(np.searchsorted(ts, sub.t[0], side='right')) - 1, 0)
         tsk = ts[j0:int(np.searchsorted(ts, sub.t[-1], side='right'))]
         if len(tsk) < 2:

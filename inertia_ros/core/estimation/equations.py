@@ -49,6 +49,9 @@ class Equations:
         Diagnostics of the builder (windows, noise shares).
     raw : dict, optional
         Statistics every segmentation shares (:func:`.statistics.shared_raw`), cached.
+    motion : tuple of (ndarray (3, 3), float), optional
+        Second moment ``mean(w w')`` of the used gyro samples [rad^2/s^2] and their median
+        interval [s]: how much gyro noise the gyroscopic term carries into the equations.
     """
 
     V: np.ndarray
@@ -60,11 +63,17 @@ class Equations:
     weighted: bool = False
     info: dict[str, Any] = field(default_factory=dict)
     raw: dict[str, Any] | None = None
+    motion: tuple[np.ndarray, float] | None = None
 
     def head(self, n: int) -> Equations:
         """The first ``n`` equations (without the cached statistics)."""
-        return Equations(self.V[:n].copy(), self.t[:n], self.breaks[:max(n - 1, 0)], self.kind,
-                         self.hac_lag, self.eiv_var, self.weighted, dict(self.info))
+        return self.rows(0, n, dict(self.info))
+
+    def rows(self, a: int, b: int, info: dict[str, Any] | None = None) -> Equations:
+        """Equations ``a:b`` as their own set (a copy, without the cached statistics)."""
+        return Equations(self.V[a:b].copy(), self.t[a:b], self.breaks[a:max(b - 1, a)],
+                         self.kind, self.hac_lag, self.eiv_var, self.weighted,
+                         {} if info is None else info, motion=self.motion)
 
     @property
     def A(self) -> np.ndarray:

@@ -20,6 +20,7 @@ import numpy as np
 
 from ..tensor import check_physical, nearest_physical, theta_to_matrix
 from .model import selector
+from .noise import gyroscopic_walk_cov
 from .regressors import MOMENTUM_BASIS, metric
 from .statistics import SufficientStats
 
@@ -72,13 +73,17 @@ def _anchored_meat(st: SufficientStats, T: np.ndarray, p: int, W: np.ndarray, G:
     Im = theta_to_matrix(theta)
     S = Im @ np.diag(gyro_var) @ Im                           # white part of e_b
     meat = (T.T @ metric(st.C, W @ S @ W) @ T)[:p, :p]
+    # the integrated torque noise and the gyro noise the gyroscopic term integrates: both
+    # random walks held over the torque intervals (see noise.gyroscopic_walk_cov)
+    S_tau = np.diag(torque_var) + gyroscopic_walk_cov(Im, gyro_var, st.omega_m2, st.gyro_dt,
+                                                      st.torque_dt)
     if st.CP is not None:
-        meat += (T.T @ metric(st.CP, W @ np.diag(torque_var) @ W) @ T)[:p, :p]
+        meat += (T.T @ metric(st.CP, W @ S_tau @ W) @ T)[:p, :p]
     # residuals larger than the noise model predicts (misfit, unmodelled effects):
     # inflate the covariance by the excess, never deflate it
     rss_w = float(c @ G @ c)
     expected = st.n_eff * float(np.trace(W @ S)) + st.walk_time * st.torque_dt * float(
-        np.trace(W @ np.diag(torque_var)))
+        np.trace(W @ S_tau))
     excess = rss_w / expected if expected > 0 else 1.0
     return meat, excess
 

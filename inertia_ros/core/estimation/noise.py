@@ -22,7 +22,8 @@ import math
 
 import numpy as np
 
-__all__ = ['ISOTROPY_FLOOR', 'STREAM_NOISE_SAMPLES', 'StreamingNoise', 'isotropy_floor',
+__all__ = ['ISOTROPY_FLOOR', 'STREAM_NOISE_SAMPLES', 'StreamingNoise', 'gyroscopic_walk_cov',
+           'isotropy_floor',
            'median_rows', 'noise_std_from_differences']
 
 #: Smallest gyro-noise std of an axis, as a share of the largest axis' std.
@@ -136,3 +137,43 @@ class StreamingNoise:
     def variance(self) -> np.ndarray:
         """Noise variance per axis, shape (3,) [units of the stream squared]."""
         return self.std() ** 2
+
+
+def _skew(v: np.ndarray) -> np.ndarray:
+    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+
+
+def gyroscopic_walk_cov(I: np.ndarray, gyro_var: np.ndarray, omega_m2: np.ndarray | None,
+                        gyro_dt: float, torque_dt: float) -> np.ndarray:
+    """Torque-noise covariance equivalent to the gyro noise the gyroscopic term integrates.
+
+    The momentum equations integrate ``w x (I w)`` over measured rates ``w + n``; to first
+    order that adds ``int J(w) n dt`` with ``J(w) = [w]x I - [I w]x``, a random walk of
+    variance rate ``dt_g E[J S_g J']`` (``S_g = diag(gyro_var)``), next to the integrated
+    torque noise's ``dt_tau S_tau``.  Since ``J`` is linear in ``w``, the mean over the record
+    needs only the second moment ``E[w w']``: ``sum_ij E[w_i w_j] A_i S_g A_j'`` with
+    ``A_i = [e_i]x I - [I e_i]x``.  At 50 rad/s this walk outweighs the torque noise.
+
+    Parameters
+    ----------
+    I : ndarray, shape (3, 3)
+        Current tensor [kg m^2].
+    gyro_var : ndarray, shape (3,)
+        Gyro white-noise variance [rad^2/s^2].
+    omega_m2 : ndarray, shape (3, 3), optional
+        ``mean(w w')`` of the used samples [rad^2/s^2]; None gives zeros.
+    gyro_dt, torque_dt : float
+        Median sample intervals [s].
+
+    Returns
+    -------
+    ndarray, shape (3, 3)
+        Covariance [N^2 m^2] to add to the torque-noise covariance of each torque interval.
+    """
+    if omega_m2 is None or gyro_dt <= 0 or torque_dt <= 0:
+        return np.zeros((3, 3))
+    S = np.diag(gyro_var)
+    A = [_skew(e) @ I - _skew(I @ e) for e in np.eye(3)]
+    M = sum(omega_m2[i, j] * (A[i] @ S @ A[j].T) for i in range(3) for j in range(3))
+    M = 0.5 * (M + M.T)
+    return (gyro_dt / torque_dt) * M

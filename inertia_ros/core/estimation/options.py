@@ -54,7 +54,7 @@ ALPHA = 1e-3
 #: An element whose standard error exceeds this share of the tensor scale is undetermined.
 IDENTIFIABILITY_TOL = 0.1
 #: Level of the model-adequacy window test (``model_mismatch`` below it).
-ADEQUACY_ALPHA = 1e-3
+ADEQUACY_ALPHA = 1e-4
 #: Largest residual excess (weighted RSS over its noise-model prediction) accepted as ``ok``.
 MAX_RESIDUAL_EXCESS = 1.5
 #: Windows of the adequacy test, and the shortest window [s] (fewer windows on short records).

@@ -166,6 +166,8 @@ class RecursiveEstimator:
         self._GPc = np.zeros((13, 13))        # closed segments' torque-noise Gram
         self._walkc = 0.0
         self._tau_var: np.ndarray | None = None
+        self._m2_sum = np.zeros((3, 3))   # (decayed) sum of w w' [rad^2/s^2] and its count
+        self._m2_n = 0.0
         self._tq_ss = np.zeros(3)        # (decayed) sum of squared torque [N^2 m^2]
         self._tq_n = 0.0                 # and its (decayed) count
         self._tau_dt = 0.0
@@ -286,6 +288,8 @@ class RecursiveEstimator:
             return
         if self._gyro_noise is None:
             self._gyro_nv.add(w)
+        self._m2_sum = self._m2_sum + w.T @ w          # mean(w w'): the gyroscopic noise walk
+        self._m2_n += len(w)
         # torque integral at the gyro times, relative to self._ts[0]
         T = self._T_base + cumulative_torque(self._ts, self._tau, t, self.hold)
         M = self._monomial_integral(t, w)
@@ -564,6 +568,8 @@ class RecursiveEstimator:
         self._walkc *= old
         self._tq_ss = old * self._tq_ss
         self._tq_n *= old
+        self._m2_sum = old * self._m2_sum
+        self._m2_n *= old
         self._wc *= old
         self._w00c *= old * old
         self._neffc *= old
@@ -588,7 +594,9 @@ class RecursiveEstimator:
         CP = lift(K.T @ (self._GPc + gp) @ K) if self._tau_var is not None else None
         return SufficientStats(C_all, CP, int(round(self._w0 + self._wc)), int(round(n_eff)), 1,
                                kind='anchored', eiv_var=nv, weighted=True,
-                               walk_time=self._walkc + walk, torque_dt=self._tau_dt)
+                               walk_time=self._walkc + walk, torque_dt=self._tau_dt,
+                               omega_m2=self._m2_sum / max(self._m2_n, 1e-300),
+                               gyro_dt=float(np.median(self._g_dts)) if len(self._g_dts) else 0.0)
 
     def estimate(self) -> InertiaEstimate:
         """Current estimate from everything merged so far (flushes covered samples first).

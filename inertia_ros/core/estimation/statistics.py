@@ -51,6 +51,10 @@ class SufficientStats:
         ``sum`` over segments of ``n_s * duration_s / 6`` [s].
     torque_dt : float
         Median torque sample interval [s].
+    omega_m2 : ndarray, shape (3, 3), optional
+        ``mean(w w')`` of the gyro samples [rad^2/s^2] (the gyroscopic noise walk).
+    gyro_dt : float
+        Median gyro sample interval [s].
     """
 
     C: np.ndarray
@@ -65,6 +69,8 @@ class SufficientStats:
     A: np.ndarray | None = None
     walk_time: float = 0.0
     torque_dt: float = 0.0
+    omega_m2: np.ndarray | None = None
+    gyro_dt: float = 0.0
 
 
 def range_sums(V: np.ndarray, bounds: np.ndarray) -> np.ndarray:
@@ -178,6 +184,7 @@ def sufficient_stats(eq: Equations, segment: float | None, t_tau: np.ndarray, ta
     if 'torque_dt' not in raw:              # the same for every segmentation: once
         raw['torque_dt'] = float(np.median(np.diff(t_tau))) if len(t_tau) > 1 else 0.0
     tdt = raw['torque_dt']
+    m2, gdt = eq.motion if eq.motion is not None else (None, 0.0)
     return SufficientStats(C, CP, n, n - len(starts), len(starts), eq.kind, eq.eiv_var,
                            eq.weighted, eq.hac_lag, None, walk_time=float(np.sum(ns * dur)) / 6.0,
-                           torque_dt=tdt)
+                           torque_dt=tdt, omega_m2=m2, gyro_dt=gdt)
