@@ -38,12 +38,15 @@ from typing import Any
 import numpy as np
 
 from .._validate import as_noise_std, as_sample_block
+from .adequacy import Adequacy, check_adequacy
 from .assemble import conclude, status_only
 from .fit import Fit, fit_two_pass
+from .history import SegmentHistory, SegmentStats
 from .homogeneous import homogeneous_estimate, is_torque_free
 from .model import symmetry_axis as unit_axis
 from .noise import StreamingNoise
 from .options import (
+    ADEQUACY_WINDOWS,
     ALPHA,
     GAP_FACTOR,
     HOLDS,
@@ -168,6 +171,10 @@ class RecursiveEstimator:
         self._tau_var: np.ndarray | None = None
         self._m2_sum = np.zeros((3, 3))   # (decayed) sum of w w' [rad^2/s^2] and its count
         self._m2_n = 0.0
+        self._history = SegmentHistory()  # closed segments apart, for the adequacy test
+        self._clock = 0.0                 # decay clock: sum of log(decay factors)
+        self._adequacy: Adequacy | None = None   # last adequacy result, reused between tests
+        self._adequacy_left = 0
         self._tq_ss = np.zeros(3)        # (decayed) sum of squared torque [N^2 m^2]
         self._tq_n = 0.0                 # and its (decayed) count
         self._tau_dt = 0.0
@@ -531,6 +538,7 @@ class RecursiveEstimator:
             gp, walk = self._segment_walk()
             self._GPc = self._GPc + gp
             self._walkc += walk
+            self._history.add(self._open_segment(gp, walk))
         self._w0 = self._w00 = 0.0
         self._mean = np.zeros(13)
         self._C = np.zeros((13, 13))
@@ -553,6 +561,7 @@ class RecursiveEstimator:
             wts = lam ** np.arange(n - 1, -1, -1, dtype=float)
             old = lam ** n
         self._t_last = float(t[-1])
+        self._clock += math.log(max(old, 1e-300))
         wb = float(np.sum(wts))
         mb = wts @ V / wb
         D = (V - mb[None]) * np.sqrt(wts)[:, None]
@@ -573,6 +582,56 @@ class RecursiveEstimator:
         self._wc *= old
         self._w00c *= old * old
         self._neffc *= old
+
+    def _open_segment(self, gp: np.ndarray, walk: float) -> SegmentStats:
+        """The open segment's statistics as a :class:`SegmentStats` (at the current clock)."""
+        neff = self._w0 - self._w00 / self._w0 if self._w0 > 0 else 0.0
+        return SegmentStats(self._C.copy(), gp, walk, self._w0, self._w00, neff, self._wk_t0,
+                            self._wk_tl, self._clock)
+
+    def _window_adequacy(self, f: Fit, nv: np.ndarray, tv: np.ndarray) -> Adequacy:
+        """The adequacy tests of ``f``: its parameter set refitted on groups of segments.
+
+        Up to :data:`ADEQUACY_WINDOWS` consecutive groups of the kept segments (the open one
+        included), each fitted with the weights of ``f``'s tensor, as the batch estimator does
+        on time windows.  Run every ``reselect_every`` estimates; reused in between.
+        """
+        if self._adequacy is not None and self._adequacy_left > 0:
+            self._adequacy_left -= 1
+            return self._adequacy
+        p, k = len(f.beta), f.basis.shape[1]
+        gp, walk = self._segment_walk()
+        groups = [g for g in self._history.groups(ADEQUACY_WINDOWS,
+                                                  self._open_segment(gp, walk), self._clock)
+                  if g.neff >= MIN_EQUATIONS]
+        thetas, covs, mids = np.zeros((0, p)), np.zeros((0, p, p)), np.zeros(0)
+        if len(groups) >= 2:
+            K = np.eye(13)
+            K[9, 3:6] = -nv
+            theta0 = f.basis @ f.beta[:k]
+            fits = []
+            for g in groups:
+                st = SufficientStats(lift(K.T @ g.C @ K), lift(K.T @ g.GP @ K),
+                                     int(round(g.w0)), int(round(g.neff)), 1, kind='anchored',
+                                     eiv_var=nv, weighted=True, walk_time=g.walk,
+                                     torque_dt=self._tau_dt, omega_m2=self._omega_m2(),
+                                     gyro_dt=self._gyro_dt())
+                fk = fit_two_pass(st, f.basis, f.bias, nv, tv, None, theta0)
+                fits.append((fk.beta, fk.cov * (g.w00 / g.w0), 0.5 * (g.t0 + g.t1)))
+            thetas = np.array([x[0] for x in fits])
+            covs = np.array([x[1] for x in fits])
+            mids = np.array([x[2] for x in fits])
+        self._adequacy = check_adequacy(thetas, covs, mids, f.excess)
+        self._adequacy_left = self.reselect_every - 1
+        return self._adequacy
+
+    def _omega_m2(self) -> np.ndarray:
+        """``mean(w w')`` of the merged gyro samples [rad^2/s^2] (decayed as the weights)."""
+        return self._m2_sum / max(self._m2_n, 1e-300)
+
+    def _gyro_dt(self) -> float:
+        """Median recent gyro sample interval [s] (0 before two samples)."""
+        return float(np.median(self._g_dts)) if len(self._g_dts) else 0.0
 
     # -----------------------------------------------------------------------------------------
     def _gyro_var(self) -> np.ndarray:
@@ -595,8 +654,7 @@ class RecursiveEstimator:
         return SufficientStats(C_all, CP, int(round(self._w0 + self._wc)), int(round(n_eff)), 1,
                                kind='anchored', eiv_var=nv, weighted=True,
                                walk_time=self._walkc + walk, torque_dt=self._tau_dt,
-                               omega_m2=self._m2_sum / max(self._m2_n, 1e-300),
-                               gyro_dt=float(np.median(self._g_dts)) if len(self._g_dts) else 0.0)
+                               omega_m2=self._omega_m2(), gyro_dt=self._gyro_dt())
 
     def estimate(self) -> InertiaEstimate:
         """Current estimate from everything merged so far (flushes covered samples first).
@@ -642,22 +700,28 @@ class RecursiveEstimator:
             f.cov = f.cov * ratio
             return f
 
-        return self._conclude(fit, diag, base)
+        def adequacy(f: Fit, chosen: str) -> Adequacy:
+            """Window consistency over the kept segments and the residual excess."""
+            return self._window_adequacy(f, nv, tv)
 
-    def _conclude(self, fit: Any, diag: dict[str, Any], base: dict[str, Any]) -> InertiaEstimate:
+        return self._conclude(fit, diag, base, adequacy)
+
+    def _conclude(self, fit: Any, diag: dict[str, Any], base: dict[str, Any],
+                  adequacy: Any) -> InertiaEstimate:
         """Model selection (reused between re-selections) and the result."""
         auto = self.model == 'auto' or self.torque_bias == 'auto'
         if auto and self._selection is not None and self._selection_left > 0:
             self._selection_left -= 1
             bias, model, record = self._selection
             est = conclude(fit, model, bias, self.axis, self.policy,
-                           dict(diag, warnings=list(diag['warnings'])), base)
-            if est.status == 'ok':
+                           dict(diag, warnings=list(diag['warnings'])), base, adequacy)
+            if est.status in ('ok', 'model_mismatch'):
                 est.diagnostics['model_selection'] = dict(record, reused=True)
                 return est
-        est = conclude(fit, self.model, self.torque_bias, self.axis, self.policy, diag, base)
+        est = conclude(fit, self.model, self.torque_bias, self.axis, self.policy, diag, base,
+                       adequacy)
         self._selection = None
-        if auto and est.status == 'ok':
+        if auto and est.status in ('ok', 'model_mismatch'):
             record = dict(est.diagnostics.get('model_selection') or {},
                           selected_at_samples=self.samples_used)
             est.diagnostics['model_selection'] = record
