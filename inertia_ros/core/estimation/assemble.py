@@ -147,11 +147,15 @@ def _select(fit: FitFunction, f: Fit, model: str, torque_bias: str, axis: np.nda
 
 #: ``adequacy(final_fit, model_name) -> Adequacy``: the model-adequacy tests of a final fit.
 AdequacyFunction = Callable[[Fit, str], Adequacy]
+#: ``gyro_sensitivity(final_fit) -> d beta / d g`` (p,): the fit's change per unit relative
+#: gyro scale error (``None``: the bound ``-2 beta``, the gyroscopic term's exponent).
+SensitivityFunction = Callable[[Fit], np.ndarray]
 
 
 def conclude(fit: FitFunction, model: str, torque_bias: str, axis: np.ndarray | None,
              policy: SelectionPolicy, diag: dict[str, Any], base: dict[str, Any],
-             adequacy: AdequacyFunction | None = None) -> InertiaEstimate:
+             adequacy: AdequacyFunction | None = None,
+             gyro_sensitivity: SensitivityFunction | None = None) -> InertiaEstimate:
     """Identifiability, model selection and the result, given ``fit(basis, bias) -> Fit``.
 
     Parameters
@@ -171,6 +175,9 @@ def conclude(fit: FitFunction, model: str, torque_bias: str, axis: np.ndarray | 
     adequacy : callable, optional
         ``adequacy(fit, model) -> Adequacy`` on the final fit of a fully identified tensor;
         a failed test gives ``model_mismatch`` (see the module docstring).
+    gyro_sensitivity : callable, optional
+        ``d beta / d g`` of the final fit for ``policy.gyro_scale_std`` (see
+        :func:`add_calibration`).
 
     Returns
     -------
@@ -203,7 +210,34 @@ def conclude(fit: FitFunction, model: str, torque_bias: str, axis: np.ndarray | 
         return assemble('partially_identifiable', f, 'full', free, diag, base, physical=False)
     f, chosen = _select(fit, f, model, torque_bias, axis, policy.alpha, diag)
     status = 'ok' if adequacy is None else _adequate(adequacy, f, chosen, diag)
+    add_calibration(f, policy, gyro_sensitivity, diag)
     return assemble(status, f, chosen, free, diag, base, physical=policy.physical)
+
+
+def add_calibration(f: Fit, policy: SelectionPolicy, gyro_sensitivity: SensitivityFunction
+                    | None, diag: dict[str, Any]) -> None:
+    """Add the stated sensor-scale uncertainties to the fit's covariance (in place).
+
+    The fit is linear in the torque, so a torque read ``(1 + s)`` times too large scales every
+    parameter by ``1 + s``: ``cov += s_std^2 beta beta'``.  A gyro scale error ``g`` scales the
+    momentum term by ``1 + g`` and the gyroscopic term by ``(1 + g)^2``; its effect
+    ``d beta / d g`` comes from ``gyro_sensitivity`` (a refit of the scaled statistics) or,
+    without one, the bound ``-2 beta``: ``cov += g_std^2 J J'``.  Both are recorded in
+    ``diag['calibration']``.
+    """
+    ts, gs = policy.torque_scale_std, policy.gyro_scale_std
+    if not (ts or gs):
+        return
+    add = ts ** 2 * np.outer(f.beta, f.beta)
+    how = None
+    if gs:
+        J = gyro_sensitivity(f) if gyro_sensitivity is not None else None
+        how = 'refit of the gyro-scaled statistics' if J is not None else 'bound -2 beta'
+        J = -2.0 * f.beta if J is None else J
+        add = add + gs ** 2 * np.outer(J, J)
+    f.cov = f.cov + add
+    diag['calibration'] = {'torque_scale_std': ts, 'gyro_scale_std': gs,
+                           'gyro_sensitivity': how, 'covariance_added': add}
 
 
 def _adequate(adequacy: AdequacyFunction, f: Fit, chosen: str, diag: dict[str, Any]) -> str:

@@ -118,7 +118,8 @@ def estimate(t_gyro: Any, omega: Any, t_torque: Any, torque: Any, *,
              symmetry_axis: Any = None, hold: str = 'zoh', alpha: float = ALPHA,
              gyro_noise: Any = None, torque_noise: Any = None, segment: float | None = None,
              window: float | None = None, identifiability_tol: float = IDENTIFIABILITY_TOL,
-             physical: bool = True) -> InertiaEstimate:
+             physical: bool = True, torque_scale_std: float = 0.0,
+             gyro_scale_std: float = 0.0) -> InertiaEstimate:
     """Estimate the inertia tensor from gyro and torque samples (Euler's equations).
 
     Parameters
@@ -159,6 +160,10 @@ def estimate(t_gyro: Any, omega: Any, t_torque: Any, torque: Any, *,
     physical : bool
         Project a physically impossible tensor onto the nearest valid one (reported in
         ``diagnostics['physical']``).
+    torque_scale_std, gyro_scale_std : float
+        Relative one-sigma scale uncertainty of the torque and the gyro calibration (0.01 =
+        1 %; default 0).  A uniform scale error cannot be seen in the data, so these inputs
+        are what puts it in the standard errors (``diagnostics['calibration']``).
 
     Returns
     -------
@@ -177,6 +182,7 @@ def estimate(t_gyro: Any, omega: Any, t_torque: Any, torque: Any, *,
     tau = as_samples(torque, len(ts), 'torque', 't_torque')
     policy, axis = _check_options(method, model, torque_bias, hold, alpha, identifiability_tol,
                                   physical, symmetry_axis)
+    policy = replace(policy, torque_scale_std=torque_scale_std, gyro_scale_std=gyro_scale_std)
     _check_counts(tg, ts)
     selection = None
     if method == 'auto':
@@ -188,7 +194,8 @@ def estimate(t_gyro: Any, omega: Any, t_torque: Any, torque: Any, *,
                          torque_bias=torque_bias, symmetry_axis=symmetry_axis, hold=hold,
                          alpha=alpha, gyro_noise=gyro_noise, torque_noise=torque_noise,
                          segment=segment, window=window,
-                         identifiability_tol=identifiability_tol, physical=physical)
+                         identifiability_tol=identifiability_tol, physical=physical,
+                         torque_scale_std=torque_scale_std, gyro_scale_std=gyro_scale_std)
         return _maximum_likelihood(first, tg, w, ts, tau, hold, axis, selection)
     return _estimate_direct(method, tg, w, ts, tau, hold, gyro_noise, torque_noise, segment,
                             window, model, torque_bias, axis, policy, selection)
@@ -327,7 +334,34 @@ def _estimate_shifted(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray
         """The model-adequacy tests of the final fit (window consistency, residual excess)."""
         return _window_adequacy(eq, segment, ts, gyro_var, torque_var, f)
 
-    return conclude(fit, model, torque_bias, axis, policy, diag, base, adequacy)
+    def gyro_sensitivity(f: Fit) -> np.ndarray | None:
+        """``d beta / d g`` of the final fit for a relative gyro scale error ``g``."""
+        return _gyro_sensitivity(eq, segment, ts, tau_end, gyro_var, torque_var, f)
+
+    return conclude(fit, model, torque_bias, axis, policy, diag, base, adequacy,
+                    gyro_sensitivity)
+
+
+def _gyro_sensitivity(eq: Equations, segment: float | None, ts: np.ndarray, tau_end: float,
+                      gyro_var: np.ndarray, torque_var: np.ndarray, f: Fit,
+                      step: float = 1e-4) -> np.ndarray | None:
+    """``d beta / d g`` by refitting the equations of a gyro read ``1 + step`` times larger.
+
+    The 13 variables scale exactly: ``w`` by ``1 + g``, the squared-rate integrals ``m`` by
+    ``(1 + g)^2``, time and torque not at all, so the scaled statistics need no new data.
+    ``None`` for equations that are not anchored (the caller then uses a bound).
+    """
+    if eq.kind != 'anchored':
+        return None
+    k = f.basis.shape[1]
+    theta0 = f.basis @ f.beta[:k] + (0.0 if f.offset is None else f.offset)
+    scaled = eq.rows(0, len(eq.t))
+    scaled.V[:, :3] *= 1.0 + step
+    scaled.V[:, 3:9] *= (1.0 + step) ** 2
+    betas = [fit_two_pass(sufficient_stats(e, segment, ts, tau_end, torque_var), f.basis,
+                          f.bias, gyro_var, torque_var, f.offset, theta0).beta
+             for e in (eq, scaled)]
+    return (betas[1] - betas[0]) / step
 
 
 def _window_adequacy(eq: Equations, segment: float | None, ts: np.ndarray,
@@ -489,6 +523,9 @@ def _refine(first: InertiaEstimate, tg: np.ndarray, w: np.ndarray, ts: np.ndarra
     k = basis.shape[1]
     theta = basis @ res.beta
     cov6 = basis @ res.cov[:k, :k] @ basis.T
+    calib = diag.get('calibration')
+    if calib is not None:                   # the stated scale uncertainties, as for integral
+        cov6 = cov6 + basis @ np.asarray(calib['covariance_added'])[:k, :k] @ basis.T
     I = theta_to_matrix(theta, check_finite=False)
     chk = check_physical(I)
     if not chk.valid:

@@ -99,13 +99,17 @@ class RecursiveEstimator:
         ``reselect_every``-th call of :meth:`estimate` and reuse the parameter set they chose
         in between (one fit instead of two or more per call; the node re-selects about once
         a second).  1 (default) selects on every call.
+    torque_scale_std, gyro_scale_std : float
+        Relative one-sigma scale uncertainty of the torque and the gyro (0.01 = 1 %),
+        propagated into the standard errors as by :func:`~.batch.estimate`.
     """
 
     def __init__(self, model: str = 'full', torque_bias: bool | str = False,
                  forgetting: float = 1.0, window: float | None = None, hold: str = 'zoh',
                  symmetry_axis: Any = None, gyro_noise: Any = None, alpha: float = ALPHA,
                  block: int = 256, segment: float | None = None,
-                 reselect_every: int = 1) -> None:
+                 reselect_every: int = 1, torque_scale_std: float = 0.0,
+                 gyro_scale_std: float = 0.0) -> None:
         check_choice('model', model, MODELS)
         if isinstance(torque_bias, bool):
             torque_bias = 'on' if torque_bias else 'off'
@@ -117,7 +121,8 @@ class RecursiveEstimator:
         if window is not None and not window > 0:
             raise ValueError(f'window: must be > 0 s, got {window!r}')
         check_choice('hold', hold, HOLDS)
-        self.policy = SelectionPolicy(alpha)
+        self.policy = SelectionPolicy(alpha, torque_scale_std=torque_scale_std,
+                                      gyro_scale_std=gyro_scale_std)
         if segment is not None and not segment > 0:
             raise ValueError(f'segment: must be > 0 s, got {segment!r}')
         self.segment = float(segment if segment is not None else (window or 10.0))
@@ -640,14 +645,19 @@ class RecursiveEstimator:
             return self._gyro_noise ** 2
         return self._gyro_nv.variance()
 
-    def _stats(self, nv: np.ndarray, n_eff: float) -> SufficientStats:
+    def _stats(self, nv: np.ndarray, n_eff: float, gyro_scale: float = 1.0) -> SufficientStats:
         """The weighted statistics of everything merged, in the batch estimator's form.
 
         The gyro-noise correction of the squared-rate integrals, ``m_c -> m_c - sigma_c^2 s``,
         is linear in the 13 variables (``K``) and applied here with the current noise level.
+        ``gyro_scale`` gives the statistics of a gyro read that many times larger (``w`` and
+        the squared-rate integrals scale exactly; for the gyro-scale sensitivity).
         """
         K = np.eye(13)
         K[9, 3:6] = -nv
+        if gyro_scale != 1.0:
+            K = np.diag(np.r_[np.full(3, gyro_scale), np.full(6, gyro_scale ** 2),
+                              np.ones(4)]) @ K
         C_all = lift(K.T @ (self._C + self._Cc) @ K)
         gp, walk = self._segment_walk()
         CP = lift(K.T @ (self._GPc + gp) @ K) if self._tau_var is not None else None
@@ -704,22 +714,31 @@ class RecursiveEstimator:
             """Window consistency over the kept segments and the residual excess."""
             return self._window_adequacy(f, nv, tv)
 
-        return self._conclude(fit, diag, base, adequacy)
+        def gyro_sensitivity(f: Fit) -> np.ndarray:
+            """``d beta / d g``: refit of the statistics of a gyro read 1e-4 larger."""
+            k = f.basis.shape[1]
+            theta0 = f.basis @ f.beta[:k] + (0.0 if f.offset is None else f.offset)
+            b = [fit_two_pass(self._stats(nv, n_eff, s), f.basis, f.bias, nv, tv, f.offset,
+                              theta0).beta for s in (1.0, 1.0 + 1e-4)]
+            return (b[1] - b[0]) / 1e-4
+
+        return self._conclude(fit, diag, base, adequacy, gyro_sensitivity)
 
     def _conclude(self, fit: Any, diag: dict[str, Any], base: dict[str, Any],
-                  adequacy: Any) -> InertiaEstimate:
+                  adequacy: Any, sensitivity: Any) -> InertiaEstimate:
         """Model selection (reused between re-selections) and the result."""
         auto = self.model == 'auto' or self.torque_bias == 'auto'
         if auto and self._selection is not None and self._selection_left > 0:
             self._selection_left -= 1
             bias, model, record = self._selection
             est = conclude(fit, model, bias, self.axis, self.policy,
-                           dict(diag, warnings=list(diag['warnings'])), base, adequacy)
+                           dict(diag, warnings=list(diag['warnings'])), base, adequacy,
+                           sensitivity)
             if est.status in ('ok', 'model_mismatch'):
                 est.diagnostics['model_selection'] = dict(record, reused=True)
                 return est
         est = conclude(fit, self.model, self.torque_bias, self.axis, self.policy, diag, base,
-                       adequacy)
+                       adequacy, sensitivity)
         self._selection = None
         if auto and est.status in ('ok', 'model_mismatch'):
             record = dict(est.diagnostics.get('model_selection') or {},

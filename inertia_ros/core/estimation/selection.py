@@ -47,11 +47,16 @@ class SelectionPolicy:
         largest well-determined principal-diagonal element (> 0).
     physical : bool
         Project a physically impossible tensor onto the nearest valid one.
+    torque_scale_std, gyro_scale_std : float
+        Relative one-sigma scale uncertainty of the torque and the gyro (0.01 = 1 %): a
+        uniform scale error is invisible in the data, so only these inputs put it in sigma.
     """
 
     alpha: float = ALPHA
     identifiability_tol: float = IDENTIFIABILITY_TOL
     physical: bool = True
+    torque_scale_std: float = 0.0
+    gyro_scale_std: float = 0.0
 
     def __post_init__(self) -> None:
         """Check the numbers (one clear ValueError each)."""
@@ -60,6 +65,11 @@ class SelectionPolicy:
         if not 0.0 < self.identifiability_tol:
             raise ValueError(f'identifiability_tol: must be > 0, got '
                              f'{self.identifiability_tol!r}')
+        for name in ('torque_scale_std', 'gyro_scale_std'):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not 0.0 <= v <= 0.5:
+                raise ValueError(f'{name}: must be a relative one-sigma scale uncertainty in '
+                                 f'[0, 0.5] (0.01 = 1 %), got {v!r}')
 
 
 def conditioning(fit: Fit, names: list[str]) -> dict[str, Any]:
