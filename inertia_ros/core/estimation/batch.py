@@ -149,14 +149,12 @@ def estimate(t_gyro: Any, omega: Any, t_torque: Any, torque: Any, *,
     gyro_noise, torque_noise : float or array_like (3,), optional
         White-noise std per axis [rad/s] and [N m]; estimated from the data when omitted.
     segment : float, optional
-        Maximum anchored-segment duration [s] for the integral methods (default: whole run,
-        split only at gaps).
+        Longest anchored segment [s] of the integral methods (default: chosen from the data).
     window : float, optional
         Window length [s] of ``integral_sliding`` (default 2 s) or ``differential_sg``
         (default 1 s; the same Savitzky-Golay filter is applied to the torque).
     identifiability_tol : float
-        An element is identifiable when its standard error is below this fraction of the
-        largest well-determined principal-diagonal element.
+        Largest standard error of an identifiable element, as a share of the tensor scale.
     physical : bool
         Project a physically impossible tensor onto the nearest valid one (reported in
         ``diagnostics['physical']``).
@@ -180,9 +178,9 @@ def estimate(t_gyro: Any, omega: Any, t_torque: Any, torque: Any, *,
     w = as_samples(omega, len(tg), 'omega', 't_gyro')
     ts = as_times(t_torque, 't_torque')
     tau = as_samples(torque, len(ts), 'torque', 't_torque')
-    policy, axis = _check_options(method, model, torque_bias, hold, alpha, identifiability_tol,
-                                  physical, symmetry_axis)
-    policy = replace(policy, torque_scale_std=torque_scale_std, gyro_scale_std=gyro_scale_std)
+    policy, axis = _check_options(method, model, torque_bias, hold, symmetry_axis,
+                                  SelectionPolicy(alpha, identifiability_tol, physical,
+                                                  torque_scale_std, gyro_scale_std))
     _check_counts(tg, ts)
     selection = None
     if method == 'auto':
@@ -190,12 +188,8 @@ def estimate(t_gyro: Any, omega: Any, t_torque: Any, torque: Any, *,
         selection = {'requested': 'auto', 'chosen': method,
                      'rule': f'ml up to {ML_AUTO_MAX_SAMPLES} gyro samples, integral beyond'}
     if method == 'ml':
-        first = estimate(tg, w, ts, tau, method='integral', model=model,
-                         torque_bias=torque_bias, symmetry_axis=symmetry_axis, hold=hold,
-                         alpha=alpha, gyro_noise=gyro_noise, torque_noise=torque_noise,
-                         segment=segment, window=window,
-                         identifiability_tol=identifiability_tol, physical=physical,
-                         torque_scale_std=torque_scale_std, gyro_scale_std=gyro_scale_std)
+        first = _estimate_direct('integral', tg, w, ts, tau, hold, gyro_noise, torque_noise,
+                                 segment, window, model, torque_bias, axis, policy, None)
         return _maximum_likelihood(first, tg, w, ts, tau, hold, axis, selection)
     return _estimate_direct(method, tg, w, ts, tau, hold, gyro_noise, torque_noise, segment,
                             window, model, torque_bias, axis, policy, selection)
@@ -233,15 +227,13 @@ def _check_counts(tg: np.ndarray, ts: np.ndarray) -> None:
                          '(or none for torque-free data)')
 
 
-def _check_options(method: str, model: str, torque_bias: str, hold: str, alpha: float,
-                   identifiability_tol: float, physical: bool,
-                   axis: Any) -> tuple[SelectionPolicy, np.ndarray | None]:
-    """Validate the option names and numbers; the selection policy and the unit axis."""
+def _check_options(method: str, model: str, torque_bias: str, hold: str, axis: Any,
+                   policy: SelectionPolicy) -> tuple[SelectionPolicy, np.ndarray | None]:
+    """Validate the option names (the policy checked its numbers); the policy, the unit axis."""
     check_choice('method', method, METHODS)
     check_choice('model', model, MODELS)
     check_choice('torque_bias', torque_bias, TORQUE_BIAS)
     check_choice('hold', hold, HOLDS)
-    policy = SelectionPolicy(alpha, identifiability_tol, physical)
     unit = symmetry_axis(axis)
     if model == 'axisymmetric' and unit is None:
         raise ValueError("symmetry_axis: required for model='axisymmetric'")
