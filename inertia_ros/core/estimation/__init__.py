@@ -18,7 +18,15 @@ from __future__ import annotations
 import importlib
 from typing import TYPE_CHECKING, Any
 
-from .options import HOLDS, METHODS, ML_AUTO_MAX_SAMPLES, MODELS, STATUSES, TORQUE_BIAS
+from .options import (
+    BATCH_HOLDS,
+    HOLDS,
+    METHODS,
+    ML_AUTO_MAX_SAMPLES,
+    MODELS,
+    STATUSES,
+    TORQUE_BIAS,
+)
 
 if TYPE_CHECKING:
     from .batch import estimate
@@ -26,8 +34,9 @@ if TYPE_CHECKING:
     from .recursive import RecursiveEstimator
     from .result import InertiaEstimate, to_jsonable
 
-__all__ = ['HOLDS', 'METHODS', 'ML_AUTO_MAX_SAMPLES', 'MODELS', 'STATUSES', 'TORQUE_BIAS',
-           'InertiaEstimate', 'RecursiveEstimator', 'estimate', 'model_basis', 'to_jsonable']
+__all__ = ['BATCH_HOLDS', 'HOLDS', 'METHODS', 'ML_AUTO_MAX_SAMPLES', 'MODELS', 'STATUSES',
+           'TORQUE_BIAS', 'InertiaEstimate', 'RecursiveEstimator', 'estimate', 'model_basis',
+           'to_jsonable']
 
 #: Lazily imported names and the module that defines each.
 _LAZY = {'estimate': 'batch', 'model_basis': 'model', 'RecursiveEstimator': 'recursive',

@@ -89,6 +89,7 @@ from .options import (
     ADEQUACY_MIN_WINDOW_S,
     ADEQUACY_WINDOWS,
     ALPHA,
+    BATCH_HOLDS,
     GAP_FACTOR,
     HOLDS,
     IDENTIFIABILITY_TOL,
@@ -105,7 +106,7 @@ from .selection import SelectionPolicy
 from .statistics import sufficient_stats
 from .uncertainty import principal_with_std
 
-__all__ = ['HOLDS', 'METHODS', 'ML_AUTO_MAX_SAMPLES', 'MODELS', 'TORQUE_BIAS', 'estimate',
+__all__ = ['BATCH_HOLDS', 'METHODS', 'ML_AUTO_MAX_SAMPLES', 'MODELS', 'TORQUE_BIAS', 'estimate',
            'model_basis']
 
 _SELECT_MAX_ROWS = 100_000                     # equations used by the segment-length search
@@ -115,7 +116,7 @@ _EIV_MAX_SHARE = 0.02                          # differentiated-gyro noise share
 
 def estimate(t_gyro: Any, omega: Any, t_torque: Any, torque: Any, *,
              method: str = 'auto', model: str = 'auto', torque_bias: str = 'auto',
-             symmetry_axis: Any = None, hold: str = 'zoh', alpha: float = ALPHA,
+             symmetry_axis: Any = None, hold: str = 'auto', alpha: float = ALPHA,
              gyro_noise: Any = None, torque_noise: Any = None, segment: float | None = None,
              window: float | None = None, identifiability_tol: float = IDENTIFIABILITY_TOL,
              physical: bool = True, torque_scale_std: float = 0.0,
@@ -142,10 +143,10 @@ def estimate(t_gyro: Any, omega: Any, t_torque: Any, torque: Any, *,
         Estimate a constant unmeasured disturbance torque (3 more parameters).
     symmetry_axis : {'x', 'y', 'z'} or array_like (3,), optional
         Body axis of symmetry for the axisymmetric model.
-    hold : {'zoh', 'linear'}
-        Torque between samples: zero-order hold (commands) or linear interpolation.
+    hold : {'auto', 'zoh', 'linear'}
+        Torque between samples: held, linear, or both tried (``diagnostics['hold_selection']``).
     alpha : float
-        Test level of the model-selection Wald tests (0 < alpha < 1).
+        Level of the model-selection Wald tests (0 < alpha < 1).
     gyro_noise, torque_noise : float or array_like (3,), optional
         White-noise std per axis [rad/s] and [N m]; estimated from the data when omitted.
     segment : float, optional
@@ -160,8 +161,7 @@ def estimate(t_gyro: Any, omega: Any, t_torque: Any, torque: Any, *,
         ``diagnostics['physical']``).
     torque_scale_std, gyro_scale_std : float
         Relative one-sigma scale uncertainty of the torque and the gyro calibration (0.01 =
-        1 %; default 0).  A uniform scale error cannot be seen in the data, so these inputs
-        are what puts it in the standard errors (``diagnostics['calibration']``).
+        1 %; default 0): invisible in the data, so stated (``diagnostics['calibration']``).
 
     Returns
     -------
@@ -171,8 +171,7 @@ def estimate(t_gyro: Any, omega: Any, t_torque: Any, torque: Any, *,
     Raises
     ------
     ValueError
-        Malformed input: wrong shapes, NaN/inf, non-increasing times, fewer gyro samples than
-        parameters, unknown option names.
+        Malformed input: shapes, NaN/inf, non-increasing times, too few samples, options.
     """
     tg = as_times(t_gyro, 't_gyro')
     w = as_samples(omega, len(tg), 'omega', 't_gyro')
@@ -190,7 +189,8 @@ def estimate(t_gyro: Any, omega: Any, t_torque: Any, torque: Any, *,
     if method == 'ml':
         first = _estimate_direct('integral', tg, w, ts, tau, hold, gyro_noise, torque_noise,
                                  segment, window, model, torque_bias, axis, policy, None)
-        return _maximum_likelihood(first, tg, w, ts, tau, hold, axis, selection)
+        return _maximum_likelihood(first, tg, w, ts, tau,
+                                   first.diagnostics.get('hold', hold), axis, selection)
     return _estimate_direct(method, tg, w, ts, tau, hold, gyro_noise, torque_noise, segment,
                             window, model, torque_bias, axis, policy, selection)
 
@@ -213,9 +213,41 @@ def _estimate_direct(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray,
                             'warnings': []}
     if selection is not None:
         diag['method_selection'] = selection
-    return _estimate_shifted(method, tg - t_origin, w, ts - t_origin, tau, hold, gyro_std ** 2,
-                             torque_std ** 2, segment, window, model, torque_bias, axis,
-                             policy, diag)
+
+    def run(h: str, d: dict[str, Any]) -> InertiaEstimate:
+        return _estimate_shifted(method, tg - t_origin, w, ts - t_origin, tau, h,
+                                 gyro_std ** 2, torque_std ** 2, segment, window, model,
+                                 torque_bias, axis, policy, d)
+    if hold != 'auto':
+        return run(hold, diag)
+    return _auto_hold(run, diag, torque_std)
+
+
+def _auto_hold(run: Any, diag: dict[str, Any], torque_std: np.ndarray) -> InertiaEstimate:
+    """``hold='auto'``: both holds, the one whose residuals the noise model explains better.
+
+    A held command (zero-order hold) and a torque that varies continuously between its
+    samples (linear) give the same number of parameters, so the residual excess over the same
+    noise model compares them fairly; ``linear`` must win by 10 % (at low signal-to-noise the
+    two are alike and the held model, which ``ml`` refines, stays).  Torque-free data need no
+    choice (``zoh``).
+    """
+    results = {}
+    for h in HOLDS:
+        d = dict(diag, warnings=list(diag['warnings']))
+        results[h] = run(h, d)
+        if h == 'zoh' and (results[h].model == 'homogeneous' or not np.any(torque_std > 0)):
+            break
+    excess = {h: float(r.diagnostics.get('residual_excess', np.inf)) for h, r in
+              results.items()}
+    # a held command is the usual case and the one ml refines: linear only when clearly better
+    chosen = 'linear' if excess.get('linear', np.inf) < 0.9 * excess['zoh'] else 'zoh'
+    est = results[chosen]
+    est.diagnostics['hold'] = chosen
+    est.diagnostics['hold_selection'] = {
+        'requested': 'auto', 'chosen': chosen, 'residual_excess': excess,
+        'rule': 'linear when its residual excess is at least 10 % below the held one'}
+    return est
 
 
 def _check_counts(tg: np.ndarray, ts: np.ndarray) -> None:
@@ -233,7 +265,7 @@ def _check_options(method: str, model: str, torque_bias: str, hold: str, axis: A
     check_choice('method', method, METHODS)
     check_choice('model', model, MODELS)
     check_choice('torque_bias', torque_bias, TORQUE_BIAS)
-    check_choice('hold', hold, HOLDS)
+    check_choice('hold', hold, BATCH_HOLDS)
     unit = symmetry_axis(axis)
     if model == 'axisymmetric' and unit is None:
         raise ValueError("symmetry_axis: required for model='axisymmetric'")

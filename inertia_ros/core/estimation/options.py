@@ -17,7 +17,8 @@ Rules
 """
 from __future__ import annotations
 
-__all__ = ['ADEQUACY_ALPHA', 'ADEQUACY_MIN_WINDOW_S', 'ADEQUACY_WINDOWS', 'ALPHA', 'GAP_FACTOR',
+__all__ = ['ADEQUACY_ALPHA', 'ADEQUACY_MIN_WINDOW_S', 'ADEQUACY_WINDOWS', 'ALPHA', 'BATCH_HOLDS',
+           'GAP_FACTOR',
            'HOLDS', 'IDENTIFIABILITY_TOL', 'MAX_RESIDUAL_EXCESS', 'METHODS', 'MIN_EQUATIONS',
            'MIN_GYRO_SAMPLES', 'ML_AUTO_MAX_SAMPLES', 'MODELS', 'STATUSES', 'TORQUE_BIAS',
            'TORQUE_FREE_SIGMAS', 'check_choice']
@@ -29,8 +30,11 @@ METHODS: tuple[str, ...] = ('auto', 'ml', 'integral', 'integral_ls', 'integral_s
 MODELS: tuple[str, ...] = ('auto', 'full', 'diagonal', 'axisymmetric')
 #: Constant disturbance-torque choices (``torque_bias=``, ``--torque-bias``).
 TORQUE_BIAS: tuple[str, ...] = ('auto', 'on', 'off')
-#: How the torque is held between its samples (``hold=``, ``--hold``).
+#: How the torque is held between its samples (online estimators, the node's ``hold``).
 HOLDS: tuple[str, ...] = ('zoh', 'linear')
+#: The batch ``hold=`` / ``--hold`` choices: ``auto`` fits both and keeps the one whose
+#: residuals the noise model explains better.
+BATCH_HOLDS: tuple[str, ...] = ('auto', *HOLDS)
 #: Every status an estimate can carry (DESIGN.md contract), best first.
 STATUSES: tuple[str, ...] = ('ok', 'model_mismatch', 'scale_unobservable',
                              'partially_identifiable', 'insufficient_excitation',
