@@ -355,8 +355,16 @@ def _estimate_shifted(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray
         return fit_two_pass(st, basis, bias, gyro_var, torque_var, offset, theta0)
 
     def adequacy(f: Fit, chosen: str) -> Adequacy:
-        """The model-adequacy tests of the final fit (window consistency, residual excess)."""
-        return _window_adequacy(eq, segment, ts, gyro_var, torque_var, f)
+        """The model-adequacy tests of the final fit (window consistency, residual excess).
+
+        Whether one constant tensor explains the data does not depend on the method: the
+        sliding and differential methods are tested on the anchored (integral) equations.
+        """
+        if eq.kind == 'anchored':
+            return _window_adequacy(eq, segment, ts, gyro_var, torque_var, f)
+        eqa = build_equations('integral', tg, w, ts, tau, mask, breaks, hold, gyro_var, None)
+        eqa.motion = eq.motion
+        return _window_adequacy(eqa, None, ts, gyro_var, torque_var, f)
 
     def gyro_sensitivity(f: Fit) -> np.ndarray | None:
         """``d beta / d g`` of the final fit for a relative gyro scale error ``g``."""
@@ -394,8 +402,7 @@ def _window_adequacy(eq: Equations, segment: float | None, ts: np.ndarray,
 
     Up to :data:`ADEQUACY_WINDOWS` windows of at least :data:`ADEQUACY_MIN_WINDOW_S` each,
     weighted as the final fit (its tensor gives the weights), each with its own anchored
-    segments and torque-noise statistics.  Equations that are not anchored (the sliding and
-    differential methods) get the residual-excess test only.
+    segments and torque-noise statistics.
     """
     k = f.basis.shape[1]
     p = len(f.beta)
