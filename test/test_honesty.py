@@ -9,8 +9,8 @@ no code shared with the estimators).  Each case asserts what a user relies on:
 - where the model does not explain the data (gyro bias, unmodelled torque, payload change), a
   status other than ``ok`` with the cause in the reason.
 
-Reduced size (20-30 s records, 8 seeds) of ``python -m inertia_ros.bench.honesty``; the full
-benchmark and its figures are in docs/BENCHMARKS.md.
+Reduced size (20-60 s records, 6 seeds) of ``python -m inertia_ros bench honesty``; the full
+benchmark (20 seeds, every case and path) and its figures are in docs/BENCHMARKS.md.
 """
 from __future__ import annotations
 
@@ -19,7 +19,7 @@ import pytest
 
 from inertia_ros.bench.honesty import CASES, HonestyCase, run_case, summarize
 
-SEEDS = range(8)
+SEEDS = range(6)
 
 
 def _short(name: str, duration: float = 30.0) -> HonestyCase:
@@ -36,37 +36,42 @@ def _run(name: str, paths: tuple[str, ...], duration: float = 30.0):
     return out, {s.path: s for s in summarize(out)}
 
 
-@pytest.mark.parametrize('name,paths', [
-    ('clean', ('api', 'node')),
-    ('continuous', ('api',)),
-    ('spin_50', ('api', 'node')),
+@pytest.mark.parametrize('name,paths,duration', [
+    ('clean', ('api', 'node'), 30.0),
+    ('node_1k', ('node',), 10.0),
+    ('continuous', ('api',), 30.0),
+    ('spin_50', ('api', 'node'), 15.0),
 ])
-def test_calibrated_where_the_model_holds(name: str, paths: tuple[str, ...]) -> None:
-    """No defect, ok in >= 7 of 8 runs, RMS z in [0.6, 1.5] on each path."""
-    out, summ = _run(name, paths, 20.0 if name == 'spin_50' else 30.0)
+def test_calibrated_where_the_model_holds(name: str, paths: tuple[str, ...],
+                                          duration: float) -> None:
+    """No defect, ok in >= 5 of 6 runs, RMS z in [0.6, 1.5] on each path."""
+    out, summ = _run(name, paths, duration)
     for p in paths:
         s = summ[p]
         assert s.defects == 0, f'{name}/{p}: ok with the truth > 5 sigma away: {s}'
-        assert s.ok >= 7, f'{name}/{p}: statuses {s.statuses}'
+        assert s.ok >= 5, f'{name}/{p}: statuses {s.statuses}'
         assert 0.6 <= s.rms_z <= 1.5, f'{name}/{p}: RMS z {s.rms_z:.2f}'
 
 
 def test_node_window_calibrated() -> None:
     """The node's sliding memory (window 10 s) keeps its sigma honest from the first merge."""
-    out, summ = _run('window_10s', ('node',))
+    out, summ = _run('window_10s', ('node',), 30.0)
     s = summ['node']
     assert s.defects == 0, s
     assert 0.6 <= s.rms_z <= 1.5, s
 
 
-@pytest.mark.parametrize('name', ['gyro_bias', 'disturbance', 'payload_change'])
-def test_no_ok_when_the_model_is_wrong(name: str) -> None:
-    """Unmodelled faults: never ok far from the truth; flagged in most runs with a reason."""
-    out, summ = _run(name, ('api', 'node'))
+@pytest.mark.parametrize('name,duration', [
+    ('gyro_bias', 60.0),          # at 30 s the window test misses 2 in 8 (docs/BENCHMARKS.md)
+    ('disturbance', 30.0),
+    ('payload_change', 30.0),
+])
+def test_no_ok_when_the_model_is_wrong(name: str, duration: float) -> None:
+    """Unmodelled faults: never ok far from the truth; all flagged, with a reason."""
+    out, summ = _run(name, ('api', 'node'), duration)
     for p, s in summ.items():
         assert s.defects == 0, f'{name}/{p}: {s}'
-    flagged = [o for o in out if o.path == 'api' and o.status != 'ok']
-    assert len(flagged) >= 6, summ['api'].statuses
+        assert s.statuses.get('model_mismatch', 0) == len(SEEDS), f'{name}/{p}: {s.statuses}'
 
 
 def test_payload_change_located() -> None:
@@ -85,10 +90,10 @@ def test_payload_change_located() -> None:
 @pytest.mark.parametrize('name', ['gyro_scale', 'torque_scale'])
 def test_scale_uncertainty_inputs(name: str) -> None:
     """A sensor scale error stated as *_scale_std is in the sigma: no defect on any path."""
-    out, summ = _run(name, ('api', 'node'))
+    out, summ = _run(name, ('api', 'node'), 20.0)
     for p, s in summ.items():
         assert s.defects == 0, f'{name}/{p}: {s}'
-        assert s.ok >= 6, f'{name}/{p}: {s.statuses}'
+        assert s.ok >= 5, f'{name}/{p}: {s.statuses}'
 
 
 def test_constant_torque_estimates_without_bias() -> None:
@@ -102,7 +107,7 @@ def test_constant_torque_estimates_without_bias() -> None:
 
 def test_cli_path_matches_api() -> None:
     """The CLI (MCAP written, read back, JSON report) gives the same status and sigma."""
-    out, summ = _run('clean', ('api', 'cli'), 20.0)
+    out, summ = _run('clean', ('api', 'cli'), 15.0)
     api = {o.seed: o for o in out if o.path == 'api'}
     for o in (o for o in out if o.path == 'cli'):
         assert o.status == api[o.seed].status
