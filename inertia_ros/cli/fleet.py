@@ -221,7 +221,8 @@ def run(args: argparse.Namespace) -> int:
             raise UserError(f'--report {args.report}: {exc.strerror or exc}') from None
         print(f'report: {md}', file=sys.stderr)
     counts = Counter(r['status'] for r in rows if r['path'] in found)
-    ran = f'{len(new_rows)} estimated' + (f' on {workers} workers' if todo else '')
+    ran = f'{len(new_rows)} estimated' + (
+        f' on {workers} worker{"s" if workers != 1 else ""}' if todo else '')
     summary = (f'fleet: {len(refs)} logs ({ran}, {len(refs) - len(todo)} unchanged) in '
                f'{time.perf_counter() - t0:.1f} s: '
                + ', '.join(f'{n} {s}' for s, n in sorted(counts.items(),

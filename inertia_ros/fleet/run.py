@@ -48,6 +48,10 @@ _THETA_IDX = ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))
 #: Serialises in-process ``estimate`` calls (they redirect the process-wide stdout/stderr).
 _LOCK = threading.Lock()
 _ERROR_PREFIX = 'inertia_ros estimate: error: '
+#: The local cluster's workers are processes (True: the logs run in parallel).  False puts
+#: them in threads of this process, where the lock above runs one log at a time: only for
+#: tests, where it saves the workers' start-up (about 5 s on a loaded 2-core machine).
+LOCAL_PROCESSES = True
 
 
 def options_signature(flags: Sequence[str], vehicle_from: str) -> str:
@@ -390,7 +394,8 @@ def open_client(workers: int | None = None, scheduler: str | None = None,
                     f'start workers with `dask worker {scheduler} --nthreads 1`') from None
         else:
             n = workers or os.cpu_count() or 1
-            cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
+            cluster = LocalCluster(n_workers=n, threads_per_worker=1,
+                                   processes=LOCAL_PROCESSES,
                                    dashboard_address=None, silence_logs=logging.ERROR)
             client = Client(cluster)
         try:
