@@ -2,8 +2,9 @@
 
 Both formats hold the same columns (:data:`COLUMNS`) in the same order; missing values are
 nulls in Parquet and empty fields in CSV.  Floats are written at full precision (CSV uses
-``repr``), so a round trip is exact (an empty string reads back as null).  Files are replaced atomically (written beside the
-target, then renamed), so an interrupted write never leaves half a table.
+``repr``), so a round trip is exact (an empty string reads back as null).  Files are
+replaced atomically (written beside the target, then renamed), so an interrupted write never
+leaves half a table.
 """
 from __future__ import annotations
 
