@@ -206,6 +206,7 @@ def run(args: argparse.Namespace) -> int:
             interrupted = True
         finally:
             bar.close()
+    interrupted = interrupted and len(new_rows) < len(todo)  # not if only closing was cut
     rows = table()
     if todo or len(rows) != len(old):
         try:

@@ -25,6 +25,7 @@ import logging
 import math
 import os
 import shlex
+import signal
 import tempfile
 import threading
 import time
@@ -354,6 +355,20 @@ def _probe() -> str:
 
 
 @contextlib.contextmanager
+def _sigint_ignored() -> Iterator[None]:
+    """Ignore SIGINT inside the block (main thread only; elsewhere a no-op)."""
+    try:
+        previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    except ValueError:  # not the main thread
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+@contextlib.contextmanager
 def open_client(workers: int | None = None, scheduler: str | None = None,
                 connect_timeout: float = 20.0) -> Iterator[Any]:
     """A ``distributed.Client``: on a new local cluster, or on the scheduler at an address.
@@ -394,9 +409,13 @@ def open_client(workers: int | None = None, scheduler: str | None = None,
                     f'start workers with `dask worker {scheduler} --nthreads 1`') from None
         else:
             n = workers or os.cpu_count() or 1
-            cluster = LocalCluster(n_workers=n, threads_per_worker=1,
-                                   processes=LOCAL_PROCESSES,
-                                   dashboard_address=None, silence_logs=logging.ERROR)
+            # The worker processes inherit an ignored SIGINT: Ctrl-C in a terminal reaches the
+            # whole process group, and it is the client's to handle (cancel, write the rows,
+            # close the cluster), not a traceback in every worker.
+            with _sigint_ignored():
+                cluster = LocalCluster(n_workers=n, threads_per_worker=1,
+                                       processes=LOCAL_PROCESSES,
+                                       dashboard_address=None, silence_logs=logging.ERROR)
             client = Client(cluster)
         try:
             client.run(_probe)
