@@ -394,3 +394,20 @@ def test_external_scheduler_gives_the_same_rows(local_runs: dict, fleet: tuple[P
             if a[k] is not None:
                 assert a[k] == pytest.approx(b[k], rel=1e-12, abs=1e-15), (a['path'], k)
 
+
+
+def test_benchmark_section_is_replaced_in_place(tmp_path: Path) -> None:
+    """The fleet benchmark owns one marked section of BENCHMARKS.md, appended then replaced."""
+    from inertia_ros.bench.fleet import BEGIN, END, update_doc
+
+    doc = tmp_path / 'B.md'
+    doc.write_text('# Benchmarks\n\nother sections\n')
+    update_doc(doc, 'first figures\n')
+    update_doc(doc, 'second figures\n')
+    text = doc.read_text()
+    assert text.startswith('# Benchmarks\n\nother sections\n\n' + BEGIN)
+    assert text.count(BEGIN) == 1 and text.count(END) == 1
+    assert 'second figures' in text and 'first figures' not in text
+    doc.write_text(text + '\n## Later section\n')
+    update_doc(doc, 'third\n')
+    assert doc.read_text().endswith(f'third\n{END}\n## Later section\n')

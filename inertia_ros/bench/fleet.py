@@ -12,8 +12,9 @@ payload released on one vehicle, then times:
   (the single-log CLI), against the in-fleet time per log (the rows' ``wall_s``);
 - the report (``--report``): outliers found, and whether the payload change is among them.
 
-Results go to ``OUT/fleet_bench.json`` and a Markdown section printed on stdout (pasted into
-docs/BENCHMARKS.md by hand: other sections of that file belong to other benchmarks).
+Results go to ``OUT/fleet_bench.json`` and a Markdown section printed on stdout; ``--doc
+docs/BENCHMARKS.md`` also puts it into that file between its own markers (the rest of the file
+belongs to ``python -m inertia_ros bench``).
 
 The fleet
 ---------
@@ -323,6 +324,23 @@ def markdown(res: dict[str, Any], command: str) -> str:
     return '\n'.join(lines) + '\n'
 
 
+BEGIN = '<!-- fleet-bench: written by python -m inertia_ros.bench.fleet --doc; do not edit -->'
+END = '<!-- /fleet-bench -->'
+HEADING = '## Fleet: many logs on Dask'
+
+
+def update_doc(doc: Path, section: str) -> None:
+    """Put ``section`` into ``doc`` between the fleet markers (appended the first time)."""
+    text = doc.read_text(encoding='utf-8') if doc.exists() else ''
+    block = f'{BEGIN}\n{HEADING}\n\n{section.rstrip()}\n{END}\n'
+    if BEGIN in text and END in text:
+        head, rest = text.split(BEGIN, 1)
+        text = head + block + rest.split(END, 1)[1].lstrip('\n')
+    else:
+        text = text.rstrip('\n') + '\n\n' + block
+    doc.write_text(text, encoding='utf-8')
+
+
 def main(argv: list[str] | None = None) -> int:
     """Command line of the fleet benchmark."""
     p = argparse.ArgumentParser(prog='python -m inertia_ros.bench.fleet',
@@ -338,6 +356,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument('--workers', default='1,2', help='comma-separated worker counts')
     p.add_argument('--single', type=int, default=5, help='single-log CLI runs to time')
     p.add_argument('--build-processes', type=int, default=2)
+    p.add_argument('--doc', type=Path, default=None, metavar='FILE.md',
+                   help='also write the section into FILE.md (e.g. docs/BENCHMARKS.md), '
+                        'between its markers, appended the first time')
     args = p.parse_args(argv)
     if args.vehicles < 2 or args.logs_per_vehicle < 2:
         p.error('--vehicles and --logs-per-vehicle must be >= 2')
@@ -347,7 +368,10 @@ def main(argv: list[str] | None = None) -> int:
                           args.build_processes)
     cmd = ('python -m inertia_ros.bench.fleet ' + ' '.join(argv if argv is not None
                                                            else sys.argv[1:])).strip()
-    sys.stdout.write(markdown(res, cmd))
+    section = markdown(res, cmd)
+    if args.doc is not None:
+        update_doc(args.doc, section)
+    sys.stdout.write(section)
     return 0
 
 
