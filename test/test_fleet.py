@@ -214,12 +214,18 @@ def test_outlier_rule() -> None:
             r[f'I{k}'] = None
         return r
 
-    # one element, z = 3 exactly -> 3 sigma; the equivalence is exact for one dof
+    # one element at z = 3 among six compared: Sidak-adjusted, about 2.4 sigma
     c = compare(row('a', 0, 1.0), row('b', 1, 1.0 + 3 * math.sqrt(2) * 0.01))
-    assert c is not None and c['worst'] == 'ixx'
+    assert c is not None and c['worst'] == 'ixx' and c['k'] == 6
     assert c['z'] == pytest.approx(3.0, rel=1e-12)
-    # six elements: d2 = 9 is well inside chi2(6) (about 1.2 sigma)
-    assert c['sigma'] < 1.5
+    p3 = math.erfc(3 / math.sqrt(2))  # P(|Z| > 3)
+    from scipy import stats
+
+    assert c['sigma'] == pytest.approx(stats.norm.isf((1 - (1 - p3) ** 6) / 2), rel=1e-9)
+    assert 2.3 < c['sigma'] < 2.5
+    # far tails stay finite and ordered
+    far = compare(row('a', 0, 1.0), row('b', 1, 3.0))
+    assert far is not None and far['sigma'] == pytest.approx(far['z'], rel=0.05)
     rows = [row('a', 0, 1.0), row('b', 1, 1.02), row('c', 2, 1.2), row('d', 3, 1.2),
             {'path': 'e', 'vehicle': 'v', 'status': 'error', 'log_start_ns': 4}]
     flagged = find_outliers(rows)

@@ -7,18 +7,18 @@ time with one- and three-sigma bands; outliers circled in red, failed logs as gr
 Outliers
 --------
 Logs of one vehicle are taken in order of their start time; each log with a tensor is
-compared with the vehicle's previous log with a tensor.  For the tensor elements known in
-both (``theta = [ixx, iyy, izz, ixy, ixz, iyz]``),
+compared with the vehicle's previous log with a tensor.  For each tensor element known in
+both (``theta = [ixx, iyy, izz, ixy, ixz, iyz]``, k of them),
 
-    z_k = (theta_k - theta_prev_k) / sqrt(sigma_k^2 + sigma_prev_k^2),   d2 = sum_k z_k^2.
+    z_i = (theta_i - theta_prev_i) / sqrt(sigma_i^2 + sigma_prev_i^2).
 
-The log is an outlier when d2 is less likely under the chi-square law with as many degrees
-of freedom as elements than a 3-sigma normal deviation (two-sided, p < 0.0027): the
-multivariate "more than 3 sigma".  The deviation is reported in those units (``sigma``: the
-normal deviation with the same p-value).  The reports give one-sigma errors per element, not
-their correlations, so d2 treats the elements as independent.  A payload change or damage is
-flagged once (at the first log after it); one bad log is flagged twice (entering it and
-leaving it).
+The log is an outlier when the largest ``|z_i|`` is less likely than a 3-sigma normal
+deviation once the k looks are paid for (Sidak: ``p = 1 - (1 - 2 Q(max |z|))^k < 0.0027``, Q
+the normal tail), and ``sigma`` reports that p-value as a normal deviation.  Sidak's bound
+holds whatever the correlation between the elements' errors, which the reports do not give
+(their diagonal-element errors are strongly correlated: a chi-square treating them as
+independent flags ordinary logs).  A payload change or damage is flagged once (at the first
+log after it); one bad log is flagged twice (entering it and leaving it).
 """
 from __future__ import annotations
 
@@ -53,15 +53,19 @@ def _has_tensor(row: dict[str, Any]) -> bool:
                                                      for n in THETA_NAMES)
 
 
-def _sigma_equivalent(d2: float, dof: int) -> float:
-    """The two-sided normal deviation with the chi-square(dof) tail probability of ``d2``."""
+def _sigma_equivalent(zmax: float, k: int) -> float:
+    """The two-sided normal deviation with the Sidak-adjusted p-value of ``max |z|`` of k."""
     from scipy import stats
 
-    p = float(stats.chi2.sf(d2, dof))
-    if p <= 0.0:
-        # beyond double precision: the Wilson-Hilferty cube-root normal approximation
-        return float(((d2 / dof) ** (1 / 3) - (1 - 2 / (9 * dof))) / math.sqrt(2 / (9 * dof)))
-    return float(stats.norm.isf(p / 2))
+    log_p = math.log(2.0) + float(stats.norm.logsf(zmax))  # log P(|Z| > zmax)
+    if log_p < -700:  # beyond double precision: P_adj ~ k P, and the deviation ~ zmax
+        log_adj = math.log(k) + log_p
+        return float(zmax) if log_adj < -700 else float(stats.norm.isf(math.exp(log_adj) / 2))
+    p = math.exp(log_p)
+    if p >= 1.0:
+        return 0.0
+    p_adj = -math.expm1(k * math.log1p(-p))
+    return float(stats.norm.isf(min(p_adj, 1.0) / 2))
 
 
 def compare(prev: dict[str, Any], cur: dict[str, Any]) -> dict[str, Any] | None:
@@ -70,8 +74,8 @@ def compare(prev: dict[str, Any], cur: dict[str, Any]) -> dict[str, Any] | None:
     Returns
     -------
     dict or None
-        ``d2`` (chi-square), ``dof``, ``sigma`` (equivalent normal deviation), ``worst``
-        (element with the largest ``|z|``), ``z`` (that ``|z|``).
+        ``k`` (elements compared), ``sigma`` (the Sidak-adjusted equivalent normal
+        deviation), ``worst`` (element with the largest ``|z|``), ``z`` (that ``|z|``).
     """
     z: dict[str, float] = {}
     for n in THETA_NAMES:
@@ -85,9 +89,8 @@ def compare(prev: dict[str, Any], cur: dict[str, Any]) -> dict[str, Any] | None:
         z[n] = (b - a) / s
     if not z:
         return None
-    d2 = sum(v * v for v in z.values())
-    worst = max(z, key=lambda k: abs(z[k]))
-    return {'d2': d2, 'dof': len(z), 'sigma': _sigma_equivalent(d2, len(z)),
+    worst = max(z, key=lambda n: abs(z[n]))
+    return {'k': len(z), 'sigma': _sigma_equivalent(abs(z[worst]), len(z)),
             'worst': worst, 'z': abs(z[worst])}
 
 

@@ -155,14 +155,15 @@ def _empty_row(ref: LogRef, signature: str) -> dict[str, Any]:
     for n in ('I1', 'I2', 'I3', 'I1_std', 'I2_std', 'I3_std'):
         row[n] = None
     row.update({'model': None, 'method': None, 'samples_used': None, 'samples_dropped': None,
-                'wall_s': None, 'worker': None, 'report': None})
+                'wall_s': None, 'cpu_s': None, 'worker': None, 'report': None})
     return row
 
 
 def row_from_report(ref: LogRef, report: dict[str, Any] | None, *, signature: str,
                     vehicle: str | None, error: str | None = None,
                     start_ns: int | None = None, wall_s: float | None = None,
-                    worker: str | None = None) -> dict[str, Any]:
+                    cpu_s: float | None = None, worker: str | None = None
+                    ) -> dict[str, Any]:
     """One table row from an ``estimate`` JSON report (or from the error of a failed log).
 
     Parameters
@@ -179,8 +180,8 @@ def row_from_report(ref: LogRef, report: dict[str, Any] | None, *, signature: st
         The one-line error of a failed log (then ``status`` is ``'error'``).
     start_ns : int, optional
         Log start [ns since the epoch] when the report does not say (failed logs).
-    wall_s : float, optional
-        Wall time of the task [s].
+    wall_s, cpu_s : float, optional
+        Wall and CPU time of the task [s].
     worker : str, optional
         The worker that ran the task.
 
@@ -191,7 +192,7 @@ def row_from_report(ref: LogRef, report: dict[str, Any] | None, *, signature: st
         one-sigma errors in kg m^2, None where not identified.
     """
     row = _empty_row(ref, signature)
-    row.update({'vehicle': vehicle, 'wall_s': wall_s, 'worker': worker})
+    row.update({'vehicle': vehicle, 'wall_s': wall_s, 'cpu_s': cpu_s, 'worker': worker})
     if report is None:
         row.update({'status': ERROR, 'error': error or 'no report', 'log_start_ns': start_ns,
                     'log_start': _iso(start_ns)})
@@ -279,7 +280,7 @@ def estimate_log(ref: LogRef, flags: Sequence[str] = (), vehicle_from: str = 'di
     """
     from inertia_ros.cli import main
 
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     signature = options_signature(flags, vehicle_from)
     worker = _worker_name()
     with tempfile.TemporaryDirectory(prefix='inertia_fleet_') as tmpdir:
@@ -322,7 +323,8 @@ def estimate_log(ref: LogRef, flags: Sequence[str] = (), vehicle_from: str = 'di
             message = message.replace(local, ref.path)
     row = row_from_report(ref, report, signature=signature,
                           vehicle=_vehicle(ref, vehicle_from, meta), error=message,
-                          start_ns=start, wall_s=time.perf_counter() - t0, worker=worker)
+                          start_ns=start, wall_s=time.perf_counter() - t0,
+                          cpu_s=time.process_time() - c0, worker=worker)
     if rc == 130:  # Ctrl-C reached the worker: not the log's fault, run it again next time
         row['status'] = FAILED
     return row

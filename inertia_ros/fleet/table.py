@@ -19,7 +19,8 @@ __all__ = ['COLUMNS', 'FORMATS', 'TableError', 'read_rows', 'table_format', 'wri
 #: Column name -> type (``str``, ``int`` or ``float``), in file order.  Units: sizes in
 #: bytes, times in ns since the Unix epoch (``log_start`` is the same instant as ISO 8601
 #: UTC), tensor elements, principal moments and their one-sigma errors in kg m^2, ``wall_s``
-#: in seconds.  ``report`` is the log's whole ``estimate --format json`` report.
+#: and ``cpu_s`` (the task's wall and CPU time in the worker) in seconds.  ``report`` is the
+#: log's whole ``estimate --format json`` report.
 COLUMNS: dict[str, type] = {
     'path': str, 'size': int, 'mtime_ns': int, 'options': str, 'vehicle': str,
     'log_start_ns': int, 'log_start': str, 'status': str, 'reason': str, 'error': str,
@@ -28,7 +29,7 @@ COLUMNS: dict[str, type] = {
     'ixz_std': float, 'iyz_std': float,
     'I1': float, 'I2': float, 'I3': float, 'I1_std': float, 'I2_std': float, 'I3_std': float,
     'model': str, 'method': str, 'samples_used': int, 'samples_dropped': int,
-    'wall_s': float, 'worker': str, 'report': str,
+    'wall_s': float, 'cpu_s': float, 'worker': str, 'report': str,
 }
 #: Supported file suffixes.
 FORMATS = ('.parquet', '.csv')
