@@ -317,7 +317,8 @@ def estimate_log(ref: LogRef, flags: Sequence[str] = (), vehicle_from: str = 'di
     message = None
     if report is None:
         lines = [ln for ln in err.getvalue().splitlines() if ln.strip()]
-        message = lines[-1] if lines else f'estimate exited with status {rc}'
+        ours = [ln for ln in lines if ln.startswith('inertia_ros estimate')]  # not warnings
+        message = (ours or lines or [f'estimate exited with status {rc}'])[-1]
         message = message.removeprefix(_ERROR_PREFIX)
         if local != ref.path:
             message = message.replace(local, ref.path)
@@ -391,8 +392,12 @@ def open_client(workers: int | None = None, scheduler: str | None = None,
         The scheduler cannot be reached, has no worker, or its workers cannot import
         inertia_ros.
     """
-    from distributed import Client, LocalCluster
-
+    try:
+        import distributed
+    except ImportError:
+        raise ClusterError('fleet needs Dask: pip install dask distributed (pinned in '
+                           'requirements.txt)') from None
+    Client, LocalCluster = distributed.Client, distributed.LocalCluster
     cluster = None
     client = None
     try:
