@@ -25,10 +25,11 @@ import inertia_ros.fleet.run as fleet_run
 from conftest import ROOT
 from inertia_ros.bench.fleet import FleetSpec, make_fleet
 from inertia_ros.cli import main
+from inertia_ros.core.tensor import THETA_COLS, THETA_NAMES, THETA_ROWS
 from inertia_ros.fleet import table as fleet_table
 from inertia_ros.fleet.discover import DiscoveryError, LogRef, discover
 from inertia_ros.fleet.report import compare, find_outliers
-from inertia_ros.fleet.run import THETA_NAMES, estimate_log
+from inertia_ros.fleet.run import estimate_log
 
 pytest.importorskip('distributed')
 pytest.importorskip('pyarrow')
@@ -139,8 +140,7 @@ def test_estimate_log_rows(fleet: tuple[Path, dict]) -> None:
 
     rep = json.loads(row['report'])
     truth = rep['diagnostics']['truth']['inertia']
-    for n, (i, j) in zip(THETA_NAMES, ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)),
-                         strict=True):
+    for n, i, j in zip(THETA_NAMES, THETA_ROWS, THETA_COLS, strict=True):
         assert row[n] == rep['inertia'][i][j]
         # the estimate is within 5 of its own sigma of the truth
         assert abs(row[n] - truth[i][j]) < 5 * row[n + '_std']

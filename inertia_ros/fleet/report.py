@@ -29,7 +29,8 @@ from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import Any
 
-from inertia_ros.fleet.run import ERROR, FAILED, THETA_NAMES
+from inertia_ros.core.tensor import THETA_NAMES
+from inertia_ros.fleet.run import ERROR, FAILED
 
 __all__ = ['THRESHOLD_SIGMA', 'find_outliers', 'status_counts', 'write_report']
 

@@ -34,18 +34,18 @@ from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
+from inertia_ros.core.tensor import THETA_COLS, THETA_NAMES, THETA_ROWS
 from inertia_ros.fleet.discover import BAG_METADATA, MCAP_SUFFIX, LogRef, is_url, vehicle_from_dir
 
-__all__ = ['ERROR', 'FAILED', 'THETA_NAMES', 'estimate_log', 'log_info', 'open_client',
+__all__ = ['ERROR', 'FAILED', 'estimate_log', 'log_info', 'open_client',
            'options_signature', 'row_from_report', 'run_logs']
 
 #: Status of a row whose log ``estimate`` could not use (exit 2) or crashed on.
 ERROR = 'error'
 #: Status of a row whose task was lost by the infrastructure; re-run next time.
 FAILED = 'failed'
-#: Tensor elements in DESIGN.md's parameter order and their matrix indices.
-THETA_NAMES = ('ixx', 'iyy', 'izz', 'ixy', 'ixz', 'iyz')
-_THETA_IDX = ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))
+#: (row, column) of each tensor element of THETA_NAMES (DESIGN.md's parameter order).
+_THETA_IDX = tuple(zip(THETA_ROWS.tolist(), THETA_COLS.tolist(), strict=True))
 #: Serialises in-process ``estimate`` calls (they redirect the process-wide stdout/stderr).
 _LOCK = threading.Lock()
 _ERROR_PREFIX = 'inertia_ros estimate: error: '
