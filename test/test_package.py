@@ -62,6 +62,10 @@ NON_IMPORT_KEYS: dict[str, str] = {
 OPTIONAL_IMPORTS: dict[str, str] = {
     'pinocchio': 'inertia_ros/bench/methods.py: the peer baseline of make bench '
                  '(requirements-bench.txt), skipped with a note when not importable',
+    # the fleet command (requirements.txt); rosdistro has no keys for them: one-line error
+    'distributed': 'inertia_ros/fleet/run.py: Dask for python -m inertia_ros fleet',
+    'pyarrow': 'inertia_ros/fleet/table.py: Parquet tables of fleet (CSV without it)',
+    'fsspec': 'inertia_ros/fleet/discover.py: fleet on URLs (s3://, ...)',
 }
 
 

@@ -13,7 +13,7 @@ import sys
 
 #: Command modules, in the order ``--help`` lists them.  A module is listed here only once
 #: the command it implements is real.
-COMMANDS: tuple[str, ...] = ('simulate', 'estimate', 'bench', 'demo')
+COMMANDS: tuple[str, ...] = ('simulate', 'estimate', 'fleet', 'bench', 'demo')
 
 
 class UserError(Exception):

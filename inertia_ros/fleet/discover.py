@@ -1,0 +1,225 @@
+"""Find the logs of a fleet: ``.mcap`` files and rosbag2 directories, searched recursively.
+
+A path given on the command line is
+
+- a file: one log, whatever its name (``estimate`` decides whether it is usable);
+- a rosbag2 directory (it holds ``metadata.yaml``): one log;
+- any other directory: searched recursively for ``*.mcap`` files and rosbag2 directories
+  (the files inside a rosbag2 directory belong to it and are not logs of their own; hidden
+  entries and the ``*.partial`` directories of unfinished writes are skipped);
+- a URL ``PROTOCOL://...`` other than ``file://``: the same rules through fsspec (any
+  filesystem fsspec knows and has installed: ``memory://``, ``s3://`` with s3fs, ...). The
+  worker copies such a log into a temporary directory before estimating it.
+
+Each log is identified by ``(path, size, mtime_ns)``: the size and the latest modification
+time of its files, so a re-run can tell an unchanged log from a new or rewritten one.
+"""
+from __future__ import annotations
+
+import os
+import posixpath
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+__all__ = ['DiscoveryError', 'LogRef', 'discover', 'is_url', 'vehicle_from_dir']
+
+#: File-name suffix of an MCAP log.
+MCAP_SUFFIX = '.mcap'
+#: The file that makes a directory a rosbag2 bag.
+BAG_METADATA = 'metadata.yaml'
+
+
+class DiscoveryError(ValueError):
+    """A path on the command line that cannot be searched (missing, unreadable URL)."""
+
+
+@dataclass(frozen=True)
+class LogRef:
+    """One log to estimate.
+
+    Attributes
+    ----------
+    path : str
+        Absolute local path, or a URL for fsspec filesystems.
+    size : int
+        Total size of the log's files [bytes].
+    mtime_ns : int
+        Latest modification time of the log's files [ns since the Unix epoch]; 0 when the
+        filesystem does not report one.
+    kind : str
+        ``'mcap'`` (a single file) or ``'rosbag2'`` (a bag directory).
+    """
+
+    path: str
+    size: int
+    mtime_ns: int
+    kind: str
+
+    @property
+    def key(self) -> tuple[str, int, int]:
+        """The identity of this version of the log: ``(path, size, mtime_ns)``."""
+        return (self.path, self.size, self.mtime_ns)
+
+
+def is_url(path: str) -> bool:
+    """True for ``PROTOCOL://...`` other than ``file://`` (those are read through fsspec)."""
+    head, sep, _ = path.partition('://')
+    return bool(sep) and head.isidentifier() and head.lower() != 'file'
+
+
+def vehicle_from_dir(path: str) -> str:
+    """The vehicle named by a log's directory: the parent of the file or the bag directory.
+
+    >>> vehicle_from_dir('/data/sat-03/2026-11-02.mcap')
+    'sat-03'
+    """
+    p = path.rstrip('/')
+    parent = posixpath.dirname(p) if is_url(p) else os.path.dirname(p)
+    name = posixpath.basename(parent.rstrip('/')) if is_url(p) else os.path.basename(parent)
+    return name or '/'
+
+
+# --------------------------------------------------------------------------------------------
+# Local filesystem
+
+
+def _local_stats(paths: Iterable[Path]) -> tuple[int, int]:
+    size = 0
+    mtime = 0
+    for p in paths:
+        st = p.stat()
+        size += st.st_size
+        mtime = max(mtime, st.st_mtime_ns)
+    return size, mtime
+
+
+def _local_bag(d: Path) -> LogRef:
+    files = [d / BAG_METADATA] + sorted(d.glob('*' + MCAP_SUFFIX))
+    size, mtime = _local_stats(files)
+    return LogRef(str(d), size, mtime, 'rosbag2')
+
+
+def _local_file(f: Path) -> LogRef:
+    size, mtime = _local_stats([f])
+    return LogRef(str(f), size, mtime, 'mcap')
+
+
+def _skip(name: str) -> bool:
+    return name.startswith('.') or name.endswith('.partial')
+
+
+def _walk_local(root: Path) -> list[LogRef]:
+    found: list[LogRef] = []
+    for dirpath, dirnames, filenames in os.walk(root, followlinks=False):
+        d = Path(dirpath)
+        if BAG_METADATA in filenames and d != root:
+            found.append(_local_bag(d))
+            dirnames[:] = []
+            continue
+        dirnames[:] = sorted(n for n in dirnames if not _skip(n))
+        for name in sorted(filenames):
+            if name.endswith(MCAP_SUFFIX) and not _skip(name):
+                found.append(_local_file(d / name))
+    return found
+
+
+def _discover_local(arg: str) -> list[LogRef]:
+    p = Path(arg.removeprefix('file://')).expanduser()
+    p = Path(os.path.abspath(p))
+    if not p.exists():
+        raise DiscoveryError(f'{arg}: no such file or directory')
+    if p.is_file():
+        return [_local_file(p)]
+    if (p / BAG_METADATA).is_file():
+        return [_local_bag(p)]
+    return _walk_local(p)
+
+
+# --------------------------------------------------------------------------------------------
+# fsspec URLs
+
+
+def _mtime_ns(info: dict[str, Any]) -> int:
+    """Modification time of an fsspec ``info`` record [ns], whatever the backend calls it."""
+    for key in ('mtime', 'LastModified', 'last_modified', 'updated', 'modified', 'created'):
+        v = info.get(key)
+        if v is None:
+            continue
+        if hasattr(v, 'timestamp'):
+            return int(round(v.timestamp() * 1e9))
+        try:
+            return int(round(float(v) * 1e9))
+        except (TypeError, ValueError):
+            continue
+    return 0
+
+
+def _discover_url(arg: str) -> list[LogRef]:
+    try:
+        import fsspec
+    except ImportError:  # pragma: no cover - fsspec comes with dask
+        raise DiscoveryError(f'{arg}: URLs need fsspec (pip install fsspec)') from None
+    try:
+        fs, root = fsspec.core.url_to_fs(arg)
+        if not fs.exists(root):
+            raise DiscoveryError(f'{arg}: no such file or directory')
+        if fs.isfile(root):
+            info = fs.info(root)
+            return [LogRef(fs.unstrip_protocol(root), int(info.get('size') or 0),
+                           _mtime_ns(info), 'mcap')]
+        entries = fs.find(root, withdirs=False, detail=True)
+    except (ImportError, ValueError, OSError) as exc:
+        raise DiscoveryError(f'{arg}: cannot list this URL ({exc})') from None
+    root = root.rstrip('/')
+    by_dir: dict[str, list[tuple[str, dict[str, Any]]]] = {}
+    for name, info in entries.items():
+        rel = name[len(root):].strip('/').split('/')
+        if any(_skip(part) for part in rel):
+            continue
+        by_dir.setdefault(posixpath.dirname(name), []).append((name, info))
+    bags = sorted(d for d, items in by_dir.items() if d != root
+                  and any(posixpath.basename(n) == BAG_METADATA for n, _ in items))
+    found: list[LogRef] = []
+    for d in bags:
+        items = [i for n, i in by_dir[d]
+                 if n.endswith(MCAP_SUFFIX) or posixpath.basename(n) == BAG_METADATA]
+        found.append(LogRef(fs.unstrip_protocol(d), sum(int(i.get('size') or 0) for i in items),
+                            max(_mtime_ns(i) for i in items), 'rosbag2'))
+    for d, items in by_dir.items():
+        if any(d == b or d.startswith(b + '/') for b in bags):
+            continue
+        for name, info in items:
+            if name.endswith(MCAP_SUFFIX):
+                found.append(LogRef(fs.unstrip_protocol(name), int(info.get('size') or 0),
+                                    _mtime_ns(info), 'mcap'))
+    return found
+
+
+# --------------------------------------------------------------------------------------------
+
+
+def discover(paths: Sequence[str]) -> list[LogRef]:
+    """Every log under ``paths``, each once, in a stable order (sorted by path).
+
+    Parameters
+    ----------
+    paths : sequence of str
+        Files, rosbag2 directories, directories to search, or fsspec URLs.
+
+    Returns
+    -------
+    list of LogRef
+
+    Raises
+    ------
+    DiscoveryError
+        A path that does not exist or a URL that cannot be listed.
+    """
+    seen: dict[str, LogRef] = {}
+    for arg in paths:
+        refs = _discover_url(arg) if is_url(arg) else _discover_local(arg)
+        for ref in refs:
+            seen.setdefault(ref.path, ref)
+    return [seen[k] for k in sorted(seen)]
