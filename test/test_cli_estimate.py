@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import struct
 import subprocess
 import sys
 from pathlib import Path
@@ -300,3 +301,153 @@ def test_progress_bar_only_when_enabled(capsys: pytest.CaptureFixture) -> None:
     quiet(50, 100)
     quiet.close()
     assert capsys.readouterr().err == ''
+
+
+# --------------------------------------------------------------------------------------------
+# Hostile options and damaged logs: one line, exit 2, never a traceback
+
+
+@pytest.mark.parametrize('value', ['1e300', '-1e300', '10.5', '-11', 'nan', 'inf', '-inf',
+                                   'abc', ''])
+def test_torque_delay_out_of_range_is_one_line(value: str, capsys: pytest.CaptureFixture
+                                               ) -> None:
+    """--torque-delay outside [-10, 10] s (or not a finite number) is refused at parse time
+    with the range and the unit, before the log is opened."""
+    code = main(['estimate', 'never-opened.mcap', f'--torque-delay={value}'])
+    err = capsys.readouterr().err
+    _one_line_error(code, err, 'argument --torque-delay: must be')
+    assert '[-10, 10] s' in err
+
+
+def test_torque_delay_within_range_is_used(capsys: pytest.CaptureFixture) -> None:
+    """The limits themselves parse; a delay in range is reported back in the diagnostics."""
+    from inertia_ros.cli import build_parser
+
+    for v in ('-10', '10', '0'):
+        args = build_parser('estimate').parse_args(['estimate', 'x.mcap', '--torque-delay', v])
+        assert args.torque_delay == float(v)
+    if not DEFAULT_BAG.exists():
+        pytest.skip('bags/default.mcap absent')
+    code, rep, err = run_json(capsys, str(DEFAULT_BAG), '--torque-delay', '0.004')
+    assert code == 0, err
+    assert rep['diagnostics']['torque_delay_s'] == 0.004
+
+
+def test_torque_delay_1e300_as_a_process() -> None:
+    """The case that raised OverflowError: as a process, exit 2 and one stderr line."""
+    proc = subprocess.run([sys.executable, '-m', 'inertia_ros', 'estimate', 'x.mcap',
+                           '--torque-delay', '1e300'], capture_output=True, text=True,
+                          cwd=ROOT, check=False)
+    assert proc.returncode == 2
+    assert proc.stderr == ('inertia_ros estimate: error: argument --torque-delay: must be '
+                           'within [-10, 10] s; got 1e300 (see --help)\n')
+
+
+@pytest.fixture(scope='module')
+def bag_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A small rosbag2 directory written by the simulate command."""
+    text = (ROOT / 'config' / 'scenes' / 'default.yaml').read_text()
+    tmp = tmp_path_factory.mktemp('bagdir')
+    scene = tmp / 'short.yaml'
+    scene.write_text(text.replace('duration: 60.0', 'duration: 10.0'))
+    assert main(['simulate', str(scene), '-o', str(tmp / 'run'), '-q']) == 0
+    return tmp / 'run'
+
+
+@pytest.mark.parametrize('metadata', [
+    b'rosbag2_bagfile_information: 5\n',
+    b'rosbag2_bagfile_information:\n  relative_file_paths: [null]\n',
+    b'rosbag2_bagfile_information:\n  relative_file_paths: 7\n',
+    b'\xff\xfe\x00 not utf-8',
+    b'[1, 2',
+], ids=['info-number', 'paths-null', 'paths-number', 'not-utf8', 'bad-yaml'])
+def test_damaged_metadata_never_a_traceback(metadata: bytes, bag_dir: Path, tmp_path: Path,
+                                            capsys: pytest.CaptureFixture) -> None:
+    """A rosbag2 directory whose metadata.yaml is damaged: a report (the reader recovered) or
+    exit 2 with one line naming the bag; never a traceback."""
+    bag = tmp_path / 'run'
+    bag.mkdir()
+    (bag / 'run_0.mcap').write_bytes((bag_dir / 'run_0.mcap').read_bytes())
+    (bag / 'metadata.yaml').write_bytes(metadata)
+    code, rep, err = run_json(capsys, str(bag))
+    assert 'Traceback' not in err
+    if code == 0:
+        assert set(rep) >= CONTRACT_KEYS
+    else:
+        _one_line_error(code, err, str(bag))
+
+
+@pytest.mark.parametrize('exc', [struct.error('unpack requires a buffer of 9 bytes'),
+                                 ZeroDivisionError('float division by zero'),
+                                 KeyError('records'), RuntimeError('')],
+                         ids=lambda e: type(e).__name__)
+def test_unexpected_reader_failure_is_one_line(exc: Exception, monkeypatch: pytest.MonkeyPatch,
+                                               capsys: pytest.CaptureFixture) -> None:
+    """Whatever a damaged log makes the reader raise becomes one line naming the file and
+    the exception type (the last-resort handler)."""
+    from inertia_ros.io import logs
+
+    def broken(*args: object, **kwargs: object) -> None:
+        raise exc
+
+    monkeypatch.setattr(logs, 'read_log', broken)
+    code, _, err = run_json(capsys, 'some/damaged.mcap')
+    _one_line_error(code, err, 'some/damaged.mcap: damaged or unreadable log')
+    assert type(exc).__name__ in err
+
+
+def test_unexpected_failure_after_reading_is_one_line(monkeypatch: pytest.MonkeyPatch,
+                                                      capsys: pytest.CaptureFixture) -> None:
+    """A failure past the reader (here the report) is still one line with its type."""
+    if not DEFAULT_BAG.exists():
+        pytest.skip('bags/default.mcap absent')
+    from inertia_ros.cli import report
+
+    def broken(*args: object, **kwargs: object) -> None:
+        raise IndexError('list index out of range')
+
+    monkeypatch.setattr(report, 'build_report', broken)
+    code, _, err = run_json(capsys, str(DEFAULT_BAG))
+    _one_line_error(code, err, 'unexpected IndexError: list index out of range')
+    assert str(DEFAULT_BAG) in err
+
+
+def test_overflowing_gyro_samples_give_one_line_not_numpy_noise(
+        tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    """Three 1e300 gyro samples among 6000: no numpy warning reaches stderr; the outcome is
+    a report or one error line, and a failure names the numerical warning behind it."""
+    from test_logs import streams
+
+    s = streams(6000, 1500, seed=3)
+    s['w'][[100, 2000, 4000], 1] = 1e300
+    path = write_log(tmp_path / 'big.mcap', s)
+    code, rep, err = run_json(capsys, str(path))
+    assert 'Warning:' not in err and 'Traceback' not in err
+    if code == 0:
+        assert err == ''
+        assert set(rep) >= CONTRACT_KEYS
+    else:
+        _one_line_error(code, err, str(path))
+
+
+def test_numerical_warnings_go_into_the_report(monkeypatch: pytest.MonkeyPatch,
+                                               capsys: pytest.CaptureFixture) -> None:
+    """A warning raised while estimating is listed once, with its count, under
+    diagnostics.warnings, and stderr stays empty."""
+    if not DEFAULT_BAG.exists():
+        pytest.skip('bags/default.mcap absent')
+    from inertia_ros.core import estimation
+
+    real = estimation.estimate
+
+    def noisy(*args: object, **kwargs: object) -> object:
+        for _ in range(3):
+            np.float64(1e308) * np.float64(10.0)      # RuntimeWarning: overflow
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(estimation, 'estimate', noisy)
+    code, rep, err = run_json(capsys, str(DEFAULT_BAG))
+    assert code == 0 and err == ''
+    found = [w for w in rep['diagnostics']['warnings'] if w.startswith('numerical warning')]
+    assert found == ['numerical warning: overflow encountered in scalar multiply '
+                     '(RuntimeWarning, 3x)']

@@ -46,7 +46,7 @@ def bounded(low: float, high: float, unit: str, integer: bool = False
     Parameters
     ----------
     low, high : float
-        Inclusive range, in ``unit``.
+        Inclusive range, in ``unit`` (``high`` may be ``math.inf``).
     unit : str
         Unit named in the error (``'s'``, ``'Hz'``, ``''`` for a count).
     integer : bool
@@ -59,15 +59,16 @@ def bounded(low: float, high: float, unit: str, integer: bool = False
         the unit for anything else (argparse turns it into a one-line error, exit 2).
     """
     kind = 'an integer' if integer else 'a number'
-    rng = f'[{low:g}, {high:g}]' + (f' {unit}' if unit else '')
+    u = f' {unit}' if unit else ''
+    rng = f'>= {low:g}{u}' if high == math.inf else f'within [{low:g}, {high:g}]{u}'
 
     def parse(text: str) -> float:
         try:
             value = int(text) if integer else float(text)
         except ValueError:
-            raise argparse.ArgumentTypeError(f'must be {kind} in {rng}; got {text!r}') from None
+            raise argparse.ArgumentTypeError(f'must be {kind} {rng}; got {text!r}') from None
         if not (math.isfinite(value) and low <= value <= high):
-            raise argparse.ArgumentTypeError(f'must be within {rng}; got {text}')
+            raise argparse.ArgumentTypeError(f'must be {rng}; got {text}')
         return value
 
     parse.__name__ = kind
@@ -133,7 +134,10 @@ def main(argv: list[str] | None = None) -> int:
     """Run the command line; return the process exit status."""
     argv = sys.argv[1:] if argv is None else list(argv)
     parser = build_parser(_command_in(argv))
-    args = parser.parse_args(argv)
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exc:        # --help, --version, or a one-line parse error
+        return exc.code if isinstance(exc.code, int) else 0
     if getattr(args, 'func', None) is None:
         parser.print_help(sys.stderr)
         return 2

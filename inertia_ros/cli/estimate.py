@@ -111,12 +111,12 @@ class _Progress:
 
 def _check_outputs(args: argparse.Namespace) -> None:
     """Refuse outputs that would overwrite the input."""
-    from inertia_ros.io.logs import LogError, log_files
+    from inertia_ros.io.logs import log_files
 
     src = Path(args.path)
     try:
         inputs = {p.resolve() for p in log_files(src)} if src.exists() else set()
-    except (LogError, ValueError, OSError):
+    except Exception:            # a damaged log: _read reports it; this check is best effort
         inputs = set()
     inputs.add(src.resolve())
     if src.is_dir():
@@ -138,8 +138,12 @@ def _read(args: argparse.Namespace, progress: _Progress) -> Any:
         return read_log(args.path, args.omega_topic, args.torque_topic,
                         ignore_frames=args.ignore_frames, torque_delay=args.torque_delay,
                         progress=progress)
-    except (LogError, ValueError) as exc:
+    except LogError as exc:
         raise UserError(str(exc)) from None
+    except ValueError as exc:
+        text = _first_line(exc)
+        raise UserError(text if str(args.path) in text else f'{args.path}: damaged or '
+                        f'unreadable log ({type(exc).__name__}: {text})') from None
     except OSError as exc:
         raise UserError(f'{args.path}: cannot read: {exc.strerror or exc}') from None
     except Exception as exc:
@@ -206,14 +210,21 @@ def _run(args: argparse.Namespace) -> int:
     if args.model == 'axisymmetric' and args.symmetry_axis is None:
         raise UserError('--model axisymmetric needs --symmetry-axis x|y|z')
     progress = _Progress(sys.stderr.isatty() and not args.no_progress)
+    failure = None
     with numerical_warnings() as found:
-        log = _read(args, progress)
-        progress.note(f'estimating ({log.omega.t.size} gyro, {log.torque.t.size} torque '
-                      'samples)')
         try:
+            log = _read(args, progress)
+            progress.note(f'estimating ({log.omega.t.size} gyro, {log.torque.t.size} torque '
+                          'samples)')
             est = _estimate(args, log)
+        except UserError as exc:
+            failure = exc
         finally:
             progress.close()
+    if failure is not None:
+        # numerical warnings on the way to a failure are its likely cause: name the first
+        hint = f' ({found[0]})' if found else ''
+        raise UserError(f'{failure}{hint}') from None
     report = build_report(est, log, args.torque_delay, args.hold, list(found))
     try:
         text = (json.dumps(report, indent=2, allow_nan=False) + '\n' if args.format == 'json'

@@ -1,0 +1,88 @@
+"""Start-up of the command line: ``--help`` loads no numerical stack, ``--version``, one-line
+parse errors."""
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import pytest
+
+from conftest import ROOT
+from inertia_ros import __version__
+from inertia_ros.cli import COMMANDS, main
+
+HEAVY = ('numpy', 'scipy', 'matplotlib', 'mcap', 'yaml', 'rclpy')
+
+
+def _imported(*argv: str) -> tuple[subprocess.CompletedProcess, set[str]]:
+    """Run ``python -X importtime -m inertia_ros ARGV``; return the process and the top-level
+    names of every module it imported."""
+    proc = subprocess.run([sys.executable, '-X', 'importtime', '-m', 'inertia_ros', *argv],
+                          capture_output=True, text=True, cwd=ROOT, check=False)
+    names = set()
+    for line in proc.stderr.splitlines():
+        if line.startswith('import time:') and '|' in line:
+            name = line.rsplit('|', 1)[1].strip()
+            if name != 'imported package':
+                names.add(name.split('.')[0])
+    return proc, names
+
+
+@pytest.mark.parametrize('command', ['estimate', 'simulate', 'bench'])
+def test_command_help_imports_no_numerical_stack(command: str) -> None:
+    """``COMMAND --help`` prints the usage and loads none of numpy/scipy/matplotlib/mcap."""
+    proc, names = _imported(command, '--help')
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert proc.stdout.startswith('usage: python -m inertia_ros ' + command)
+    assert 'inertia_ros' in names          # the parse really ran under -X importtime
+    assert not names & set(HEAVY), sorted(names & set(HEAVY))
+
+
+def test_estimate_help_lists_the_vocabularies() -> None:
+    """The choices shown by ``estimate --help`` come from estimation.options."""
+    from inertia_ros.core.estimation.options import METHODS, MODELS
+
+    proc = subprocess.run([sys.executable, '-m', 'inertia_ros', 'estimate', '--help'],
+                          capture_output=True, text=True, cwd=ROOT, check=False)
+    flat = ' '.join(proc.stdout.split())
+    assert '{' + ','.join(METHODS) + '}' in flat
+    assert '{' + ','.join(MODELS) + '}' in flat
+    assert '--torque-delay S' in flat and '|S| <= 10' in flat
+
+
+def test_version_as_a_process() -> None:
+    """``python -m inertia_ros --version`` prints the package version, exit 0."""
+    proc = subprocess.run([sys.executable, '-m', 'inertia_ros', '--version'],
+                          capture_output=True, text=True, cwd=ROOT, check=False)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout == f'inertia_ros {__version__}\n'
+    assert proc.stderr == ''
+
+
+def test_version_in_process(capsys: pytest.CaptureFixture) -> None:
+    """``main(['--version'])`` exits 0 with the version from the package metadata."""
+    assert main(['--version']) == 0
+    assert capsys.readouterr().out.strip() == f'inertia_ros {__version__}'
+
+
+def test_top_level_help_lists_every_command(capsys: pytest.CaptureFixture) -> None:
+    """``--help`` without a command names every command."""
+    assert main(['--help']) == 0
+    out = capsys.readouterr().out
+    for name in COMMANDS:
+        assert name in out
+
+
+@pytest.mark.parametrize('argv, piece', [
+    (['frobnicate'], "invalid choice: 'frobnicate'"),
+    (['estimate'], 'the following arguments are required: PATH'),
+    (['estimate', 'x.mcap', '--method', 'magic'], "argument --method: invalid choice"),
+    (['simulate', 's.yaml', '-o', 'o.mcap', '--seed', '-1'], 'argument --seed'),
+])
+def test_parse_errors_are_one_line(argv: list[str], piece: str,
+                                   capsys: pytest.CaptureFixture) -> None:
+    """argparse's usage-plus-error becomes one line naming the option, exit status 2."""
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1, err
+    assert piece in err and err.rstrip().endswith('(see --help)')
