@@ -65,6 +65,15 @@ def test_version_in_process(capsys: pytest.CaptureFixture) -> None:
     assert capsys.readouterr().out.strip() == f'inertia_ros {__version__}'
 
 
+def test_version_matches_the_installed_metadata() -> None:
+    """``__version__`` is the version of the installed distribution (setup.py, package.xml)."""
+    from importlib import metadata
+
+    assert __version__ == metadata.version('inertia_ros')
+    xml = (ROOT / 'package.xml').read_text()
+    assert f'<version>{__version__}</version>' in xml
+
+
 def test_top_level_help_lists_every_command(capsys: pytest.CaptureFixture) -> None:
     """``--help`` without a command names every command."""
     assert main(['--help']) == 0

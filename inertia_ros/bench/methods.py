@@ -26,7 +26,7 @@ import numpy as np
 from inertia_ros.core import estimation
 from inertia_ros.core.inertia import theta_to_matrix
 
-__all__ = ['DEFAULT_METHOD', 'MethodSpec', 'Outcome', 'hand_fd', 'method_specs',
+__all__ = ['DEFAULT_METHOD', 'MethodSpec', 'Outcome', 'hand_fd', 'method_of', 'method_specs',
            'pinocchio_available', 'pinocchio_regressor']
 
 #: Name of the package's default setting in the tables (``method='auto'``: ``ml`` on records
@@ -63,10 +63,13 @@ class MethodSpec:
     Attributes
     ----------
     name : str
-        Unique short name used in tables and charts.
+        Unique name used in tables and charts: ``METHOD`` or ``METHOD/VARIANT``, where
+        ``METHOD`` is the ``--method`` name of the package setting (``ml``, ``integral``,
+        ``integral_sliding``, ...) or a baseline (``recursive``, ``hand_fd``, ``pinocchio``)
+        and ``VARIANT`` names the non-default option (``integral_sliding/1s``: 1 s windows).
     family : str
-        Group for the chart's colours (``integral``, ``sliding``, ``differential``,
-        ``baseline``, ``recursive``).
+        ``package``, ``recursive`` or ``baseline`` (the advice section compares within
+        the package settings).
     description : str
         One line: what the setting is.
     run : callable
@@ -77,6 +80,16 @@ class MethodSpec:
     family: str
     description: str
     run: Callable[[Any], Outcome]
+
+    @property
+    def method(self) -> str:
+        """The method part of the name (the chart colour and legend group)."""
+        return method_of(self.name)
+
+
+def method_of(name: str) -> str:
+    """``'integral_sliding/1s'`` -> ``'integral_sliding'``: the setting's method."""
+    return name.split('/', 1)[0]
 
 
 def _timed(fn: Callable[[], Any]) -> tuple[Any, float]:
@@ -237,42 +250,43 @@ def method_specs(*, include_pinocchio: bool = True, quick: bool = False
         Why a setting was left out.
     """
     specs = [
-        MethodSpec('ml', 'ml', "default (method='auto', which is ml on these records): the "
+        MethodSpec('ml', 'package', "default (method='auto', which is ml on these records): the "
                    'integral estimate refined by maximum likelihood (Gauss-Newton on the '
                    'exact noise model), Fisher-information covariance', _package()),
-        MethodSpec('integral', 'integral', 'anchored momentum form, weighted, '
+        MethodSpec('integral', 'package', 'anchored momentum form, weighted, '
                    'EIV-compensated, segment length chosen from the data, model selection, '
                    'physical projection (the starting point of ml)',
                    _package(method='integral')),
-        MethodSpec('integral_full', 'integral', 'integral, full model and bias off '
+        MethodSpec('integral/full', 'package', 'integral, full model and bias off '
                    '(no model selection)', _package(method='integral', model='full',
                                                     torque_bias='off')),
-        MethodSpec('integral_unconstrained', 'integral', 'integral without the physical '
+        MethodSpec('integral/unconstrained', 'package', 'integral without the physical '
                    'projection', _package(method='integral', physical=False)),
-        MethodSpec('integral_seg5', 'integral', 'integral, anchored segments of 5 s',
+        MethodSpec('integral/seg5s', 'package', 'integral, anchored segments of 5 s',
                    _package(method='integral', segment=5.0)),
-        MethodSpec('integral_ls', 'integral', 'anchored momentum form, unweighted, no EIV '
+        MethodSpec('integral_ls', 'package', 'anchored momentum form, unweighted, no EIV '
                    'compensation', _package(method='integral_ls')),
-        MethodSpec('sliding_1s', 'sliding', 'overlapping 1 s momentum windows, OLS',
+        MethodSpec('integral_sliding/1s', 'package', 'overlapping 1 s momentum windows, OLS',
                    _package(method='integral_sliding', window=1.0)),
-        MethodSpec('differential_fd', 'differential', 'differential form, central '
+        MethodSpec('differential_fd', 'package', 'differential form, central '
                    'differences (package baseline)', _package(method='differential_fd')),
-        MethodSpec('sg_0.1s', 'differential', 'differential form, Savitzky-Golay 0.1 s',
+        MethodSpec('differential_sg/0.1s', 'package', 'differential form, Savitzky-Golay 0.1 s',
                    _package(method='differential_sg', window=0.1)),
         MethodSpec('hand_fd', 'baseline', 'by hand: np.gradient + np.linalg.lstsq',
                    _run_hand_fd),
     ]
     if not quick:
         specs += [
-            MethodSpec('integral_seg20', 'integral', 'integral, anchored segments of 20 s',
+            MethodSpec('integral/seg20s', 'package', 'integral, anchored segments of 20 s',
                        _package(method='integral', segment=20.0)),
-            MethodSpec('sliding_0.25s', 'sliding', 'overlapping 0.25 s momentum windows',
+            MethodSpec('integral_sliding/0.25s', 'package', 'overlapping 0.25 s momentum windows',
                        _package(method='integral_sliding', window=0.25)),
-            MethodSpec('sliding_4s', 'sliding', 'overlapping 4 s momentum windows',
+            MethodSpec('integral_sliding/4s', 'package', 'overlapping 4 s momentum windows',
                        _package(method='integral_sliding', window=4.0)),
-            MethodSpec('sg_0.5s', 'differential', 'differential form, Savitzky-Golay 0.5 s',
+            MethodSpec('differential_sg/0.5s', 'package',
+                       'differential form, Savitzky-Golay 0.5 s',
                        _package(method='differential_sg', window=0.5)),
-            MethodSpec('sg_2s', 'differential', 'differential form, Savitzky-Golay 2 s',
+            MethodSpec('differential_sg/2s', 'package', 'differential form, Savitzky-Golay 2 s',
                        _package(method='differential_sg', window=2.0)),
         ]
     notes: list[str] = []
@@ -283,7 +297,7 @@ def method_specs(*, include_pinocchio: bool = True, quick: bool = False
                                 "torque_bias 'auto')", rec))
         rec_n, _ = _recursive_runner(model='full', torque_bias='off')
         assert rec_n is not None
-        specs.append(MethodSpec('recursive_nobias', 'recursive', 'RecursiveEstimator as '
+        specs.append(MethodSpec('recursive/nobias', 'recursive', 'RecursiveEstimator as '
                                 "above with torque_bias='off'", rec_n))
     else:
         notes.append(f'recursive: skipped ({why})')

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 import matplotlib
 
@@ -12,16 +13,87 @@ import numpy as np
 from matplotlib.colors import LogNorm
 from matplotlib.ticker import NullFormatter
 
-from .methods import DEFAULT_METHOD, MethodSpec
+from .methods import DEFAULT_METHOD, MethodSpec, method_of
 from .montecarlo import Bound, Summary, pareto_front
 from .stability import SILENT_THRESHOLD, Cell
 
-__all__ = ['plot_speed_vs_accuracy', 'plot_stability_map']
+__all__ = ['METHOD_STYLE', 'method_colour', 'plot_speed_vs_accuracy', 'plot_stability_map',
+           'setting_markers']
 
-_FAMILY_COLOURS = {'integral': 'tab:blue', 'sliding': 'tab:green', 'differential': 'tab:orange',
-                   'baseline': 'tab:red', 'recursive': 'tab:purple',
-                   'prototype': 'tab:brown', 'ml': 'black'}
+#: The one colour and legend name of each method, in every benchmark chart.  Keys are the
+#: ``--method`` names of the package's estimators and the baselines; a setting named
+#: ``METHOD/VARIANT`` (``integral_sliding/1s``) takes its method's colour and a marker of its
+#: own.  The default setting is drawn larger with a black edge.
+METHOD_STYLE: dict[str, tuple[str, str]] = {
+    'ml': ('black', 'ml'),
+    'integral': ('tab:blue', 'integral'),
+    'integral_ls': ('tab:cyan', 'integral_ls'),
+    'integral_sliding': ('tab:green', 'integral_sliding'),
+    'differential_fd': ('tab:orange', 'differential_fd'),
+    'differential_sg': ('tab:olive', 'differential_sg'),
+    'recursive': ('tab:purple', 'recursive'),
+    'hand_fd': ('tab:red', 'hand_fd'),
+    'pinocchio': ('tab:brown', 'pinocchio'),
+}
+#: Colour of a method missing from :data:`METHOD_STYLE`.
+OTHER_COLOUR = 'tab:gray'
 _MARKERS = 'osD^v<>pP*Xhd8H'
+
+
+def method_colour(name: str) -> str:
+    """The chart colour of a setting (by its method, the part of the name before ``/``)."""
+    return METHOD_STYLE.get(method_of(name), (OTHER_COLOUR, ''))[0]
+
+
+def setting_markers(names: Sequence[str]) -> dict[str, str]:
+    """A marker per setting: ``o`` for each method's plain setting, others for its variants."""
+    out: dict[str, str] = {}
+    used: dict[str, int] = {}
+    for n in names:
+        m = method_of(n)
+        k = 0 if n == m else used.get(m, 0) + 1
+        used[m] = max(used.get(m, 0), k)
+        out[n] = _MARKERS[k % len(_MARKERS)]
+    return out
+
+
+def _scene_panel(ax: Any, scene: str, rows: Sequence[Summary], marker: dict[str, str],
+                 bound: Bound | None, handles: dict[str, Any]) -> None:
+    """One scene: each setting at (median time, median error) with a bar to p90."""
+    pts = [(s.median_seconds, s.median_error) for s in rows]
+    failed = []
+    for s in rows:
+        if not np.isfinite(s.median_error):
+            failed.append(s.method)
+            continue
+        c = method_colour(s.method)
+        dflt = s.method == DEFAULT_METHOD
+        ax.plot([s.median_seconds] * 2, [s.median_error, s.p90_error], color=c, lw=1.2,
+                alpha=0.7)
+        h = ax.scatter(s.median_seconds, s.median_error, color=c,
+                       marker=marker.get(s.method, 'o'), s=70 if dflt else 40,
+                       edgecolor='k' if dflt else 'none', zorder=3, label=s.method)
+        handles.setdefault(s.method, h)
+    front = pareto_front(pts)
+    if front:
+        ft, fe = [pts[i][0] for i in front], [pts[i][1] for i in front]
+        ax.step(ft, fe, where='post', color='0.4', lw=1.0, ls='-', zorder=1)
+        ax.scatter(ft, fe, s=160, facecolor='none', edgecolor='0.3', lw=1.0, zorder=2)
+    if bound is not None and np.isfinite(bound.rel_frobenius):
+        ax.axhline(bound.rel_frobenius, color='k', ls='--', lw=1.0)
+        ax.text(0.99, bound.rel_frobenius, 'CRLB', va='top', ha='right', fontsize=8,
+                transform=ax.get_yaxis_transform())
+    ax.axhline(SILENT_THRESHOLD, color='tab:red', ls=':', lw=0.8)
+    ax.set_xscale('log')
+    ax.set_yscale('log')
+    ax.xaxis.set_minor_formatter(NullFormatter())
+    ax.set_title(scene)
+    ax.set_xlabel('compute time per estimate [s] (median)')
+    ax.set_ylabel('relative Frobenius error (median, bar to p90)')
+    ax.grid(True, which='both', alpha=0.25)
+    if failed:
+        ax.text(0.02, 0.02, 'no ok result: ' + ', '.join(failed), transform=ax.transAxes,
+                fontsize=7, color='tab:red', wrap=True)
 
 
 def plot_speed_vs_accuracy(summaries: Sequence[Summary], specs: Sequence[MethodSpec],
@@ -29,73 +101,37 @@ def plot_speed_vs_accuracy(summaries: Sequence[Summary], specs: Sequence[MethodS
     """One panel per scene: median time (log x) against error (log y), Pareto front marked.
 
     Each setting is a marker at its median relative Frobenius error with a bar up to the
-    90th percentile; the dashed line is the Cramer-Rao bound (RMS relative Frobenius error);
-    the grey step line joins the Pareto-optimal settings (median error vs median time).
-    Settings with no ok result are listed under the panel.
+    90th percentile, coloured by its method (:data:`METHOD_STYLE`); the dashed line is the
+    Cramer-Rao bound (RMS relative Frobenius error); the grey step line joins the
+    Pareto-optimal settings (median error vs median time).  Settings with no ok result are
+    listed under the panel.
 
     Parameters
     ----------
     summaries : sequence of Summary
     specs : sequence of MethodSpec
-        For the families (colours) and the legend order.
+        For the legend order and the markers.
     bounds : dict of str to Bound
     path : Path
         PNG file to write.
     """
     scenes = list(dict.fromkeys(s.scene for s in summaries))
-    family = {s.name: s.family for s in specs}
-    marker = {s.name: _MARKERS[i % len(_MARKERS)] for i, s in enumerate(specs)}
-    n = len(scenes)
-    cols = min(3, n)
-    rows = int(np.ceil(n / cols))
-    fig, axes = plt.subplots(rows, cols, figsize=(5.2 * cols, 4.3 * rows + 1.2), squeeze=False)
-    handles = {}
+    marker = setting_markers([s.name for s in specs])
+    cols = min(3, len(scenes))
+    rows = int(np.ceil(len(scenes) / cols))
+    fig, axes = plt.subplots(rows, cols, figsize=(5.2 * cols, 4.3 * rows + 1.4), squeeze=False)
+    handles: dict[str, Any] = {}
     for ax, scene in zip(axes.ravel(), scenes, strict=False):
-        rows_s = [s for s in summaries if s.scene == scene]
-        pts = [(s.median_seconds, s.median_error) for s in rows_s]
-        failed = []
-        for s in rows_s:
-            if not np.isfinite(s.median_error):
-                failed.append(s.method)
-                continue
-            c = _FAMILY_COLOURS.get(family.get(s.method, ''), 'k')
-            lo = s.median_error
-            hi = s.p90_error
-            ax.plot([s.median_seconds] * 2, [lo, hi], color=c, lw=1.2, alpha=0.7)
-            h = ax.scatter(s.median_seconds, s.median_error, color=c,
-                           marker=marker.get(s.method, 'o'), s=70 if s.method == DEFAULT_METHOD
-                           else 40, edgecolor='k' if s.method == DEFAULT_METHOD else 'none',
-                           zorder=3, label=s.method)
-            handles.setdefault(s.method, h)
-        front = pareto_front(pts)
-        if front:
-            ft = [pts[i][0] for i in front]
-            fe = [pts[i][1] for i in front]
-            ax.step(ft, fe, where='post', color='0.4', lw=1.0, ls='-', zorder=1)
-            ax.scatter(ft, fe, s=160, facecolor='none', edgecolor='0.3', lw=1.0, zorder=2)
-        b = bounds.get(scene)
-        if b is not None and np.isfinite(b.rel_frobenius):
-            ax.axhline(b.rel_frobenius, color='k', ls='--', lw=1.0)
-            ax.text(0.99, b.rel_frobenius, 'CRLB', va='top', ha='right', fontsize=8,
-                    transform=ax.get_yaxis_transform())
-        ax.axhline(SILENT_THRESHOLD, color='tab:red', ls=':', lw=0.8)
-        ax.set_xscale('log')
-        ax.set_yscale('log')
-        ax.xaxis.set_minor_formatter(NullFormatter())
-        ax.set_title(scene)
-        ax.set_xlabel('compute time per estimate [s] (median)')
-        ax.set_ylabel('relative Frobenius error (median, bar to p90)')
-        ax.grid(True, which='both', alpha=0.25)
-        if failed:
-            ax.text(0.02, 0.02, 'no ok result: ' + ', '.join(failed), transform=ax.transAxes,
-                    fontsize=7, color='tab:red')
-    for ax in axes.ravel()[n:]:
+        _scene_panel(ax, scene, [s for s in summaries if s.scene == scene], marker,
+                     bounds.get(scene), handles)
+    for ax in axes.ravel()[len(scenes):]:
         ax.axis('off')
-    fig.legend(list(handles.values()), list(handles.keys()), loc='lower center',
-               ncol=min(8, len(handles)), fontsize=8, frameon=False)
-    fig.suptitle('Speed against accuracy (grey circles and steps: Pareto front; dashed: '
-                 'Cramer-Rao bound; dotted red: 10 % error)', fontsize=11)
-    fig.tight_layout(rect=(0, 0.07, 1, 0.97))
+    order = [s.name for s in specs if s.name in handles]
+    fig.legend([handles[n] for n in order], order, loc='lower center',
+               ncol=min(6, len(order)), fontsize=8, frameon=False)
+    fig.suptitle('Speed against accuracy (colour: method; grey circles and steps: Pareto '
+                 'front; dashed: Cramer-Rao bound; dotted red: 10 % error)', fontsize=11)
+    fig.tight_layout(rect=(0, 0.09, 1, 0.97))
     fig.savefig(path, dpi=110)
     plt.close(fig)
 
@@ -142,7 +178,7 @@ def plot_stability_map(cells: Sequence[Cell], path: Path) -> None:
                           rotation=45)
             ax.set_yticks(range(len(amps)), [f'{v:g}' for v in amps], fontsize=7)
             if r == 0:
-                ax.set_title(m, fontsize=10)
+                ax.set_title(m, fontsize=10, color=method_colour(m), fontweight='bold')
             if r == len(durations) - 1:
                 ax.set_xlabel('gyro noise [rad/s]', fontsize=8)
             if c == 0:

@@ -12,16 +12,16 @@ import numpy as np
 from inertia_ros.core.estimation import to_jsonable
 from inertia_ros.io.scene_file import load_scene
 
+from .common import SCENE_DIR
 from .methods import DEFAULT_METHOD, method_specs
 from .montecarlo import as_records, run_monte_carlo, scene_bound, summarize
 from .plots import plot_speed_vs_accuracy, plot_stability_map
 from .progress import Progress
 from .report import BenchContext, machine_info, render_markdown
 from .stability import run_grid
+from .startup import measure as measure_startup
 
-__all__ = ['FULL', 'QUICK', 'BenchConfig', 'run_bench']
-
-SCENE_DIR = Path(__file__).resolve().parents[2] / 'config' / 'scenes'
+__all__ = ['FULL', 'QUICK', 'SCENE_DIR', 'BenchConfig', 'run_bench']
 
 
 @dataclass(frozen=True)
@@ -45,6 +45,8 @@ class BenchConfig:
         Settings on the stability map.
     quick : bool
         Fewer settings.
+    startup_repeat : int
+        Runs per start-up case (median reported).
     """
 
     scenes: tuple[tuple[str, str], ...]
@@ -56,10 +58,11 @@ class BenchConfig:
     grid_seeds: tuple[int, ...]
     grid_methods: tuple[str, ...]
     quick: bool
+    startup_repeat: int = 5
 
 
-_GRID_METHODS = ('ml', 'integral', 'integral_ls', 'sliding_1s', 'differential_fd', 'sg_0.1s',
-                 'recursive')
+_GRID_METHODS = ('ml', 'integral', 'integral_ls', 'integral_sliding/1s', 'differential_fd',
+                 'differential_sg/0.1s', 'recursive')
 
 FULL = BenchConfig(
     scenes=(('nominal', 'default.yaml'), ('satellite', 'satellite.yaml'),
@@ -84,7 +87,45 @@ QUICK = BenchConfig(
     durations=(20.0,),
     grid_seeds=(1,),
     grid_methods=_GRID_METHODS,
-    quick=True)
+    quick=True,
+    startup_repeat=3)
+
+
+def _bounds(scenes: dict[str, Any], config: BenchConfig, n_records: dict[str, int],
+            bar: Progress) -> dict[str, Any]:
+    """The Cramer-Rao bound of each scene (averaged over every record when it varies)."""
+    bounds = {}
+    for name, sc in scenes.items():
+        b = scene_bound(sc, [1000 + i for i in range(config.bound_seeds)])
+        if b.spread > 0.01:
+            # a random torque profile: the bound of every Monte Carlo record, averaged
+            b = scene_bound(sc, [1000 + i for i in range(n_records[name])])
+        bounds[name] = b
+        bar(f'bound {name}')
+    return bounds
+
+
+def _timed(seconds: dict[str, float], key: str, fn: Any, *args: Any, **kw: Any) -> Any:
+    """Call ``fn(*args, **kw)``, adding its wall time to ``seconds[key]`` [s]."""
+    t0 = time.perf_counter()
+    out = fn(*args, **kw)
+    seconds[key] = seconds.get(key, 0.0) + time.perf_counter() - t0
+    return out
+
+
+def _headline(summaries: list[Any], cells: list[Any],
+              seconds: dict[str, float]) -> dict[str, Any]:
+    """The headline figures of bench_results.json."""
+    by = {(s.scene, s.method): s for s in summaries}
+    d = by.get(('nominal', DEFAULT_METHOD))
+    return {
+        'default_mse_over_crlb_nominal': (1.0 / d.efficiency) if d is not None else None,
+        'default_efficiency_nominal': d.efficiency if d is not None else None,
+        'default_median_error_nominal': d.median_error if d is not None else None,
+        'default_silent_failures_on_grid': sum(1 for c in cells if c.method == DEFAULT_METHOD
+                                               and c.outcome == 'silent'),
+        'seconds': seconds,
+    }
 
 
 def run_bench(out: Path, config: BenchConfig = FULL, scene_dir: Path = SCENE_DIR,
@@ -117,68 +158,42 @@ def run_bench(out: Path, config: BenchConfig = FULL, scene_dir: Path = SCENE_DIR
     n_records = {name: config.runs[name] for name in scenes}
     n_grid = (len(config.noises) * len(config.amplitudes) * len(config.durations)
               * len(config.grid_seeds) * len(grid_specs))
-    total = sum(n_records.values()) * len(specs) + len(scenes) + n_grid
-    bar = Progress(total, enabled=show_progress)
+    bar = Progress(sum(n_records.values()) * len(specs) + len(scenes) + n_grid,
+                   enabled=show_progress)
     seconds: dict[str, float] = {}
-
-    # ---- bounds
-    t0 = time.perf_counter()
-    bounds = {}
-    for name, sc in scenes.items():
-        b = scene_bound(sc, [1000 + i for i in range(config.bound_seeds)])
-        if b.spread > 0.01:
-            # a random torque profile: the bound of every Monte Carlo record, averaged
-            b = scene_bound(sc, [1000 + i for i in range(n_records[name])])
-        bounds[name] = b
-        bar(f'bound {name}')
-    seconds['bounds'] = time.perf_counter() - t0
-
-    # ---- Monte Carlo
-    t0 = time.perf_counter()
-    runs = run_monte_carlo(scenes, specs, n_records, base_seed=1000, progress=bar)
+    bounds = _timed(seconds, 'bounds', _bounds, scenes, config, n_records, bar)
+    runs = _timed(seconds, 'monte_carlo', run_monte_carlo, scenes, specs, n_records,
+                  base_seed=1000, progress=bar)
     summaries = summarize(runs, bounds)
-    seconds['monte_carlo'] = time.perf_counter() - t0
-
-    # ---- stability grid
-    t0 = time.perf_counter()
-    cells = run_grid(grid_specs, config.noises, config.amplitudes, config.durations,
-                     config.grid_seeds, progress=bar)
-    seconds['stability'] = time.perf_counter() - t0
+    cells = _timed(seconds, 'stability', run_grid, grid_specs, config.noises,
+                   config.amplitudes, config.durations, config.grid_seeds, progress=bar)
     bar.close()
-
-    # ---- outputs
-    t0 = time.perf_counter()
-    plot_speed_vs_accuracy(summaries, specs, bounds, out / 'speed_vs_accuracy.png')
-    plot_stability_map(cells, out / 'stability_map.png')
-    records = {name: f'{sc.duration:g} s, gyro {sc.gyro.rate:g} Hz, torque '
-                     f'{sc.torque_sensor.rate:g} Hz' for name, sc in scenes.items()}
+    startup = _timed(seconds, 'startup', measure_startup, config.startup_repeat)
+    _timed(seconds, 'plots', plot_speed_vs_accuracy, summaries, specs, bounds,
+           out / 'speed_vs_accuracy.png')
+    _timed(seconds, 'plots', plot_stability_map, cells, out / 'stability_map.png')
     grid = {'noises': list(config.noises), 'amplitudes': list(config.amplitudes),
             'durations': list(config.durations), 'seeds': list(config.grid_seeds),
-            'records': records}
-    seconds['plots'] = time.perf_counter() - t0
+            'records': {name: f'{sc.duration:g} s, gyro {sc.gyro.rate:g} Hz, torque '
+                              f'{sc.torque_sensor.rate:g} Hz' for name, sc in scenes.items()}}
     seconds['total'] = time.perf_counter() - t_start
     ctx = BenchContext(quick=config.quick, scenes=dict(config.scenes), runs=n_records,
                        specs=specs, notes=notes, bounds=bounds, summaries=summaries,
-                       cells=cells, grid=grid, machine=machine, seconds=seconds)
+                       cells=cells, grid=grid, machine=machine, seconds=seconds,
+                       startup=startup)
     (out / 'BENCHMARKS.md').write_text(render_markdown(ctx), encoding='utf-8')
-    by = {(s.scene, s.method): s for s in summaries}
-    d = by.get(('nominal', DEFAULT_METHOD))
-    headline = {
-        'default_mse_over_crlb_nominal': (1.0 / d.efficiency) if d is not None else None,
-        'default_efficiency_nominal': d.efficiency if d is not None else None,
-        'default_median_error_nominal': d.median_error if d is not None else None,
-        'default_silent_failures_on_grid': sum(1 for c in cells if c.method == DEFAULT_METHOD
-                                               and c.outcome == 'silent'),
-        'seconds': seconds,
-    }
+    headline = _headline(summaries, cells, seconds)
     payload = {'headline': headline, 'machine': machine, 'notes': notes,
                'bounds': {k: {'theta_var': b.theta_var, 'rel_frobenius': b.rel_frobenius,
                               'spread': b.spread, 'nuisances': list(b.nuisances)}
                           for k, b in bounds.items()},
                'summaries': as_records(summaries),
                'stability': [c.__dict__ for c in cells],
+               'startup': [{'name': f.name, 'command': f.command, 'seconds': list(f.seconds),
+                            'median': f.median, 'target': f.target} for f in startup],
                'config': {'quick': config.quick, 'runs': n_records, 'grid': grid}}
     (out / 'bench_results.json').write_text(
         json.dumps(to_jsonable(payload), indent=1), encoding='utf-8')
-    return to_jsonable(headline) | {'default_mse_over_crlb_nominal_raw': float(
-        1.0 / d.efficiency) if d is not None and np.isfinite(d.efficiency) else None}
+    ratio = headline['default_mse_over_crlb_nominal']
+    return to_jsonable(headline) | {'default_mse_over_crlb_nominal_raw': float(ratio)
+                                    if ratio is not None and np.isfinite(ratio) else None}

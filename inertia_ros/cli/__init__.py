@@ -76,18 +76,15 @@ def bounded(low: float, high: float, unit: str, integer: bool = False
 
 
 def version() -> str:
-    """The package version: the installed distribution's metadata, else ``__version__``."""
-    from importlib import metadata
+    """The package version, ``inertia_ros.__version__`` (a test keeps it equal to the
+    installed distribution's metadata, which is slower to read at start-up)."""
+    from inertia_ros import __version__
 
-    try:
-        return metadata.version('inertia_ros')
-    except metadata.PackageNotFoundError:
-        from inertia_ros import __version__
-        return __version__
+    return __version__
 
 
 class _VersionAction(argparse.Action):
-    """``--version``: print ``inertia_ros VERSION`` and exit 0 (metadata read only then)."""
+    """``--version``: print ``inertia_ros VERSION`` and exit 0."""
 
     def __init__(self, option_strings: list[str], dest: str, **kwargs: object) -> None:
         super().__init__(option_strings, dest, nargs=0, default=argparse.SUPPRESS, **kwargs)
@@ -133,7 +130,11 @@ def build_parser(only: str | None = None) -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; return the process exit status."""
     argv = sys.argv[1:] if argv is None else list(argv)
-    parser = build_parser(_command_in(argv))
+    command = _command_in(argv)
+    if command is None and '--version' in argv:     # answered without loading any command
+        print(f'inertia_ros {version()}')
+        return 0
+    parser = build_parser(command)
     try:
         args = parser.parse_args(argv)
     except SystemExit as exc:        # --help, --version, or a one-line parse error

@@ -1,0 +1,275 @@
+"""``bench node``: the inertia_estimator node as a separate process fed at 1 kHz + 1 kHz.
+
+Starts ``python -m inertia_ros.inertia_estimator_node`` on a private ROS_DOMAIN_ID, then
+publishes from this process a simulated gyro stream (sensor_msgs/Imu) and torque stream
+(geometry_msgs/WrenchStamped), each at ``rate`` Hz (default 1000) for ``duration`` seconds
+(default 60), with sensor-data QoS.  Gyro sample k is sent at k/rate and the torque sample
+half a period later, each stamped with its own send schedule, so every input stamp identifies
+one message and its send instant.
+
+Measured:
+
+- dropped messages: messages sent minus those the estimator counted as received (its
+  /diagnostics ``gyro_received`` / ``torque_received``);
+- CPU of the estimator process while streaming [% of one core] from /proc/PID/stat;
+- latency from the newest input to the published estimate: the estimate's header stamp is
+  the newest input stamp it has seen; latency = receive time of the estimate here minus the
+  send time of that input (both CLOCK_MONOTONIC in this process) [ms]: median, p95, max.
+
+Targets: no drop, CPU < 30 % of a core, median latency < 5 ms.  Prints one table and a JSON
+line; exit status 0 when all targets are met, 1 otherwise, 2 when the node never subscribed.
+Needs a ROS 2 Python environment (rclpy and the message packages).
+"""
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .common import nominal_scene
+
+__all__ = ['TARGETS', 'cpu_seconds', 'latencies_ms', 'run']
+
+#: The pass criteria: dropped messages, CPU [% of one core], median latency [ms].
+TARGETS = {'dropped': 0, 'cpu_percent': 30.0, 'median_latency_ms': 5.0}
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def cpu_seconds(pid: int) -> float:
+    """utime + stime of a process [s] from /proc/PID/stat."""
+    fields = Path(f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
+
+
+def latencies_ms(stamps: np.ndarray, recv_ns: np.ndarray, epoch: int, period_ns: int,
+                 send_mono: np.ndarray) -> np.ndarray:
+    """Latency of each estimate from the input that carried its stamp [ms].
+
+    Parameters
+    ----------
+    stamps : numpy.ndarray of int64, shape (E,)
+        Header stamps of the received estimates [ns].
+    recv_ns : numpy.ndarray of int64, shape (E,)
+        Their monotonic receive times [ns].
+    epoch : int
+        Stamp of gyro sample 0 [ns]; torque sample k is stamped half a period after gyro k.
+    period_ns : int
+        Sample period of each stream [ns].
+    send_mono : numpy.ndarray of int64, shape (2 n,)
+        Monotonic send time of gyro k at ``2k`` and torque k at ``2k + 1`` [ns].
+    """
+    n = send_mono.size // 2
+    offset = stamps - epoch
+    k = offset // period_ns
+    j = (offset % period_ns) // (period_ns // 2)
+    ok = (k >= 0) & (k < n) & ((offset % period_ns) % (period_ns // 2) == 0)
+    return (recv_ns[ok] - send_mono[2 * k[ok] + j[ok]]) * 1e-6
+
+
+@dataclass
+class _Listener:
+    """Estimates and diagnostics received in a spinning thread of this process."""
+
+    received: list[tuple[int, int]] = field(default_factory=list)   # (stamp, monotonic) ns
+    diags: list[dict[str, str]] = field(default_factory=list)
+    stop: threading.Event = field(default_factory=threading.Event)
+    thread: threading.Thread | None = None
+
+    def start(self, node: Any, stamp_to_ns: Any) -> None:
+        """Subscribe ``node`` to the estimate and /diagnostics and spin it in a thread."""
+        from diagnostic_msgs.msg import DiagnosticArray
+        from geometry_msgs.msg import InertiaStamped
+        from rclpy.executors import SingleThreadedExecutor
+
+        def on_estimate(msg: Any) -> None:
+            self.received.append((stamp_to_ns(msg.header.stamp), time.monotonic_ns()))
+
+        def on_diag(msg: Any) -> None:
+            self.diags += [{kv.key: kv.value for kv in st.values} for st in msg.status
+                           if st.name == 'inertia_estimator']
+
+        node.create_subscription(InertiaStamped, '/inertia_estimator/inertia', on_estimate, 100)
+        node.create_subscription(DiagnosticArray, '/diagnostics', on_diag, 100)
+        exe = SingleThreadedExecutor()
+        exe.add_node(node)
+
+        def spin() -> None:
+            while not self.stop.is_set():
+                exe.spin_once(timeout_sec=0.05)
+
+        self.thread = threading.Thread(target=spin, daemon=True)
+        self.thread.start()
+
+    def close(self) -> None:
+        """Stop the spinning thread."""
+        self.stop.set()
+        if self.thread is not None:
+            self.thread.join()
+
+
+def _start_estimator(publish_rate: float, method: str) -> tuple[subprocess.Popen, Any]:
+    """The estimator node as a child process, its console output into a temporary log."""
+    cmd = [sys.executable, '-m', 'inertia_ros.inertia_estimator_node', '--ros-args',
+           '--params-file', str(ROOT / 'config' / 'inertia_estimator.yaml'),
+           '-p', f'publish_rate:={publish_rate}', '-p', f'method:={method}']
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    log = open(Path(os.environ.get('TMPDIR', '/tmp')) / f'bench_node_{os.getpid()}.log', 'w')
+    return subprocess.Popen(cmd, env=env, stdout=log, stderr=subprocess.STDOUT), log
+
+
+def _wait_matched(pubs: list[Any], proc: subprocess.Popen, timeout: float = 20.0) -> bool:
+    """Wait until every publisher has a subscriber (False when the node died or timed out)."""
+    deadline = time.monotonic() + timeout
+    while any(p.get_subscription_count() < 1 for p in pubs):
+        if time.monotonic() > deadline or proc.poll() is not None:
+            return False
+        time.sleep(0.05)
+    time.sleep(1.0)
+    return True
+
+
+def _stream(pubs: list[Any], msgs: list[list[Any]], period_ns: int) -> tuple[np.ndarray, int]:
+    """Publish gyro k at k periods and torque k half a period later, on schedule.
+
+    Returns the monotonic send times (gyro k at 2k, torque k at 2k + 1) [ns] and the number
+    of sends more than one period late.
+    """
+    n = len(msgs[0])
+    send_mono = np.zeros(2 * n, dtype=np.int64)
+    t0 = time.monotonic_ns()
+    late = 0
+    for k in range(n):
+        for j in (0, 1):
+            due = t0 + k * period_ns + j * (period_ns // 2)
+            now = time.monotonic_ns()
+            if due > now:
+                time.sleep((due - now) * 1e-9)
+            elif now - due > period_ns:
+                late += 1
+            send_mono[2 * k + j] = time.monotonic_ns()
+            pubs[j].publish(msgs[j][k])
+    return send_mono, late
+
+
+def _stop(proc: subprocess.Popen) -> None:
+    """SIGINT the node (a clean ROS shutdown), then kill it if it lingers."""
+    proc.send_signal(signal.SIGINT)
+    try:
+        proc.wait(timeout=10)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+
+
+def _summary(n: int, late: int, wall: float, cpu_pct: float, lat: np.ndarray,
+             listener: _Listener, config: dict[str, Any]) -> dict[str, Any]:
+    """The JSON result."""
+    last = listener.diags[-1] if listener.diags else {}
+    upd = np.array([float(d['update_ms']) for d in listener.diags if 'update_ms' in d])
+    got_g, got_q = int(last.get('gyro_received', -1)), int(last.get('torque_received', -1))
+
+    def q(p: float) -> float | None:
+        return round(float(np.percentile(lat, p)), 3) if lat.size else None
+
+    result = dict(config, sent={'gyro': n, 'torque': n},
+                  received={'gyro': got_g, 'torque': got_q},
+                  dropped=(n - got_g) + (n - got_q), publisher_late_sends=late,
+                  stream_wall_s=round(wall, 3),
+                  estimator_cpu_percent_of_core=round(cpu_pct, 1),
+                  estimates_received=len(listener.received),
+                  latency_ms={'median': q(50), 'p95': q(95), 'max': q(100)},
+                  last_status=last.get('status'),
+                  update_ms_median=round(float(np.median(upd)), 3) if upd.size else None)
+    result['targets_met'] = bool(
+        result['dropped'] <= TARGETS['dropped'] and cpu_pct < TARGETS['cpu_percent']
+        and lat.size > 0 and result['latency_ms']['median'] < TARGETS['median_latency_ms'])
+    return result
+
+
+def _print(r: dict[str, Any]) -> None:
+    """The table and the JSON line."""
+    n = r['sent']['gyro']
+    print(f"sent {n} + {n} messages in {r['stream_wall_s']} s "
+          f"({r['publisher_late_sends']} sends more than one period late)")
+    print(f"received by the estimator: gyro {r['received']['gyro']}, torque "
+          f"{r['received']['torque']}; dropped {r['dropped']} (target 0)")
+    print(f"estimator CPU: {r['estimator_cpu_percent_of_core']:.1f} % of one core "
+          f"(target < {TARGETS['cpu_percent']:g} %)")
+    lat = r['latency_ms']
+    print(f"estimates: {r['estimates_received']}; latency newest input -> estimate: median "
+          f"{lat['median']} ms, p95 {lat['p95']} ms, max {lat['max']} ms (target median < "
+          f"{TARGETS['median_latency_ms']:g} ms); core flush + estimate per update: median "
+          f"{r['update_ms_median']} ms")
+    print(json.dumps(r))
+
+
+def run(rate: float = 1000.0, duration: float = 60.0, publish_rate: float = 10.0,
+        method: str = 'recursive', seed: int = 1) -> int:
+    """Run the benchmark; return 0 when every target is met, 1 when not, 2 on no match.
+
+    Parameters
+    ----------
+    rate : float
+        Gyro and torque rate [Hz].
+    duration : float
+        Streamed time [s].
+    publish_rate : float
+        The estimator's ``publish_rate`` parameter [Hz].
+    method : str
+        The estimator's ``method`` parameter.
+    seed : int
+        Simulation seed.
+    """
+    from inertia_ros.core.simulation import simulate
+
+    # The listener thread must not wait up to the default 5 ms GIL switch interval behind the
+    # publishing loop: that would be the benchmark's latency, not the estimator's.
+    sys.setswitchinterval(2e-4)
+    os.environ['ROS_DOMAIN_ID'] = str(150 + os.getpid() % 70)
+    sim = simulate(nominal_scene(duration, rate=rate), seed=seed)
+    n = min(sim.t_gyro.size, sim.t_torque.size)
+    import rclpy
+    from rclpy.node import Node
+
+    from inertia_ros.nodes import messages as ros_msgs
+    from inertia_ros.nodes._ros import sensor_qos
+
+    proc, log = _start_estimator(publish_rate, method)
+    rclpy.init()
+    pub_node, listener = Node('bench_publisher'), _Listener()
+    pubs = [pub_node.create_publisher(ros_msgs.Imu, 'imu', sensor_qos(1000)),
+            pub_node.create_publisher(ros_msgs.WrenchStamped, 'torque', sensor_qos(1000))]
+    listener.start(Node('bench_listener'), ros_msgs.stamp_to_ns)
+    try:
+        if not _wait_matched(pubs, proc):
+            print(f'estimator did not subscribe; see {log.name}', file=sys.stderr)
+            return 2
+        period_ns, epoch = int(round(1e9 / rate)), time.time_ns()
+        msgs = [[ros_msgs.imu_msg(epoch + k * period_ns, sim.omega[k], sim.frame_id)
+                 for k in range(n)],
+                [ros_msgs.wrench_msg(epoch + k * period_ns + period_ns // 2, sim.torque[k],
+                                     sim.frame_id) for k in range(n)]]
+        cpu0, wall0 = cpu_seconds(proc.pid), time.monotonic()
+        send_mono, late = _stream(pubs, msgs, period_ns)
+        wall, cpu = time.monotonic() - wall0, cpu_seconds(proc.pid) - cpu0
+        time.sleep(2.5)      # let the last estimate and a watchdog diagnostic arrive
+    finally:
+        listener.close()
+        _stop(proc)
+        rclpy.try_shutdown()
+        log.close()
+    rec = np.array(listener.received, dtype=np.int64).reshape(-1, 2)
+    lat = latencies_ms(rec[:, 0], rec[:, 1], epoch, period_ns, send_mono)
+    result = _summary(n, late, wall, 100.0 * cpu / wall, lat, listener,
+                      {'rate_hz': rate, 'duration_s': duration, 'method': method,
+                       'publish_rate_hz': publish_rate})
+    _print(result)
+    return 0 if result['targets_met'] else 1

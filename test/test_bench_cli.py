@@ -1,0 +1,147 @@
+"""The benchmark home: ``bench`` subcommands, one colour and name per method, start-up."""
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+from conftest import ROOT
+from inertia_ros.bench.methods import method_of, method_specs
+from inertia_ros.bench.plots import METHOD_STYLE, method_colour, setting_markers
+from inertia_ros.cli import build_parser, main
+from inertia_ros.core.estimation.options import METHODS
+
+BASELINES = ('recursive', 'hand_fd', 'pinocchio')
+
+
+def test_every_setting_is_named_after_its_method() -> None:
+    """Setting names are ``METHOD`` or ``METHOD/VARIANT`` with METHOD a --method name or a
+    baseline; the table gives each method one colour and a legend name equal to it."""
+    specs, _ = method_specs(include_pinocchio=False)
+    names = [s.name for s in specs]
+    assert len(set(names)) == len(names)
+    for s in specs:
+        assert s.method in METHODS or s.method in BASELINES, s.name
+        assert s.method in METHOD_STYLE, s.name
+        assert method_colour(s.name) == METHOD_STYLE[s.method][0]
+    for key, (_colour, label) in METHOD_STYLE.items():
+        assert label == key
+    colours = [c for c, _ in METHOD_STYLE.values()]
+    assert len(set(colours)) == len(colours), 'two methods share a colour'
+    assert {'ml', 'integral', 'integral_ls', 'integral_sliding', 'differential_fd',
+            'differential_sg'} <= set(METHOD_STYLE)
+
+
+def test_variants_share_the_colour_but_not_the_marker() -> None:
+    """Within one method each setting gets its own marker; the plain setting gets 'o'."""
+    names = ['integral', 'integral/full', 'integral/seg5s', 'ml', 'integral_sliding/1s',
+             'integral_sliding/4s']
+    m = setting_markers(names)
+    assert m['integral'] == 'o' and m['ml'] == 'o'
+    assert len({m[n] for n in names if method_of(n) == 'integral'}) == 3
+    assert m['integral_sliding/1s'] != m['integral_sliding/4s']
+
+
+@pytest.mark.parametrize('argv, attrs', [
+    (['bench', '--quick', '--out', 'x'], {'kind': None, 'quick': True, 'out': 'x'}),
+    (['bench', 'offline', '--minutes', '2', '--skip-slow'],
+     {'kind': 'offline', 'minutes': 2.0, 'skip_slow': True}),
+    (['bench', 'node', '--rate', '500'], {'kind': 'node', 'rate': 500.0}),
+    (['bench', 'recursive', '--duration', '5'], {'kind': 'recursive', 'duration': 5.0}),
+    (['bench', 'estimators', '--quick', '--seeds', '2'], {'kind': 'estimators', 'seeds': 2}),
+    (['bench', 'simulate', '--repeat', '1'], {'kind': 'simulate', 'repeat': 1}),
+    (['bench', 'startup', '--repeat', '3'], {'kind': 'startup', 'repeat': 3}),
+])
+def test_bench_subcommands_parse(argv: list[str], attrs: dict) -> None:
+    """Each focused benchmark is a subcommand of ``bench``; the suite needs none."""
+    args = build_parser('bench').parse_args(argv)
+    for k, v in attrs.items():
+        assert getattr(args, k) == v
+
+
+@pytest.mark.parametrize('argv, piece', [
+    (['bench', 'offline', '--minutes', '1e9'], '--minutes: must be within [0.5, 600] min'),
+    (['bench', 'node', '--rate', '0'], '--rate: must be within [1, 20000] Hz'),
+    (['bench', 'recursive', '--duration', 'inf'], '--duration: must be within [1, 3600] s'),
+    (['bench', 'startup', '--repeat', '0'], '--repeat: must be within [1, 100] runs'),
+    (['bench', 'estimators', '--seeds', '1.5'], '--seeds: must be an integer'),
+])
+def test_bench_options_have_ranges(argv: list[str], piece: str,
+                                   capsys: pytest.CaptureFixture) -> None:
+    """Absurd values are one line naming the option, its range and unit; exit 2."""
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and piece in err, err
+
+
+def test_bench_simulate_runs(capsys: pytest.CaptureFixture) -> None:
+    """``bench simulate`` prints the three timings and the verdict."""
+    assert main(['bench', 'simulate', '--repeat', '1']) == 0
+    out = capsys.readouterr().out
+    for piece in ('simulate        best', 'write           best', 'simulate+write  best',
+                  'target simulate+write < 2 s'):
+        assert piece in out
+
+
+def test_bench_simulate_missing_scene_is_one_line(tmp_path: Path,
+                                                  capsys: pytest.CaptureFixture) -> None:
+    """A missing scene file is a one-line error."""
+    assert main(['bench', 'simulate', str(tmp_path / 'none.yaml')]) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and 'no such scene file' in err
+
+
+def test_startup_figures(monkeypatch: pytest.MonkeyPatch) -> None:
+    """``bench startup`` times whole processes: every case exits 0 and is timed ``repeat``
+    times (a smoke test; the < 0.3 s target is a measurement, not a test)."""
+    from inertia_ros.bench import startup
+
+    monkeypatch.setattr(startup, 'CASES', startup.CASES[:2] + startup.CASES[3:])
+    figs = startup.measure(repeat=2)
+    assert [f.name for f in figs] == ['estimate --help', '--version', 'python -c pass']
+    for f in figs:
+        assert f.ok and len(f.seconds) == 2 and all(0 < t < 30 for t in f.seconds)
+    assert figs[0].target == 0.3 and figs[1].met is None
+
+
+def test_bench_offline_small_log(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    """``bench offline`` on a half-minute log: our stages read every message and the
+    end-to-end estimate is ok; results go to --json."""
+    import json
+
+    out = tmp_path / 'r.json'
+    assert main(['bench', 'offline', '--minutes', '0.5', '--skip-slow',
+                 '--json', str(out)]) == 0
+    res = {r['stage']: r for r in json.loads(out.read_text())['results']}
+    assert set(res) == {'ours_read', 'ours_end_to_end', 'mcap_raw'}
+    assert res['ours_read']['messages'] == 7500 == res['mcap_raw']['messages']
+    assert res['ours_end_to_end']['status'] == 'ok'
+    assert 'end-to-end is' in capsys.readouterr().out
+
+
+def test_no_benchmark_scripts_left_and_no_old_issue_numbers() -> None:
+    """The benchmarks live in inertia_ros/bench only; their docstrings cite no issue."""
+    assert not list((ROOT / 'scripts').glob('bench_*.py'))
+    for p in sorted((ROOT / 'inertia_ros' / 'bench').glob('*.py')) + [
+            ROOT / 'inertia_ros' / 'cli' / 'bench.py']:
+        tree = ast.parse(p.read_text())
+        for node in ast.walk(tree):
+            doc = (ast.get_docstring(node) if isinstance(
+                node, (ast.Module, ast.FunctionDef, ast.ClassDef)) else None)
+            assert doc is None or 'issue' not in doc.lower(), p
+
+
+def test_functions_in_cli_and_bench_are_short() -> None:
+    """No function over 80 lines in cli/ (the demo aside, owned elsewhere) or bench/."""
+    long = []
+    for p in sorted((ROOT / 'inertia_ros' / 'cli').glob('*.py')) + sorted(
+            (ROOT / 'inertia_ros' / 'bench').glob('*.py')):
+        if p.name == 'demo.py':
+            continue
+        for node in ast.walk(ast.parse(p.read_text())):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                n = node.end_lineno - node.lineno + 1
+                if n > 80:
+                    long.append(f'{p.name}:{node.name} {n}')
+    assert long == []
