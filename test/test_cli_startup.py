@@ -38,6 +38,13 @@ def test_command_help_imports_no_numerical_stack(command: str) -> None:
     assert not names & set(HEAVY), sorted(names & set(HEAVY))
 
 
+def test_version_imports_no_numerical_stack() -> None:
+    """``--version`` answers without loading any command module."""
+    proc, names = _imported('--version')
+    assert proc.returncode == 0 and proc.stdout == f'inertia_ros {__version__}\n'
+    assert not names & set(HEAVY), sorted(names & set(HEAVY))
+
+
 def test_estimate_help_lists_the_vocabularies() -> None:
     """The choices shown by ``estimate --help`` come from estimation.options."""
     from inertia_ros.core.estimation.options import METHODS, MODELS
