@@ -95,7 +95,7 @@ class _Listener:
 
         def on_diag(msg: Any) -> None:
             self.diags += [{kv.key: kv.value for kv in st.values} for st in msg.status
-                           if st.name == 'inertia_estimator']
+                           if st.name.startswith('inertia_estimator')]  # '<node>: <task>'
 
         node.create_subscription(InertiaStamped, '/inertia_estimator/inertia', on_estimate, 100)
         node.create_subscription(DiagnosticArray, '/diagnostics', on_diag, 100)
