@@ -52,6 +52,8 @@ def test_variants_share_the_colour_but_not_the_marker() -> None:
     (['bench', 'estimators', '--quick', '--seeds', '2'], {'kind': 'estimators', 'seeds': 2}),
     (['bench', 'simulate', '--repeat', '1'], {'kind': 'simulate', 'repeat': 1}),
     (['bench', 'startup', '--repeat', '3'], {'kind': 'startup', 'repeat': 3}),
+    (['bench', 'honesty', '--seeds', '2', '--paths', 'api'],
+     {'kind': 'honesty', 'seeds': 2, 'paths': 'api'}),
 ])
 def test_bench_subcommands_parse(argv: list[str], attrs: dict) -> None:
     """Each focused benchmark is a subcommand of ``bench``; the suite needs none."""
@@ -73,6 +75,21 @@ def test_bench_options_have_ranges(argv: list[str], piece: str,
     assert main(argv) == 2
     err = capsys.readouterr().err
     assert len(err.strip().splitlines()) == 1 and piece in err, err
+
+
+def test_bench_honesty_unknown_case_is_one_line(capsys: pytest.CaptureFixture) -> None:
+    """An unknown honesty case is one line listing the known ones."""
+    assert main(['bench', 'honesty', '--cases', 'clean,nope']) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and 'unknown nope; known: clean' in err
+
+
+def test_every_status_has_a_text() -> None:
+    """The text report explains every status of the contract."""
+    from inertia_ros.cli.report import STATUS_TEXT
+    from inertia_ros.core.estimation.options import STATUSES
+
+    assert set(STATUS_TEXT) == set(STATUSES)
 
 
 def test_bench_simulate_runs(capsys: pytest.CaptureFixture) -> None:

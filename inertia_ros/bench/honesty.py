@@ -17,7 +17,7 @@ Each run gives ``z = (estimate - truth) / sigma`` per identified tensor element 
 the tensor at the end of the record: what a user wants to know now).  A run is a *defect* when
 its status is ``ok`` and some ``|z| > 5``.  ``rms_z`` is over the ``ok`` runs.
 
-    python -m inertia_ros.bench.honesty [--seeds 20] [--cases clean,...] [--paths api,node]
+    python -m inertia_ros bench honesty [--seeds 20] [--cases clean,...] [--paths api,node]
 """
 from __future__ import annotations
 

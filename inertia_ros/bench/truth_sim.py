@@ -201,37 +201,29 @@ def _disturbance(case: TruthCase, t: float, q: np.ndarray) -> np.ndarray | float
     return np.broadcast_to(d, (len(q), 3))
 
 
-def simulate_truth(case: TruthCase, seeds: list[int] | range) -> list[TruthRecord]:
-    """Simulate ``case`` for every seed at once; one record per seed.
-
-    Parameters
-    ----------
-    case : TruthCase
-        The scenario.
-    seeds : sequence of int
-        Seeds; seed ``s`` draws the torque phases and the noise of record ``s`` from
-        ``numpy.random.default_rng(s)`` (a record does not depend on the other seeds).
-
-    Returns
-    -------
-    list of TruthRecord
-        One per seed, in order.
-    """
-    seeds = list(seeds)
-    S = len(seeds)
-    rngs = [np.random.default_rng(s) for s in seeds]
-    prof = [_Torques(case, r, 1) for r in rngs]
-    torques = _Torques(case, np.random.default_rng(0), S)
-    torques.phase = np.concatenate([p.phase for p in prof])
-    torques.const = np.concatenate([p.const for p in prof])
-
+def _grid(case: TruthCase) -> tuple[float, int, int, int]:
+    """Integration step [s], step count, and the steps between gyro and torque samples."""
     base = gcd(int(case.gyro_rate), int(case.torque_rate))
     steps_per_base = max(case.substeps, 4 * int(case.gyro_rate) // base)
     h = 1.0 / (base * steps_per_base)
-    n = int(round(case.duration / h))
-    g_every = int(round(1.0 / (case.gyro_rate * h)))
-    t_every = int(round(1.0 / (case.torque_rate * h)))
+    return (h, int(round(case.duration / h)), int(round(1.0 / (case.gyro_rate * h))),
+            int(round(1.0 / (case.torque_rate * h))))
 
+
+def _integrate(case: TruthCase, torques: _Torques, S: int
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """RK4 of Euler's equations (and the attitude when a disturbance needs it) for S records.
+
+    Returns
+    -------
+    t_gyro : numpy.ndarray, shape (N,)
+    omega : numpy.ndarray, shape (S, N, 3)
+        Noise-free gyro samples (low-passed when ``case.gyro_tau > 0``) [rad/s].
+    t_torque : numpy.ndarray, shape (M,)
+    torque : numpy.ndarray, shape (S, M, 3)
+        Held (commanded) torque samples [N m].
+    """
+    h, n, g_every, t_every = _grid(case)
     w = np.tile(np.asarray(case.omega0, dtype=float), (S, 1))
     q = np.tile([0.0, 0.0, 0.0, 1.0], (S, 1))
     wf = w.copy()                                       # low-passed gyro state
@@ -280,11 +272,32 @@ def simulate_truth(case: TruthCase, seeds: list[int] | range) -> list[TruthRecor
             a = np.exp(-h / case.gyro_tau)
             wf = a * wf + (1 - a) * 0.5 * (w + w_new)
         w = w_new
+    return np.asarray(tg), np.stack(wg, axis=1), np.asarray(tt), np.stack(tq, axis=1)
 
-    tg_a = np.asarray(tg)
-    tt_a = np.asarray(tt)
-    W = np.stack(wg, axis=1)                            # (S, N, 3)
-    T = np.stack(tq, axis=1)                            # (S, M, 3)
+
+def simulate_truth(case: TruthCase, seeds: list[int] | range) -> list[TruthRecord]:
+    """Simulate ``case`` for every seed at once; one record per seed.
+
+    Parameters
+    ----------
+    case : TruthCase
+        The scenario.
+    seeds : sequence of int
+        Seeds; seed ``s`` draws the torque phases and the noise of record ``s`` from
+        ``numpy.random.default_rng(s)`` (a record does not depend on the other seeds).
+
+    Returns
+    -------
+    list of TruthRecord
+        One per seed, in order.
+    """
+    seeds = list(seeds)
+    rngs = [np.random.default_rng(s) for s in seeds]
+    prof = [_Torques(case, r, 1) for r in rngs]
+    torques = _Torques(case, np.random.default_rng(0), len(seeds))
+    torques.phase = np.concatenate([p.phase for p in prof])
+    torques.const = np.concatenate([p.const for p in prof])
+    tg_a, W, tt_a, T = _integrate(case, torques, len(seeds))
     out = []
     for i, (s, rng) in enumerate(zip(seeds, rngs, strict=True)):
         om = ((1 + case.gyro_scale) * W[i] + np.asarray(case.gyro_bias)

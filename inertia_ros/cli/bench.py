@@ -15,6 +15,7 @@ KIND runs one focused benchmark and prints its figures:
 ``offline``      read/decode/estimate of a long MCAP log against mcap and mcap_ros2
 ``node``         the estimator node as a process fed at 1 kHz + 1 kHz (needs ROS 2)
 ``simulate``     simulate + write a 60 s, 200 Hz scene (target < 2 s)
+``honesty``      calibration of sigma and status on an independent simulator, every path
 
 This module imports nothing heavy: the benchmark modules are imported when they run.
 """
@@ -84,6 +85,13 @@ def _add_kinds(kinds: Any) -> None:
     k.add_argument('scene', nargs='?', type=Path, default=None, metavar='SCENE.yaml',
                    help='scene file (default: config/scenes/default.yaml)')
     k.add_argument('--repeat', type=_REPEAT, default=5, help='runs, 1-100 (5)')
+    k = kinds.add_parser('honesty', help='calibration of sigma and status on an independent '
+                                         'simulator, over the API, CLI and node paths')
+    k.add_argument('--seeds', type=bounded(1, 1000, 'records', integer=True), default=20,
+                   help='records per case, 1-1000 (20)')
+    k.add_argument('--cases', default=None, help='comma-separated case names (default all)')
+    k.add_argument('--paths', default='api,cli,node', help='comma-separated: api, cli, node')
+    k.add_argument('--json', type=Path, metavar='FILE', help='also write the outcomes here')
 
 
 def add_parser(sub: Any) -> argparse.ArgumentParser:
@@ -139,10 +147,28 @@ _KINDS: dict[str, tuple[str, dict[str, str]]] = {
 }
 
 
+def _honesty(args: argparse.Namespace) -> int:
+    """``bench honesty``: unknown case or path names are one line, not a KeyError."""
+    from inertia_ros.bench import honesty
+
+    cases = args.cases.split(',') if args.cases else list(honesty.CASES)
+    bad = [c for c in cases if c not in honesty.CASES]
+    if bad:
+        raise UserError(f'--cases: unknown {", ".join(bad)}; known: '
+                        f'{", ".join(honesty.CASES)}')
+    bad = [p for p in args.paths.split(',') if p not in ('api', 'cli', 'node')]
+    if bad:
+        raise UserError(f'--paths: unknown {", ".join(bad)}; known: api, cli, node')
+    argv = ['--seeds', str(args.seeds), '--cases', ','.join(cases), '--paths', args.paths]
+    return honesty.main(argv + (['--json', str(args.json)] if args.json else []))
+
+
 def run(args: argparse.Namespace) -> int:
     """Run the suite, or the focused benchmark named by KIND; return the exit status."""
     if args.kind is None:
         return _suite(args)
+    if args.kind == 'honesty':
+        return _honesty(args)
     module, params = _KINDS[args.kind]
     if args.kind == 'node':
         try:

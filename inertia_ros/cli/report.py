@@ -27,6 +27,9 @@ __all__ = ['STATUS_TEXT', 'Convergence', 'NumericalWarnings', 'build_report', 'c
 #: What each status means, for the text report.
 STATUS_TEXT = {
     'ok': 'all six tensor elements identified',
+    'model_mismatch': 'the residuals do not fit the noise model: the estimate and its sigma '
+                      'are reported, but the data contain something the model lacks (see the '
+                      'warnings for the likely cause)',
     'scale_unobservable': 'torque-free data: the principal axes and the ratios of the moments '
                           'are known, the scale is not (record with a known torque to get it)',
     'partially_identifiable': 'some elements could not be identified (shown as n/a); excite '
