@@ -159,9 +159,12 @@ def _how_run(ctx: BenchContext) -> list[str]:
          'every chart; the variant names its non-default option.']
     if ctx.seconds:
         total = ctx.seconds.get('total', float('nan'))
+        cpu = ctx.seconds.get('cpu', float('nan'))
         L += [f'- **Wall time of this bench: {total / 60:.1f} min** ({total:.0f} s: '
-              + ', '.join(f'{k} {v:.0f} s' for k, v in ctx.seconds.items() if k != 'total')
-              + ').']
+              + ', '.join(f'{k} {v:.0f} s' for k, v in ctx.seconds.items()
+                          if k not in ('total', 'cpu'))
+              + f'; CPU time of the process {cpu / 60:.1f} min, which the machine\'s load '
+              'disturbs less).']
     return L + ['']
 
 
@@ -261,13 +264,13 @@ def _startup_section(ctx: BenchContext) -> list[str]:
          f'Wall time of a fresh process, median of {runs} runs after one warm-up run '
          '(`python -m inertia_ros bench startup`; `estimate --help` imports no numpy, scipy '
          'or matplotlib, which a test checks).', '',
-         '| case | command | median [s] | min [s] | max [s] | target |',
-         '|---|---|---|---|---|---|']
+         '| case | command | median wall [s] | min [s] | max [s] | median CPU [s] | target |',
+         '|---|---|---|---|---|---|---|']
     for f in ctx.startup:
         target = '' if f.target is None else (
             f'< {f.target:g} s: {"met" if f.met else "**not met**"}')
         L.append(f'| {f.name} | `{f.command}` | {f.median:.3f} | {min(f.seconds):.3f} | '
-                 f'{max(f.seconds):.3f} | {target} |')
+                 f'{max(f.seconds):.3f} | {f.median_cpu:.3f} | {target} |')
     return L + ['']
 
 

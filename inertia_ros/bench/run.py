@@ -150,7 +150,7 @@ def run_bench(out: Path, config: BenchConfig = FULL, scene_dir: Path = SCENE_DIR
     """
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    t_start = time.perf_counter()
+    t_start, cpu_start = time.perf_counter(), time.process_time()
     machine = machine_info()
     specs, notes = method_specs(quick=config.quick)
     scenes = {name: load_scene(scene_dir / f) for name, f in config.scenes}
@@ -177,6 +177,7 @@ def run_bench(out: Path, config: BenchConfig = FULL, scene_dir: Path = SCENE_DIR
             'records': {name: f'{sc.duration:g} s, gyro {sc.gyro.rate:g} Hz, torque '
                               f'{sc.torque_sensor.rate:g} Hz' for name, sc in scenes.items()}}
     seconds['total'] = time.perf_counter() - t_start
+    seconds['cpu'] = time.process_time() - cpu_start
     ctx = BenchContext(quick=config.quick, scenes=dict(config.scenes), runs=n_records,
                        specs=specs, notes=notes, bounds=bounds, summaries=summaries,
                        cells=cells, grid=grid, machine=machine, seconds=seconds,

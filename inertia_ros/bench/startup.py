@@ -1,7 +1,8 @@
 """``bench startup``: wall time of the command line's start-up as whole processes.
 
 Each case is run ``repeat`` times (default 5) as a fresh interpreter, after one untimed
-warm-up run (file-system cache); the median and the range are reported:
+warm-up run (file-system cache); the median and the range of the wall time are reported, and
+the median CPU time (user + system), which a loaded machine disturbs less:
 
 ``estimate --help``
     ``python -m inertia_ros estimate --help`` (target < 0.3 s): argument parsing only, no
@@ -15,6 +16,7 @@ warm-up run (file-system cache); the median and the range are reported:
 """
 from __future__ import annotations
 
+import resource
 import statistics
 import subprocess
 import sys
@@ -43,6 +45,8 @@ class StartupFigure:
         The command as a user types it.
     seconds : tuple of float
         Wall time of each timed run [s].
+    cpu_seconds : tuple of float
+        User + system CPU time of each timed run [s] (less sensitive to the machine's load).
     target : float or None
         The target for the median [s].
     ok : bool
@@ -54,6 +58,7 @@ class StartupFigure:
     seconds: tuple[float, ...]
     target: float | None
     ok: bool
+    cpu_seconds: tuple[float, ...] = ()
 
     @property
     def median(self) -> float:
@@ -61,17 +66,26 @@ class StartupFigure:
         return statistics.median(self.seconds)
 
     @property
+    def median_cpu(self) -> float:
+        """Median CPU time [s] (NaN when not measured)."""
+        return statistics.median(self.cpu_seconds) if self.cpu_seconds else float('nan')
+
+    @property
     def met(self) -> bool | None:
         """Whether the median meets the target (None without a target)."""
         return None if self.target is None else self.ok and self.median < self.target
 
 
-def _time_once(argv: list[str]) -> tuple[float, bool]:
-    """Wall time of one process [s] and whether it exited 0."""
+def _time_once(argv: list[str]) -> tuple[float, float, bool]:
+    """Wall time [s], CPU time [s] of one process and whether it exited 0."""
+    c0 = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
     proc = subprocess.run(argv, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
                           check=False)
-    return time.perf_counter() - t0, proc.returncode == 0
+    wall = time.perf_counter() - t0
+    c1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = (c1.ru_utime - c0.ru_utime) + (c1.ru_stime - c0.ru_stime)
+    return wall, cpu, proc.returncode == 0
 
 
 def measure(repeat: int = 5) -> list[StartupFigure]:
@@ -82,8 +96,8 @@ def measure(repeat: int = 5) -> list[StartupFigure]:
         _time_once(argv)
         runs = [_time_once(argv) for _ in range(max(1, repeat))]
         shown = 'python ' + ' '.join(a if ' ' not in a else repr(a) for a in args)
-        out.append(StartupFigure(name, shown, tuple(t for t, _ in runs), target,
-                                 all(ok for _, ok in runs)))
+        out.append(StartupFigure(name, shown, tuple(r[0] for r in runs), target,
+                                 all(r[2] for r in runs), tuple(r[1] for r in runs)))
     return out
 
 
@@ -95,6 +109,6 @@ def run(repeat: int = 5) -> int:
             f'  target < {f.target:g} s: {"met" if f.met else "NOT met"}')
         failed = '' if f.ok else '  (a run exited non-zero)'
         print(f'{f.name:24s} median {f.median:.3f} s  (min {min(f.seconds):.3f}, max '
-              f'{max(f.seconds):.3f}, {len(f.seconds)} runs){verdict}{failed}   '
-              f'[{f.command}]')
+              f'{max(f.seconds):.3f}, {len(f.seconds)} runs; CPU {f.median_cpu:.3f} s)'
+              f'{verdict}{failed}   [{f.command}]')
     return 0 if all(f.met is not False for f in figures) else 1
