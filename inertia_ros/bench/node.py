@@ -18,7 +18,8 @@ Measured:
 
 Targets: no drop, CPU < 30 % of a core, median latency < 5 ms.  Prints one table and a JSON
 line; exit status 0 when all targets are met, 1 otherwise, 2 when the node never subscribed.
-Needs a ROS 2 Python environment (rclpy and the message packages).
+Needs a ROS 2 Python environment (rclpy and the message packages); the ROS side (publishers,
+the listener) is :class:`inertia_ros.nodes.probe.EstimatorProbe`, imported when this runs.
 """
 from __future__ import annotations
 
@@ -27,9 +28,7 @@ import os
 import signal
 import subprocess
 import sys
-import threading
 import time
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -75,47 +74,6 @@ def latencies_ms(stamps: np.ndarray, recv_ns: np.ndarray, epoch: int, period_ns:
     return (recv_ns[ok] - send_mono[2 * k[ok] + j[ok]]) * 1e-6
 
 
-@dataclass
-class _Listener:
-    """Estimates and diagnostics received in a spinning thread of this process."""
-
-    received: list[tuple[int, int]] = field(default_factory=list)   # (stamp, monotonic) ns
-    diags: list[dict[str, str]] = field(default_factory=list)
-    stop: threading.Event = field(default_factory=threading.Event)
-    thread: threading.Thread | None = None
-
-    def start(self, node: Any, stamp_to_ns: Any) -> None:
-        """Subscribe ``node`` to the estimate and /diagnostics and spin it in a thread."""
-        from diagnostic_msgs.msg import DiagnosticArray
-        from geometry_msgs.msg import InertiaStamped
-        from rclpy.executors import SingleThreadedExecutor
-
-        def on_estimate(msg: Any) -> None:
-            self.received.append((stamp_to_ns(msg.header.stamp), time.monotonic_ns()))
-
-        def on_diag(msg: Any) -> None:
-            self.diags += [{kv.key: kv.value for kv in st.values} for st in msg.status
-                           if st.name.startswith('inertia_estimator')]  # '<node>: <task>'
-
-        node.create_subscription(InertiaStamped, '/inertia_estimator/inertia', on_estimate, 100)
-        node.create_subscription(DiagnosticArray, '/diagnostics', on_diag, 100)
-        exe = SingleThreadedExecutor()
-        exe.add_node(node)
-
-        def spin() -> None:
-            while not self.stop.is_set():
-                exe.spin_once(timeout_sec=0.05)
-
-        self.thread = threading.Thread(target=spin, daemon=True)
-        self.thread.start()
-
-    def close(self) -> None:
-        """Stop the spinning thread."""
-        self.stop.set()
-        if self.thread is not None:
-            self.thread.join()
-
-
 def _start_estimator(publish_rate: float, method: str) -> tuple[subprocess.Popen, Any]:
     """The estimator node as a child process, its console output into a temporary log."""
     cmd = [sys.executable, '-m', 'inertia_ros.inertia_estimator_node', '--ros-args',
@@ -126,10 +84,10 @@ def _start_estimator(publish_rate: float, method: str) -> tuple[subprocess.Popen
     return subprocess.Popen(cmd, env=env, stdout=log, stderr=subprocess.STDOUT), log
 
 
-def _wait_matched(pubs: list[Any], proc: subprocess.Popen, timeout: float = 20.0) -> bool:
-    """Wait until every publisher has a subscriber (False when the node died or timed out)."""
+def _wait_matched(probe: Any, proc: subprocess.Popen, timeout: float = 20.0) -> bool:
+    """Wait until both inputs have a subscriber (False when the node died or timed out)."""
     deadline = time.monotonic() + timeout
-    while any(p.get_subscription_count() < 1 for p in pubs):
+    while not probe.matched():
         if time.monotonic() > deadline or proc.poll() is not None:
             return False
         time.sleep(0.05)
@@ -137,7 +95,7 @@ def _wait_matched(pubs: list[Any], proc: subprocess.Popen, timeout: float = 20.0
     return True
 
 
-def _stream(pubs: list[Any], msgs: list[list[Any]], period_ns: int) -> tuple[np.ndarray, int]:
+def _stream(probe: Any, msgs: list[list[Any]], period_ns: int) -> tuple[np.ndarray, int]:
     """Publish gyro k at k periods and torque k half a period later, on schedule.
 
     Returns the monotonic send times (gyro k at 2k, torque k at 2k + 1) [ns] and the number
@@ -156,7 +114,7 @@ def _stream(pubs: list[Any], msgs: list[list[Any]], period_ns: int) -> tuple[np.
             elif now - due > period_ns:
                 late += 1
             send_mono[2 * k + j] = time.monotonic_ns()
-            pubs[j].publish(msgs[j][k])
+            probe.publish(j, msgs[j][k])
     return send_mono, late
 
 
@@ -170,7 +128,7 @@ def _stop(proc: subprocess.Popen) -> None:
 
 
 def _summary(n: int, late: int, wall: float, cpu_pct: float, lat: np.ndarray,
-             listener: _Listener, config: dict[str, Any]) -> dict[str, Any]:
+             listener: Any, config: dict[str, Any]) -> dict[str, Any]:
     """The JSON result."""
     last = listener.diags[-1] if listener.diags else {}
     upd = np.array([float(d['update_ms']) for d in listener.diags if 'update_ms' in d])
@@ -236,35 +194,26 @@ def run(rate: float = 1000.0, duration: float = 60.0, publish_rate: float = 10.0
     os.environ['ROS_DOMAIN_ID'] = str(150 + os.getpid() % 70)
     sim = simulate(nominal_scene(duration, rate=rate), seed=seed)
     n = min(sim.t_gyro.size, sim.t_torque.size)
-    import rclpy
-    from rclpy.node import Node
-
-    from inertia_ros.nodes import messages as ros_msgs
-    from inertia_ros.nodes._ros import sensor_qos
+    from inertia_ros.nodes.probe import EstimatorProbe
 
     proc, log = _start_estimator(publish_rate, method)
-    rclpy.init()
-    pub_node, listener = Node('bench_publisher'), _Listener()
-    pubs = [pub_node.create_publisher(ros_msgs.Imu, 'imu', sensor_qos(1000)),
-            pub_node.create_publisher(ros_msgs.WrenchStamped, 'torque', sensor_qos(1000))]
-    listener.start(Node('bench_listener'), ros_msgs.stamp_to_ns)
+    listener = EstimatorProbe()
     try:
-        if not _wait_matched(pubs, proc):
+        if not _wait_matched(listener, proc):
             print(f'estimator did not subscribe; see {log.name}', file=sys.stderr)
             return 2
         period_ns, epoch = int(round(1e9 / rate)), time.time_ns()
-        msgs = [[ros_msgs.imu_msg(epoch + k * period_ns, sim.omega[k], sim.frame_id)
+        msgs = [[listener.gyro_message(epoch + k * period_ns, sim.omega[k], sim.frame_id)
                  for k in range(n)],
-                [ros_msgs.wrench_msg(epoch + k * period_ns + period_ns // 2, sim.torque[k],
-                                     sim.frame_id) for k in range(n)]]
+                [listener.torque_message(epoch + k * period_ns + period_ns // 2,
+                                         sim.torque[k], sim.frame_id) for k in range(n)]]
         cpu0, wall0 = cpu_seconds(proc.pid), time.monotonic()
-        send_mono, late = _stream(pubs, msgs, period_ns)
+        send_mono, late = _stream(listener, msgs, period_ns)
         wall, cpu = time.monotonic() - wall0, cpu_seconds(proc.pid) - cpu0
         time.sleep(2.5)      # let the last estimate and a watchdog diagnostic arrive
     finally:
         listener.close()
         _stop(proc)
-        rclpy.try_shutdown()
         log.close()
     rec = np.array(listener.received, dtype=np.int64).reshape(-1, 2)
     lat = latencies_ms(rec[:, 0], rec[:, 1], epoch, period_ns, send_mono)

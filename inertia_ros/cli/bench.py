@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import importlib.util
 import math
 import sys
 from pathlib import Path
@@ -170,11 +171,9 @@ def run(args: argparse.Namespace) -> int:
     if args.kind == 'honesty':
         return _honesty(args)
     module, params = _KINDS[args.kind]
-    if args.kind == 'node':
-        try:
-            import rclpy  # noqa: F401
-        except ImportError as exc:
-            raise UserError(f'bench node needs ROS 2 (rclpy): {exc}') from None
+    if args.kind == 'node' and importlib.util.find_spec('rclpy') is None:
+        raise UserError('bench node needs ROS 2: rclpy is not importable (source a ROS 2 '
+                        'Jazzy environment or install the rclpy wheels)')
     if args.kind == 'simulate' and args.scene is not None and not args.scene.is_file():
         raise UserError(f'{args.scene}: no such scene file')
     bench = importlib.import_module(f'inertia_ros.bench.{module}')
