@@ -143,7 +143,7 @@ def _how_run(ctx: BenchContext) -> list[str]:
          'a smoke run. The Pinocchio baseline needs `pip install -r requirements-bench.txt` '
          '(it is skipped with a note otherwise). Focused benchmarks (printed, not written '
          'here): `python -m inertia_ros bench startup|estimators|recursive|offline|node|'
-         'simulate`.',
+         'simulate|honesty`.',
          '- Records: scenes from `config/scenes/`, simulated with seeds 1000, 1001, ...; '
          'every setting sees the same records. Runs per scene: '
          + ', '.join(f'{k} {v}' for k, v in ctx.runs.items()) + '.',
