@@ -128,6 +128,22 @@ def _headline(summaries: list[Any], cells: list[Any],
     }
 
 
+#: Sections other benchmarks write into BENCHMARKS.md start at this marker (for example
+#: ``<!-- fleet-bench: ... -->`` of :mod:`inertia_ros.bench.fleet`): kept across reruns.
+FOREIGN_MARKER = '\n<!-- '
+
+
+def _kept_sections(doc: Path) -> str:
+    """The part of an existing BENCHMARKS.md that other benchmarks wrote (from the first
+    ``<!-- ...`` marker line to the end), to append after the regenerated text."""
+    try:
+        old = doc.read_text(encoding='utf-8')
+    except OSError:
+        return ''
+    i = old.find(FOREIGN_MARKER)
+    return old[i:] if i >= 0 else ''
+
+
 def run_bench(out: Path, config: BenchConfig = FULL, scene_dir: Path = SCENE_DIR,
               show_progress: bool | None = None) -> dict[str, Any]:
     """Run the benchmark and write the charts, BENCHMARKS.md and bench_results.json.
@@ -182,7 +198,8 @@ def run_bench(out: Path, config: BenchConfig = FULL, scene_dir: Path = SCENE_DIR
                        specs=specs, notes=notes, bounds=bounds, summaries=summaries,
                        cells=cells, grid=grid, machine=machine, seconds=seconds,
                        startup=startup)
-    (out / 'BENCHMARKS.md').write_text(render_markdown(ctx), encoding='utf-8')
+    doc = out / 'BENCHMARKS.md'
+    doc.write_text(render_markdown(ctx) + _kept_sections(doc), encoding='utf-8')
     headline = _headline(summaries, cells, seconds)
     payload = {'headline': headline, 'machine': machine, 'notes': notes,
                'bounds': {k: {'theta_var': b.theta_var, 'rel_frobenius': b.rel_frobenius,

@@ -126,13 +126,10 @@ def _order(row: dict[str, Any]) -> tuple[str, int, str]:
     return (row.get('vehicle') or '', t if t is not None else 2 ** 63 - 1, row['path'])
 
 
-def run(args: argparse.Namespace) -> int:
-    """Run the command; return the exit status."""
-    from inertia_ros.fleet.discover import DiscoveryError, discover
-    from inertia_ros.fleet.run import FAILED, options_signature
-    from inertia_ros.fleet.table import TableError, read_rows, table_format, write_rows
+def _check_options(args: argparse.Namespace) -> None:
+    """Refuse unusable options before any log is touched (UserError, one line)."""
+    from inertia_ros.fleet.table import TableError, table_format
 
-    t0 = time.perf_counter()
     if args.workers is not None and args.workers < 1:
         raise UserError(f'--workers: must be >= 1, got {args.workers}')
     rule = args.vehicle_from
@@ -150,6 +147,60 @@ def run(args: argparse.Namespace) -> int:
         raise UserError(f'--out {out}: is a directory; give a .parquet or .csv file name')
     if not out.parent.is_dir():
         raise UserError(f'--out {out}: directory {out.parent} does not exist')
+
+
+def _unchanged(old: list[dict[str, Any]], found: dict[str, Any],
+               signature: str) -> dict[str, dict[str, Any]]:
+    """Rows of the existing table that need no new run, by path."""
+    from inertia_ros.fleet.run import FAILED
+
+    kept: dict[str, dict[str, Any]] = {}
+    for row in old:
+        ref = found.get(row['path'])
+        # another PATH's log is left as it is; a changed log, other options or a lost task
+        # runs again
+        if ref is None or ((row['size'], row['mtime_ns'], row['options'])
+                           == (ref.size, ref.mtime_ns, signature)
+                           and row['status'] != FAILED):
+            kept[row['path']] = row
+    return kept
+
+
+def _write_report(rows: list[dict[str, Any]], report: Path) -> None:
+    """Write the fleet report next to ``report`` and name it on stderr."""
+    from inertia_ros.fleet.report import write_report
+
+    try:
+        md = write_report(rows, report)
+    except OSError as exc:
+        raise UserError(f'--report {report}: {exc.strerror or exc}') from None
+    print(f'report: {md}', file=sys.stderr)
+
+
+def _summary(rows: list[dict[str, Any]], refs: list[Any], found: dict[str, Any],
+             todo: list[Any], new_rows: list[dict[str, Any]], workers: int, out: Path,
+             t0: float) -> str:
+    """The one-line summary printed at the end."""
+    counts = Counter(r['status'] for r in rows if r['path'] in found)
+    ran = f'{len(new_rows)} estimated' + (
+        f' on {workers} worker{"s" if workers != 1 else ""}' if todo else '')
+    return (f'fleet: {len(refs)} logs ({ran}, {len(refs) - len(todo)} unchanged) in '
+               f'{time.perf_counter() - t0:.1f} s: '
+               + ', '.join(f'{n} {s}' for s, n in sorted(counts.items(),
+                                                         key=lambda x: (-x[1], x[0])))
+               + f' -> {out}')
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the command; return the exit status."""
+    from inertia_ros.fleet.discover import DiscoveryError, discover
+    from inertia_ros.fleet.run import options_signature
+    from inertia_ros.fleet.table import TableError, read_rows, write_rows
+
+    t0 = time.perf_counter()
+    _check_options(args)
+    rule = args.vehicle_from
+    out: Path = args.out
     try:
         refs = discover(args.paths)
     except DiscoveryError as exc:
@@ -164,15 +215,7 @@ def run(args: argparse.Namespace) -> int:
     except TableError as exc:
         raise UserError(f'--out {exc}') from None
     found = {r.path: r for r in refs}
-    kept: dict[str, dict[str, Any]] = {}
-    for row in old:
-        ref = found.get(row['path'])
-        # another PATH's log is left as it is; a changed log, other options or a lost task
-        # runs again
-        if ref is None or ((row['size'], row['mtime_ns'], row['options'])
-                           == (ref.size, ref.mtime_ns, signature)
-                           and row['status'] != FAILED):
-            kept[row['path']] = row
+    kept = _unchanged(old, found, signature)
     todo = [r for r in refs if r.path not in kept]
     new_rows: list[dict[str, Any]] = []
     interrupted = False
@@ -214,21 +257,8 @@ def run(args: argparse.Namespace) -> int:
         except TableError as exc:
             raise UserError(f'--out {exc}') from None
     if args.report is not None and not interrupted:
-        from inertia_ros.fleet.report import write_report
-
-        try:
-            md = write_report(rows, args.report)
-        except OSError as exc:
-            raise UserError(f'--report {args.report}: {exc.strerror or exc}') from None
-        print(f'report: {md}', file=sys.stderr)
-    counts = Counter(r['status'] for r in rows if r['path'] in found)
-    ran = f'{len(new_rows)} estimated' + (
-        f' on {workers} worker{"s" if workers != 1 else ""}' if todo else '')
-    summary = (f'fleet: {len(refs)} logs ({ran}, {len(refs) - len(todo)} unchanged) in '
-               f'{time.perf_counter() - t0:.1f} s: '
-               + ', '.join(f'{n} {s}' for s, n in sorted(counts.items(),
-                                                         key=lambda x: (-x[1], x[0])))
-               + f' -> {out}')
+        _write_report(rows, args.report)
+    summary = _summary(rows, refs, found, todo, new_rows, workers, out, t0)
     if interrupted:
         print(f'inertia_ros fleet: interrupted: {len(new_rows)} of {len(todo)} logs done, '
               f'their rows written to {out}; run the same command again to continue',
