@@ -21,7 +21,7 @@ from pathlib import Path
 from typing import Any
 
 from inertia_ros.cli import UserError, bounded
-from inertia_ros.core.estimation.options import HOLDS, METHODS, MODELS, TORQUE_BIAS
+from inertia_ros.core.estimation.options import BATCH_HOLDS, METHODS, MODELS, TORQUE_BIAS
 
 __all__ = ['MAX_TORQUE_DELAY', 'add_parser', 'run']
 
@@ -51,8 +51,16 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument('--method', choices=METHODS, default='auto',
                    help='estimator (default auto: maximum likelihood (ml) up to 100k gyro '
                         'samples, integral beyond)')
-    p.add_argument('--hold', choices=HOLDS, default='zoh',
-                   help='torque between samples: zero-order hold or linear (default zoh)')
+    p.add_argument('--hold', choices=BATCH_HOLDS, default='auto',
+                   help='torque between samples: zero-order hold, linear, or auto (both '
+                        'fitted, the one the noise model explains better kept; default)')
+    p.add_argument('--torque-scale-std', type=bounded(0.0, 0.5, ''), default=0.0,
+                   metavar='R',
+                   help='relative one-sigma uncertainty of the torque scale (0.02 = 2 %%), '
+                        'added to the standard errors (default 0)')
+    p.add_argument('--gyro-scale-std', type=bounded(0.0, 0.5, ''), default=0.0, metavar='R',
+                   help='relative one-sigma uncertainty of the gyro scale (0.01 = 1 %%), '
+                        'added to the standard errors (default 0)')
     p.add_argument('--torque-delay', type=bounded(-MAX_TORQUE_DELAY, MAX_TORQUE_DELAY, 's'),
                    default=0.0, metavar='S',
                    help=f'torque stamps lag the applied torque by S seconds, |S| <= '
@@ -174,7 +182,8 @@ def _estimate(args: argparse.Namespace, log: Any) -> Any:
 def _estimator_options(args: argparse.Namespace) -> dict[str, Any]:
     """The keyword arguments of ``estimate()`` the command line chose."""
     return {'method': args.method, 'model': args.model, 'torque_bias': args.torque_bias,
-            'hold': args.hold, 'symmetry_axis': args.symmetry_axis}
+            'hold': args.hold, 'symmetry_axis': args.symmetry_axis,
+            'torque_scale_std': args.torque_scale_std, 'gyro_scale_std': args.gyro_scale_std}
 
 
 def _write(args: argparse.Namespace, text: str) -> None:
@@ -196,7 +205,7 @@ def _plot(args: argparse.Namespace, est: Any, log: Any) -> list[str]:
     with numerical_warnings() as found:
         conv = convergence(est, log, **_estimator_options(args))
         try:
-            plot_report(args.plot, est, log, args.hold, conv)
+            plot_report(args.plot, est, log, est.diagnostics.get('hold', args.hold), conv)
         except OSError as exc:
             raise UserError(f'--plot {args.plot}: {exc.strerror or exc}') from None
     return list(found)

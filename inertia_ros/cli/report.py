@@ -116,7 +116,7 @@ def build_report(est: InertiaEstimate, log: LogData, torque_delay: float, hold: 
     diag['log'] = to_jsonable(log.summary())
     diag['frame_id'] = log.omega.frame_id
     diag['torque_delay_s'] = float(torque_delay)
-    diag['hold'] = hold
+    diag['hold'] = diag.get('hold', hold)      # the hold used (auto: the one chosen)
     d['samples'] = {'used': int(est.samples_used),
                     'dropped': int(est.samples_dropped + log.omega.counts.dropped)}
     if log.truth:
