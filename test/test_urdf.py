@@ -136,3 +136,27 @@ def test_write_urdf_never_overwrites(tmp_path):
         write_urdf(tmp_path, np.eye(3), 1.0)
     with pytest.raises(ValueError, match='does not exist'):
         write_urdf(tmp_path / 'no' / 'x.urdf', np.eye(3), 1.0)
+
+
+def test_estimate_cli_writes_the_urdf(tmp_path, capsys):
+    """``estimate bags/default.mcap --urdf out.urdf --mass 10`` round-trips the reported tensor
+    (to 1e-12); without --mass, or onto an existing file, one line and exit 2."""
+    from inertia_ros.cli import main
+
+    bag = ROOT / 'bags' / 'default.mcap'
+    if not bag.exists():
+        pytest.skip('bags/default.mcap absent')
+    out = tmp_path / 'out.urdf'
+    assert main(['estimate', str(bag), '--format', 'json', '--no-progress', '--urdf', str(out),
+                 '--mass', '10', '--com', '0', '0', '0.1', '--link', 'body']) == 0
+    report = json.loads(capsys.readouterr().out)
+    I, mass, xyz, _ = _parse(out.read_text())
+    np.testing.assert_allclose(I, report['inertia'], rtol=1e-12, atol=0)
+    assert mass == 10.0
+    np.testing.assert_array_equal(xyz, [0.0, 0.0, 0.1])
+    before = out.read_bytes()
+    for extra in (['--mass', '10'], []):
+        assert main(['estimate', str(bag), '--no-progress', '--urdf', str(out), *extra]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and '--urdf' in err[0]
+    assert out.read_bytes() == before

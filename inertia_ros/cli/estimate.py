@@ -73,6 +73,16 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help='write the report to FILE instead of stdout')
     p.add_argument('--plot', metavar='FILE.png', type=Path,
                    help='also draw torque fit, convergence and principal axes to FILE.png')
+    p.add_argument('--urdf', metavar='FILE', type=Path,
+                   help='also write the tensor as a URDF <inertial> block (needs --mass); '
+                        'never overwrites')
+    p.add_argument('--mass', type=bounded(1e-9, 1e9, 'kg'), metavar='M',
+                   help='body mass for --urdf [kg] (rotation data cannot tell it)')
+    p.add_argument('--com', type=bounded(-1e6, 1e6, 'm'), nargs=3, metavar=('X', 'Y', 'Z'),
+                   default=(0.0, 0.0, 0.0),
+                   help='centre of mass in the link frame for --urdf [m] (default 0 0 0)')
+    p.add_argument('--link', default='base_link', metavar='NAME',
+                   help='link name for --urdf (default base_link)')
     p.add_argument('--no-progress', action='store_true', help='no progress bar on stderr')
     p.set_defaults(func=run)
 
@@ -129,7 +139,11 @@ def _check_outputs(args: argparse.Namespace) -> None:
     inputs.add(src.resolve())
     if src.is_dir():
         inputs.add((src / 'metadata.yaml').resolve())
-    for opt, out in (('-o', args.output), ('--plot', args.plot)):
+    if args.urdf is not None and args.mass is None:
+        raise UserError('--urdf needs --mass M [kg]: rotation data cannot tell the mass')
+    if args.urdf is not None and args.urdf.exists():
+        raise UserError(f'--urdf {args.urdf}: exists; choose another name or remove it first')
+    for opt, out in (('-o', args.output), ('--plot', args.plot), ('--urdf', args.urdf)):
         if out is None:
             continue
         if out.resolve() in inputs:
@@ -244,7 +258,27 @@ def _run(args: argparse.Namespace) -> int:
     if args.plot is not None:
         for w in _plot(args, est, log):
             print(f'inertia_ros estimate: --plot: {w}', file=sys.stderr)
+    if args.urdf is not None:
+        _write_urdf(args, est)
     return 0
+
+
+def _write_urdf(args: argparse.Namespace, est: Any) -> None:
+    """Write ``--urdf``: the tensor about the centre of mass, in the gyro (link) frame."""
+    import numpy as np
+
+    from inertia_ros.io.urdf import write_urdf
+
+    if est.inertia is None or not np.all(np.isfinite(est.inertia)):
+        raise UserError(f'--urdf {args.urdf}: not written: the status is {est.status!r} and '
+                        'the tensor is not complete (see the report)')
+    comment = (f'inertia_ros estimate of {args.path}: status {est.status}, method '
+               f'{est.method}, model {est.model}')
+    try:
+        write_urdf(args.urdf, est.inertia, args.mass, tuple(args.com), link=args.link,
+                   comment=comment)
+    except (ValueError, OSError) as exc:
+        raise UserError(f'--urdf {args.urdf}: {_first_line(exc)}') from None
 
 
 def run(args: argparse.Namespace) -> int:
