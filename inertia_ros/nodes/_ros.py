@@ -58,6 +58,7 @@ def run_node(make_node: Callable[[], Node], name: str, args: list[str] | None = 
         rclpy.init(args=args)
     except Exception as exc:  # rcl's RCLError for arguments it cannot parse
         text = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        text = text.removeprefix('failed to initialize rcl: ').split('. Error:')[0]
         print(f'{name}: error: bad command-line arguments: {text}', file=sys.stderr)
         sys.exit(2)
     node = None
