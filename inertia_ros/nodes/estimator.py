@@ -401,7 +401,8 @@ class InertiaEstimatorNode(Node):
         fwd = max(thr, FORWARD_JUMP_NS)
         start = -np.inf if s.last_ns is None else s.last_ns
         prev_max = np.maximum.accumulate(np.concatenate([[start], t_ns[:-1]]))
-        suspect = (t_ns <= 0) | (prev_max - t_ns > thr) | (t_ns - prev_max > fwd)
+        ref = np.maximum(prev_max, t_ns[0]) if s.last_ns is None else prev_max
+        suspect = (t_ns <= 0) | (ref - t_ns > thr) | (t_ns - ref > fwd)
         if s.pending or suspect.any():
             t_ns, values = self._check_stamps(s, t_ns, values, thr, fwd)
             if t_ns.size == 0:
