@@ -37,6 +37,8 @@ __all__ = ['PlaybackNode', 'StreamPlayer', 'declare_playback_parameters', 'doubl
            'spin_until_done', 'validate_playback']
 
 _NS = 1_000_000_000
+#: Wait after the subscriptions are matched before playback starts [s] (see _try_start).
+MATCH_SETTLE = 0.3
 
 
 class StreamPlayer:
@@ -244,6 +246,7 @@ class PlaybackNode(Node):
         declare_playback_parameters(self, self.specs)
         self.player: StreamPlayer | None = None
         self._waiting_logged = False
+        self._matched_at: float | None = None
         self.done = False
         self._created = time.monotonic()
         self._gate = None
@@ -301,6 +304,14 @@ class PlaybackNode(Node):
             self.get_logger().warning(
                 f'starting without the subscribers: only {matched} of {want} matched after '
                 f'{timeout:g} s (wait_timeout)')
+        elif want > 0:
+            # Matching is seen from the publisher's side first; the subscriber's side may
+            # learn of this writer a little later, and best-effort samples sent before that
+            # are lost.  A short settle time after the match covers it.
+            if self._matched_at is None:
+                self._matched_at = time.monotonic()
+            if time.monotonic() - self._matched_at < MATCH_SETTLE:
+                return
         if waited < self.param('start_delay'):
             return
         self._gate.cancel()
