@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import os
 import time
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -211,7 +212,7 @@ def test_estimate_covariance_prefers_the_full_matrix():
     c = np.eye(6) * 2.0
     est.diagnostics['covariance'] = c
     assert messages.estimate_covariance(est)[1] and messages.estimate_covariance(est)[0][0, 0] == 2
-    from types import SimpleNamespace   # the core's field, when it has one
+    # the core's own field, when it has one
     core = SimpleNamespace(covariance=np.eye(6) * 3.0, diagnostics=est.diagnostics,
                            inertia_std=std)
     assert messages.estimate_covariance(core)[0][0, 0] == 3
@@ -340,7 +341,8 @@ def _start_order_run(tmp_path, estimator_first: bool, delay: float) -> tuple[dic
         listener.create_subscription(
             DiagnosticArray, '/diagnostics',
             lambda m: latest.update({kv.key: kv.value for s in m.status
-                                     if s.name.startswith('inertia_estimator') for kv in s.values}),
+                                     if s.name.startswith('inertia_estimator')
+                                     for kv in s.values}),
             10)
         exe = SingleThreadedExecutor(context=ctx)
         exe.add_node(listener)
