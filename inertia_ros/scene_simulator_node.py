@@ -9,6 +9,10 @@ from __future__ import annotations
 
 def main(args: list[str] | None = None) -> None:
     """Run the node (see :func:`inertia_ros.nodes.scene_simulator.main`)."""
+    from inertia_ros.nodes.params import help_text, print_help_if_asked
+
+    if print_help_if_asked(args, lambda: help_text('scene_simulator')):
+        return  # usage printed; ROS (and the node's heavy imports) never started
     from inertia_ros.nodes.scene_simulator import main as run
 
     run(args)

@@ -184,8 +184,8 @@ def _result(status='ok', **kw):
     ('insufficient_data', DiagnosticStatus.WARN),
     ('partially_identifiable', DiagnosticStatus.WARN),
     ('model_mismatch', DiagnosticStatus.WARN),
-    ('scale_unobservable', DiagnosticStatus.ERROR),
-    ('insufficient_excitation', DiagnosticStatus.ERROR),
+    ('scale_unobservable', DiagnosticStatus.WARN),
+    ('insufficient_excitation', DiagnosticStatus.WARN),
 ])
 def test_diagnostic_level_per_status(status, level):
     """Each estimate status maps to its documented DiagnosticStatus level."""

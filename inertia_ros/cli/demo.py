@@ -6,13 +6,17 @@ status), then writes into ``--out``:
 
 - ``demo_<scene>_<time>.mcap``: the run's topics as received (rosbag2-compatible MCAP; the
   topics whose message types the MCAP writer has schemas for),
-- ``demo_<scene>_<time>.png``: the six tensor elements converging to the truth and the
-  relative error over time,
+- ``demo_<scene>_<time>.png``: the six tensor elements converging to the truth, each with
+  its 2-sigma band, and each element's error relative to I3 with its 2-sigma band (zoomed
+  onto the converged part, where a band at full scale would be invisible),
 - ``demo_<scene>_<time>.log``: the two nodes' console output.
 
 Existing files are never overwritten: a numeric suffix is added.  The final error is
 ``max_ij |I_est - I_true| / I3_true`` (I3 the largest true principal moment) and the relative
-principal-moment errors.  Exit status 0 when the run produced an estimate, 1 when it did not.
+principal-moment errors; the live table and the final line give every estimated principal
+moment with its 1-sigma standard error (``~/principal_moments_std``) and the element sigmas
+come from ``~/inertia_covariance``.  Exit status 0 when the run produced an estimate, 1 when
+it did not.
 """
 from __future__ import annotations
 
@@ -134,6 +138,10 @@ class _Run:
     records: dict[str, list[tuple[int, bytes]]] = field(default_factory=dict)
     truth: list[tuple[int, np.ndarray]] = field(default_factory=list)
     est: list[tuple[int, np.ndarray]] = field(default_factory=list)
+    #: std of [ixx, iyy, izz, ixy, ixz, iyz] [kg m^2] of the estimate stamped t [ns]
+    est_std: list[tuple[int, np.ndarray]] = field(default_factory=list)
+    #: principal-moment std [kg m^2] stamped t [ns]
+    moments_std: list[tuple[int, np.ndarray]] = field(default_factory=list)
     status: str = 'waiting'
     message: str = ''
     counts: dict[str, str] = field(default_factory=dict)
@@ -157,6 +165,9 @@ TOPICS = {
     '/scene_simulator/truth': ('geometry_msgs/msg/InertiaStamped', 'latched'),
     '/inertia_estimator/inertia': ('geometry_msgs/msg/InertiaStamped', 'latched'),
     '/inertia_estimator/principal_moments': ('geometry_msgs/msg/Vector3Stamped', 'reliable'),
+    '/inertia_estimator/principal_moments_std': ('geometry_msgs/msg/Vector3Stamped',
+                                                 'reliable'),
+    '/inertia_estimator/inertia_covariance': ('std_msgs/msg/Float64MultiArray', 'reliable'),
     '/inertia_estimator/principal_axes': ('geometry_msgs/msg/QuaternionStamped', 'reliable'),
     '/inertia_estimator/markers': ('visualization_msgs/msg/MarkerArray', 'reliable'),
     '/diagnostics': ('diagnostic_msgs/msg/DiagnosticArray', 'reliable'),
@@ -239,7 +250,7 @@ def run(args: argparse.Namespace) -> int:
 
 def _collector(run_data: _Run) -> Callable[[str, int, bytes], None]:
     """The recorder callback: keep every payload, decode what the live table shows."""
-    from inertia_ros.nodes.messages import inertia_from_msg
+    from inertia_ros.nodes.messages import covariance_from_msg, inertia_from_msg, stamp_to_ns
     from inertia_ros.nodes.recorder import deserialize
 
     def on_message(topic: str, recv_ns: int, data: bytes) -> None:
@@ -247,6 +258,16 @@ def _collector(run_data: _Run) -> Callable[[str, int, bytes], None]:
         if topic in ('/scene_simulator/truth', '/inertia_estimator/inertia'):
             t_ns, mat = inertia_from_msg(deserialize(TOPICS[topic][0], data))
             (run_data.truth if topic.endswith('truth') else run_data.est).append((t_ns, mat))
+        elif topic == '/inertia_estimator/inertia_covariance' and run_data.est:
+            # published right after the ~/inertia it belongs to (which carries the stamp)
+            cov, _ = covariance_from_msg(deserialize(TOPICS[topic][0], data))
+            run_data.est_std.append((run_data.est[-1][0],
+                                     np.sqrt(np.maximum(np.diag(cov), 0.0))))
+        elif topic == '/inertia_estimator/principal_moments_std':
+            msg = deserialize(TOPICS[topic][0], data)
+            v = msg.vector
+            run_data.moments_std.append((stamp_to_ns(msg.header.stamp),
+                                         np.array([v.x, v.y, v.z])))
         elif topic == '/diagnostics':
             for st in deserialize(TOPICS[topic][0], data).status:
                 if st.name.startswith(ESTIMATOR_STATUS):
@@ -290,7 +311,7 @@ def _follow(args: argparse.Namespace, scene: Any, run_data: _Run, recorder: Any,
     if not args.quiet:
         print(f'inertia_ros demo: scene {scene.name!r} ({scene.duration:g} s) at rate '
               f'{args.rate:g}; simulator and estimator started (logs: {log_path})')
-        print(f'{"t [s]":>7} {"status":<24} {"I1":>8} {"I2":>8} {"I3":>8}  '
+        print(f'{"t [s]":>7} {"status":<24} {"I1 +- 1 sigma":>16} {"I2":>16} {"I3":>16}  '
               f'{"true I1":>8} {"I2":>8} {"I3":>8}  {"error":>7}')
     next_print = time.monotonic() + 1.0
     sim_done_at = None
@@ -321,12 +342,29 @@ def _print_row(run: _Run) -> None:
                                                              else None)
     if run.est:
         mom = np.linalg.eigvalsh(run.est[-1][1])
-        cells = [f'{m:8.4f}' for m in mom]
+        cells = _pm_cells(mom, _std_at(run.moments_std, run.est[-1][0]))
         if truth is not None:
             err = f'{100 * _error(run.est[-1][1], truth):6.2f}%'
     tcells = ['-'] * 3 if truth is None else [f'{m:8.4f}' for m in np.linalg.eigvalsh(truth)]
-    print(f'{t:7.1f} {run.status:<24} {cells[0]:>8} {cells[1]:>8} {cells[2]:>8}  '
+    print(f'{t:7.1f} {run.status:<24} {cells[0]:>16} {cells[1]:>16} {cells[2]:>16}  '
           f'{tcells[0]:>8} {tcells[1]:>8} {tcells[2]:>8}  {err:>7}', flush=True)
+
+
+def _std_at(rows: list[tuple[int, np.ndarray]], t_ns: int) -> np.ndarray | None:
+    """The standard errors stamped ``t_ns`` (the newest such row), or None."""
+    for t, std in reversed(rows):
+        if t == t_ns:
+            return std
+        if t < t_ns:
+            break
+    return None
+
+
+def _pm_cells(values: np.ndarray, std: np.ndarray | None) -> list[str]:
+    """``'1.0123+-0.0012'`` per value (``'+-?'`` when the sigma is unknown)."""
+    if std is None:
+        return [f'{v:.4f}+-?' for v in values]
+    return [f'{v:.4f}+-{s:.4f}' for v, s in zip(values, std, strict=True)]
 
 
 def _final(run: _Run) -> str | None:
@@ -338,11 +376,15 @@ def _final(run: _Run) -> str | None:
         return 'final estimate (no truth received):\n' + np.array2string(est, precision=5)
     m_est, m_true = np.linalg.eigvalsh(est), np.linalg.eigvalsh(truth)
     rel = (m_est - m_true) / m_true
+    std = _std_at(run.moments_std, t_ns)
+    cells = _pm_cells(m_est, std)
+    zs = ([f', z {(a - b) / s:+.1f}' if s > 0 else '' for a, b, s in
+           zip(m_est, m_true, std, strict=True)] if std is not None else [''] * 3)
     counts = run.counts
     return (f'final status {run.status}; final error max|I_est - I_true| / I3 = '
-            f'{100 * _error(est, truth):.3f}%; principal moments '
-            + ', '.join(f'{a:.4f} (true {b:.4f}, {100 * r:+.2f}%)'
-                        for a, b, r in zip(m_est, m_true, rel, strict=True))
+            f'{100 * _error(est, truth):.3f}%; principal moments [kg m^2] (+- 1 sigma) '
+            + ', '.join(f'{c} (true {b:.4f}, {100 * r:+.2f}%{z})'
+                        for c, b, r, z in zip(cells, m_true, rel, zs, strict=True))
             + f"; messages received by the estimator: gyro {counts.get('gyro_received', '?')}"
             f", torque {counts.get('torque_received', '?')} (recorded here: "
             f"{len(run.records.get('/imu', []))}, {len(run.records.get('/torque', []))})")
@@ -375,21 +417,37 @@ def _plot(path: Path, run: _Run, name: str) -> None:
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
 
-    fig, (ax_d, ax_p, ax2) = plt.subplots(3, 1, figsize=(9, 9), sharex=True)
+    fig, (ax_d, ax_p, ax2) = plt.subplots(3, 1, figsize=(9, 10), sharex=True)
     t0 = run.truth[0][0] if run.truth else (run.est[0][0] if run.est else 0)
     idx = [(0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)]
     names = ['ixx', 'iyy', 'izz', 'ixy', 'ixz', 'iyz']
     colors = plt.rcParams['axes.prop_cycle'].by_key()['color']
     axes = [ax_d] * 3 + [ax_p] * 3
+    zoom = 0.0
     if run.est:
         t = (np.array([e[0] for e in run.est]) - t0) * 1e-9
         mats = np.array([e[1] for e in run.est])
+        std = np.array([_std_at(run.est_std, e[0]) if _std_at(run.est_std, e[0]) is not None
+                        else np.full(6, np.nan) for e in run.est])
         for k, (i, j) in enumerate(idx):
-            axes[k].plot(t, mats[:, i, j], color=colors[k], label=names[k])
+            axes[k].plot(t, mats[:, i, j], color=colors[k], label=f'{names[k]} +- 2 sigma')
+            axes[k].fill_between(t, mats[:, i, j] - 2 * std[:, k], mats[:, i, j] + 2 * std[:, k],
+                                 color=colors[k], alpha=0.25, linewidth=0)
         truths = [_truth_at(run, e[0]) for e in run.est]
         if all(x is not None for x in truths):
-            err = [100 * _error(e[1], tr) for e, tr in zip(run.est, truths, strict=True)]
-            ax2.semilogy(t, err, color='k')
+            scale = np.array([np.linalg.eigvalsh(tr)[-1] for tr in truths])
+            late = t >= t[0] + 0.5 * (t[-1] - t[0])
+            for k, (i, j) in enumerate(idx):
+                err = 100 * (mats[:, i, j] - np.array([tr[i, j] for tr in truths])) / scale
+                band = 100 * 2 * std[:, k] / scale
+                ax2.plot(t, err, color=colors[k], label=names[k])
+                ax2.fill_between(t, err - band, err + band, color=colors[k], alpha=0.2,
+                                 linewidth=0)
+                vals = np.abs(np.concatenate([err[late], err[late] + band[late],
+                                              err[late] - band[late]]))
+                vals = vals[np.isfinite(vals)]
+                if vals.size:
+                    zoom = max(zoom, float(np.max(vals)))
     t_end = ((run.est[-1][0] - t0) * 1e-9) if run.est else 1.0
     for k, (i, j) in enumerate(idx):
         for n, (tt, mat) in enumerate(run.truth):
@@ -405,7 +463,13 @@ def _plot(path: Path, run: _Run, name: str) -> None:
     else:
         ax_d.text(0.5, 0.5, 'no estimate was published', transform=ax_d.transAxes,
                   ha='center', va='center')
-    ax2.set_ylabel('max |I_est - I_true| / I3 [%]')
+    ax2.set_ylabel('(I_est - I_true) / I3 [%]')
+    ax2.set_title('element errors with their 2-sigma bands (zoomed on the second half)',
+                  fontsize='medium')
+    if zoom > 0:
+        ax2.set_ylim(-1.5 * zoom, 1.5 * zoom)
+        ax2.axhline(0.0, color='k', linewidth=0.8)
+        ax2.legend(ncol=6, fontsize='small')
     ax2.set_xlabel('data time [s]')
     ax2.grid(True, which='both', alpha=0.3)
     fig.tight_layout()

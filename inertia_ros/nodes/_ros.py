@@ -45,9 +45,22 @@ def run_node(make_node: Callable[[], Node], name: str, args: list[str] | None = 
         How to spin the node; default ``rclpy.spin`` (players stop by themselves).
 
     Bad parameters, scenes or logs raise ``ValueError`` in the node; they are printed as one
-    line on stderr and the process exits with status 2, never with a traceback.
+    line on stderr and the process exits with status 2, never with a traceback.  So are
+    command-line arguments rcl cannot parse.  ``--help`` (before ``--ros-args``) prints the
+    node's usage (:func:`inertia_ros.nodes.params.help_text`) and returns without starting
+    ROS.
     """
-    rclpy.init(args=args)
+    from inertia_ros.nodes.params import NODE_TABLES, help_text, print_help_if_asked
+
+    if name in NODE_TABLES and print_help_if_asked(args, lambda: help_text(name)):
+        return
+    try:
+        rclpy.init(args=args)
+    except Exception as exc:  # rcl's RCLError for arguments it cannot parse
+        text = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        text = text.removeprefix('failed to initialize rcl: ').split('. Error:')[0]
+        print(f'{name}: error: bad command-line arguments: {text}', file=sys.stderr)
+        sys.exit(2)
     node = None
     status = 0
     try:

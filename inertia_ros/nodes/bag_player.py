@@ -17,8 +17,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from rcl_interfaces.msg import ParameterDescriptor
-
+from inertia_ros.nodes import params
 from inertia_ros.nodes._ros import run_node
 from inertia_ros.nodes.playback import PlaybackNode, spin_until_done
 
@@ -29,17 +28,7 @@ class BagPlayerNode(PlaybackNode):
     """Read a log at start-up and play its streams back (see the module docstring)."""
 
     def __init__(self, **kwargs: Any) -> None:
-        super().__init__(NODE_NAME, **kwargs)
-        self.declare_parameter('path', '', ParameterDescriptor(
-            description='log to play: a .mcap file or a rosbag2 directory', read_only=True))
-        self.declare_parameter('omega_topic', '', ParameterDescriptor(
-            description="angular-velocity topic in the log; '' = found by message type",
-            read_only=True))
-        self.declare_parameter('torque_topic', '', ParameterDescriptor(
-            description="torque topic in the log; '' = found by message type", read_only=True))
-        self.declare_parameter('original_stamps', True, ParameterDescriptor(
-            description='keep the recorded header stamps (else restamp from the node clock)',
-            read_only=True))
+        super().__init__(NODE_NAME, params.BAG_PLAYER, **kwargs)
         from inertia_ros.io.logs import read_log
 
         path = self.param('path')

@@ -22,16 +22,17 @@ from inertia_ros.nodes.messages import header
 __all__ = ['DIAGNOSTIC_LEVELS', 'DIAGNOSTIC_PERIOD', 'diagnostic_array', 'diagnostic_status',
            'status_name']
 
-#: DiagnosticStatus level for each estimate status.  ``ok`` is OK; a warm-up
-#: (``insufficient_data``) or a tensor with some elements undetermined is WARN; an estimate the
-#: data can never give as it stands (no torque: scale unobservable; no excitation) is ERROR.
+#: DiagnosticStatus level for each estimate status: ``ok`` is OK, every other status is WARN
+#: with its reason in the message (a start or a reset is ``insufficient_data``, torque-free data
+#: ``scale_unobservable``: normal situations, never ERROR).  ERROR is kept for node-level
+#: faults (samples refused for their frame, an estimator exception).
 DIAGNOSTIC_LEVELS: dict[str, bytes] = {
     'ok': DiagnosticStatus.OK,
     'insufficient_data': DiagnosticStatus.WARN,
     'partially_identifiable': DiagnosticStatus.WARN,
     'model_mismatch': DiagnosticStatus.WARN,
-    'scale_unobservable': DiagnosticStatus.ERROR,
-    'insufficient_excitation': DiagnosticStatus.ERROR,
+    'scale_unobservable': DiagnosticStatus.WARN,
+    'insufficient_excitation': DiagnosticStatus.WARN,
 }
 
 #: Period of the diagnostics [s] (diagnostic_updater's default: 1 Hz).

@@ -42,6 +42,7 @@ from __future__ import annotations
 import math
 import threading
 import time
+from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
@@ -50,10 +51,6 @@ import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import InertiaStamped, QuaternionStamped, Vector3Stamped, WrenchStamped
 from rcl_interfaces.msg import (
-    FloatingPointRange,
-    IntegerRange,
-    ParameterDescriptor,
-    ParameterType,
     SetParametersResult,
 )
 from rclpy.clock import Clock, ClockChange, JumpThreshold, TimeJump
@@ -64,15 +61,15 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.subscription import Subscription
 from sensor_msgs.msg import Imu
+from std_msgs.msg import Float64MultiArray
 from std_srvs.srv import Trigger
 from visualization_msgs.msg import MarkerArray
 
-from inertia_ros.core.estimation.options import HOLDS, METHODS, TORQUE_BIAS
 from inertia_ros.core.estimation.recursive import RecursiveEstimator
 from inertia_ros.core.estimation.result import InertiaEstimate
-from inertia_ros.core.estimation.windowed import ONLINE_METHODS, BatchWindow, OnlineEstimator
+from inertia_ros.core.estimation.windowed import BatchWindow, OnlineEstimator
 from inertia_ros.io import cdr_decode
-from inertia_ros.nodes import messages
+from inertia_ros.nodes import messages, params
 from inertia_ros.nodes._ros import (
     PolledGroup,
     latched_qos,
@@ -88,6 +85,7 @@ from inertia_ros.nodes.diagnostics import (
     status_name,
 )
 from inertia_ros.nodes.markers import inertia_markers
+from inertia_ros.nodes.params import ParamSpec
 
 NODE_NAME = 'inertia_estimator'
 #: Task name of the node's diagnostic status (``'<node name>: <task>'``).
@@ -102,81 +100,18 @@ TORQUE_TYPES = {'wrench': (WrenchStamped, 'torque', 'geometry_msgs/msg/WrenchSta
                             'vector')}
 
 
-@dataclass(frozen=True)
-class _Param:
-    """One declared parameter: default, description and range (None: no range)."""
-
-    default: Any
-    description: str
-    lo: float | None = None
-    hi: float | None = None
-    read_only: bool = False
-    choices: tuple[str, ...] = ()
-
-
 #: Every parameter of the node (config/inertia_estimator.yaml documents the same set).
-PARAMETERS: dict[str, _Param] = {
-    'omega_msg_type': _Param('imu', "gyro input: 'imu' (sensor_msgs/Imu on 'imu') or "
-                             "'vector3' (geometry_msgs/Vector3Stamped on 'omega')",
-                             read_only=True, choices=tuple(OMEGA_TYPES)),
-    'torque_msg_type': _Param('wrench', "torque input on 'torque': 'wrench' (geometry_msgs/"
-                              "WrenchStamped, torque part) or 'vector3' (Vector3Stamped) [N m]",
-                              read_only=True, choices=tuple(TORQUE_TYPES)),
-    'qos_depth': _Param(1000, 'history depth of the sensor-data subscriptions [messages]',
-                        1, 100000, read_only=True),
-    'poll_period': _Param(0.01, 'period at which queued input messages are taken and '
-                          'decoded in one batch [s]', 0.0005, 1.0, read_only=True),
-    'frame_id': _Param('', "frame the gyro and torque must be expressed in; '' adopts the "
-                       'first gyro message\'s frame'),
-    'method': _Param('recursive', "'recursive' (core RecursiveEstimator over all data or the "
-                     "window) or 'batch' (core estimate() re-solved over the sliding window)",
-                     choices=ONLINE_METHODS),
-    'batch_method': _Param('integral', "core estimator of the 'batch' method: 'integral' "
-                           "(fast), 'ml' (maximum likelihood, at the Cramer-Rao bound, ~5x the "
-                           "time), 'auto' or another name of the core's METHODS",
-                           choices=METHODS),
-    'model': _Param('full', "tensor parameters: 'full' (6), 'diagonal' (3), 'axisymmetric' "
-                    "(2, needs symmetry_axis) or 'auto' (model selection in the core)"),
-    'symmetry_axis': _Param('', "symmetry axis for model 'axisymmetric': 'x', 'y' or 'z' "
-                            "('' = none)", choices=('', 'x', 'y', 'z')),
-    'torque_bias': _Param('auto', "estimate a constant unmeasured disturbance torque [N m]: "
-                          "'off', 'on' or 'auto' (kept when significant; the recursive "
-                          "method re-tests it about once a second)",
-                          choices=TORQUE_BIAS),
-    'forgetting': _Param(1.0, 'recursive forgetting factor per gyro sample; 1 = none '
-                         '[dimensionless]', 0.5, 1.0),
-    'window': _Param(0.0, 'recursive: memory time constant, weights decay as '
-                     'exp(-age/window) [s], 0 = no decay; batch: sliding-window length [s], '
-                     '0 = 30 s', 0.0, 86400.0),
-    'hold': _Param('zoh', "torque between samples: 'zoh' (held) or 'linear'", choices=HOLDS),
-    'publish_rate': _Param(10.0, 'maximum estimate/publish rate [Hz]', 0.01, 1000.0),
-    'publish_partial': _Param(False, 'also publish ~/inertia when partially_identifiable '
-                              '(undetermined elements NaN)'),
-    'stream_timeout': _Param(1.0, 'warn when a stream is silent this long [s]', 0.01, 3600.0),
-    'clock_jump_threshold': _Param(0.5, 'reset when input stamps jump back more than this [s]',
-                                   0.0, 3600.0),
-    'marker_scale': _Param(0.5, 'display size of the markers (longest ellipsoid semi-axis) [m]',
-                           0.001, 100.0),
-}
+PARAMETERS: dict[str, ParamSpec] = params.ESTIMATOR
 
 BATCH_DEFAULT_WINDOW = 30.0  # s, batch re-solve when window = 0
-
-
-def _descriptor(name: str, p: _Param) -> ParameterDescriptor:
-    """The ParameterDescriptor of one entry of :data:`PARAMETERS` (range, constraint)."""
-    desc = ParameterDescriptor(name=name, description=p.description, read_only=p.read_only)
-    if p.choices:
-        desc.additional_constraints = 'one of: ' + ', '.join(p.choices)
-    if p.lo is None or isinstance(p.default, bool):
-        return desc
-    if isinstance(p.default, int):
-        desc.type = ParameterType.PARAMETER_INTEGER
-        desc.integer_range = [IntegerRange(from_value=int(p.lo), to_value=int(p.hi), step=0)]
-    else:
-        desc.type = ParameterType.PARAMETER_DOUBLE
-        desc.floating_point_range = [FloatingPointRange(from_value=float(p.lo),
-                                                        to_value=float(p.hi), step=0.0)]
-    return desc
+#: Consecutive samples that confirm a jump of the stamps (else the jumped ones are refused).
+STAMP_CONFIRM = 5
+#: Smallest forward stamp jump held for confirmation [ns] (clock_jump_threshold if larger).
+FORWARD_JUMP_NS = 1_000_000_000
+#: Time over which the fraction of refused samples is measured [s].
+REFUSED_WINDOW = 1.0
+#: Fewest samples over REFUSED_WINDOW for the refused fraction to count.
+REFUSED_MIN_SAMPLES = 10
 
 
 def make_estimator(cfg: dict[str, Any]) -> Callable[[], OnlineEstimator]:
@@ -235,16 +170,35 @@ class _Stream:
     nan_dropped: int = 0
     out_of_order: int = 0
     refused: int = 0
+    bad_stamp: int = 0
     before_gyro: int = 0
     last_ns: int | None = None
     last_rx: float | None = None  # steady clock [s]
     t_ns: list[np.ndarray] = field(default_factory=list)
     values: list[np.ndarray] = field(default_factory=list)
+    #: samples whose stamps jumped (kept until confirmed or refused): (t [ns], value (3,))
+    pending: list[tuple[int, np.ndarray]] = field(default_factory=list)
+    #: per batch over the last second: (steady time [s], received, refused)
+    recent: deque[tuple[float, int, int]] = field(default_factory=deque)
 
     @property
     def topic(self) -> str:
-        """The resolved input topic."""
+        """The resolved input topic ('' without a subscription)."""
         return self.sub.topic_name if self.sub is not None else ''
+
+    @property
+    def refused_total(self) -> int:
+        """Samples refused so far: malformed, NaN/Inf, wrong frame, invalid stamp."""
+        return self.malformed + self.nan_dropped + self.refused + self.bad_stamp
+
+    def refused_fraction(self, now: float) -> tuple[float, int]:
+        """Fraction of the samples received over the last :data:`REFUSED_WINDOW` s that were
+        refused, and how many were received."""
+        while self.recent and now - self.recent[0][0] > REFUSED_WINDOW:
+            self.recent.popleft()
+        n = sum(r[1] for r in self.recent)
+        bad = sum(r[2] for r in self.recent)
+        return (bad / n if n else 0.0), n
 
 
 class InertiaEstimatorNode(Node):
@@ -252,14 +206,15 @@ class InertiaEstimatorNode(Node):
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(NODE_NAME, **kwargs)
-        for name, p in PARAMETERS.items():
-            self.declare_parameter(name, p.default, _descriptor(name, p))
-        cfg = {name: self.get_parameter(name).value for name in PARAMETERS}
+        cfg = params.declare(self, PARAMETERS)  # one-line ValueError for a bad value
         problem = self._validate(cfg)
         if problem:
             raise ValueError(problem)
         self._cfg = cfg
         self._lock = threading.RLock()
+        # The subscriptions first: discovery starts now, before anything else is built.
+        self._torque_free = cfg['torque_topic'].strip().lower() == 'none'
+        self._make_inputs(cfg)
         self._factory = make_estimator(cfg)
         self._estimator: OnlineEstimator = self._factory()
         self._epoch_ns: int | None = None
@@ -272,13 +227,18 @@ class InertiaEstimatorNode(Node):
         self._reset_reason: str | None = None
         self._update_ms = 0.0
         self._core_error: str | None = None
+        self._status: str | None = None       # last published status (logged on change)
+        #: torque-free estimator fed while no torque message has arrived (zero torque)
+        self._shadow: OnlineEstimator | None = None
         self._started = time.monotonic()
         self.add_on_set_parameters_callback(self._on_set_parameters)
-        self._make_inputs(cfg)
         self._make_outputs()
+        torque = ('no torque stream (torque_topic none): torque-free estimation'
+                  if self._torque_free else
+                  f'{self._torque.topic} ({TORQUE_TYPES[cfg["torque_msg_type"]][0].__name__})')
         self.get_logger().info(
             f'listening on {self._gyro.topic} ({OMEGA_TYPES[cfg["omega_msg_type"]][0].__name__})'
-            f' and {self._torque.topic} ({TORQUE_TYPES[cfg["torque_msg_type"]][0].__name__}); '
+            f' and {torque}; '
             f'method={cfg["method"]}, model={cfg["model"]}, torque_bias={cfg["torque_bias"]}')
 
     def _make_inputs(self, cfg: dict[str, Any]) -> None:
@@ -289,8 +249,9 @@ class InertiaEstimatorNode(Node):
         polled = PolledGroup()
         self._gyro = _Stream('gyro', om_cdr, om_field,
                              sub=polled_subscription(self, om_type, om_topic, qos, polled))
-        self._torque = _Stream('torque', tq_cdr, tq_field,
-                               sub=polled_subscription(self, tq_type, tq_topic, qos, polled))
+        self._torque = _Stream('torque', tq_cdr, tq_field, sub=None if self._torque_free else
+                               polled_subscription(self, tq_type, cfg['torque_topic'] or
+                                                   tq_topic, qos, polled))
         # Polling and the diagnostics run on the steady clock: with use_sim_time they must
         # not stop when /clock pauses, nor speed up with a fast bag.
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
@@ -308,6 +269,14 @@ class InertiaEstimatorNode(Node):
                                                   **quiet)
         self._pub_axes = self.create_publisher(QuaternionStamped, '~/principal_axes', 10,
                                                **quiet)
+        self._pub_cov = self.create_publisher(Float64MultiArray, '~/inertia_covariance', 10,
+                                              **quiet)
+        self._pub_moments_std = self.create_publisher(Vector3Stamped, '~/principal_moments_std',
+                                                      10, **quiet)
+        self._pub_ratios = self.create_publisher(Vector3Stamped, '~/principal_ratios', 10,
+                                                 **quiet)
+        self._pub_ratios_std = self.create_publisher(Vector3Stamped, '~/principal_ratios_std',
+                                                     10, **quiet)
         self._pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics', 10, **quiet)
         self._pub_markers = self.create_publisher(MarkerArray, '~/markers', 10, **quiet)
         self._srv_reset = self.create_service(Trigger, '~/reset', self._on_reset)
@@ -323,23 +292,25 @@ class InertiaEstimatorNode(Node):
     def _validate(cfg: dict[str, Any]) -> str:
         """Return '' when the configuration is valid, else a message naming the problem."""
         for name, p in PARAMETERS.items():
-            v = cfg[name]
-            if p.choices and v not in p.choices:
-                return f'{name} must be one of {list(p.choices)}, got {v!r}'
-            if p.lo is not None and not (p.lo <= v <= p.hi):
-                return f'{name} must be in [{p.lo}, {p.hi}], got {v!r}'
+            try:
+                params.coerce(name, p, cfg[name])
+            except ValueError as exc:
+                return str(exc)
         try:
             make_estimator(cfg)
         except ValueError as exc:
             return f'rejected by the estimator: {exc}'
         return ''
 
-    def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
+    def _on_set_parameters(self, changes: list[Parameter]) -> SetParametersResult:
         """Validate a parameter change; on success rebuild the estimator (a reset)."""
+        problem = params.check_changes(PARAMETERS, changes)
+        if problem:
+            return SetParametersResult(successful=False, reason=problem)
         cfg = dict(self._cfg)
-        for p in params:
+        for p in changes:
             if p.name in PARAMETERS:
-                cfg[p.name] = p.value
+                cfg[p.name] = params.coerce(p.name, PARAMETERS[p.name], p.value)
         problem = self._validate(cfg)
         if problem:
             return SetParametersResult(successful=False, reason=problem)
@@ -366,6 +337,8 @@ class InertiaEstimatorNode(Node):
     def _on_poll(self) -> None:
         """Take every queued input message, check and queue the samples, maybe update."""
         for s in (self._gyro, self._torque):
+            if s.sub is None:
+                continue
             payloads = take_raw(s.sub)
             if payloads:
                 self._accept(s, payloads)
@@ -374,118 +347,176 @@ class InertiaEstimatorNode(Node):
     def _accept(self, s: _Stream, payloads: list[bytes]) -> None:
         """Decode a batch of serialised messages and queue the usable samples.
 
-        Malformed payloads, NaN/Inf samples, samples from another frame and stamps older
-        than the newest one are dropped and counted; a backward jump of the stamps larger
-        than ``clock_jump_threshold`` resets the estimator and starts over at that sample.
+        Malformed payloads, NaN/Inf samples, samples from another frame and invalid stamps
+        (zero, or further than ``clock_jump_threshold`` from the newest stamp without
+        :data:`STAMP_CONFIRM` consecutive samples confirming the jump) are refused and
+        counted; stamps older than the newest one are dropped as out of order.  A confirmed
+        backward jump (bag loop, simulator restart) resets the estimator and starts over at
+        that sample; a confirmed forward jump is a gap.
         """
         now = time.monotonic()
         batch = cdr_decode.decode_payloads(s.msg_type, payloads, fields=(s.field_name,))
         with self._lock:
-            s.received += len(payloads)
-            s.last_rx = now
-            ok = batch.ok.copy()
-            s.malformed += int(np.count_nonzero(~ok))
-            if self._frame is None:
-                if s is not self._gyro:
-                    # The estimation frame is the gyro's: torque before the first gyro
-                    # message cannot be checked yet (and covers no gyro sample).
-                    s.before_gyro += int(np.count_nonzero(ok))
-                    return
-                if ok.any():
-                    self._frame = batch.frame_ids[batch.frame_index[np.argmax(ok)]]
-                    self.get_logger().info(f'estimating in frame {self._frame!r} '
-                                           '(first gyro message)')
-            for k, frame in enumerate(batch.frame_ids):
-                if frame != self._frame:
-                    bad = ok & (batch.frame_index == k)
-                    n_bad = int(np.count_nonzero(bad))
-                    if n_bad:
-                        s.refused += n_bad
-                        ok &= ~bad
-                        text = (f'{s.name} frame {frame!r} differs from the estimation frame '
-                                f'{self._frame!r}: samples refused')
-                        self._frame_problem = (now, text)
-                        self.get_logger().warning(text, throttle_duration_sec=5.0)
-            values = batch.fields[s.field_name]
-            finite = np.all(np.isfinite(values), axis=1)
-            s.nan_dropped += int(np.count_nonzero(ok & ~finite))
-            ok &= finite
-            t_ns = batch.stamp_ns[ok]
-            values = values[ok]
-            if t_ns.size == 0:
-                return
-            # Backward jumps against the newest stamp seen so far (within and across batches).
-            start = -np.inf if s.last_ns is None else s.last_ns
-            prev_max = np.maximum.accumulate(np.concatenate([[start], t_ns[:-1]]))
-            jump = np.flatnonzero(prev_max - t_ns > self._cfg['clock_jump_threshold'] * 1e9)
-            if jump.size:
-                j = int(jump[-1])
-                self._reset(f'{s.name} stamps jumped back '
-                            f'{(prev_max[j] - t_ns[j]) * 1e-9:.3f} s')
-                t_ns, values = t_ns[j:], values[j:]
-                prev_max = np.maximum.accumulate(np.concatenate([[-np.inf], t_ns[:-1]]))
-            fresh = t_ns > prev_max
-            s.out_of_order += int(np.count_nonzero(~fresh))
-            t_ns, values = t_ns[fresh], values[fresh]
-            if t_ns.size == 0:
-                return
-            if self._epoch_ns is None:
-                self._epoch_ns = int(t_ns[0])
-            s.last_ns = int(t_ns[-1])
-            s.t_ns.append(t_ns)
-            s.values.append(values)
-            if s is self._gyro:
-                self._last_omega = values[-1]
+            refused_before = s.refused_total
+            try:
+                self._accept_locked(s, batch, now)
+            finally:
+                s.received += len(payloads)
+                s.last_rx = now
+                s.recent.append((now, len(payloads), s.refused_total - refused_before))
 
-    def _flush(self, s: _Stream, add: Callable[[np.ndarray, np.ndarray], None]) -> None:
-        if not s.t_ns:
+    def _accept_locked(self, s: _Stream, batch: Any, now: float) -> None:
+        ok = batch.ok.copy()
+        s.malformed += int(np.count_nonzero(~ok))
+        if self._frame is None:
+            if s is not self._gyro:
+                # The estimation frame is the gyro's: torque before the first gyro
+                # message cannot be checked yet (and covers no gyro sample).
+                s.before_gyro += int(np.count_nonzero(ok))
+                return
+            if ok.any():
+                self._frame = batch.frame_ids[batch.frame_index[np.argmax(ok)]]
+                self.get_logger().info(f'estimating in frame {self._frame!r} '
+                                       '(first gyro message)')
+        for k, frame in enumerate(batch.frame_ids):
+            if frame != self._frame:
+                bad = ok & (batch.frame_index == k)
+                n_bad = int(np.count_nonzero(bad))
+                if n_bad:
+                    s.refused += n_bad
+                    ok &= ~bad
+                    text = (f'{s.name} frame {frame!r} differs from the estimation frame '
+                            f'{self._frame!r}: samples refused')
+                    self._frame_problem = (now, text)
+                    self.get_logger().warning(text, throttle_duration_sec=5.0)
+        values = batch.fields[s.field_name]
+        finite = np.all(np.isfinite(values), axis=1)
+        s.nan_dropped += int(np.count_nonzero(ok & ~finite))
+        ok &= finite
+        t_ns = batch.stamp_ns[ok]
+        values = values[ok]
+        if t_ns.size == 0:
             return
-        t = (np.concatenate(s.t_ns) - self._epoch_ns) * 1e-9
-        add(t, np.concatenate(s.values))
-        s.t_ns.clear()
-        s.values.clear()
+        thr = int(self._cfg['clock_jump_threshold'] * 1e9)
+        fwd = max(thr, FORWARD_JUMP_NS)
+        start = -np.inf if s.last_ns is None else s.last_ns
+        prev_max = np.maximum.accumulate(np.concatenate([[start], t_ns[:-1]]))
+        ref = np.maximum(prev_max, t_ns[0]) if s.last_ns is None else prev_max
+        suspect = (t_ns <= 0) | (ref - t_ns > thr) | (t_ns - ref > fwd)
+        if s.pending or suspect.any():
+            t_ns, values = self._check_stamps(s, t_ns, values, thr, fwd)
+            if t_ns.size == 0:
+                return
+            prev_max = np.maximum.accumulate(np.concatenate(
+                [[-np.inf if s.last_ns is None else s.last_ns], t_ns[:-1]]))
+        fresh = t_ns > prev_max
+        s.out_of_order += int(np.count_nonzero(~fresh))
+        t_ns, values = t_ns[fresh], values[fresh]
+        if t_ns.size == 0:
+            return
+        if self._epoch_ns is None:
+            self._epoch_ns = int(t_ns[0])
+        s.last_ns = int(t_ns[-1])
+        s.t_ns.append(t_ns)
+        s.values.append(values)
+        if s is self._gyro:
+            self._last_omega = values[-1]
 
-    # ------------------------------------------------------------------ reset / clock
-    def _reset(self, reason: str) -> None:
-        """Forget every sample (estimator, pending buffers, epoch); counts are kept."""
-        with self._lock:
-            self._estimator = self._factory()
-            for s in (self._gyro, self._torque):
-                s.t_ns.clear()
-                s.values.clear()
-                s.last_ns = None
-            self._epoch_ns = None
-            self._last_result = None
-            self._resets += 1
-            self._reset_reason = reason
-        self.get_logger().info(f'estimator reset: {reason}')
+    def _check_stamps(self, s: _Stream, t_ns: np.ndarray, values: np.ndarray, thr: int,
+                      fwd: int) -> tuple[np.ndarray, np.ndarray]:
+        """The slow path of :meth:`_accept_locked`: samples with invalid or jumping stamps.
 
-    def _on_reset(self, request: Trigger.Request, response: Trigger.Response
-                  ) -> Trigger.Response:
-        self._reset('~/reset service')
-        response.success = True
-        response.message = f'estimator reset ({self._resets} resets so far)'
-        return response
+        Returns the samples to go on with (in order; out-of-order ones are dropped by the
+        caller).  A zero stamp is always refused.  A stamp more than ``thr`` [ns] behind or
+        ``fwd`` [ns] ahead of the newest accepted one is held in ``s.pending``; when
+        :data:`STAMP_CONFIRM` consecutive held samples agree (increasing, no jump between
+        them), the jump is real: backward resets the estimator, forward is a gap, and the
+        held samples are used.  A sample that fits the old timeline again refuses the held
+        ones (a glitch), counted in ``bad_stamp``.
+        """
+        keep_t: list[int] = []
+        keep_v: list[np.ndarray] = []
+        newest = s.last_ns
+        for t, v in zip(t_ns.tolist(), values, strict=True):
+            if t <= 0:
+                s.bad_stamp += 1
+                continue
+            if newest is None and s.pending:      # reset meanwhile: the held samples lead
+                newest = self._take_pending(s, keep_t, keep_v)
+            if newest is None or -thr <= t - newest <= fwd:
+                if s.pending:                     # the old timeline goes on: a glitch
+                    self._refuse_pending(s)
+                keep_t.append(t)
+                keep_v.append(v)
+                newest = t if newest is None else max(newest, t)
+                continue
+            if s.pending and not (0 < t - s.pending[-1][0] <= fwd):
+                self._refuse_pending(s)           # not even consistent with the held ones
+            s.pending.append((t, v))
+            if len(s.pending) < STAMP_CONFIRM:
+                continue
+            jump = (s.pending[0][0] - newest) * 1e-9
+            if jump < 0:
+                self._reset(f'{s.name} stamps jumped back {-jump:.3f} s')
+                keep_t.clear()
+                keep_v.clear()
+            else:
+                self.get_logger().info(f'{s.name} stamps jumped ahead {jump:.3f} s: a gap')
+            newest = self._take_pending(s, keep_t, keep_v)
+        if not keep_t:
+            return t_ns[:0], values[:0]
+        return np.asarray(keep_t, dtype=np.int64), np.asarray(keep_v, dtype=float)
 
-    def _on_clock_jump(self, jump: TimeJump | dict[str, Any]) -> None:
-        """Reset when the ROS clock jumps back (sim time restarted) or changes source."""
-        if isinstance(jump, dict):
-            change, delta_ns = jump['clock_change'], int(jump['delta'])
-        else:
-            change, delta_ns = jump.clock_change, jump.delta.nanoseconds
-        if change in (ClockChange.ROS_TIME_ACTIVATED, ClockChange.ROS_TIME_DEACTIVATED):
-            self._reset(f'clock source changed ({ClockChange(change).name})')
-        elif delta_ns < 0:
-            self._reset(f'ROS clock jumped back {-delta_ns * 1e-9:.3f} s')
+    @staticmethod
+    def _take_pending(s: _Stream, keep_t: list[int], keep_v: list[np.ndarray]) -> int:
+        """Move the held samples of ``s`` to the kept ones; the newest stamp [ns]."""
+        for t, v in s.pending:
+            keep_t.append(t)
+            keep_v.append(v)
+        s.pending.clear()
+        return keep_t[-1]
 
-    def _flush(self, s: _Stream, add: Callable[[np.ndarray, np.ndarray], None]) -> None:
+    def _refuse_pending(self, s: _Stream) -> None:
+        """Refuse the held samples of ``s`` (their stamps were a glitch)."""
+        s.bad_stamp += len(s.pending)
+        self.get_logger().warning(
+            f'{s.name}: {len(s.pending)} sample(s) with stamps far from the others refused',
+            throttle_duration_sec=5.0)
+        s.pending.clear()
+
+    def _flush(self, s: _Stream, add: Callable[[np.ndarray, np.ndarray], None]
+               ) -> tuple[np.ndarray, np.ndarray] | None:
         """Hand the pending samples of one stream to the estimator ([s] since the epoch)."""
         if not s.t_ns:
-            return
+            return None
         t = (np.concatenate(s.t_ns) - self._epoch_ns) * 1e-9
-        add(t, np.concatenate(s.values))
+        v = np.concatenate(s.values)
+        add(t, v)
         s.t_ns.clear()
         s.values.clear()
+        return t, v
+
+    def _flush_inputs(self) -> None:
+        """Hand every pending sample to the estimator(s).
+
+        Torque-free (``torque_topic: none``): zero torque at the gyro stamps, which is exactly
+        the torque-free declaration.  While no torque message has arrived on a torque topic,
+        a second estimator gets the same (:attr:`_shadow`), so that the node reports ratios
+        and axes until the torque stream starts; the first torque message drops it.
+        """
+        gyro = self._flush(self._gyro, self._estimator.add_gyro)
+        if self._torque_free:
+            if gyro is not None:
+                self._estimator.add_torque(gyro[0], np.zeros_like(gyro[1]))
+            return
+        if self._torque.received or self._torque.before_gyro:
+            self._shadow = None
+        elif gyro is not None:
+            if self._shadow is None:
+                self._shadow = self._factory()
+            self._shadow.add_gyro(*gyro)
+            self._shadow.add_torque(gyro[0], np.zeros_like(gyro[1]))
+        self._flush(self._torque, self._estimator.add_torque)
 
     # ------------------------------------------------------------------ reset / clock
     def _reset(self, reason: str) -> None:
@@ -495,7 +526,8 @@ class InertiaEstimatorNode(Node):
             for s in (self._gyro, self._torque):
                 s.t_ns.clear()
                 s.values.clear()
-                s.last_ns = None
+                s.last_ns = None  # held samples stay: they may lead the new timeline
+            self._shadow = None
             self._epoch_ns = None
             self._last_estimate = None
             self._resets += 1
@@ -535,8 +567,7 @@ class InertiaEstimatorNode(Node):
             self._last_update = now
             if self._epoch_ns is None:
                 return
-            self._flush(self._gyro, self._estimator.add_gyro)
-            self._flush(self._torque, self._estimator.add_torque)
+            self._flush_inputs()
             est = self._estimate()
             self._update_ms = (time.monotonic() - now) * 1e3
             stamp = max(x for x in (self._gyro.last_ns, self._torque.last_ns) if x is not None)
@@ -552,6 +583,13 @@ class InertiaEstimatorNode(Node):
         try:
             est = self._estimator.estimate()
             self._core_error = None
+            if self._shadow is not None and est.status == 'insufficient_data':
+                free = self._shadow.estimate()
+                if free.status != 'insufficient_data':
+                    free.diagnostics['reason'] = (
+                        f'no torque message on {self._torque.topic} yet: torque-free estimate '
+                        '(ratios and principal axes only)')
+                    return free
             return est
         except ValueError as exc:
             self._core_error = None
@@ -571,13 +609,32 @@ class InertiaEstimatorNode(Node):
                                    and self._cfg['publish_partial'])
         if valid and est.inertia is not None:  # the main output first: lowest latency
             self._pub_inertia.publish(messages.inertia_stamped(est.inertia, stamp, frame))
+            cov = messages.estimate_covariance(est)
+            if cov is not None:
+                self._pub_cov.publish(messages.covariance_msg(*cov))
         self._last_estimate = est
+        if status != self._status:
+            reason = est.diagnostics.get('reason') if status != 'ok' else ''
+            self.get_logger().info(f'status {self._status or "start"} -> {status}'
+                                   + (f': {reason}' if reason else ''))
+            self._status = status
+        diag = est.diagnostics
         have_axes = est.principal_moments is not None and est.principal_axes is not None \
             and np.all(np.isfinite(est.principal_moments)) \
             and np.all(np.isfinite(est.principal_axes))
         if have_axes:
             self._pub_moments.publish(
                 messages.principal_moments_msg(est.principal_moments, stamp, frame))
+            if diag.get('principal_moments_std') is not None:
+                self._pub_moments_std.publish(messages.vector3_stamped(
+                    stamp, diag['principal_moments_std'], frame))
+        ratios = diag.get('principal_ratios')
+        if ratios is not None and np.all(np.isfinite(ratios)):
+            self._pub_ratios.publish(messages.vector3_stamped(stamp, ratios, frame))
+            if diag.get('principal_ratios_std') is not None:
+                self._pub_ratios_std.publish(messages.vector3_stamped(
+                    stamp, diag['principal_ratios_std'], frame))
+        if est.principal_axes is not None and np.all(np.isfinite(est.principal_axes)):
             self._pub_axes.publish(messages.principal_axes_msg(est.principal_axes, stamp, frame))
         self._pub_markers.publish(inertia_markers(
             stamp, frame, inertia=est.inertia if valid else None,
@@ -589,7 +646,7 @@ class InertiaEstimatorNode(Node):
         """Node-level conditions for the diagnostics: (level, message) each."""
         out: list[tuple[bytes, str]] = []
         timeout = self._cfg['stream_timeout']
-        for s in (self._gyro, self._torque):
+        for s in ((self._gyro,) if self._torque_free else (self._gyro, self._torque)):
             if s.last_rx is None:
                 if now - self._started > timeout:
                     out.append((DiagnosticStatus.WARN, f'no {s.name} message on {s.topic} yet'))
@@ -599,6 +656,15 @@ class InertiaEstimatorNode(Node):
         if self._frame_problem and now - self._frame_problem[0] <= max(timeout,
                                                                    2 * DIAGNOSTIC_PERIOD):
             out.append((DiagnosticStatus.ERROR, self._frame_problem[1]))
+        limit = self._cfg['max_refused_fraction']
+        for s in (self._gyro, self._torque):
+            frac, n = s.refused_fraction(now)
+            if n >= REFUSED_MIN_SAMPLES and frac > limit:
+                out.append((DiagnosticStatus.WARN, (
+                    f'{s.name}: {100 * frac:.0f} % of {n} samples refused over the last '
+                    f'{REFUSED_WINDOW:g} s (limit {100 * limit:g} %; so far {s.nan_dropped} '
+                    f'NaN/Inf, {s.bad_stamp} invalid stamps, {s.refused} wrong frame, '
+                    f'{s.malformed} malformed)')))
         if self._core_error:
             out.append((DiagnosticStatus.ERROR, self._core_error))
         return out
@@ -613,6 +679,8 @@ class InertiaEstimatorNode(Node):
             out[f'{s.name}_nan_dropped'] = s.nan_dropped
             out[f'{s.name}_out_of_order_dropped'] = s.out_of_order
             out[f'{s.name}_frame_refused'] = s.refused
+            out[f'{s.name}_bad_stamp_refused'] = s.bad_stamp
+            out[f'{s.name}_refused_fraction'] = s.refused_fraction(now)[0]
         out['torque_before_gyro_dropped'] = self._torque.before_gyro
         for s in (self._gyro, self._torque):
             out[f'{s.name}_age_s'] = None if s.last_rx is None else now - s.last_rx

@@ -10,7 +10,9 @@ outputs:
   :func:`vector3_stamped`, :func:`wrench_msg` (``geometry_msgs/msg/WrenchStamped``);
 - outputs: :func:`inertia_stamped` (``geometry_msgs/msg/InertiaStamped``, read back by
   :func:`inertia_from_msg`), :func:`principal_moments_msg` (``Vector3Stamped``) and
-  :func:`principal_axes_msg` (``QuaternionStamped``).
+  :func:`principal_axes_msg` (``QuaternionStamped``), :func:`covariance_msg` (the 6x6
+  covariance of the tensor elements as a labelled ``std_msgs/Float64MultiArray``, from
+  :func:`estimate_covariance`; read back by :func:`covariance_from_msg`).
 
 Diagnostics and markers are in :mod:`inertia_ros.nodes.diagnostics` and
 :mod:`inertia_ros.nodes.markers`.
@@ -29,11 +31,16 @@ from geometry_msgs.msg import (
     WrenchStamped,
 )
 from sensor_msgs.msg import Imu
-from std_msgs.msg import Header
+from std_msgs.msg import Float64MultiArray, Header, MultiArrayDimension, MultiArrayLayout
 
-from inertia_ros.core.inertia import axes_to_quaternion
+from inertia_ros.core.inertia import THETA_NAMES, axes_to_quaternion
 
 __all__ = [
+    'COVARIANCE_DIAGONAL',
+    'COVARIANCE_FULL',
+    'covariance_from_msg',
+    'covariance_msg',
+    'estimate_covariance',
     'header',
     'imu_msg',
     'inertia_from_msg',
@@ -230,3 +237,74 @@ def principal_axes_msg(axes: Any, t_ns: int, frame_id: str) -> QuaternionStamped
     msg.quaternion.x, msg.quaternion.y = float(x), float(y)
     msg.quaternion.z, msg.quaternion.w = float(z), float(w)
     return msg
+
+
+# --------------------------------------------------------------------------- uncertainty
+#: Layout label prefixes of ``~/inertia_covariance`` (row and column dimensions).
+COVARIANCE_FULL = 'full covariance'
+COVARIANCE_DIAGONAL = 'diagonal only (theta_std^2; correlations not available)'
+
+
+def estimate_covariance(est: Any) -> tuple[np.ndarray, bool] | None:
+    """The 6x6 covariance of the tensor elements of an estimate, and whether it is full.
+
+    Parameters
+    ----------
+    est : InertiaEstimate
+        A core result.
+
+    Returns
+    -------
+    (cov, full) or None
+        ``cov`` (6, 6) [kg^2 m^4] in the parameter order ``[ixx, iyy, izz, ixy, ixz, iyz]``:
+        ``est.covariance`` when the core gives it, else ``est.diagnostics['covariance']``,
+        else ``diag(theta_std^2)`` from ``est.inertia_std`` (``full`` False: no
+        correlations); None when the estimate has no standard errors.  Undetermined
+        elements are NaN.
+    """
+    for cov in (getattr(est, 'covariance', None), (est.diagnostics or {}).get('covariance')):
+        if cov is not None:
+            cov = np.asarray(cov, dtype=float)
+            if cov.shape == (6, 6):
+                return cov, True
+    if est.inertia_std is None:
+        return None
+    std = np.asarray(est.inertia_std, dtype=float)
+    theta_std = np.array([std[0, 0], std[1, 1], std[2, 2], std[0, 1], std[0, 2], std[1, 2]])
+    return np.diag(theta_std ** 2), False
+
+
+def covariance_msg(cov: Any, full: bool = True) -> Float64MultiArray:
+    """A 6x6 covariance as ``std_msgs/Float64MultiArray`` with labelled dimensions.
+
+    Parameters
+    ----------
+    cov : array_like, shape (6, 6)
+        Covariance of ``[ixx, iyy, izz, ixy, ixz, iyz]`` [kg^2 m^4], row-major in ``data``.
+    full : bool
+        False when only the diagonal is known (the label says so; off-diagonals are 0).
+
+    Returns
+    -------
+    std_msgs.msg.Float64MultiArray
+        ``layout.dim[0]`` (rows) and ``dim[1]`` (columns), each of size 6 and labelled
+        ``'<kind> rows|cols: ixx iyy izz ixy ixz iyz [kg^2 m^4]'``.
+    """
+    cov = np.asarray(cov, dtype=float)
+    if cov.shape != (6, 6):
+        raise ValueError(f'covariance must have shape (6, 6), got {cov.shape}')
+    kind = COVARIANCE_FULL if full else COVARIANCE_DIAGONAL
+    names = ' '.join(THETA_NAMES)
+    layout = MultiArrayLayout(dim=[
+        MultiArrayDimension(label=f'{kind} rows: {names} [kg^2 m^4]', size=6, stride=36),
+        MultiArrayDimension(label=f'{kind} cols: {names} [kg^2 m^4]', size=6, stride=6)],
+        data_offset=0)
+    return Float64MultiArray(layout=layout, data=cov.ravel().tolist())
+
+
+def covariance_from_msg(msg: Float64MultiArray) -> tuple[np.ndarray, bool]:
+    """Read :func:`covariance_msg` back: ``(cov (6, 6), full)``."""
+    if [d.size for d in msg.layout.dim] != [6, 6] or len(msg.data) != 36:
+        raise ValueError('not a 6x6 covariance message')
+    return (np.asarray(msg.data, dtype=float).reshape(6, 6),
+            msg.layout.dim[0].label.startswith(COVARIANCE_FULL))

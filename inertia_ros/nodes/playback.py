@@ -28,14 +28,17 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import Imu
 
-from inertia_ros.nodes import messages
+from inertia_ros.nodes import messages, params
 from inertia_ros.nodes._ros import latched_qos, sensor_qos
+from inertia_ros.nodes.params import ParamSpec
 
 __all__ = ['PlaybackNode', 'StreamPlayer', 'declare_playback_parameters', 'double_descriptor',
            'integer_descriptor',
            'spin_until_done', 'validate_playback']
 
 _NS = 1_000_000_000
+#: Wait after the subscriptions are matched before playback starts [s] (see _try_start).
+MATCH_SETTLE = 0.3
 
 
 class StreamPlayer:
@@ -217,46 +220,33 @@ def integer_descriptor(description: str, lo: int, hi: int, read_only: bool = Fal
                                integer_range=[IntegerRange(from_value=lo, to_value=hi, step=0)])
 
 
-def declare_playback_parameters(node: Node) -> None:
-    """Declare the playback parameters shared by ``scene_simulator`` and ``bag_player``."""
-    node.declare_parameter('rate', 1.0, double_descriptor(
-        'playback speed factor (2 = twice real time) [dimensionless]', 0.01, 1000.0))
-    node.declare_parameter('loop', False, ParameterDescriptor(
-        description='restart from the beginning at the end (stamps jump back)'))
-    node.declare_parameter('omega_msg_type', 'imu', ParameterDescriptor(
-        description="gyro output: 'imu' (sensor_msgs/Imu on 'imu') or 'vector3' "
-                    "(geometry_msgs/Vector3Stamped on 'omega')",
-        additional_constraints='one of: imu, vector3', read_only=True))
-    node.declare_parameter('tick', 0.002, double_descriptor(
-        'playback timer period [s]', 0.0002, 1.0, read_only=True))
-    node.declare_parameter('qos_depth', 1000, integer_descriptor(
-        'history depth of the sensor publishers [messages]', 1, 100000, read_only=True))
-    node.declare_parameter('wait_for_subscribers', 0, integer_descriptor(
-        'subscribers to wait for on both the gyro and the torque topic before playback '
-        'starts', 0, 1000))
-    node.declare_parameter('start_delay', 0.0, double_descriptor(
-        'extra wait before playback starts [s]', 0.0, 3600.0, read_only=True))
-    node.declare_parameter('exit_on_end', False, ParameterDescriptor(
-        description='exit the process when the data end (ignored with loop)', read_only=True))
+def declare_playback_parameters(node: Node,
+                                specs: dict[str, ParamSpec] | None = None) -> dict[str, Any]:
+    """Declare a player's parameters (default: the shared :data:`.params.PLAYBACK` ones).
+
+    Values as typed by a ROS user are coerced and checked (:func:`.params.declare`); a bad
+    one raises a one-line ValueError, an unknown name is warned about.
+    """
+    return params.declare(node, specs if specs is not None else params.PLAYBACK)
 
 
-def validate_playback(params: list[Parameter]) -> str:
-    """Return '' when the playback parameter changes are valid, else the reason."""
-    for p in params:
-        if p.name == 'omega_msg_type' and p.value not in ('imu', 'vector3'):
-            return f"omega_msg_type must be 'imu' or 'vector3', got {p.value!r}"
-        if p.name == 'rate' and not (0.01 <= p.value <= 1000.0):
-            return f'rate must be in [0.01, 1000], got {p.value!r}'
-    return ''
+def validate_playback(changes: list[Parameter],
+                      specs: dict[str, ParamSpec] | None = None) -> str:
+    """Return '' when the playback parameter changes are valid, else the one-line reason."""
+    return params.check_changes(specs if specs is not None else params.PLAYBACK, changes)
 
 
 class PlaybackNode(Node):
     """Base of the two players: parameters, start gating, rate changes, exit at the end."""
 
-    def __init__(self, name: str, **kwargs: Any) -> None:
+    def __init__(self, name: str, specs: dict[str, ParamSpec] | None = None,
+                 **kwargs: Any) -> None:
         super().__init__(name, **kwargs)
-        declare_playback_parameters(self)
+        self.specs = specs if specs is not None else params.PLAYBACK
+        declare_playback_parameters(self, self.specs)
         self.player: StreamPlayer | None = None
+        self._waiting_logged = False
+        self._matched_at: float | None = None
         self.done = False
         self._created = time.monotonic()
         self._gate = None
@@ -266,11 +256,11 @@ class PlaybackNode(Node):
         """Current value of a parameter."""
         return self.get_parameter(name).value
 
-    def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
-        problem = validate_playback(params) or self.validate_more(params)
+    def _on_set_parameters(self, changes: list[Parameter]) -> SetParametersResult:
+        problem = validate_playback(changes, self.specs) or self.validate_more(changes)
         if problem:
             return SetParametersResult(successful=False, reason=problem)
-        for p in params:
+        for p in changes:
             if self.player is not None and p.name == 'rate':
                 self.player.set_rate(float(p.value))
             if self.player is not None and p.name == 'loop':
@@ -297,10 +287,32 @@ class PlaybackNode(Node):
     def _try_start(self) -> None:
         assert self.player is not None
         want = self.param('wait_for_subscribers')
-        if min(self.player.gyro_publisher.get_subscription_count(),
-               self.player.torque_publisher.get_subscription_count()) < want:
-            return  # discovery is per topic: wait until both streams are matched
-        if time.monotonic() - self._created < self.param('start_delay'):
+        matched = min(self.player.gyro_publisher.get_subscription_count(),
+                      self.player.torque_publisher.get_subscription_count())
+        waited = time.monotonic() - self._created
+        timeout = self.param('wait_timeout')
+        if matched < want:
+            # discovery is per topic: wait until both streams are matched
+            if not self._waiting_logged:
+                self._waiting_logged = True
+                self.get_logger().info(
+                    f'waiting for {want} subscriber(s) on {self.player.gyro_publisher.topic_name}'
+                    f' and {self.player.torque_publisher.topic_name} (wait_for_subscribers; '
+                    + (f'at most {timeout:g} s)' if timeout > 0 else 'no timeout)'))
+            if timeout <= 0 or waited < timeout:
+                return
+            self.get_logger().warning(
+                f'starting without the subscribers: only {matched} of {want} matched after '
+                f'{timeout:g} s (wait_timeout)')
+        elif want > 0:
+            # Matching is seen from the publisher's side first; the subscriber's side may
+            # learn of this writer a little later, and best-effort samples sent before that
+            # are lost.  A short settle time after the match covers it.
+            if self._matched_at is None:
+                self._matched_at = time.monotonic()
+            if time.monotonic() - self._matched_at < MATCH_SETTLE:
+                return
+        if waited < self.param('start_delay'):
             return
         self._gate.cancel()
         self.destroy_timer(self._gate)

@@ -20,10 +20,9 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from rcl_interfaces.msg import ParameterDescriptor
-
+from inertia_ros.nodes import params
 from inertia_ros.nodes._ros import run_node, share_path
-from inertia_ros.nodes.playback import PlaybackNode, integer_descriptor, spin_until_done
+from inertia_ros.nodes.playback import PlaybackNode, spin_until_done
 
 NODE_NAME = 'scene_simulator'
 
@@ -37,13 +36,7 @@ class SceneSimulatorNode(PlaybackNode):
     """Simulate a scene at start-up and play its streams back (see the module docstring)."""
 
     def __init__(self, **kwargs: Any) -> None:
-        super().__init__(NODE_NAME, **kwargs)
-        self.declare_parameter('scene', '', ParameterDescriptor(
-            description="scene YAML file; '' = the package's config/scenes/default.yaml",
-            read_only=True))
-        self.declare_parameter('seed', -1, integer_descriptor(
-            "seed of the simulation's random draws; -1 = the scene's own seed", -1, 2**31 - 1,
-            read_only=True))
+        super().__init__(NODE_NAME, params.SCENE_SIMULATOR, **kwargs)
         from inertia_ros.core.simulation import simulate
         from inertia_ros.io.scene_file import load_scene
 
