@@ -176,7 +176,8 @@ def test_to_dict_is_the_json_contract(nominal20):
     d = estimate(t_g, w, t_t, tau).to_dict()
     assert set(d) == {'status', 'inertia', 'inertia_std', 'principal_moments',
                       'principal_axes', 'ratios', 'ratios_std', 'identifiable',
-                      'torque_bias', 'model', 'method', 'samples', 'diagnostics'}
+                      'torque_bias', 'model', 'method', 'samples', 'covariance',
+                      'diagnostics'}
     assert set(d['identifiable']) == set(THETA_NAMES)
     assert set(d['samples']) == {'used', 'dropped'}
     text = json.dumps(d, allow_nan=False)
@@ -538,3 +539,16 @@ def test_recursive_single_axis_never_claims_ok():
         statuses.append(rec.estimate().status)
     assert 'ok' not in statuses
     assert statuses[-1] == 'partially_identifiable'
+
+
+def test_covariance_matches_the_standard_errors(nominal20):
+    """The reported 6x6 covariance is symmetric, positive semi-definite, and its diagonal is
+    theta_std ** 2 (rtol 1e-9), for ml and integral."""
+    t_g, w, t_t, tau = add_noise(nominal20, seed=5)
+    for method in ('ml', 'integral'):
+        est = estimate(t_g, w, t_t, tau, method=method, model='full', torque_bias='off')
+        C = est.covariance
+        assert C is not None and C.shape == (6, 6)
+        np.testing.assert_allclose(C, C.T, rtol=0, atol=1e-15 * np.abs(C).max())
+        assert np.linalg.eigvalsh(C).min() > -1e-12 * np.abs(C).max()
+        np.testing.assert_allclose(np.diag(C), est.theta_std ** 2, rtol=1e-9)

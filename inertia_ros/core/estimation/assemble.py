@@ -313,7 +313,9 @@ def assemble(status: str, f: Fit, model: str, free: np.ndarray, diag: dict[str, 
     if f.bias:
         diag['torque_bias_std'] = np.sqrt(np.maximum(np.diag(f.cov)[k:k + 3], 0.0))
     name = model + ('+bias' if f.bias else '')
+    both = free[:, None] & free[None, :]
     return InertiaEstimate(status=status, inertia=I, inertia_std=I_std,
+                           covariance=np.where(both, 0.5 * (cov6 + cov6.T), np.nan),
                            principal_moments=moments, principal_axes=axes, ratios=ratios,
                            ratios_std=ratios_std,
                            identifiable=dict(zip(THETA_NAMES, map(bool, free), strict=True)),

@@ -569,7 +569,7 @@ def _refine(first: InertiaEstimate, tg: np.ndarray, w: np.ndarray, ts: np.ndarra
     diag['physical'] = {'valid': True, 'projected': False}
     if res.bias is not None:
         diag['torque_bias_std'] = np.sqrt(np.maximum(np.diag(res.cov)[k:k + 3], 0.0))
-    return replace(first, method='ml', inertia=I,
+    return replace(first, method='ml', inertia=I, covariance=0.5 * (cov6 + cov6.T),
                    inertia_std=theta_to_matrix(np.sqrt(np.maximum(np.diag(cov6), 0.0)),
                                                check_finite=False),
                    principal_moments=moments, principal_axes=axes, ratios=I / np.trace(I),

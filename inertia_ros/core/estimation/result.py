@@ -107,6 +107,10 @@ class InertiaEstimate:
     diagnostics : dict
         Free-form: condition number, weakest direction, residual RMS, noise estimates, model
         selection statistics, warnings, ...
+    covariance : ndarray, shape (6, 6), or None
+        Covariance of ``theta = [ixx, iyy, izz, ixy, ixz, iyz]`` [kg^2 m^4] (NaN rows and
+        columns for unidentified elements; zeros for elements the model fixes); its diagonal
+        is ``theta_std ** 2``.
     """
 
     status: str
@@ -124,6 +128,7 @@ class InertiaEstimate:
     samples_used: int = 0
     samples_dropped: int = 0
     diagnostics: dict[str, Any] = field(default_factory=dict)
+    covariance: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         """Validate the status and freeze the arrays (read-only float64 copies)."""
@@ -132,7 +137,7 @@ class InertiaEstimate:
         for name, shape in (('inertia', (3, 3)), ('inertia_std', (3, 3)),
                             ('principal_moments', (3,)), ('principal_axes', (3, 3)),
                             ('ratios', (3, 3)), ('ratios_std', (3, 3)),
-                            ('torque_bias', (3,))):
+                            ('torque_bias', (3,)), ('covariance', (6, 6))):
             object.__setattr__(self, name, _opt_array(getattr(self, name), shape, name))
         ident = {k: bool(self.identifiable.get(k, False)) for k in THETA_NAMES}
         object.__setattr__(self, 'identifiable', ident)
@@ -163,8 +168,8 @@ class InertiaEstimate:
         -------
         dict
             Keys ``status, inertia, inertia_std, principal_moments, principal_axes, ratios,
-            ratios_std, identifiable, torque_bias, model, method, samples, diagnostics``;
-            NaN -> None.
+            ratios_std, identifiable, torque_bias, model, method, samples, covariance,
+            diagnostics``; NaN -> None.
         """
         return {
             'status': self.status,
@@ -179,5 +184,6 @@ class InertiaEstimate:
             'model': self.model,
             'method': self.method,
             'samples': {'used': int(self.samples_used), 'dropped': int(self.samples_dropped)},
+            'covariance': to_jsonable(self.covariance),
             'diagnostics': to_jsonable(self.diagnostics),
         }
