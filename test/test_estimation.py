@@ -552,3 +552,28 @@ def test_covariance_matches_the_standard_errors(nominal20):
         np.testing.assert_allclose(C, C.T, rtol=0, atol=1e-15 * np.abs(C).max())
         assert np.linalg.eigvalsh(C).min() > -1e-12 * np.abs(C).max()
         np.testing.assert_allclose(np.diag(C), est.theta_std ** 2, rtol=1e-9)
+
+
+def test_api_refuses_what_it_cannot_mean(nominal20):
+    """Complex samples and nanosecond stamps are one clear ValueError; integers are converted."""
+    t_g, w, t_t, tau = add_noise(nominal20, seed=5)
+    with pytest.raises(ValueError, match='omega: complex'):
+        estimate(t_g, w + 0j, t_t, tau)
+    with pytest.raises(ValueError, match='t_torque: complex'):
+        estimate(t_g, w, t_t + 0j, tau)
+    with pytest.raises(ValueError, match='t_gyro: times look like nanoseconds'):
+        estimate(t_g * 1e9, w, t_t * 1e9, tau)
+    ints = estimate(np.round(t_g * 1000).astype(np.int64) / 1000, np.round(w * 1e6).astype(int)
+                    * 1e-6, t_t, tau, method='integral')
+    assert ints.status in ('ok', 'model_mismatch')
+
+
+def test_ml_does_not_report_an_unexplained_likelihood(nominal20):
+    """A record the likelihood cannot explain (a rate jump no torque made) keeps the integral
+    estimate, saying why, instead of a Fisher-information sigma that would be too small."""
+    t_g, w, t_t, tau = add_noise(nominal20, seed=5)
+    w = w.copy()
+    w[len(w) // 2:] += 0.3                   # an impossible jump in the measured rate
+    est = estimate(t_g, w, t_t, tau)
+    assert est.diagnostics['ml']['refined'] is False
+    assert est.method == 'integral'

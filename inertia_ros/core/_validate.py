@@ -13,17 +13,40 @@ import numpy as np
 
 __all__ = ['as_float_array', 'as_mass', 'as_matrix33', 'as_noise_std', 'as_rotation',
            'as_sample_block', 'as_samples', 'as_times', 'as_unit_axis', 'as_vector3',
-           'as_vectors', 'check_symmetric', 'max_asymmetry', 'require_finite']
+           'as_vectors', 'check_symmetric', 'max_asymmetry', 'refuse_nanoseconds',
+           'require_finite']
 
 
 def as_float_array(x: Any, name: str) -> np.ndarray:
-    """Convert ``x`` to a float64 array, raising ValueError naming ``name`` on failure."""
+    """Convert ``x`` to a float64 array, raising ValueError naming ``name`` on failure.
+
+    Integer arrays are converted; complex ones are refused (their imaginary part would be
+    dropped silently).
+    """
+    _refuse_complex(x, name)
     try:
         arr = np.asarray(x, dtype=np.float64)
     except (TypeError, ValueError) as exc:
         raise ValueError(f'{name}: expected an array of real numbers, got {type(x).__name__} '
                          f'({exc})') from None
     return arr
+
+
+def _refuse_complex(x: Any, name: str) -> None:
+    """Raise ValueError naming ``name`` when ``x`` holds complex numbers."""
+    if np.iscomplexobj(x):
+        raise ValueError(f'{name}: complex values are not supported; give real numbers')
+
+
+def refuse_nanoseconds(t: np.ndarray, name: str) -> None:
+    """Raise ValueError when the times ``t`` [s] look like nanoseconds.
+
+    A median sample interval over an hour (or stamps beyond 1e12 s, 30 000 years) is a
+    stamp in nanoseconds given as seconds; estimating would allocate for 1e9 times as long.
+    """
+    if len(t) > 1 and (float(np.median(np.diff(t))) > 3600.0 or float(np.max(np.abs(t))) > 1e12):
+        raise ValueError(f'{name}: times look like nanoseconds (median interval '
+                         f'{float(np.median(np.diff(t))):.3g} s); give seconds, e.g. t_ns * 1e-9')
 
 
 def require_finite(arr: np.ndarray, name: str) -> None:
@@ -135,6 +158,7 @@ def as_times(t: Any, name: str, *, min_samples: int = 0, detail: bool = True) ->
     -------
     ndarray, shape (N,)
     """
+    _refuse_complex(t, name)
     arr = np.asarray(t, dtype=float)
     if arr.ndim != 1 or arr.size < min_samples:
         more = f' with N >= {min_samples}' if min_samples else ''
@@ -157,6 +181,7 @@ def as_samples(x: Any, n: int, name: str, tname: str) -> np.ndarray:
     -------
     ndarray, shape (n, 3)
     """
+    _refuse_complex(x, name)
     arr = np.asarray(x, dtype=float)
     if arr.ndim != 2 or arr.shape[1] != 3:
         raise ValueError(f'{name}: expected shape (N, 3), got {arr.shape}')

@@ -75,7 +75,7 @@ from typing import Any
 
 import numpy as np
 
-from .._validate import as_noise_std, as_samples, as_times
+from .._validate import as_noise_std, as_samples, as_times, refuse_nanoseconds
 from ..tensor import check_physical, theta_to_matrix
 from .adequacy import Adequacy, check_adequacy
 from .assemble import conclude, status_only
@@ -93,6 +93,7 @@ from .options import (
     GAP_FACTOR,
     HOLDS,
     IDENTIFIABILITY_TOL,
+    MAX_RESIDUAL_EXCESS,
     METHODS,
     MIN_EQUATIONS,
     MIN_GYRO_SAMPLES,
@@ -125,24 +126,22 @@ def estimate(t_gyro: Any, omega: Any, t_torque: Any, torque: Any, *,
 
     Parameters
     ----------
-    t_gyro : array_like, shape (N,)
-        Gyro sample times [s], strictly increasing.
-    omega : array_like, shape (N, 3)
-        Angular velocity in body axes [rad/s].
+    t_gyro, omega : array_like, shape (N,), (N, 3)
+        Gyro sample times [s], strictly increasing; angular velocity, body axes [rad/s].
     t_torque : array_like, shape (M,)
         Torque sample times [s], strictly increasing; M = 0 means torque-free data.
     torque : array_like, shape (M, 3)
         Known applied torque about the centre of mass, body axes [N m].
     method : str
-        One of :data:`METHODS` (default ``auto``: ``ml``, or ``integral`` on records longer
-        than :data:`ML_AUTO_MAX_SAMPLES` gyro samples).
+        One of :data:`METHODS` (``auto``: ``ml``, or ``integral`` over
+        :data:`ML_AUTO_MAX_SAMPLES` gyro samples).
     model : {'auto', 'full', 'diagonal', 'axisymmetric'}
         Parameter set; ``auto`` picks the smallest the data supports (Wald tests at ``alpha``;
         ``axisymmetric`` is only a candidate when ``symmetry_axis`` is given).
     torque_bias : {'auto', 'on', 'off'}
         Estimate a constant unmeasured disturbance torque (3 more parameters).
     symmetry_axis : {'x', 'y', 'z'} or array_like (3,), optional
-        Body axis of symmetry for the axisymmetric model.
+        Body symmetry axis (axisymmetric model).
     hold : {'auto', 'zoh', 'linear'}
         Torque between samples: held, linear, or both tried (``diagnostics['hold_selection']``).
     alpha : float
@@ -166,7 +165,7 @@ def estimate(t_gyro: Any, omega: Any, t_torque: Any, torque: Any, *,
     Returns
     -------
     InertiaEstimate
-        Always returned for well-formed input; the status says what the data allowed.
+        For well-formed input always; its status says what the data allowed.
 
     Raises
     ------
@@ -176,6 +175,8 @@ def estimate(t_gyro: Any, omega: Any, t_torque: Any, torque: Any, *,
     tg = as_times(t_gyro, 't_gyro')
     w = as_samples(omega, len(tg), 'omega', 't_gyro')
     ts = as_times(t_torque, 't_torque')
+    for t, name in ((tg, 't_gyro'), (ts, 't_torque')):
+        refuse_nanoseconds(t, name)
     tau = as_samples(torque, len(ts), 'torque', 't_torque')
     policy, axis = _check_options(method, model, torque_bias, hold, symmetry_axis,
                                   SelectionPolicy(alpha, identifiability_tol, physical,
@@ -551,6 +552,11 @@ def _refine(first: InertiaEstimate, tg: np.ndarray, w: np.ndarray, ts: np.ndarra
     info.update(iterations=res.iterations, steps_in_std=res.steps, residual_excess=res.excess)
     if not res.converged:
         return keep(f'the refinement did not converge ({res.reason})')
+    if res.excess > MAX_RESIDUAL_EXCESS:
+        # the likelihood model does not explain the data although the integral tests passed:
+        # its Fisher-information sigma would not be honest
+        return keep(f'likelihood residuals are {res.excess:.3g} times the noise model (limit '
+                    f'{MAX_RESIDUAL_EXCESS:g})')
     k = basis.shape[1]
     theta = basis @ res.beta
     cov6 = basis @ res.cov[:k, :k] @ basis.T
@@ -562,9 +568,6 @@ def _refine(first: InertiaEstimate, tg: np.ndarray, w: np.ndarray, ts: np.ndarra
     if not chk.valid:
         return keep('the refined tensor is not physical (' + '; '.join(chk.failures) + ')')
     info['refined'] = True
-    if res.excess > 1.5:
-        diag['warnings'].append(f'likelihood residuals are {res.excess:.3g} times the noise '
-                                'model: standard errors inflated accordingly')
     moments, axes = principal_with_std(I, cov6, diag)
     diag['physical'] = {'valid': True, 'projected': False}
     if res.bias is not None:

@@ -138,8 +138,16 @@ def integral_equations(tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.nd
     t = tg[idx]
     M = cumulative_monomials(tg, w, gyro_var)[idx]
     T = cumulative_torque(ts, tau, t, hold)
-    return Equations(variables(w[idx], M, t - t[0], T), t, breaks, 'anchored',
-                     eiv_var=gyro_var, weighted=gyro_var is not None)
+    V = variables(w[idx], M, t - t[0], T)
+    starts = np.flatnonzero(np.r_[True, breaks])
+    if len(starts) > 1:
+        # re-anchor the integrals at every forced segment start: nothing integrates across a
+        # gap (the trapezoid and the held torque over it are constants of the new segment,
+        # and a day-long gap would otherwise leave large offsets to cancel)
+        first = np.repeat(starts, np.diff(np.r_[starts, len(t)]))
+        V[:, 3:] -= V[first, 3:]
+    return Equations(V, t, breaks, 'anchored', eiv_var=gyro_var,
+                     weighted=gyro_var is not None)
 
 
 def sliding_equations(tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.ndarray,

@@ -38,6 +38,7 @@ from ..tensor import theta_to_matrix
 __all__ = ['MLRefinement', 'refine']
 
 _MAX_STEP_ANGLE = 0.02      # rad turned per RK4 substep, at most (as in crlb)
+_MAX_SUBSTEPS = 256         # RK4 substeps per torque interval: beyond, ml is not worth its cost
 _SIGMA_T_FLOOR = 1e-3       # torque-noise std floor, relative to the largest axis or torque rms
 
 
@@ -115,6 +116,10 @@ def _shoot(dyn: Dynamics, r0: np.ndarray, s: np.ndarray, T: np.ndarray, iiu: np.
             vmax = float(np.max(np.linalg.norm(w, axis=1))) + float(
                 np.max(np.linalg.norm(iiu, axis=1)) * np.max(h_tot))
             nsub = max(1, int(np.ceil(vmax * float(np.max(h_tot)) / _MAX_STEP_ANGLE)))
+            if nsub > _MAX_SUBSTEPS:      # bounded cost: the integral estimate stands
+                raise _PassError(f'the body turns {vmax * float(np.max(h_tot)):.3g} rad '
+                                 f'between samples ({nsub} RK4 substeps needed, at most '
+                                 f'{_MAX_SUBSTEPS})')
             w, Z = dyn.rk4(w, Z, iiu, h_tot / nsub, nsub)
         at = cg == k
         wg[at] = w[jg[at]]
