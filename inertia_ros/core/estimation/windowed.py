@@ -18,7 +18,6 @@ from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
-from inertia_ros.core.estimation.batch import estimate as batch_estimate
 from inertia_ros.core.estimation.options import HOLDS, METHODS, MODELS, TORQUE_BIAS, check_choice
 from inertia_ros.core.estimation.result import InertiaEstimate
 
@@ -133,4 +132,7 @@ class BatchWindow:
         t_end = max((b[0][-1] for b in self._g + self._q if len(b[0])), default=0.0)
         tg, w = self._trim(self._g, t_end - self.window)
         tq, q = self._trim(self._q, t_end - self.window)
+        # imported here: the node loads this module, and the batch estimator pulls in scipy
+        from inertia_ros.core.estimation.batch import estimate as batch_estimate
+
         return batch_estimate(tg, w, tq, q, **self.options)
