@@ -14,7 +14,7 @@ import numpy as np
 __all__ = ['as_float_array', 'as_mass', 'as_matrix33', 'as_noise_std', 'as_rotation',
            'as_sample_block', 'as_samples', 'as_times', 'as_unit_axis', 'as_vector3',
            'as_vectors', 'check_symmetric', 'max_asymmetry', 'refuse_nanoseconds',
-           'require_finite']
+           'require_finite', 'require_plausible']
 
 
 def as_float_array(x: Any, name: str) -> np.ndarray:
@@ -189,7 +189,25 @@ def as_samples(x: Any, n: int, name: str, tname: str) -> np.ndarray:
         raise ValueError(f'{name}: has {arr.shape[0]} rows but {tname} has {n} samples')
     if not np.all(np.isfinite(arr)):
         raise ValueError(f'{name}: contains NaN or inf')
+    require_plausible(arr, name)
     return arr
+
+
+#: Largest magnitude accepted in a sample (rad/s, N m): beyond it the squares and Gram sums of
+#: the estimators overflow, and no sensor reads that.
+MAX_SAMPLE_MAGNITUDE = 1e12
+
+
+def require_plausible(arr: np.ndarray, name: str) -> None:
+    """Raise ValueError (one line, naming the first offending sample) for values beyond
+    :data:`MAX_SAMPLE_MAGNITUDE` in magnitude, or so small that squaring them underflows."""
+    a = np.abs(arr)
+    bad = (a > MAX_SAMPLE_MAGNITUDE) | ((a > 0) & (a < 1e-150))
+    if np.any(bad):
+        k = int(np.argmax(np.any(bad, axis=-1))) if arr.ndim > 1 else int(np.argmax(bad))
+        raise ValueError(f'{name}: sample {k} holds {arr[k]!r}, outside the plausible range '
+                         f'(1e-150 to {MAX_SAMPLE_MAGNITUDE:g} in magnitude, or exactly 0); '
+                         'remove such samples or fix their units')
 
 
 def as_sample_block(t: Any, x: Any, name: str) -> tuple[np.ndarray, np.ndarray]:
@@ -211,6 +229,7 @@ def as_sample_block(t: Any, x: Any, name: str) -> tuple[np.ndarray, np.ndarray]:
                          f'{ta.shape} and {np.shape(x)}')
     if not (np.isfinite(ta).all() and np.isfinite(xa).all()):
         raise ValueError(f'{name}: contains NaN or inf')
+    require_plausible(xa, name)
     if len(ta) > 1 and (ta[1:] <= ta[:-1]).any():
         raise ValueError(f'{name}: times must be strictly increasing')
     return ta, xa
