@@ -194,6 +194,7 @@ def test_wheel_inertia_std_is_propagated() -> None:
     # all wheels scaled together scale the tensor: 2 % per wheel, about 2 %/sqrt(3)..2 % total
     assert np.all(b.theta_std > a.theta_std)
     np.testing.assert_allclose(np.sqrt(a.theta_std ** 2 + added ** 2), b.theta_std, rtol=1e-12)
+    np.testing.assert_allclose(np.sqrt(np.diag(b.covariance)), b.theta_std, rtol=1e-9)
     assert 0.005 < np.linalg.norm(added[:3]) / np.linalg.norm(a.theta[:3]) < 0.05
 
 

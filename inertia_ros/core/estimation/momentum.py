@@ -418,6 +418,7 @@ def _propagate(res: Any, tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.
     else:
         ref = res
     var6 = np.zeros(6)
+    outer = np.zeros((6, 6))
     var_m = np.zeros(3)
     var_r = np.zeros((3, 3))
     var_a = np.zeros(3)
@@ -429,6 +430,7 @@ def _propagate(res: Any, tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.
             continue
         d6 = np.nan_to_num(p.theta - ref.theta)
         var6 += d6 ** 2
+        outer += np.outer(d6, d6)
         per[name] = {'theta_change': d6}
         I0, I1 = ref.inertia, p.inertia
         if np.all(np.isfinite(I0)) and np.all(np.isfinite(I1)):
@@ -455,4 +457,6 @@ def _propagate(res: Any, tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.
     diag['wheel_inertia'] = {'inputs': per, 'theta_std_added': np.sqrt(var6),
                              'rule': 'one-sigma change of the estimate per input, added in '
                                      'quadrature'}
-    return replace(res, inertia_std=inertia_std, ratios_std=ratios_std, diagnostics=diag)
+    cov = None if res.covariance is None else np.asarray(res.covariance) + outer
+    return replace(res, inertia_std=inertia_std, ratios_std=ratios_std, covariance=cov,
+                   diagnostics=diag)
