@@ -23,6 +23,7 @@ setup(
         ('share/' + package_name + '/config',
          glob('config/*.yaml') + glob('config/*.rviz') + glob('config/*.json')),
         ('share/' + package_name + '/config/scenes', glob('config/scenes/*.yaml')),
+        ('share/' + package_name + '/config/wheels', glob('config/wheels/*.yaml')),
         ('share/' + package_name + '/bags', glob('bags/*.mcap') + glob('bags/*.yaml')),
     ],
     install_requires=['setuptools'],

@@ -28,6 +28,8 @@ BAGS = {
     'torque_free': 'torque-free tumble: only ratios and principal axes are observable',
     'single_axis': 'slews about z only: ixx, iyy, ixy are not identifiable',
     'disturbance': 'constant unmeasured disturbance torque: needs the torque-bias model',
+    'wheels': 'three reaction wheels, JointState speeds on /joint_states, no other torque '
+              '(estimate with --wheels bags/wheels_wheels.yaml)',
 }
 MAX_BYTES = 2 * 1024 * 1024
 
@@ -38,6 +40,9 @@ def make(name: str, out_dir: Path = ROOT / 'bags') -> Path:
     out_dir.mkdir(parents=True, exist_ok=True)
     scene_copy = out_dir / f'{name}.yaml'
     shutil.copyfile(src, scene_copy)
+    wheels_file = ROOT / 'config' / 'wheels' / f'{name}.yaml'
+    if wheels_file.is_file():
+        shutil.copyfile(wheels_file, out_dir / f'{name}_wheels.yaml')
     result = simulate(load_scene(scene_copy))
     path = out_dir / f'{name}.mcap'
     counts = write_simulation(path, result, overwrite=True)

@@ -280,6 +280,10 @@ def render_markdown(ctx: BenchContext) -> str:
     L = (_intro(ctx) + _headline(ctx, nominal) + _how_run(ctx) + _bound_section(ctx)
          + _speed_section(ctx) + _efficiency_section(ctx) + _stability_section(ctx)
          + _startup_section(ctx) + _advice(ctx, nominal))
+    # the hand-kept real-data section (scripts/tudelft_throw.py): the data may not be shipped
+    real = Path(__file__).resolve().parents[2] / 'docs' / 'real_data_tudelft.md'
+    if real.is_file():
+        L += ['', real.read_text(encoding='utf-8').rstrip('\n')]
     return '\n'.join(L) + '\n'
 
 

@@ -67,6 +67,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         f'{MAX_TORQUE_DELAY:g} (default 0)')
     p.add_argument('--ignore-frames', action='store_true',
                    help='accept different header.frame_id values on the two streams')
+    p.add_argument('--wheels', metavar='FILE', type=Path,
+                   help='wheels/flywheels YAML (joint, axis, inertia[, inertia_std] per wheel): '
+                        'their momentum from the JointState wheel speeds enters the momentum '
+                        'form; a torque topic, if any, adds the other known torque')
+    p.add_argument('--wheel-topic', metavar='T',
+                   help='sensor_msgs/JointState topic of the wheel speeds (velocity, rad/s); '
+                        'found by type when omitted')
     p.add_argument('--format', choices=('text', 'json'), default='text',
                    help='report format (default text)')
     p.add_argument('-o', '--output', metavar='FILE', type=Path,
@@ -157,9 +164,17 @@ def _read(args: argparse.Namespace, progress: _Progress) -> Any:
     from inertia_ros.io.logs import LogError, read_log
 
     try:
-        return read_log(args.path, args.omega_topic, args.torque_topic,
-                        ignore_frames=args.ignore_frames, torque_delay=args.torque_delay,
-                        progress=progress)
+        torque_topic = args.torque_topic
+        if args.wheels is not None and torque_topic is None and not _has_torque_topic(args.path):
+            torque_topic = 'none'       # wheels only: no other known torque
+        log = read_log(args.path, args.omega_topic, torque_topic,
+                       ignore_frames=args.ignore_frames, torque_delay=args.torque_delay,
+                       progress=progress)
+        js = sorted(t for t, ty in log.topics.items() if ty == 'sensor_msgs/msg/JointState')
+        if args.wheels is None and js:
+            log.warnings.append(f'{", ".join(js)}: JointState in the log; if it carries '
+                                'wheel speeds, pass --wheels WHEELS.yaml to use them')
+        return log
     except LogError as exc:
         raise UserError(str(exc)) from None
     except ValueError as exc:
@@ -186,9 +201,52 @@ def _estimate(args: argparse.Namespace, log: Any) -> Any:
     """Run the estimator on the log's streams with the command's options."""
     from inertia_ros.core.estimation import estimate
 
+    if args.wheels is not None:
+        return _estimate_wheels(args, log)
     try:
         return estimate(log.omega.t, log.omega.values, log.torque.t, log.torque.values,
                         **_estimator_options(args))
+    except ValueError as exc:
+        raise UserError(f'{args.path}: cannot estimate: {_first_line(exc)}') from None
+
+
+def _has_torque_topic(path: Any) -> bool:
+    """True when the log has a topic of a torque type."""
+    from inertia_ros.io.logs import TORQUE_TYPES, log_files
+    from inertia_ros.io.mcap_reader import McapReader
+    from inertia_ros.io.msgtypes import normalise_type
+
+    for f in log_files(path):
+        with McapReader(f) as r:
+            for ch in r.channels.values():
+                sc = r.schemas.get(ch.schema_id)
+                if sc is not None and normalise_type(sc.name) in TORQUE_TYPES:
+                    return True
+    return False
+
+
+def _estimate_wheels(args: argparse.Namespace, log: Any) -> Any:
+    """``--wheels``: the wheels' momentum from the JointState topic enters the momentum form
+    (:func:`inertia_ros.core.estimation.momentum.estimate_with_momentum`)."""
+    from inertia_ros.core.estimation.momentum import estimate_with_momentum, wheels_momentum
+    from inertia_ros.io.joint_state import read_wheel_speeds
+    from inertia_ros.io.logs import LogError
+    from inertia_ros.io.wheels import load_wheels
+
+    try:
+        wheels = load_wheels(args.wheels)
+        topic, t_ns, speed = read_wheel_speeds(args.path, [w.joint for w in wheels],
+                                               args.wheel_topic)
+    except (LogError, ValueError) as exc:
+        raise UserError(_first_line(exc)) from None
+    log.warnings[:] = [w for w in log.warnings if 'torque-free data' not in w]
+    args.wheel_info = {'file': str(args.wheels), 'topic': topic, 'samples': int(len(t_ns)),
+                       'joints': [w.joint for w in wheels]}
+    try:
+        return estimate_with_momentum(
+            log.omega.t, log.omega.values, log.torque.t, log.torque.values,
+            wheels_momentum((t_ns - log.epoch_ns) * 1e-9, speed, wheels),
+            **_estimator_options(args))
     except ValueError as exc:
         raise UserError(f'{args.path}: cannot estimate: {_first_line(exc)}') from None
 
@@ -230,6 +288,9 @@ def _run(args: argparse.Namespace) -> int:
     from inertia_ros.cli.report import build_report, format_text, numerical_warnings
 
     _check_outputs(args)
+    if args.wheels is not None and args.plot is not None:
+        raise UserError('--plot: not drawn for --wheels logs yet (its convergence curve '
+                        'refits with torque only); drop one of them')
     if args.model == 'axisymmetric' and args.symmetry_axis is None:
         raise UserError('--model axisymmetric needs --symmetry-axis x|y|z')
     progress = _Progress(sys.stderr.isatty() and not args.no_progress)
@@ -249,6 +310,8 @@ def _run(args: argparse.Namespace) -> int:
         hint = f' ({found[0]})' if found else ''
         raise UserError(f'{failure}{hint}') from None
     report = build_report(est, log, args.torque_delay, args.hold, list(found))
+    if getattr(args, 'wheel_info', None):
+        report['diagnostics']['wheels'] = args.wheel_info
     try:
         text = (json.dumps(report, indent=2, allow_nan=False) + '\n' if args.format == 'json'
                 else format_text(report))

@@ -543,7 +543,7 @@ class InertiaChange:
 
 _TOP_KEYS = ('name', 'description', 'seed', 'duration', 'body', 'initial_omega', 'torque',
              'disturbance', 'command_rate', 'gyro', 'torque_sensor', 'imperfections',
-             'inertia_change')
+             'inertia_change', 'wheels')
 
 
 @dataclass(frozen=True, eq=False)
@@ -601,6 +601,8 @@ class Scene:
     com: np.ndarray | None = None
     description: str = ''
     source: Mapping[str, Any] = field(default_factory=dict, repr=False)
+    #: The ``wheels`` section (:class:`inertia_ros.core.wheel_sim.WheelScene`), or None.
+    wheels: Any = None
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any]) -> Scene:
@@ -649,7 +651,11 @@ class Scene:
                              f'{n_events:.3g} samples, more than the simulator allows '
                              f'({MAX_EVENTS:.0e}); shorten the run or lower the rates')
         change = _inertia_change(d.get('inertia_change'), duration)
-        return cls(name=name, seed=seed, duration=duration, inertia=inertia,
+        wheels = None
+        if d.get('wheels') is not None:
+            from inertia_ros.core.wheel_sim import parse_wheels
+            wheels = parse_wheels(d['wheels'])
+        return cls(wheels=wheels, name=name, seed=seed, duration=duration, inertia=inertia,
                    initial_omega=omega0, torque=torque, disturbance=disturbance,
                    command_rate=command_rate, gyro=gyro, torque_sensor=torque_sensor,
                    imperfections=imperfections, inertia_change=change, parts=parts,

@@ -93,6 +93,12 @@ class SimResult:
     frame_id: str
     scene: Scene
     seed: int
+    #: JointState stamps [s] (K,) of a scene with wheels, else None.
+    t_wheel: np.ndarray | None = None
+    #: Measured wheel speeds [rad/s] (K, n_wheels), columns in the scene's wheel order.
+    wheel_speed: np.ndarray | None = None
+    #: True wheel speeds [rad/s] (K, n_wheels).
+    wheel_speed_true: np.ndarray | None = None
 
 
 def _n_samples(duration: float, rate: float) -> int:
@@ -316,7 +322,7 @@ def simulate(scene: Scene, seed: int | None = None) -> SimResult:
         after = seg_start >= scene.inertia_change.time - _EVENT_TOL
         inertia_seg[after] = scene.inertia_change.inertia
         changes = ((scene.inertia_change.time, np.array(scene.inertia_change.inertia)),)
-    w_ev, q_ev = integrate_rigid_body(t_ev, applied, inertia_seg, scene.initial_omega)
+    w_ev, q_ev = _integrate(scene, t_ev, applied, inertia_seg)
     pick = np.clip(np.searchsorted(t_ev, t_g - _EVENT_TOL), 0, t_ev.size - 1)
     omega_true = w_ev[pick]
     attitude = q_ev[pick][:, [1, 2, 3, 0]]
@@ -340,12 +346,33 @@ def simulate(scene: Scene, seed: int | None = None) -> SimResult:
 
     stamp_g, stamp_t, keep_g, keep_t = _imperfections(scene, t_g, t_s, r_gjit, r_tjit,
                                                       r_gdrop, r_tdrop)
-    return SimResult(
+    return SimResult(**_wheel_result(scene, int(seed)),
         t_gyro=stamp_g[keep_g], omega=omega[keep_g], omega_true=omega_true[keep_g],
         attitude_true=attitude[keep_g], t_torque=stamp_t[keep_t], torque=torque[keep_t],
         torque_command=torque_command[keep_t], inertia=np.array(scene.inertia),
         inertia_changes=changes, torque_bias_true=np.array(scene.disturbance),
         frame_id=scene.gyro.frame_id, scene=scene, seed=int(seed))
+
+
+def _integrate(scene: Scene, t_ev: np.ndarray, applied: np.ndarray,
+               inertia_seg: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Body rates and attitude at the events: with the scene's wheels when it has any."""
+    if scene.wheels is not None:
+        from inertia_ros.core.wheel_sim import integrate_with_wheels
+        return integrate_with_wheels(t_ev, applied, inertia_seg, scene.initial_omega,
+                                     scene.wheels)
+    return integrate_rigid_body(t_ev, applied, inertia_seg, scene.initial_omega)
+
+
+def _wheel_result(scene: Scene, seed: int) -> dict[str, np.ndarray]:
+    """The JointState stream of a scene with wheels (``{}`` without): its own generator, so
+    a scene without wheels draws exactly as before."""
+    if scene.wheels is None:
+        return {}
+    from inertia_ros.core.wheel_sim import wheel_streams
+    t_wh, sp, sp_true = wheel_streams(scene.wheels, scene.duration,
+                                      np.random.default_rng([seed, 0x77686565]))
+    return {'t_wheel': t_wh, 'wheel_speed': sp, 'wheel_speed_true': sp_true}
 
 
 def _imperfections(scene: Scene, t_g: np.ndarray, t_s: np.ndarray, r_gjit: np.random.Generator,

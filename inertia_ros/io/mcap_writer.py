@@ -367,8 +367,12 @@ def write_simulation(path: str | os.PathLike[str], result: SimResult, *,
                      imu_topic: str = '/imu', torque_topic: str = '/torque',
                      truth_topic: str = '/truth/inertia', compression: str = 'zstd',
                      extra_metadata: Mapping[str, str] | None = None,
-                     rosbag2_dir: bool = False) -> dict[str, int]:
+                     rosbag2_dir: bool = False,
+                     wheel_topic: str = '/joint_states') -> dict[str, int]:
     """Write a simulation result as a rosbag2-compatible MCAP log.
+
+    A scene with wheels also gets ``wheel_topic`` (``sensor_msgs/msg/JointState``: the wheel
+    speeds as ``velocity`` [rad/s], joints named as in the scene).
 
     Parameters
     ----------
@@ -431,6 +435,7 @@ def write_simulation(path: str | os.PathLike[str], result: SimResult, *,
     if extra_metadata:
         meta.update({str(k): str(v) for k, v in extra_metadata.items()})
     out = Path(path)
+    counts_extra: dict[str, int] = {}
     tmp = _bag_dir_begin(out) if rosbag2_dir else None
     try:
         with McapWriter(out if tmp is None else tmp / f'{out.name}_0.mcap',
@@ -445,6 +450,13 @@ def write_simulation(path: str | os.PathLike[str], result: SimResult, *,
                 t_t, result.torque, frame))
             w.write_many(truth_topic, t_i, cdr_encode.encode_inertia_stamped(
                 t_i, truth_i, frame, mass=np.array(truth_m), com=np.array(truth_c)))
+            if result.t_wheel is not None and scene.wheels is not None:
+                from .joint_state import JOINT_STATE, encode_joint_state
+                t_w = seconds_to_ns(result.t_wheel, start_ns)
+                w.add_topic(wheel_topic, JOINT_STATE, qos='sensor_data')
+                w.write_many(wheel_topic, t_w, encode_joint_state(
+                    t_w, [wh.joint for wh in scene.wheels.wheels], result.wheel_speed))
+                counts_extra[wheel_topic] = int(t_w.size)
             w.add_metadata('inertia_ros.scene', meta)
         if tmp is not None:
             assert w.bag_metadata is not None
@@ -453,7 +465,8 @@ def write_simulation(path: str | os.PathLike[str], result: SimResult, *,
         if tmp is not None:
             shutil.rmtree(tmp, ignore_errors=True)
         raise
-    return {imu_topic: int(t_g.size), torque_topic: int(t_t.size), truth_topic: int(t_i.size)}
+    return {imu_topic: int(t_g.size), torque_topic: int(t_t.size), truth_topic: int(t_i.size),
+            **counts_extra}
 
 
 def _bag_dir_begin(out: Path) -> Path:

@@ -72,6 +72,12 @@ MSG_FIELDS: dict[str, str] = {
         'float64 iyy\n'
         'float64 iyz\n'
         'float64 izz\n'),
+    'sensor_msgs/JointState': (
+        'std_msgs/Header header\n'
+        'string[] name\n'
+        'float64[] position\n'
+        'float64[] velocity\n'
+        'float64[] effort\n'),
     'geometry_msgs/Vector3': (
         'float64 x\n'
         'float64 y\n'

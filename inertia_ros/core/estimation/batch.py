@@ -200,7 +200,8 @@ def _estimate_direct(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray,
                      tau: np.ndarray, hold: str, gyro_noise: Any, torque_noise: Any,
                      segment: float | None, window: float | None, model: str,
                      torque_bias: str, axis: np.ndarray | None, policy: SelectionPolicy,
-                     selection: dict[str, Any] | None) -> InertiaEstimate:
+                     selection: dict[str, Any] | None,
+                     white_y_cov: np.ndarray | None = None) -> InertiaEstimate:
     """Every method but ``ml``: noise levels, then :func:`_estimate_shifted` from ``t = 0``."""
     # work relative to the first stamp: ROS times are ~1.7e9 s, and prefix sums of absolute
     # times would lose the sub-millisecond differences everything depends on
@@ -218,7 +219,7 @@ def _estimate_direct(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray,
     def run(h: str, d: dict[str, Any]) -> InertiaEstimate:
         return _estimate_shifted(method, tg - t_origin, w, ts - t_origin, tau, h,
                                  gyro_std ** 2, torque_std ** 2, segment, window, model,
-                                 torque_bias, axis, policy, d)
+                                 torque_bias, axis, policy, d, white_y_cov)
     if hold != 'auto':
         return run(hold, diag)
     return _auto_hold(run, diag, torque_std)
@@ -315,7 +316,8 @@ def _estimate_shifted(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray
                       tau: np.ndarray, hold: str, gyro_var: np.ndarray, torque_var: np.ndarray,
                       segment: float | None, window: float | None, model: str,
                       torque_bias: str, axis: np.ndarray | None, policy: SelectionPolicy,
-                      diag: dict[str, Any]) -> InertiaEstimate:
+                      diag: dict[str, Any],
+                      white_y_cov: np.ndarray | None = None) -> InertiaEstimate:
     """Every method but ``ml`` on validated, origin-shifted data: coverage, rules, fit."""
     mask, tau_end = _coverage(tg, ts, hold, diag)
     used = int(np.sum(mask))
@@ -335,6 +337,7 @@ def _estimate_shifted(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray
     eq = build_equations(method, tg, w, ts, tau, mask, breaks, hold, gyro_var, window)
     wm = w[mask]
     eq.motion = (wm.T @ wm / len(wm), med_g)          # gyroscopic noise walk (fit meat)
+    eq.white_y_cov = white_y_cov                      # a momentum input's wheel noise
     diag.update(eq.info)
     early = _equation_rules(eq, method, diag, base)
     if early is not None:

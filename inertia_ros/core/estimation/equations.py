@@ -52,6 +52,9 @@ class Equations:
     motion : tuple of (ndarray (3, 3), float), optional
         Second moment ``mean(w w')`` of the used gyro samples [rad^2/s^2] and their median
         interval [s]: how much gyro noise the gyroscopic term carries into the equations.
+    white_y_cov : ndarray, shape (3, 3), optional
+        White noise in ``y`` besides the gyro's [N^2 m^2 s^2] (a momentum input's wheel-speed
+        noise, :mod:`.momentum`).
     """
 
     V: np.ndarray
@@ -64,6 +67,7 @@ class Equations:
     info: dict[str, Any] = field(default_factory=dict)
     raw: dict[str, Any] | None = None
     motion: tuple[np.ndarray, float] | None = None
+    white_y_cov: np.ndarray | None = None
 
     def head(self, n: int) -> Equations:
         """The first ``n`` equations (without the cached statistics)."""
@@ -73,7 +77,8 @@ class Equations:
         """Equations ``a:b`` as their own set (a copy, without the cached statistics)."""
         return Equations(self.V[a:b].copy(), self.t[a:b], self.breaks[a:max(b - 1, a)],
                          self.kind, self.hac_lag, self.eiv_var, self.weighted,
-                         {} if info is None else info, motion=self.motion)
+                         {} if info is None else info, motion=self.motion,
+                         white_y_cov=self.white_y_cov)
 
     @property
     def A(self) -> np.ndarray:

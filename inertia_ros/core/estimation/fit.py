@@ -72,6 +72,8 @@ def _anchored_meat(st: SufficientStats, T: np.ndarray, p: int, W: np.ndarray, G:
     """Middle of the sandwich and the residual excess under the anchored noise model."""
     Im = theta_to_matrix(theta)
     S = Im @ np.diag(gyro_var) @ Im                           # white part of e_b
+    if st.white_y_cov is not None:                            # + a momentum input's noise
+        S = S + st.white_y_cov
     meat = (T.T @ metric(st.C, W @ S @ W) @ T)[:p, :p]
     # the integrated torque noise and the gyro noise the gyroscopic term integrates: both
     # random walks held over the torque intervals (see noise.gyroscopic_walk_cov)
@@ -171,12 +173,16 @@ def fit_weighted(st: SufficientStats, basis: np.ndarray, bias: bool, W: np.ndarr
                H_full=H_full)
 
 
-def equation_weight(theta: np.ndarray, gyro_var: np.ndarray) -> np.ndarray:
-    """Equation weight ``(I S_g I)^-1`` (3, 3), scaled to max 1, from a first-pass ``theta``."""
+def equation_weight(theta: np.ndarray, gyro_var: np.ndarray,
+                    white_y_cov: np.ndarray | None = None) -> np.ndarray:
+    """Equation weight ``(I S_g I)^-1`` (3, 3), scaled to max 1, from a first-pass ``theta``
+    (``(I S_g I + white_y_cov)^-1`` with other white noise in ``y``)."""
     Im = theta_to_matrix(theta)
     if not check_physical(Im).valid:
         Im = nearest_physical(Im, min_moment=1e-3 * max(float(np.sum(np.abs(Im))), 1e-30))
     S = Im @ np.diag(gyro_var) @ Im
+    if white_y_cov is not None:
+        S = S + white_y_cov
     W = np.linalg.inv(S)
     return 0.5 * (W + W.T) / np.max(np.abs(W))
 
@@ -192,12 +198,14 @@ def fit_two_pass(st: SufficientStats, basis: np.ndarray, bias: bool, gyro_var: n
     """
     if theta0 is not None and st.weighted and np.all(gyro_var > 0) \
             and np.all(np.isfinite(theta0)) and np.any(theta0[:3] != 0):
-        return fit_weighted(st, basis, bias, equation_weight(theta0, gyro_var), gyro_var,
+        return fit_weighted(st, basis, bias,
+                            equation_weight(theta0, gyro_var, st.white_y_cov), gyro_var,
                             torque_var, st.weighted, offset)
     f = fit_weighted(st, basis, bias, np.eye(3), gyro_var, torque_var, st.weighted, offset)
     if st.weighted and np.all(gyro_var > 0):
         theta = basis @ f.beta[:basis.shape[1]] + (0.0 if offset is None else offset)
         if np.all(np.isfinite(theta)) and np.any(theta[:3] != 0):
-            f = fit_weighted(st, basis, bias, equation_weight(theta, gyro_var), gyro_var,
+            f = fit_weighted(st, basis, bias,
+                             equation_weight(theta, gyro_var, st.white_y_cov), gyro_var,
                              torque_var, st.weighted, offset)
     return f

@@ -55,6 +55,8 @@ class SufficientStats:
         ``mean(w w')`` of the gyro samples [rad^2/s^2] (the gyroscopic noise walk).
     gyro_dt : float
         Median gyro sample interval [s].
+    white_y_cov : ndarray, shape (3, 3), optional
+        White noise in ``y`` besides the gyro's (:attr:`.equations.Equations.white_y_cov`).
     """
 
     C: np.ndarray
@@ -71,6 +73,7 @@ class SufficientStats:
     torque_dt: float = 0.0
     omega_m2: np.ndarray | None = None
     gyro_dt: float = 0.0
+    white_y_cov: np.ndarray | None = None
 
 
 def range_sums(V: np.ndarray, bounds: np.ndarray) -> np.ndarray:
@@ -187,4 +190,4 @@ def sufficient_stats(eq: Equations, segment: float | None, t_tau: np.ndarray, ta
     m2, gdt = eq.motion if eq.motion is not None else (None, 0.0)
     return SufficientStats(C, CP, n, n - len(starts), len(starts), eq.kind, eq.eiv_var,
                            eq.weighted, eq.hac_lag, None, walk_time=float(np.sum(ns * dur)) / 6.0,
-                           torque_dt=tdt, omega_m2=m2, gyro_dt=gdt)
+                           torque_dt=tdt, omega_m2=m2, gyro_dt=gdt, white_y_cov=eq.white_y_cov)

@@ -1,0 +1,462 @@
+"""Wheel and flywheel momentum as an input: the momentum form with internal angular momentum.
+
+A body carrying wheels (reaction wheels, flywheels) that spin at speed ``w_k`` about the unit
+axes ``a_k`` (body frame) with spin inertia ``J_k`` holds the internal angular momentum
+``h = sum_k J_k w_k a_k`` [N m s] (body axes, relative to the body).  Euler's equation becomes
+``tau_ext = d/dt (I w + h) + w x (I w + h)`` with ``I`` the tensor of the whole body, wheels
+included.  Integrated from the anchor ``t0`` of a segment,
+
+``I w_b + int w x (I w) dt - I w_0 = int tau_ext dt - (h(t_b) - h(t_0)) - int w x h dt``,
+
+so the wheel momentum only changes the right-hand side ``y`` of the anchored equations:
+nothing is differentiated, and ``h(t_0)`` joins the segment intercept.
+
+The wheel input is turned into the exactly equivalent piecewise-constant torque on the union
+grid of gyro and wheel stamps (:func:`equivalent_torque`): its zero-order-hold integral at
+every grid time equals the right-hand side above (``h`` linear between wheel samples, the
+``w x h`` integral by the trapezoid rule on the union grid), so every estimator of
+:mod:`.batch` uses it unchanged.  The noise model gains three terms: the wheel-speed noise
+enters ``y`` as white noise (``white_y_cov``, estimated from the speeds' high-order
+differences, scaled by the gyro samples per wheel sample that share it), and the gyro noise
+``n x h`` and the wheel noise ``w x e`` in the ``w x h`` integral as white torque noise
+(the anchored model's torque random walk).
+
+The uncertainty of the wheel inertias ``J_k`` (an input, like a scale factor) is propagated
+by the sensitivity of the estimate to each ``J_k``: the estimate is repeated with ``J_k``
+moved by one sigma (the same method, model, bias, noise levels and segments), and the change
+of every reported quantity is added in quadrature to its standard error
+(``diagnostics['wheel_inertia']``).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+
+from ..tensor import principal_axes, theta_to_matrix
+from .options import ALPHA, IDENTIFIABILITY_TOL
+
+__all__ = ['Momentum', 'Wheel', 'as_momentum', 'equivalent_torque', 'estimate_with_momentum',
+           'wheel_momentum', 'wheels_momentum']
+
+
+@dataclass(frozen=True)
+class Wheel:
+    """One wheel or flywheel.
+
+    Attributes
+    ----------
+    joint : str
+        Joint name (``sensor_msgs/JointState.name``).
+    axis : ndarray, shape (3,)
+        Unit spin axis in the gyro (body) frame; positive speed spins about ``+axis``.
+    inertia : float
+        Spin inertia about the axis [kg m^2], > 0.
+    inertia_std : float
+        One-sigma uncertainty of ``inertia`` [kg m^2], >= 0.
+    """
+
+    joint: str
+    axis: np.ndarray
+    inertia: float
+    inertia_std: float = 0.0
+
+    def __post_init__(self) -> None:
+        """Validate: a named joint, a finite non-zero axis (normalised), J > 0, std >= 0."""
+        if not isinstance(self.joint, str) or not self.joint:
+            raise ValueError(f'joint: must be a non-empty name, got {self.joint!r}')
+        a = np.asarray(self.axis, dtype=float)
+        if a.shape != (3,) or not np.all(np.isfinite(a)) or not np.linalg.norm(a) > 0:
+            raise ValueError(f'wheel {self.joint}: axis must be 3 finite numbers, not all '
+                             f'zero, got {self.axis!r}')
+        a = a / np.linalg.norm(a)
+        a.setflags(write=False)
+        object.__setattr__(self, 'axis', a)
+        if not (np.isfinite(self.inertia) and self.inertia > 0):
+            raise ValueError(f'wheel {self.joint}: inertia must be > 0 kg m^2, got '
+                             f'{self.inertia!r}')
+        if not (np.isfinite(self.inertia_std) and self.inertia_std >= 0):
+            raise ValueError(f'wheel {self.joint}: inertia_std must be >= 0 kg m^2, got '
+                             f'{self.inertia_std!r}')
+        object.__setattr__(self, 'inertia', float(self.inertia))
+        object.__setattr__(self, 'inertia_std', float(self.inertia_std))
+
+
+@dataclass(frozen=True)
+class Momentum:
+    """Sampled internal angular momentum with its input uncertainties.
+
+    Attributes
+    ----------
+    t : ndarray, shape (K,)
+        Strictly increasing sample times [s] (the gyro's clock).
+    h : ndarray, shape (K, 3)
+        Internal angular momentum in body axes [N m s].
+    h_std : ndarray, shape (P, K, 3)
+        One-sigma changes of ``h`` from ``P`` independent uncertain inputs (e.g. each wheel's
+        inertia), [N m s]; ``P = 0`` when there are none.
+    names : tuple of str
+        Name of each uncertain input (length P).
+    noise_cov : ndarray, shape (3, 3), optional
+        Covariance of the white measurement noise of ``h`` [N^2 m^2 s^2]; estimated from the
+        samples (high-order differences) when None.
+    """
+
+    t: np.ndarray
+    h: np.ndarray
+    h_std: np.ndarray
+    names: tuple[str, ...] = ()
+    noise_cov: np.ndarray | None = None
+
+
+def wheel_momentum(wheels: list[Wheel], speed: Any) -> np.ndarray:
+    """Internal momentum ``h = sum_k J_k w_k a_k`` of the wheels.
+
+    Parameters
+    ----------
+    wheels : list of Wheel
+        The wheels, in the column order of ``speed``.
+    speed : array_like, shape (K, n_wheels)
+        Wheel speeds relative to the body [rad/s].
+
+    Returns
+    -------
+    ndarray, shape (K, 3)
+        [N m s], body axes.
+    """
+    s = np.asarray(speed, dtype=float)
+    if s.ndim != 2 or s.shape[1] != len(wheels):
+        raise ValueError(f'speed: expected shape (K, {len(wheels)}), got {s.shape}')
+    coef = np.array([wh.inertia * wh.axis for wh in wheels]).reshape(len(wheels), 3)
+    return s @ coef
+
+
+def wheels_momentum(t: Any, speed: Any, wheels: list[Wheel]) -> Momentum:
+    """:class:`Momentum` of sampled wheel speeds, with one uncertain input per wheel whose
+    ``inertia_std`` is positive (named ``inertia:<joint>``).
+
+    Parameters
+    ----------
+    t : array_like, shape (K,)
+        Sample times [s].
+    speed : array_like, shape (K, n_wheels)
+        Wheel speeds [rad/s], columns in the order of ``wheels``.
+    wheels : list of Wheel
+    """
+    s = np.asarray(speed, dtype=float)
+    h = wheel_momentum(wheels, s)
+    pert, names = [], []
+    for k, wh in enumerate(wheels):
+        if wh.inertia_std > 0:
+            pert.append(np.outer(s[:, k], wh.inertia_std * wh.axis))
+            names.append(f'inertia:{wh.joint}')
+    h_std = np.array(pert) if pert else np.zeros((0, len(h), 3))
+    from .noise import noise_std_from_differences
+
+    sd = noise_std_from_differences(s)                 # per wheel [rad/s]
+    cov = sum(((wh.inertia * sd[k]) ** 2) * np.outer(wh.axis, wh.axis)
+              for k, wh in enumerate(wheels))
+    return as_momentum(Momentum(np.asarray(t, dtype=float), h, h_std, tuple(names),
+                                np.asarray(cov, dtype=float).reshape(3, 3)))
+
+
+def as_momentum(momentum: Any) -> Momentum:
+    """Validate a :class:`Momentum` or a ``(t (K,), h (K, 3))`` pair.
+
+    Raises
+    ------
+    ValueError
+        Wrong shapes, non-finite values, fewer than 2 samples, times not strictly increasing.
+    """
+    cov = None
+    if isinstance(momentum, Momentum):
+        t, h, h_std, names = momentum.t, momentum.h, momentum.h_std, momentum.names
+        cov = momentum.noise_cov
+    else:
+        try:
+            t, h = momentum
+        except (TypeError, ValueError):
+            raise ValueError('momentum: expected (t (K,), h (K, 3)) or a Momentum') from None
+        h_std, names = None, ()
+    t = np.asarray(t, dtype=float).reshape(-1)
+    h = np.asarray(h, dtype=float)
+    if h.shape != (len(t), 3):
+        raise ValueError(f'momentum: h must have shape ({len(t)}, 3) for {len(t)} times, '
+                         f'got {h.shape}')
+    if len(t) < 2:
+        raise ValueError(f'momentum: {len(t)} sample(s); at least 2 are needed')
+    if not (np.all(np.isfinite(t)) and np.all(np.isfinite(h))):
+        raise ValueError('momentum: times and momentum must be finite (NaN/inf found)')
+    if np.any(np.diff(t) <= 0):
+        raise ValueError('momentum: times must be strictly increasing')
+    h_std = np.zeros((0, len(t), 3)) if h_std is None else np.asarray(h_std, dtype=float)
+    if h_std.ndim != 3 or h_std.shape[1:] != (len(t), 3) or len(names) != len(h_std):
+        raise ValueError(f'momentum: h_std must have shape (P, {len(t)}, 3) with P names')
+    if cov is None:
+        from .noise import noise_std_from_differences
+
+        cov = np.diag(noise_std_from_differences(h) ** 2)
+    cov = np.asarray(cov, dtype=float)
+    if cov.shape != (3, 3) or not np.all(np.isfinite(cov)):
+        raise ValueError(f'momentum: noise_cov must be a finite (3, 3) matrix, got {cov.shape}')
+    return Momentum(t, h, h_std, tuple(names), cov)
+
+
+def equivalent_torque(tg: np.ndarray, w: np.ndarray, t_h: np.ndarray, h: np.ndarray,
+                      ts: np.ndarray, tau: np.ndarray, hold: str
+                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Piecewise-constant torque whose held integral is ``int tau - dh - int w x h``.
+
+    Parameters
+    ----------
+    tg, w : ndarray, shape (N,), (N, 3)
+        Gyro times [s] and angular velocity [rad/s].
+    t_h, h : ndarray, shape (K,), (K, 3)
+        Momentum times [s] and internal momentum [N m s].
+    ts, tau : ndarray, shape (M,), (M, 3)
+        Other known torque (M = 0: none) [s], [N m].
+    hold : {'zoh', 'linear'}
+        Hold of ``tau`` between its samples.
+
+    Returns
+    -------
+    grid : ndarray, shape (G,)
+        Union of the gyro and momentum stamps inside the common coverage [s].
+    torque : ndarray, shape (G, 3)
+        Torque held over ``[grid[i], grid[i+1])`` [N m]: at every grid time its integral from
+        ``grid[0]`` equals ``int tau dt - (h - h(grid[0])) - int w x h dt`` (trapezoid on the
+        grid for ``w x h``; ``h`` and ``w`` linear between their samples).
+    inside : ndarray of bool, shape (N,)
+        Gyro samples inside the coverage.
+    """
+    lo, hi = max(tg[0], t_h[0]), min(tg[-1], t_h[-1])
+    if len(ts):
+        lo = max(lo, ts[0])
+        end = ts[-1] + (float(np.median(np.diff(ts))) if hold == 'zoh' else 0.0)
+        hi = min(hi, end)
+    inside = (tg >= lo) & (tg <= hi)
+    grid = np.union1d(tg[inside], t_h[(t_h >= lo) & (t_h <= hi)])
+    if len(grid) < 2:
+        return grid, np.zeros((len(grid), 3)), inside
+    hg = _interp_h(t_h, h, grid)
+    wg = np.column_stack([np.interp(grid, tg, w[:, c]) for c in range(3)])
+    c = np.cross(wg, hg)
+    dt = np.diff(grid)[:, None]
+    out = np.empty((len(grid), 3))
+    out[:-1] = -np.diff(hg, axis=0) / dt - 0.5 * (c[1:] + c[:-1])
+    if len(ts):
+        if hold == 'zoh':
+            j = np.clip(np.searchsorted(ts, grid[:-1], side='right') - 1, 0, len(ts) - 1)
+            out[:-1] += tau[j]
+        else:
+            tq = np.column_stack([np.interp(grid, ts, tau[:, k]) for k in range(3)])
+            out[:-1] += 0.5 * (tq[1:] + tq[:-1])
+    out[-1] = out[-2]
+    return grid, out, inside
+
+
+def _interp_h(t_h: np.ndarray, h: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """``h`` at ``t`` by cubic Hermite interpolation (slopes by ``np.gradient``).
+
+    Linear interpolation would leave an error ``h'' dt^2 / 8`` between wheel samples that is
+    coherent over the record (a bias of the tensor at 1e-5 relative for a 100 Hz JointState).
+    """
+    if len(t_h) < 3:
+        return np.column_stack([np.interp(t, t_h, h[:, c]) for c in range(3)])
+    from scipy.interpolate import CubicHermiteSpline  # lazily: the online path needs numpy only
+
+    return CubicHermiteSpline(t_h, h, np.gradient(h, t_h, axis=0), axis=0,
+                              extrapolate=False)(t)
+
+
+def _cross_matrices(v: np.ndarray) -> np.ndarray:
+    """``[v]x`` (n, 3, 3) with ``[v]x u = v x u`` for each row of ``v`` (n, 3)."""
+    out = np.zeros((len(v), 3, 3))
+    out[:, 0, 1], out[:, 0, 2], out[:, 1, 2] = -v[:, 2], v[:, 1], -v[:, 0]
+    return out - out.transpose(0, 2, 1)
+
+
+def _noise_terms(tg: np.ndarray, w: np.ndarray, inside: np.ndarray, grid: np.ndarray,
+                 mom: Momentum, ts: np.ndarray, tau: np.ndarray,
+                 options: dict[str, Any]) -> tuple[np.ndarray, float]:
+    """Torque-noise std (3,) [N m] of the equivalent torque and the wheel-noise share.
+
+    Sets ``options['white_y_cov']`` (the wheel-speed noise in ``y``).  Returns the other
+    torque's noise (scaled to the grid) with the white torque noises of the ``w x h``
+    integral added, and how many gyro samples share one wheel sample.
+    """
+    from .noise import isotropy_floor, noise_std_from_differences
+
+    tn = options.pop('torque_noise', None)
+    if tn is None:
+        tn = noise_std_from_differences(tau) if len(ts) > 2 else np.zeros(3)
+    tn = np.broadcast_to(np.asarray(tn, dtype=float), (3,))
+    if len(ts) > 1:
+        # white torque noise held over the torque's own interval: the same random walk when
+        # held over the (finer) grid intervals needs the std scaled by sqrt(ratio)
+        tn = tn * np.sqrt(float(np.median(np.diff(ts))) / float(np.median(np.diff(grid))))
+    # a wheel sample's noise is shared by the gyro equations around it (interpolated): for
+    # the covariance of the fit that is white noise of about that many times the variance
+    share = max(1.0, float(np.median(np.diff(mom.t))) / float(np.median(np.diff(tg))))
+    options['white_y_cov'] = mom.noise_cov * share
+    # the gyro noise n in the w x h integral is a white torque noise n x h held over each
+    # grid interval (the torque-noise random walk of the anchored model); so is the wheel
+    # noise e in it, w x e (times the gyro samples sharing one wheel sample)
+    gn = options.get('gyro_noise')
+    g_std = (isotropy_floor(noise_std_from_differences(w[inside])) if gn is None
+             else np.broadcast_to(np.asarray(gn, dtype=float), (3,)))
+    hx = _cross_matrices(_interp_h(mom.t, mom.h, grid))
+    walk = np.mean(np.einsum('nij,j,nij->ni', hx, g_std ** 2, hx), axis=0)
+    wx = _cross_matrices(np.column_stack([np.interp(grid, tg, w[:, c]) for c in range(3)]))
+    walk += share * np.mean(np.einsum('nij,jk,nik->ni', wx, mom.noise_cov, wx), axis=0)
+    return np.sqrt(tn ** 2 + walk), share
+
+
+def estimate_with_momentum(t_gyro: Any, omega: Any, t_torque: Any, torque: Any,
+                           momentum: Any, **options: Any) -> Any:
+    """:func:`.batch.estimate` with internal momentum (see the module docstring).
+
+    Parameters
+    ----------
+    t_gyro, omega, t_torque, torque
+        As :func:`.batch.estimate`; the torque (M may be 0) is the other known torque.
+    momentum : Momentum or (t (K,), h (K, 3))
+        Internal angular momentum in the gyro frame [N m s] on the gyro's clock.
+    **options
+        The keyword options of :func:`.batch.estimate`.  ``torque_noise`` is the other
+        torque's noise (default: from its samples; 0 when there is none).
+
+    Returns
+    -------
+    InertiaEstimate
+        ``diagnostics['momentum']`` records the input; ``diagnostics['wheel_inertia']`` the
+        propagated input uncertainty.
+    """
+    from .._validate import as_samples, as_times
+
+    mom = as_momentum(momentum)
+    tg = as_times(t_gyro, 't_gyro')
+    w = as_samples(omega, len(tg), 'omega', 't_gyro')
+    ts = as_times(t_torque, 't_torque')
+    tau = as_samples(torque, len(ts), 'torque', 't_torque')
+    from .options import BATCH_HOLDS, HOLDS, check_choice
+
+    hold = options.pop('hold', HOLDS[0])
+    check_choice('hold', hold, BATCH_HOLDS)
+    hold = HOLDS[0] if hold not in HOLDS else hold   # of the other torque; the result is held
+    grid, tq, inside = equivalent_torque(tg, w, mom.t, mom.h, ts, tau, hold)
+    if int(np.sum(inside)) < 6 or len(grid) < 2:
+        raise ValueError(f'momentum: its samples [{mom.t[0]:.6g}, {mom.t[-1]:.6g}] s cover '
+                         f'{int(np.sum(inside))} gyro samples of [{tg[0]:.6g}, {tg[-1]:.6g}] s '
+                         '(and of the torque, if any); the streams must overlap')
+    tn, share = _noise_terms(tg, w, inside, grid, mom, ts, tau, options)
+    base = _estimate(tg[inside], w[inside], grid, tq, torque_noise=tn, **options)
+    info = {'samples': len(mom.t), 'h_rms': np.sqrt(np.mean(mom.h ** 2, axis=0)),
+            'h_noise_std': np.sqrt(np.diag(mom.noise_cov)), 'gyro_per_wheel_sample': share,
+            'gyro_samples_outside': int(np.sum(~inside))}
+    diag = dict(base.diagnostics)
+    diag['momentum'] = info
+    if base.status == 'model_mismatch' and len(mom.h_std) and 'reason' in diag:
+        diag['reason'] = (f"{diag['reason']}; or wheel inertias off by about their stated "
+                          'std (the data resolve them better than stated)')
+    res = replace(base, samples_dropped=base.samples_dropped + int(np.sum(~inside)),
+                  diagnostics=diag)
+    if len(mom.h_std) and res.inertia is not None and np.all(np.isfinite(res.inertia)):
+        res = _propagate(res, tg[inside], w[inside], ts, tau, mom, hold, tn, options)
+    return res
+
+
+def _estimate(tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.ndarray, *,
+              white_y_cov: np.ndarray | None = None, method: str = 'auto', model: str = 'auto',
+              torque_bias: str = 'auto', symmetry_axis: Any = None, alpha: float = ALPHA,
+              gyro_noise: Any = None, torque_noise: Any = None, segment: float | None = None,
+              window: float | None = None, identifiability_tol: float = IDENTIFIABILITY_TOL,
+              physical: bool = True, torque_scale_std: float = 0.0,
+              gyro_scale_std: float = 0.0) -> Any:
+    """:func:`.batch.estimate` on the equivalent held torque, with ``white_y_cov`` (the same
+    dispatch: method choice, ``integral`` then the ``ml`` refinement)."""
+    from . import batch
+    from .options import HOLDS, ML_AUTO_MAX_SAMPLES
+    from .selection import SelectionPolicy
+
+    policy, axis = batch._check_options(
+        method, model, torque_bias, HOLDS[0], symmetry_axis,
+        SelectionPolicy(alpha, identifiability_tol, physical, torque_scale_std, gyro_scale_std))
+    batch._check_counts(tg, ts)
+    selection = None
+    if method == 'auto':
+        method = 'ml' if len(tg) <= ML_AUTO_MAX_SAMPLES else 'integral'
+        selection = {'requested': 'auto', 'chosen': method,
+                     'rule': f'ml up to {ML_AUTO_MAX_SAMPLES} gyro samples, integral beyond'}
+    first = batch._estimate_direct('integral' if method == 'ml' else method, tg, w, ts, tau,
+                                   HOLDS[0], gyro_noise, torque_noise, segment, window, model,
+                                   torque_bias, axis, policy,
+                                   None if method == 'ml' else selection, white_y_cov)
+    if method != 'ml':
+        return first
+    return batch._maximum_likelihood(first, tg, w, ts, tau, HOLDS[0], axis, selection)
+
+
+def _propagate(res: Any, tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.ndarray,
+               mom: Momentum, hold: str, tn: np.ndarray, options: dict[str, Any]) -> Any:
+    """Add the one-sigma sensitivity of every reported quantity to each uncertain input."""
+
+    diag = dict(res.diagnostics)
+    fixed = dict(options)
+    fixed.update(method='integral' if res.method == 'ml' else res.method,
+                 model=res.model.removesuffix('+bias'),
+                 torque_bias='on' if res.model.endswith('+bias') else 'off',
+                 gyro_noise=diag.get('gyro_noise_std'))
+    if diag.get('segment_s') is not None:
+        fixed['segment'] = diag['segment_s']
+    if fixed['model'] not in ('full', 'diagonal', 'axisymmetric'):
+        return res
+    if res.method == 'ml':      # the same linear response without the refinement's cost
+        ref = _estimate(tg, w, *equivalent_torque(tg, w, mom.t, mom.h, ts, tau, hold)[:2],
+                        torque_noise=tn, **fixed)
+    else:
+        ref = res
+    var6 = np.zeros(6)
+    outer = np.zeros((6, 6))
+    var_m = np.zeros(3)
+    var_r = np.zeros((3, 3))
+    var_a = np.zeros(3)
+    per: dict[str, Any] = {}
+    for name, dh in zip(mom.names, mom.h_std, strict=True):
+        grid, tq, _ = equivalent_torque(tg, w, mom.t, mom.h + dh, ts, tau, hold)
+        p = _estimate(tg, w, grid, tq, torque_noise=tn, **fixed)
+        if p.inertia is None or ref.inertia is None:
+            continue
+        d6 = np.nan_to_num(p.theta - ref.theta)
+        var6 += d6 ** 2
+        outer += np.outer(d6, d6)
+        per[name] = {'theta_change': d6}
+        I0, I1 = ref.inertia, p.inertia
+        if np.all(np.isfinite(I0)) and np.all(np.isfinite(I1)):
+            m0, a0 = principal_axes(I0)
+            m1, a1 = principal_axes(I1)
+            var_m += (m1 - m0) ** 2
+            var_r += (I1 / np.trace(I1) - I0 / np.trace(I0)) ** 2
+            cosang = np.clip(np.abs(np.sum(a0 * a1, axis=0)), 0.0, 1.0)
+            var_a += np.arccos(cosang) ** 2
+    std6 = np.nan_to_num(res.theta_std) if res.theta_std is not None else np.zeros(6)
+    new_std = np.sqrt(std6 ** 2 + var6)
+    nan = ~np.isfinite(res.theta_std) if res.theta_std is not None else np.zeros(6, bool)
+    new_std[nan] = np.nan
+    inertia_std = theta_to_matrix(new_std, check_finite=False)
+    ratios_std = res.ratios_std
+    if ratios_std is not None:
+        ratios_std = np.sqrt(np.asarray(ratios_std) ** 2 + var_r)
+    if 'principal_moments_std' in diag:
+        diag['principal_moments_std'] = np.sqrt(np.asarray(diag['principal_moments_std']) ** 2
+                                                 + var_m)
+    if 'principal_axes_std' in diag:
+        diag['principal_axes_std'] = np.sqrt(np.asarray(diag['principal_axes_std']) ** 2
+                                             + var_a)
+    diag['wheel_inertia'] = {'inputs': per, 'theta_std_added': np.sqrt(var6),
+                             'rule': 'one-sigma change of the estimate per input, added in '
+                                     'quadrature'}
+    cov = None if res.covariance is None else np.asarray(res.covariance) + outer
+    return replace(res, inertia_std=inertia_std, ratios_std=ratios_std, covariance=cov,
+                   diagnostics=diag)

@@ -1,0 +1,233 @@
+"""``sensor_msgs/msg/JointState`` (wheel speeds) in logs: CDR encoding, decoding and reading.
+
+JointState has variable-length arrays, so it is decoded per message here rather than by the
+fixed-layout vectorised decoder of :mod:`.cdr_decode`.  Wheel speeds are ``velocity`` [rad/s]
+(the ROS convention for joint speeds), matched to the wheels by ``name``.
+"""
+from __future__ import annotations
+
+import struct
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .cdr_encode import split_stamp
+from .logs import LogError
+
+__all__ = ['JOINT_STATE', 'decode_joint_state', 'encode_joint_state', 'joint_state_topics',
+           'read_wheel_speeds']
+
+JOINT_STATE = 'sensor_msgs/msg/JointState'
+
+
+def _align(buf: bytearray, n: int) -> None:
+    """Pad ``buf`` (payload after the 4-byte encapsulation header) to a multiple of ``n``."""
+    buf.extend(b'\0' * ((-(len(buf) - 4)) % n))
+
+
+def _put_string(buf: bytearray, s: str) -> None:
+    b = s.encode('utf-8') + b'\0'
+    _align(buf, 4)
+    buf.extend(struct.pack('<I', len(b)))
+    buf.extend(b)
+
+
+def _put_doubles(buf: bytearray, x: np.ndarray) -> None:
+    _align(buf, 4)
+    buf.extend(struct.pack('<I', len(x)))
+    if len(x):
+        _align(buf, 8)
+        buf.extend(np.asarray(x, dtype='<f8').tobytes())
+
+
+def encode_joint_state(t_ns: Any, names: Sequence[str], velocity: Any, frame_id: str = '', *,
+                       position: Any = None) -> list[bytes]:
+    """Encode ``sensor_msgs/msg/JointState`` messages (little-endian CDR).
+
+    Parameters
+    ----------
+    t_ns : array_like of int, shape (K,)
+        Header stamps [ns].
+    names : sequence of str, length n
+        Joint names, the same in every message.
+    velocity : array_like, shape (K, n)
+        Joint speeds [rad/s].
+    frame_id : str
+        Header frame (JointState usually leaves it empty).
+    position : array_like, shape (K, n), optional
+        Joint angles [rad]; empty arrays when not given.  ``effort`` is always empty.
+
+    Returns
+    -------
+    list of bytes, length K
+    """
+    sec, nsec = split_stamp(np.asarray(t_ns, dtype=np.int64).reshape(-1))
+    v = np.asarray(velocity, dtype=float).reshape(len(sec), len(names))
+    p = None if position is None else np.asarray(position, dtype=float).reshape(v.shape)
+    out = []
+    for k in range(len(sec)):
+        buf = bytearray(b'\x00\x01\x00\x00')
+        buf.extend(struct.pack('<iI', int(sec[k]), int(nsec[k])))
+        _put_string(buf, frame_id)
+        _align(buf, 4)
+        buf.extend(struct.pack('<I', len(names)))
+        for nm in names:
+            _put_string(buf, nm)
+        _put_doubles(buf, p[k] if p is not None else np.zeros(0))
+        _put_doubles(buf, v[k])
+        _put_doubles(buf, np.zeros(0))
+        out.append(bytes(buf))
+    return out
+
+
+def decode_joint_state(data: bytes) -> tuple[int, list[str], np.ndarray, np.ndarray]:
+    """Decode one JointState payload.
+
+    Returns
+    -------
+    stamp_ns : int
+        Header stamp [ns].
+    names : list of str
+    position, velocity : ndarray
+        As sent (each may be empty) [rad], [rad/s].
+
+    Raises
+    ------
+    ValueError
+        Not plain CDR, or truncated.
+    """
+    if len(data) < 12 or data[0] != 0 or data[1] not in (0, 1):
+        raise ValueError('JointState payload: not plain CDR or too short')
+    e = '<' if data[1] == 1 else '>'
+    pos = 4
+
+    def align(n: int) -> None:
+        nonlocal pos
+        pos += (-(pos - 4)) % n
+
+    def u32() -> int:
+        nonlocal pos
+        align(4)
+        (v,) = struct.unpack_from(e + 'I', data, pos)
+        pos += 4
+        return int(v)
+
+    def string() -> str:
+        nonlocal pos
+        n = u32()
+        s = data[pos:pos + n - 1].decode('utf-8') if n > 1 else ''
+        pos += n
+        return s
+
+    def doubles() -> np.ndarray:
+        nonlocal pos
+        n = u32()
+        if n == 0:
+            return np.zeros(0)
+        align(8)
+        x = np.frombuffer(data, dtype=e + 'f8', count=n, offset=pos).astype(float)
+        pos += 8 * n
+        return x
+
+    try:
+        sec, nsec = struct.unpack_from(e + 'iI', data, pos)
+        pos += 8
+        string()
+        names = [string() for _ in range(u32())]
+        position = doubles()
+        velocity = doubles()
+    except (struct.error, ValueError, UnicodeDecodeError) as exc:
+        raise ValueError(f'JointState payload: truncated or malformed ({exc})') from None
+    return int(sec) * 1_000_000_000 + int(nsec), names, position, velocity
+
+
+def joint_state_topics(path: str | Path) -> list[str]:
+    """Topics of type ``sensor_msgs/msg/JointState`` in a log (file or rosbag2 directory)."""
+    from .logs import log_files
+    from .mcap_reader import McapReader
+    from .msgtypes import normalise_type
+
+    out: set[str] = set()
+    for f in log_files(path):
+        with McapReader(f) as r:
+            for ch in r.channels.values():
+                sc = r.schemas.get(ch.schema_id)
+                if sc is not None and normalise_type(sc.name) == JOINT_STATE:
+                    out.add(ch.topic)
+    return sorted(out)
+
+
+def read_wheel_speeds(path: str | Path, joints: Sequence[str], topic: str | None = None
+                      ) -> tuple[str, np.ndarray, np.ndarray]:
+    """Wheel speeds of the named joints from the JointState messages of a log.
+
+    Parameters
+    ----------
+    path : str or Path
+        ``.mcap`` file or rosbag2 directory.
+    joints : sequence of str
+        Joint names wanted (the wheels file's ``joint`` entries).
+    topic : str, optional
+        JointState topic; found by type when there is exactly one.
+
+    Returns
+    -------
+    topic : str
+    t_ns : ndarray of int64, shape (K,)
+        Header stamps [ns], sorted, duplicates removed; only messages carrying every joint.
+    speed : ndarray, shape (K, len(joints))
+        [rad/s].
+
+    Raises
+    ------
+    LogError
+        No or several JointState topics, a joint never present, no velocities.
+    """
+    from .logs import log_files
+    from .mcap_reader import McapReader
+    from .msgtypes import normalise_type
+
+    if topic is None:
+        found = joint_state_topics(path)
+        if not found:
+            raise LogError(f'{path}: no sensor_msgs/msg/JointState topic; record the wheel '
+                           'speeds as JointState or drop --wheels')
+        if len(found) > 1:
+            raise LogError(f'{path}: several JointState topics {found}; choose one with '
+                           '--wheel-topic')
+        topic = found[0]
+    stamps: list[int] = []
+    rows: list[np.ndarray] = []
+    seen: set[str] = set()
+    for f in log_files(path):
+        with McapReader(f) as r:
+            def select(ch: Any, sc: Any) -> bool:
+                return ch.topic == topic and sc is not None and \
+                    normalise_type(sc.name) == JOINT_STATE
+            for _sc, _ch, _lt, data in r.iter_messages(select):
+                try:
+                    st, names, _p, vel = decode_joint_state(data)
+                except ValueError:
+                    continue
+                seen.update(names)
+                if len(vel) != len(names):
+                    continue
+                idx = {n: i for i, n in enumerate(names)}
+                if all(j in idx for j in joints):
+                    stamps.append(st)
+                    rows.append(np.array([vel[idx[j]] for j in joints]))
+    missing = [j for j in joints if j not in seen]
+    if missing:
+        raise LogError(f'{topic}: joint(s) {missing} never appear in JointState.name '
+                       f'(names seen: {sorted(seen)}); fix the wheels file\'s joint names')
+    if len(stamps) < 2:
+        raise LogError(f'{topic}: fewer than 2 messages carry velocities for all of '
+                       f'{list(joints)}')
+    t = np.array(stamps, dtype=np.int64)
+    v = np.array(rows)
+    order = np.argsort(t, kind='stable')
+    t, v = t[order], v[order]
+    keep = np.append(True, np.diff(t) > 0)
+    return topic, t[keep], v[keep]
