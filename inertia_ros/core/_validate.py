@@ -38,6 +38,16 @@ def _refuse_complex(x: Any, name: str) -> None:
         raise ValueError(f'{name}: complex values are not supported; give real numbers')
 
 
+def _to_float(x: Any, name: str) -> np.ndarray:
+    """``np.asarray(x, dtype=float)`` with a one-line ValueError naming ``name`` on failure."""
+    try:
+        return np.asarray(x, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f'{name}: expected real numbers, got {type(x).__name__} '
+                         f'({str(exc).splitlines()[0] if str(exc) else "not convertible"})'
+                         ) from None
+
+
 def refuse_nanoseconds(t: np.ndarray, name: str) -> None:
     """Raise ValueError when the times ``t`` [s] look like nanoseconds.
 
@@ -159,7 +169,7 @@ def as_times(t: Any, name: str, *, min_samples: int = 0, detail: bool = True) ->
     ndarray, shape (N,)
     """
     _refuse_complex(t, name)
-    arr = np.asarray(t, dtype=float)
+    arr = _to_float(t, name)
     if arr.ndim != 1 or arr.size < min_samples:
         more = f' with N >= {min_samples}' if min_samples else ''
         raise ValueError(f'{name}: expected shape (N,){more}, got {arr.shape}')
@@ -182,7 +192,7 @@ def as_samples(x: Any, n: int, name: str, tname: str) -> np.ndarray:
     ndarray, shape (n, 3)
     """
     _refuse_complex(x, name)
-    arr = np.asarray(x, dtype=float)
+    arr = _to_float(x, name)
     if arr.ndim != 2 or arr.shape[1] != 3:
         raise ValueError(f'{name}: expected shape (N, 3), got {arr.shape}')
     if arr.shape[0] != n:
@@ -205,9 +215,9 @@ def require_plausible(arr: np.ndarray, name: str) -> None:
     bad = (a > MAX_SAMPLE_MAGNITUDE) | ((a > 0) & (a < 1e-150))
     if np.any(bad):
         k = int(np.argmax(np.any(bad, axis=-1))) if arr.ndim > 1 else int(np.argmax(bad))
-        raise ValueError(f'{name}: sample {k} holds {arr[k]!r}, outside the plausible range '
-                         f'(1e-150 to {MAX_SAMPLE_MAGNITUDE:g} in magnitude, or exactly 0); '
-                         'remove such samples or fix their units')
+        raise ValueError(f'{name}: sample {k} holds {np.atleast_1d(arr[k]).tolist()}, outside '
+                         f'the plausible range (1e-150 to {MAX_SAMPLE_MAGNITUDE:g} in magnitude, '
+                         'or exactly 0); remove such samples or fix their units')
 
 
 def as_sample_block(t: Any, x: Any, name: str) -> tuple[np.ndarray, np.ndarray]:
@@ -220,8 +230,10 @@ def as_sample_block(t: Any, x: Any, name: str) -> tuple[np.ndarray, np.ndarray]:
     x : ndarray, shape (n, 3)
         Finite values.
     """
-    ta = np.atleast_1d(np.asarray(t, dtype=float))
-    xa = np.asarray(x, dtype=float)
+    _refuse_complex(t, f'{name} times')
+    _refuse_complex(x, name)
+    ta = np.atleast_1d(_to_float(t, f'{name} times'))
+    xa = _to_float(x, name)
     if xa.ndim == 1:
         xa = xa[None, :]
     if ta.ndim != 1 or xa.ndim != 2 or xa.shape[1] != 3 or len(ta) != len(xa):
@@ -230,6 +242,9 @@ def as_sample_block(t: Any, x: Any, name: str) -> tuple[np.ndarray, np.ndarray]:
     if not (np.isfinite(ta).all() and np.isfinite(xa).all()):
         raise ValueError(f'{name}: contains NaN or inf')
     require_plausible(xa, name)
+    if len(ta) and float(np.max(np.abs(ta))) > 1e12:
+        raise ValueError(f'{name}: times look like nanoseconds ({float(ta[0]):.6g}); give '
+                         'seconds, e.g. t_ns * 1e-9')
     if len(ta) > 1 and (ta[1:] <= ta[:-1]).any():
         raise ValueError(f'{name}: times must be strictly increasing')
     return ta, xa
@@ -251,7 +266,11 @@ def as_noise_std(x: Any, name: str, *, what: str = '') -> np.ndarray:
     -------
     ndarray, shape (3,)
     """
-    arr = np.broadcast_to(np.asarray(x, dtype=float), (3,)).copy()
-    if not np.all(np.isfinite(arr)) or np.any(arr < 0):
-        raise ValueError(f'{name}: must be finite and >= 0{what}, got {x!r}')
+    try:
+        arr = np.broadcast_to(_to_float(x, name), (3,)).copy()
+    except ValueError:
+        raise ValueError(f'{name}: must be a number or 3 numbers{what}, got {x!r}') from None
+    if not np.all(np.isfinite(arr)) or np.any(arr < 0) or np.any(arr > MAX_SAMPLE_MAGNITUDE):
+        raise ValueError(f'{name}: must be finite, >= 0 and <= {MAX_SAMPLE_MAGNITUDE:g}{what}, '
+                         f'got {x!r}')
     return arr

@@ -211,6 +211,8 @@ class RecursiveEstimator:
         if isinstance(t, (float, int)) and len(omega) == 3 and np.ndim(omega) == 1:
             # fast path for one sample (the node's common case)
             tf = float(t)
+            if abs(tf) > 1e12:
+                raise ValueError(f'time {tf!r} looks like nanoseconds; give seconds')
             if not (math.isfinite(tf) and all(math.isfinite(float(v)) for v in omega)):
                 raise ValueError('omega: contains NaN or inf')
             if self._last_t_in is not None and tf <= self._last_t_in:
@@ -264,6 +266,8 @@ class RecursiveEstimator:
         """
         if isinstance(t, (float, int)) and len(tau) == 3 and np.ndim(tau) == 1:
             tf = float(t)
+            if abs(tf) > 1e12:
+                raise ValueError(f'time {tf!r} looks like nanoseconds; give seconds')
             if not (math.isfinite(tf) and all(math.isfinite(float(v)) for v in tau)):
                 raise ValueError('torque: contains NaN or inf')
             if self._last_tau_in is not None and tf <= self._last_tau_in:
