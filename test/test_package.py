@@ -37,6 +37,7 @@ IMPORT_KEYS: dict[str, str] = {
     'scipy': 'python3-scipy',
     'yaml': 'python3-yaml',
     'matplotlib': 'python3-matplotlib',
+    'tqdm': 'python3-tqdm',
     # rosdistro has no key for the Python mcap package nor for its chunk codecs: the
     # mcap-ros2-support pip key installs mcap, which requires zstandard and lz4.
     'mcap': 'mcap-ros2-support',

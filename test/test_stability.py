@@ -135,7 +135,7 @@ def test_progress_draws_only_when_enabled() -> None:
     p('a')
     p('b')
     p.close()
-    assert loud.getvalue().startswith('\r[') and '2/2' in loud.getvalue()
+    assert loud.getvalue().startswith('\r') and '2/2' in loud.getvalue()
     with pytest.raises(ValueError, match='total: must be >= 1'):
         Progress(0)
 

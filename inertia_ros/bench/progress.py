@@ -1,8 +1,7 @@
-"""A dependency-free progress bar on stderr, drawn only when stderr is a terminal."""
+"""The bench's step counter over the package's one progress bar (:mod:`inertia_ros.progress`)."""
 from __future__ import annotations
 
 import sys
-import time
 from typing import TextIO
 
 __all__ = ['Progress']
@@ -25,34 +24,23 @@ class Progress:
                  enabled: bool | None = None) -> None:
         if total < 1:
             raise ValueError(f'total: must be >= 1, got {total!r}')
+        from inertia_ros.progress import progress_bar
+
         self.total = int(total)
         self.stream = stream if stream is not None else sys.stderr
         isatty = getattr(self.stream, 'isatty', lambda: False)
         self.enabled = bool(isatty()) if enabled is None else bool(enabled)
         self.done = 0
-        self.t0 = time.monotonic()
-        self._last = 0.0
+        self._bar = progress_bar(self.total, '', enabled=self.enabled, stream=self.stream)
 
     def __call__(self, label: str = '') -> None:
         """Advance by one step and redraw (at most 10 times a second)."""
         self.done += 1
-        if not self.enabled:
-            return
-        now = time.monotonic()
-        if now - self._last < 0.1 and self.done < self.total:
-            return
-        self._last = now
-        frac = min(self.done / self.total, 1.0)
-        width = 30
-        bar = '#' * int(round(frac * width))
-        el = now - self.t0
-        eta = el / frac - el if frac > 0 else 0.0
-        self.stream.write(f'\r[{bar:<{width}}] {self.done}/{self.total} {el:5.0f}s '
-                          f'eta {eta:4.0f}s {label[:40]:<40}')
-        self.stream.flush()
+        self._bar.set_postfix_str(label[:40], refresh=False)
+        self._bar.update(1)
+        if self.done >= self.total:
+            self._bar.refresh()
 
     def close(self) -> None:
         """End the status line."""
-        if self.enabled:
-            self.stream.write('\n')
-            self.stream.flush()
+        self._bar.close()

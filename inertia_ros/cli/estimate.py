@@ -16,7 +16,6 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-import time
 from pathlib import Path
 from typing import Any
 
@@ -98,40 +97,35 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 class _Progress:
-    """A one-line progress bar on stderr (only when stderr is a terminal)."""
+    """The reading progress (bytes of the log) on stderr, through :mod:`inertia_ros.progress`
+    (drawn only when enabled: stderr a terminal and no ``--no-progress``)."""
 
     def __init__(self, enabled: bool) -> None:
         self.enabled = enabled
-        self.last = 0.0
-        self.shown = False
+        self.bar: Any = None
 
     def __call__(self, done: int, total: int) -> None:
         if not self.enabled or total <= 0:
             return
-        now = time.monotonic()
-        if now - self.last < 0.1 and done < total:
-            return
-        self.last = now
-        frac = min(done / total, 1.0)
-        bar = '#' * int(30 * frac)
-        sys.stderr.write(f'\rreading [{bar:<30s}] {100 * frac:5.1f}% '
-                         f'{done / 1e6:7.1f}/{total / 1e6:.1f} MB')
-        sys.stderr.flush()
-        self.shown = True
+        if self.bar is None:
+            from inertia_ros.progress import progress_bar
+            self.bar = progress_bar(total, 'reading', enabled=True, scale=1e-6, unit='MB',
+                                    fmt='{desc} [{bar:30}] {percentage:5.1f}% '
+                                        '{n:7.1f}/{total:.1f} MB {postfix}')
+        self.bar.update(min(done, total) - self.bar.n)
+        if done >= total:
+            self.bar.refresh()               # the last state is drawn, not throttled away
 
     def note(self, text: str) -> None:
         """Show a one-line status (e.g. while estimating)."""
-        if self.enabled:
-            sys.stderr.write('\r' + text[:72].ljust(72))
-            sys.stderr.flush()
-            self.shown = True
+        if self.bar is not None:
+            self.bar.set_postfix_str(text[:60])
 
     def close(self) -> None:
         """Erase the bar."""
-        if self.shown:
-            sys.stderr.write('\r' + ' ' * 72 + '\r')
-            sys.stderr.flush()
-            self.shown = False
+        if self.bar is not None:
+            self.bar.close()
+            self.bar = None
 
 
 def _check_outputs(args: argparse.Namespace) -> None:

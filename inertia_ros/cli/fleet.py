@@ -97,28 +97,20 @@ class _Bar:
     """A one-line progress bar over logs on stderr (only when stderr is a terminal)."""
 
     def __init__(self, total: int, enabled: bool) -> None:
+        from inertia_ros.progress import progress_bar
+
         self.total, self.enabled = total, enabled and total > 0
         self.done, self.errors = 0, 0
-        self.t0 = self.last = time.monotonic()
+        self._bar = progress_bar(max(total, 1), 'logs', enabled=self.enabled, unit='log')
 
     def __call__(self, row: dict[str, Any]) -> None:
         self.done += 1
         self.errors += row.get('status') in ('error', 'failed')
-        now = time.monotonic()
-        if not self.enabled or (now - self.last < 0.1 and self.done < self.total):
-            return
-        self.last = now
-        frac = self.done / self.total
-        rate = self.done / max(now - self.t0, 1e-9)
-        eta = (self.total - self.done) / rate if rate > 0 else 0.0
-        sys.stderr.write(f'\rlogs [{"#" * int(30 * frac):<30s}] {self.done}/{self.total} '
-                         f'{rate:.2f}/s, {self.errors} errors, ~{eta:.0f} s left ')
-        sys.stderr.flush()
+        self._bar.set_postfix_str(f'{self.errors} errors', refresh=False)
+        self._bar.update(1)
 
     def close(self) -> None:
-        if self.enabled:
-            sys.stderr.write('\r' + ' ' * 79 + '\r')
-            sys.stderr.flush()
+        self._bar.close()
 
 
 def _order(row: dict[str, Any]) -> tuple[str, int, str]:

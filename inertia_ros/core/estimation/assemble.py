@@ -248,12 +248,19 @@ def _adequate(adequacy: AdequacyFunction, f: Fit, chosen: str, diag: dict[str, A
     """
     a = adequacy(f, chosen)
     diag['adequacy'] = a.as_dict()
+    scatter = a.dof > 0 and a.chi2 / a.dof >= max(a.excess, 1.0)
     if a.ok:
+        diag['adequacy']['covariance'] = ('noise model' + (' x residual excess'
+                                                           if f.excess > 1.0 else ''))
         return 'ok'
     f.cov = f.cov * max(1.0, a.inflation / max(f.excess, 1.0))
+    # which covariance the sigma now is: the model's, scaled by the spread the time windows
+    # showed (a block estimate over time, which correlated residuals cannot fool) or by the
+    # residual excess, whichever is larger
+    diag['adequacy']['covariance'] = ('noise model x window scatter (Birge ratio)' if scatter
+                                      else 'noise model x residual excess')
     diag['reason'] = 'the model does not explain the data: ' + a.reason
     return 'model_mismatch'
-
 
 
 def assemble(status: str, f: Fit, model: str, free: np.ndarray, diag: dict[str, Any],
