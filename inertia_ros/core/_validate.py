@@ -271,6 +271,6 @@ def as_noise_std(x: Any, name: str, *, what: str = '') -> np.ndarray:
     except ValueError:
         raise ValueError(f'{name}: must be a number or 3 numbers{what}, got {x!r}') from None
     if not np.all(np.isfinite(arr)) or np.any(arr < 0) or np.any(arr > MAX_SAMPLE_MAGNITUDE):
-        raise ValueError(f'{name}: must be finite, >= 0 and <= {MAX_SAMPLE_MAGNITUDE:g}{what}, '
-                         f'got {x!r}')
+        raise ValueError(f'{name}: must be finite and >= 0{what} (at most '
+                         f'{MAX_SAMPLE_MAGNITUDE:g}), got {x!r}')
     return arr
