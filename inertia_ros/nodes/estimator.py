@@ -142,12 +142,16 @@ def make_estimator(cfg: dict[str, Any]) -> Callable[[], OnlineEstimator]:
         kwargs = dict(model=cfg['model'], torque_bias=cfg['torque_bias'],
                       forgetting=float(cfg['forgetting']),
                       window=float(cfg['window']) or None, hold=cfg['hold'],
-                      symmetry_axis=axis, reselect_every=_reselect_every(cfg))
+                      symmetry_axis=axis, reselect_every=_reselect_every(cfg),
+                      torque_scale_std=float(cfg['torque_scale_std']),
+                      gyro_scale_std=float(cfg['gyro_scale_std']))
         RecursiveEstimator(**kwargs)  # validates
         return lambda: RecursiveEstimator(**kwargs)
     window = float(cfg['window']) or BATCH_DEFAULT_WINDOW
     options = dict(method=cfg['batch_method'], model=cfg['model'],
-                   torque_bias=cfg['torque_bias'], hold=cfg['hold'], symmetry_axis=axis)
+                   torque_bias=cfg['torque_bias'], hold=cfg['hold'], symmetry_axis=axis,
+                   torque_scale_std=float(cfg['torque_scale_std']),
+                   gyro_scale_std=float(cfg['gyro_scale_std']))
     BatchWindow(window, **options)  # validates
     return lambda: BatchWindow(window, **options)
 
@@ -317,7 +321,8 @@ class InertiaEstimatorNode(Node):
         with self._lock:
             rebuild = any(cfg[k] != self._cfg[k] for k in
                           ('method', 'batch_method', 'model', 'symmetry_axis', 'torque_bias',
-                           'forgetting', 'window', 'hold'))
+                           'forgetting', 'window', 'hold', 'torque_scale_std',
+                           'gyro_scale_std'))
             if cfg['frame_id'] != self._cfg['frame_id']:
                 self._frame = cfg['frame_id'] or None
                 rebuild = True

@@ -348,6 +348,12 @@ ESTIMATOR: dict[str, ParamSpec] = {
                         '[s], 0 = 30 s', 0.0, 86400.0),
     'hold': ParamSpec('zoh', "torque between samples: 'zoh' (held) or 'linear'",
                       choices=HOLDS),
+    'torque_scale_std': ParamSpec(0.0, 'relative one-sigma uncertainty of the torque scale '
+                                  '(0.02 = 2 %), added to every sigma [dimensionless]',
+                                  0.0, 0.5),
+    'gyro_scale_std': ParamSpec(0.0, 'relative one-sigma uncertainty of the gyro scale '
+                                '(0.01 = 1 %), added to every sigma [dimensionless]',
+                                0.0, 0.5),
     'publish_rate': ParamSpec(10.0, 'maximum estimate/publish rate [Hz]', 0.01, 1000.0),
     'publish_partial': ParamSpec(False, 'also publish ~/inertia when partially_identifiable '
                                  '(undetermined elements NaN)'),

@@ -80,7 +80,8 @@ class BatchWindow:
 
     def __init__(self, window: float, *, method: str = 'integral', model: str = 'full',
                  torque_bias: str = 'auto', hold: str = 'zoh',
-                 symmetry_axis: str | None = None) -> None:
+                 symmetry_axis: str | None = None, torque_scale_std: float = 0.0,
+                 gyro_scale_std: float = 0.0) -> None:
         if not (isinstance(window, (int, float)) and np.isfinite(window) and window > 0):
             raise ValueError(f'window: must be a positive number of seconds, got {window!r}')
         check_choice('method', method, METHODS)
@@ -93,7 +94,9 @@ class BatchWindow:
         #: keyword arguments of every batch solve
         self.options: dict[str, Any] = dict(method=method, model=model,
                                             torque_bias=torque_bias, hold=hold,
-                                            symmetry_axis=symmetry_axis)
+                                            symmetry_axis=symmetry_axis,
+                                            torque_scale_std=torque_scale_std,
+                                            gyro_scale_std=gyro_scale_std)
         self._g: list[tuple[np.ndarray, np.ndarray]] = []
         self._q: list[tuple[np.ndarray, np.ndarray]] = []
 
