@@ -454,7 +454,7 @@ def test_sim_time_clock_jump_resets(harness):
     assert h.spin_until(lambda: h.est.counts()['gyro_received'] == 3, 10.0)
 
 
-def _player_harness(harness, tmp_path, kind, **params):
+def _player_harness(harness, tmp_path, kind, est_overrides=None, **params):
     """An estimator harness plus a scene_simulator or bag_player node in its executor."""
     from inertia_ros.io.mcap_writer import write_simulation
     from inertia_ros.nodes.bag_player import BagPlayerNode
@@ -463,7 +463,7 @@ def _player_harness(harness, tmp_path, kind, **params):
     scene = tmp_path / 'short.yaml'
     d = dict(load_scene(ROOT / 'config' / 'scenes' / 'default.yaml').source, duration=4.0)
     scene.write_text(yaml.safe_dump(d))
-    h = harness(overrides={'publish_rate': 50.0})
+    h = harness(overrides={'publish_rate': 50.0, **(est_overrides or {})})
     base = {'rate': 20.0, 'wait_for_subscribers': 1, **params}
     if kind == 'simulator':
         base['scene'] = str(scene)
@@ -505,6 +505,53 @@ def test_bag_player_loop_resets_the_estimator(harness, tmp_path):
         assert h.spin_until(lambda: player.player.loops >= 1
                             and h.est.counts()['resets'] >= 1, 10.0)
         assert 'stamps jumped back' in h.est.counts()['last_reset_reason']
+    finally:
+        player.destroy_node()
+
+
+@pytest.mark.parametrize('kind', ['simulator', 'bag_player'])
+def test_publish_clock_drives_a_sim_time_estimator(harness, tmp_path, kind):
+    """publish_clock: /clock advances with the published stamps; an estimator run with
+    use_sim_time follows it and still estimates, its outputs stamped from the input."""
+    from rosgraph_msgs.msg import Clock
+
+    from inertia_ros.nodes._ros import clock_qos
+
+    h, player, _ = _player_harness(harness, tmp_path, kind, exit_on_end=True,
+                                   publish_clock=True, est_overrides={'use_sim_time': True})
+    clock: list[int] = []
+    stamps: list[int] = []
+    # the clock QoS (best effort) with a deep history: every message is counted
+    h.node.create_subscription(Clock, '/clock', lambda m: clock.append(
+        messages.stamp_to_ns(m.clock)), sensor_qos(1000))
+    assert clock_qos().reliability == sensor_qos().reliability
+    for msg_type, topic in ((Imu, 'imu'), (WrenchStamped, 'torque')):
+        h.node.create_subscription(msg_type, topic, lambda m: stamps.append(
+            messages.stamp_to_ns(m.header.stamp)), sensor_qos(1000))
+    try:
+        assert h.spin_until(lambda: player.done, 10.0)
+        n_g, n_q = player.player.published
+        assert h.spin_until(lambda: h.received() == len(stamps) == n_g + n_q, 10.0)
+        h.spin_for(0.2)
+        epoch = player.player.epoch_ns
+        # one message per playback step (~0.2 s of wall time at rate 20)
+        assert len(clock) >= 5, f'only {len(clock)} /clock messages'
+        assert np.all(np.diff(clock) > 0), '/clock went back or repeated'
+        # the clock carries the data time: published stamps, from the first to the last
+        assert set(clock) <= set(stamps)
+        assert clock[0] - epoch <= 50_000_000
+        assert clock[-1] == epoch + 4 * 10**9 == max(stamps)
+        assert player.player.clock_ns == clock[-1]
+        # the estimator's ROS clock is the data time, not the wall time
+        assert h.est.get_clock().ros_time_is_active
+        assert h.est.get_clock().now().nanoseconds == clock[-1]
+        # and it still estimates, stamped with input stamps, not with either clock's now
+        assert h.spin_until(lambda: bool(h.inertia), 5.0)
+        assert h.est.counts()['resets'] == 0, h.est.counts()['last_reset_reason']
+        out = messages.stamp_to_ns(h.inertia[-1].header.stamp)
+        assert out in set(stamps) and out > epoch
+        _, mat = messages.inertia_from_msg(h.inertia[-1])
+        np.testing.assert_allclose(mat[0, 1], 0.05, rtol=0, atol=0.01)
     finally:
         player.destroy_node()
 

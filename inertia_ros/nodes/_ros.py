@@ -2,7 +2,8 @@
 
 - :func:`run_node`: the one ``main()`` shape of every inertia_ros node (Jazzy idiom, one-line
   errors);
-- :func:`sensor_qos` and :func:`latched_qos`: the two QoS profiles the package uses;
+- :func:`sensor_qos`, :func:`latched_qos` and :func:`clock_qos`: the QoS profiles the package
+  uses;
 - :func:`polled_subscription` and :func:`take_raw`: a raw subscription of a node that no
   executor waits on, drained by a timer (at kHz rates one executor wake-up per message costs
   a few times more CPU than taking a whole batch every few milliseconds);
@@ -23,8 +24,8 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
 from rclpy.subscription import Subscription
 
-__all__ = ['PolledGroup', 'latched_qos', 'polled_subscription', 'run_node', 'sensor_qos',
-           'share_path', 'take_raw']
+__all__ = ['PolledGroup', 'clock_qos', 'latched_qos', 'polled_subscription', 'run_node',
+           'sensor_qos', 'share_path', 'take_raw']
 
 PACKAGE = 'inertia_ros'
 
@@ -92,6 +93,16 @@ def latched_qos(depth: int = 1) -> QoSProfile:
     """Reliable, transient local, depth 1: a late subscriber gets the last message."""
     return QoSProfile(depth=depth, durability=DurabilityPolicy.TRANSIENT_LOCAL,
                       reliability=ReliabilityPolicy.RELIABLE)
+
+
+def clock_qos() -> QoSProfile:
+    """QoS of ``/clock``: best effort, volatile, keep last 1 (``rclcpp::ClockQoS``).
+
+    What rosbag2's ``--clock`` publisher and the time sources of rclcpp and rclpy use: a
+    late or lost clock message is superseded by the next one, never queued.
+    """
+    return QoSProfile(depth=1, durability=DurabilityPolicy.VOLATILE,
+                      reliability=ReliabilityPolicy.BEST_EFFORT)
 
 
 class PolledGroup(CallbackGroup):

@@ -391,6 +391,9 @@ PLAYBACK: dict[str, ParamSpec] = {
                              read_only=True),
     'exit_on_end': ParamSpec(False, 'exit the process when the data end (ignored with loop)',
                              read_only=True),
+    'publish_clock': ParamSpec(False, 'publish /clock (rosgraph_msgs/Clock, best effort, '
+                               'depth 1) at the header stamps being published, for nodes run '
+                               'with use_sim_time (not this one)'),
 }
 
 #: ``scene_simulator``: the playback parameters plus these.

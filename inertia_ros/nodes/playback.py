@@ -3,7 +3,8 @@
 :class:`StreamPlayer` publishes ``imu`` (sensor_msgs/Imu; or ``omega``, geometry_msgs/
 Vector3Stamped), ``torque`` (geometry_msgs/WrenchStamped) with sensor-data QoS and
 ``~/truth`` (geometry_msgs/InertiaStamped, latched) on a steady-clock timer, in real time or
-faster/slower by ``rate``.  :class:`PlaybackNode` declares the playback parameters shared by
+faster/slower by ``rate``; with ``publish_clock`` also ``/clock`` (rosgraph_msgs/Clock, clock
+QoS) carrying the data time, for nodes run with ``use_sim_time``.  :class:`PlaybackNode` declares the playback parameters shared by
 ``scene_simulator`` and ``bag_player``, gates the start on subscribers, and ends the process
 at the end of the data when asked (:func:`spin_until_done`).
 """
@@ -26,10 +27,11 @@ from rclpy.clock import Clock
 from rclpy.clock_type import ClockType
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import Imu
 
 from inertia_ros.nodes import messages, params
-from inertia_ros.nodes._ros import latched_qos, sensor_qos
+from inertia_ros.nodes._ros import clock_qos, latched_qos, sensor_qos
 from inertia_ros.nodes.params import ParamSpec
 
 __all__ = ['PlaybackNode', 'StreamPlayer', 'declare_playback_parameters', 'double_descriptor',
@@ -72,6 +74,12 @@ class StreamPlayer:
         History depth of the sensor publishers.
     on_finish : callable, optional
         Called once when the end is reached without ``loop``.
+    publish_clock : bool
+        Also publish ``/clock`` (rosgraph_msgs/Clock): at every step that publishes samples
+        or truth, before them, the newest stamp of that step [ns] (``epoch_ns + t``), so a
+        node with ``use_sim_time`` reads a clock at the stamps it receives.  It advances with
+        the data (``rate`` times the wall rate) and jumps back with them at a ``loop``.
+        Settable later through :attr:`publish_clock`.
 
     Raises
     ------
@@ -83,7 +91,8 @@ class StreamPlayer:
                  t_torque: np.ndarray, torque: np.ndarray, frame_id: str, *,
                  omega_msg_type: str = 'imu', rate: float = 1.0, loop: bool = False,
                  tick: float = 0.005, truth: list[tuple[float, np.ndarray]] | None = None,
-                 qos_depth: int = 100, on_finish: Callable[[], None] | None = None) -> None:
+                 qos_depth: int = 100, on_finish: Callable[[], None] | None = None,
+                 publish_clock: bool = False) -> None:
         t_gyro = np.asarray(t_gyro, dtype=float)
         t_torque = np.asarray(t_torque, dtype=float)
         omega = np.asarray(omega, dtype=float)
@@ -123,12 +132,38 @@ class StreamPlayer:
             self._make_gyro = messages.vector3_stamped
         self._pub_torque = node.create_publisher(WrenchStamped, 'torque', sensor_qos(qos_depth))
         self._pub_truth = node.create_publisher(InertiaStamped, '~/truth', latched_qos())
+        self._pub_clock: Any = None
+        self.clock_ns: int | None = None  # last time published on /clock [ns]
+        self.publish_clock = publish_clock
         self.epoch_ns = 0
         self.published = [0, 0]
         self.loops = 0
         self.finished = False
         self._timer = None
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
+
+    @property
+    def publish_clock(self) -> bool:
+        """Whether ``/clock`` is published (the publisher is created when first needed)."""
+        return self._publish_clock
+
+    @publish_clock.setter
+    def publish_clock(self, on: bool) -> None:
+        self._publish_clock = bool(on)
+        if self._publish_clock and self._pub_clock is None:
+            self._pub_clock = self.node.create_publisher(ClockMsg, '/clock', clock_qos())
+
+    @property
+    def clock_publisher(self) -> Any:
+        """The ``/clock`` publisher, or None while ``publish_clock`` was never on."""
+        return self._pub_clock
+
+    def _publish_clock_at(self, stamp_ns: int) -> None:
+        """Publish ``stamp_ns`` on ``/clock`` (when on and not already published)."""
+        if not self._publish_clock or stamp_ns == self.clock_ns:
+            return
+        self._pub_clock.publish(ClockMsg(clock=messages.ns_to_stamp(stamp_ns)))
+        self.clock_ns = stamp_ns
 
     @property
     def gyro_publisher(self) -> Any:
@@ -172,12 +207,25 @@ class StreamPlayer:
 
     def _on_tick(self) -> None:
         t_now = (time.monotonic() - self._t0) * self.rate
+        end = int(np.searchsorted(self._times, t_now, side='right'))
+        if self._publish_clock:
+            # the step's newest stamp, before its samples: the clock is at them on arrival
+            newest = None
+            if end > self._next:
+                newest = self._t_ns[self._kinds[end - 1]][self._index[end - 1]]
+            n_truth = self._next_truth
+            while n_truth < len(self._truth) and self._truth[n_truth][0] <= t_now:
+                n_truth += 1
+            if n_truth > self._next_truth:
+                t_truth = round(self._truth[n_truth - 1][0] * _NS)
+                newest = t_truth if newest is None else max(newest, t_truth)
+            if newest is not None:
+                self._publish_clock_at(self.epoch_ns + newest)
         while self._next_truth < len(self._truth) and self._truth[self._next_truth][0] <= t_now:
             t, inertia = self._truth[self._next_truth]
             self._pub_truth.publish(messages.inertia_stamped(
                 inertia, self.epoch_ns + round(t * _NS), self.frame_id))
             self._next_truth += 1
-        end = int(np.searchsorted(self._times, t_now, side='right'))
         frame, epoch = self.frame_id, self.epoch_ns
         for k in range(self._next, end):
             kind, i = self._kinds[k], self._index[k]
@@ -265,6 +313,8 @@ class PlaybackNode(Node):
                 self.player.set_rate(float(p.value))
             if self.player is not None and p.name == 'loop':
                 self.player.loop = bool(p.value)
+            if self.player is not None and p.name == 'publish_clock':
+                self.player.publish_clock = bool(p.value)
         return SetParametersResult(successful=True)
 
     def validate_more(self, params: list[Parameter]) -> str:
@@ -279,7 +329,8 @@ class PlaybackNode(Node):
             self, t_gyro, omega, t_torque, torque, frame_id,
             omega_msg_type=self.param('omega_msg_type'), rate=self.param('rate'),
             loop=self.param('loop'), tick=self.param('tick'), truth=truth,
-            qos_depth=self.param('qos_depth'), on_finish=self._finished)
+            qos_depth=self.param('qos_depth'), on_finish=self._finished,
+            publish_clock=self.param('publish_clock'))
         self._gate = self.create_timer(0.05, self._try_start,
                                        clock=Clock(clock_type=ClockType.STEADY_TIME))
         return self.player
