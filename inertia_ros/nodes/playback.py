@@ -4,9 +4,10 @@
 Vector3Stamped), ``torque`` (geometry_msgs/WrenchStamped) with sensor-data QoS and
 ``~/truth`` (geometry_msgs/InertiaStamped, latched) on a steady-clock timer, in real time or
 faster/slower by ``rate``; with ``publish_clock`` also ``/clock`` (rosgraph_msgs/Clock, clock
-QoS) carrying the data time, for nodes run with ``use_sim_time``.  :class:`PlaybackNode` declares the playback parameters shared by
-``scene_simulator`` and ``bag_player``, gates the start on subscribers, and ends the process
-at the end of the data when asked (:func:`spin_until_done`).
+QoS) carrying the data time, for nodes run with ``use_sim_time``.  :class:`PlaybackNode`
+declares the playback parameters shared by ``scene_simulator`` and ``bag_player``, gates the
+start on subscribers, and ends the process at the end of the data when asked
+(:func:`spin_until_done`).
 """
 from __future__ import annotations
 
