@@ -762,3 +762,29 @@ def test_demo_runs_end_to_end(tmp_path):
     if m.group(3) is not None:
         np.testing.assert_array_equal([int(m.group(3)), int(m.group(4))], recorded)
     assert np.all(got <= recorded) and np.all(got >= 0.95 * recorded), proc.stdout
+
+
+def test_urdf_service(harness):
+    """~/urdf: refuses without a complete tensor, then returns the tensor as a URDF document
+    (urdf_mass, urdf_link) that round-trips exactly through urdf_parser_py."""
+    urdf = pytest.importorskip('urdf_parser_py.urdf')
+    from inertia_ros.core.estimation import InertiaEstimate
+    h = harness(overrides={'urdf_mass': 12.5, 'urdf_link': 'payload'})
+    client = h.node.create_client(Trigger, '/inertia_estimator/urdf')
+    assert client.wait_for_service(timeout_sec=2.0)
+
+    def call():
+        future = client.call_async(Trigger.Request())
+        h.spin_until(future.done, 10.0)
+        return future.result()
+
+    first = call()
+    assert not first.success and 'no complete tensor' in first.message
+    I = np.array([[1.0, 0.05, -0.03], [0.05, 1.2, 0.02], [-0.03, 0.02, 0.9]])
+    h.est._last_estimate = InertiaEstimate('ok', inertia=I, model='full')
+    res = call()
+    assert res.success
+    robot = urdf.URDF.from_xml_string(res.message)
+    (link,) = robot.links
+    assert link.name == 'payload' and link.inertial.mass == 12.5
+    np.testing.assert_array_equal(np.array(link.inertial.inertia.to_matrix()), I)

@@ -284,6 +284,7 @@ class InertiaEstimatorNode(Node):
         self._pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics', 10, **quiet)
         self._pub_markers = self.create_publisher(MarkerArray, '~/markers', 10, **quiet)
         self._srv_reset = self.create_service(Trigger, '~/reset', self._on_reset)
+        self._srv_urdf = self.create_service(Trigger, '~/urdf', self._on_urdf)
         self._diag_timer = self.create_timer(DIAGNOSTIC_PERIOD, self.force_update,
                                              clock=self._steady)
         self._jump_handle = self.get_clock().create_jump_callback(
@@ -544,6 +545,27 @@ class InertiaEstimatorNode(Node):
         self._reset('~/reset service')
         response.success = True
         response.message = f'estimator reset ({self._resets} resets so far)'
+        return response
+
+    def _on_urdf(self, request: Trigger.Request, response: Trigger.Response
+                 ) -> Trigger.Response:
+        """``~/urdf``: the current tensor as a URDF document (mass from ``urdf_mass``)."""
+        from inertia_ros.io.urdf import urdf_document
+
+        est = self._last_estimate
+        if est is None or est.inertia is None or not np.all(np.isfinite(est.inertia)):
+            response.success = False
+            response.message = ('no complete tensor yet (status '
+                                f'{"none" if est is None else est.status})')
+            return response
+        try:
+            response.message = urdf_document(
+                est.inertia, float(self._cfg['urdf_mass']), link=self._cfg['urdf_link'],
+                comment=f'inertia_ros live estimate: status {est.status}, model {est.model}')
+            response.success = True
+        except ValueError as exc:
+            response.success = False
+            response.message = str(exc).splitlines()[0]
         return response
 
     def _on_clock_jump(self, jump: TimeJump | dict[str, Any]) -> None:

@@ -355,6 +355,9 @@ ESTIMATOR: dict[str, ParamSpec] = {
                                 '(0.01 = 1 %), added to every sigma [dimensionless]',
                                 0.0, 0.5),
     'publish_rate': ParamSpec(10.0, 'maximum estimate/publish rate [Hz]', 0.01, 1000.0),
+    'urdf_mass': ParamSpec(1.0, 'mass written by the ~/urdf service [kg] (rotation data '
+                           'cannot tell it)', 1e-9, 1e9),
+    'urdf_link': ParamSpec('base_link', 'link name written by the ~/urdf service'),
     'publish_partial': ParamSpec(False, 'also publish ~/inertia when partially_identifiable '
                                  '(undetermined elements NaN)'),
     'stream_timeout': ParamSpec(1.0, 'warn when a stream is silent this long [s]',
