@@ -11,7 +11,8 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ['as_float_array', 'as_mass', 'as_matrix33', 'as_noise_std', 'as_rotation',
+__all__ = ['MAX_SAMPLE_INTERVAL_S', 'MAX_TIME_S', 'as_float_array', 'as_mass', 'as_matrix33',
+           'as_noise_std', 'as_rotation',
            'as_sample_block', 'as_samples', 'as_times', 'as_unit_axis', 'as_vector3',
            'as_vectors', 'check_symmetric', 'max_asymmetry', 'refuse_nanoseconds',
            'require_finite', 'require_plausible']
@@ -48,15 +49,24 @@ def _to_float(x: Any, name: str) -> np.ndarray:
                          ) from None
 
 
+#: Largest plausible time stamp [s] (30 000 years): beyond it a stamp is nanoseconds.
+MAX_TIME_S = 1e12
+#: Largest plausible median sample interval [s]: beyond it the stamps are nanoseconds.
+MAX_SAMPLE_INTERVAL_S = 3600.0
+
+
 def refuse_nanoseconds(t: np.ndarray, name: str) -> None:
     """Raise ValueError when the times ``t`` [s] look like nanoseconds.
 
     A median sample interval over an hour (or stamps beyond 1e12 s, 30 000 years) is a
     stamp in nanoseconds given as seconds; estimating would allocate for 1e9 times as long.
     """
-    if len(t) > 1 and (float(np.median(np.diff(t))) > 3600.0 or float(np.max(np.abs(t))) > 1e12):
-        raise ValueError(f'{name}: times look like nanoseconds (median interval '
-                         f'{float(np.median(np.diff(t))):.3g} s); give seconds, e.g. t_ns * 1e-9')
+    if not len(t):
+        return
+    dt = float(np.median(np.diff(t))) if len(t) > 1 else 0.0
+    if dt > MAX_SAMPLE_INTERVAL_S or float(np.max(np.abs(t))) > MAX_TIME_S:
+        raise ValueError(f'{name}: times look like nanoseconds (first {float(t[0]):.6g}, median '
+                         f'interval {dt:.3g} s); give seconds, e.g. t_ns * 1e-9')
 
 
 def require_finite(arr: np.ndarray, name: str) -> None:
@@ -242,9 +252,7 @@ def as_sample_block(t: Any, x: Any, name: str) -> tuple[np.ndarray, np.ndarray]:
     if not (np.isfinite(ta).all() and np.isfinite(xa).all()):
         raise ValueError(f'{name}: contains NaN or inf')
     require_plausible(xa, name)
-    if len(ta) and float(np.max(np.abs(ta))) > 1e12:
-        raise ValueError(f'{name}: times look like nanoseconds ({float(ta[0]):.6g}); give '
-                         'seconds, e.g. t_ns * 1e-9')
+    refuse_nanoseconds(ta, name)
     if len(ta) > 1 and (ta[1:] <= ta[:-1]).any():
         raise ValueError(f'{name}: times must be strictly increasing')
     return ta, xa

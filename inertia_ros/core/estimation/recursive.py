@@ -37,7 +37,7 @@ from typing import Any
 
 import numpy as np
 
-from .._validate import as_noise_std, as_sample_block
+from .._validate import MAX_TIME_S, as_noise_std, as_sample_block
 from .adequacy import Adequacy, check_adequacy
 from .assemble import conclude, status_only
 from .fit import Fit, fit_two_pass
@@ -211,7 +211,7 @@ class RecursiveEstimator:
         if isinstance(t, (float, int)) and len(omega) == 3 and np.ndim(omega) == 1:
             # fast path for one sample (the node's common case)
             tf = float(t)
-            if abs(tf) > 1e12:
+            if abs(tf) > MAX_TIME_S:        # the one-sample form of refuse_nanoseconds
                 raise ValueError(f'time {tf!r} looks like nanoseconds; give seconds')
             if not (math.isfinite(tf) and all(math.isfinite(float(v)) for v in omega)):
                 raise ValueError('omega: contains NaN or inf')
@@ -266,7 +266,7 @@ class RecursiveEstimator:
         """
         if isinstance(t, (float, int)) and len(tau) == 3 and np.ndim(tau) == 1:
             tf = float(t)
-            if abs(tf) > 1e12:
+            if abs(tf) > MAX_TIME_S:        # the one-sample form of refuse_nanoseconds
                 raise ValueError(f'time {tf!r} looks like nanoseconds; give seconds')
             if not (math.isfinite(tf) and all(math.isfinite(float(v)) for v in tau)):
                 raise ValueError('torque: contains NaN or inf')
