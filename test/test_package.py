@@ -51,6 +51,12 @@ IMPORT_KEYS: dict[str, str] = {
     'ruff': 'python3-ruff-pip',
     'urdf_parser_py': 'urdfdom_py',
     'setuptools': 'python3-setuptools',
+    # the fleet command: pip keys of rosdep/inertia_ros.yaml (rosdistro has none)
+    'dask': 'python3-dask-pip',
+    'distributed': 'python3-distributed-pip',
+    'pyarrow': 'python3-pyarrow-pip',
+    # fsspec is a requirement of dask itself
+    'fsspec': 'python3-dask-pip',
 }
 
 #: Declared keys that no import reaches, and what needs them.
@@ -63,7 +69,8 @@ NON_IMPORT_KEYS: dict[str, str] = {
 OPTIONAL_IMPORTS: dict[str, str] = {
     'pinocchio': 'inertia_ros/bench/methods.py: the peer baseline of make bench '
                  '(requirements-bench.txt), skipped with a note when not importable',
-    # the fleet command (requirements.txt); rosdistro has no keys for them: one-line error
+    # the fleet command: declared (rosdep/inertia_ros.yaml keys), yet imported only by fleet,
+    # with a one-line error when absent
     'distributed': 'inertia_ros/fleet/run.py: Dask for python -m inertia_ros fleet',
     'pyarrow': 'inertia_ros/fleet/table.py: Parquet tables of fleet (CSV without it)',
     'fsspec': 'inertia_ros/fleet/discover.py: fleet on URLs (s3://, ...)',
@@ -174,6 +181,31 @@ def test_every_declared_key_is_used():
     reached = {IMPORT_KEYS[m] for m in imported if m in IMPORT_KEYS} | set(NON_IMPORT_KEYS)
     assert declared - reached == set(), f'declared but unused: {sorted(declared - reached)}'
     assert 'ament_flake8' not in declared
+
+
+#: The keys rosdep/inertia_ros.yaml adds to rosdistro's database.
+LOCAL_ROSDEP = ROOT / 'rosdep' / 'inertia_ros.yaml'
+
+
+def test_local_rosdep_keys_are_declared_pinned_and_documented():
+    """Each key of rosdep/inertia_ros.yaml is a pip key (debian, ubuntu, osx) that package.xml
+    declares, whose pip package requirements.txt pins; the README registers the file."""
+    import yaml
+
+    rules = yaml.safe_load(LOCAL_ROSDEP.read_text())
+    assert set(rules) == {'python3-dask-pip', 'python3-distributed-pip', 'python3-pyarrow-pip'}
+    declared = {d.name for d in _pkg().exec_depends}
+    pins = dict(re.findall(r'^([A-Za-z0-9_.-]+)==(\S+)', (ROOT / 'requirements.txt').read_text(),
+                           re.M))
+    for key, rule in rules.items():
+        assert key in declared, f'{key} defined in {LOCAL_ROSDEP.name} but not in package.xml'
+        assert set(rule) == {'debian', 'ubuntu', 'osx'}, key
+        for os_name, installers in rule.items():
+            (packages,) = [installers['pip']['packages']]
+            assert packages == [key.removeprefix('python3-').removesuffix('-pip')], (key, os_name)
+            assert packages[0] in pins, f'{packages[0]} is not pinned in requirements.txt'
+    readme = (ROOT / 'README.md').read_text()
+    assert 'rosdep/inertia_ros.yaml' in readme and 'sources.list.d' in readme
 
 
 def test_optional_imports_are_guarded():
