@@ -31,6 +31,7 @@ METHOD_STYLE: dict[str, tuple[str, str]] = {
     'integral_sliding': ('tab:green', 'integral_sliding'),
     'differential_fd': ('tab:orange', 'differential_fd'),
     'differential_sg': ('tab:olive', 'differential_sg'),
+    'filtered': ('tab:pink', 'filtered'),
     'recursive': ('tab:purple', 'recursive'),
     'hand_fd': ('tab:red', 'hand_fd'),
     'pinocchio': ('tab:brown', 'pinocchio'),

@@ -44,6 +44,9 @@ Methods (:data:`METHODS`), all built from :mod:`.regressors`:
 ``integral_sliding``
     Overlapping windows ``I (w_b - w_a) + int_a^b w x I w = int_a^b tau`` of fixed length,
     ordinary least squares, Newey-West (HAC) covariance for the overlap.
+``filtered``
+    Both sides through the same low-pass filter ``1 / (1 + s T)^2``, the derivative moved onto
+    the filter (:mod:`.filtered`); Newey-West covariance.
 ``differential_fd``
     ``tau(t_b) = I w_dot_b + w_b x I w_b`` with central finite differences: the baseline.
 ``differential_sg``
@@ -80,6 +83,7 @@ from ..tensor import check_physical, theta_to_matrix
 from .adequacy import Adequacy, check_adequacy
 from .assemble import conclude, status_only
 from .equations import Equations, build_equations
+from .filtered import equations_for
 from .fit import Fit, fit_two_pass
 from .homogeneous import homogeneous_estimate, is_torque_free
 from .ml import refine
@@ -152,7 +156,8 @@ def estimate(t_gyro: Any, omega: Any, t_torque: Any, torque: Any, *,
         Longest anchored segment [s] of the integral methods (default: chosen from the data).
     window : float, optional
         Window length [s] of ``integral_sliding`` (default 2 s) or ``differential_sg``
-        (default 1 s; the same Savitzky-Golay filter is applied to the torque).
+        (default 1 s; the same Savitzky-Golay filter is applied to the torque); the filter
+        time constant of ``filtered`` (default: chosen from the data).
     identifiability_tol : float
         Largest standard error of an identifiable element, as a share of the tensor scale.
     physical : bool
@@ -334,7 +339,7 @@ def _estimate_shifted(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray
     if is_torque_free(torque_rms, np.sqrt(torque_var)):
         return _homogeneous(method, tg, w, ts, tau, mask, breaks, hold, gyro_var,
                             segment or 10.0, window, diag, base)
-    eq = build_equations(method, tg, w, ts, tau, mask, breaks, hold, gyro_var, window)
+    eq = equations_for(method, tg, w, ts, tau, mask, breaks, hold, gyro_var, window)
     wm = w[mask]
     eq.motion = (wm.T @ wm / len(wm), med_g)          # gyroscopic noise walk (fit meat)
     eq.white_y_cov = white_y_cov                      # a momentum input's wheel noise
@@ -504,7 +509,7 @@ def _homogeneous(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau
         ts = np.array([tg[0], tg[-1]])
         tau = np.zeros((2, 3))
     meth = method if method != 'integral_ls' else 'integral'
-    eq = build_equations(meth, tg, w, ts, tau, mask, breaks, hold, gyro_var, window)
+    eq = equations_for(meth, tg, w, ts, tau, mask, breaks, hold, gyro_var, window)
     st = sufficient_stats(eq, segment, ts, float(ts[-1]), np.zeros(3))
     return homogeneous_estimate(st, gyro_var, diag, base)
 

@@ -25,7 +25,7 @@ __all__ = ['ADEQUACY_ALPHA', 'ADEQUACY_MIN_WINDOW_S', 'ADEQUACY_WINDOWS', 'ALPHA
 
 #: Batch methods (``estimate(method=...)``, ``--method``).
 METHODS: tuple[str, ...] = ('auto', 'ml', 'integral', 'integral_ls', 'integral_sliding',
-                            'differential_fd', 'differential_sg')
+                            'differential_fd', 'differential_sg', 'filtered')
 #: Parameter sets (``model=``, ``--model``).
 MODELS: tuple[str, ...] = ('auto', 'full', 'diagonal', 'axisymmetric')
 #: Constant disturbance-torque choices (``torque_bias=``, ``--torque-bias``).
