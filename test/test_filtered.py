@@ -53,10 +53,10 @@ def test_listed_as_a_method():
 
 
 def test_filter_has_no_dc_gain_and_unit_ramp_gain():
-    """D(1) = 0 exactly (constants vanish) and a unit ramp settles to 1 (s H, H(0) = 1)."""
+    """D(1) = 0 (constants vanish) and a unit ramp settles to 1 (difference, then H(0) = 1)."""
     from scipy import signal
-    b, a = filter_coefficients(0.05, 0.005)
-    assert abs(np.sum(b)) < 1e-15 * np.sum(np.abs(b))
+    b, a = filter_coefficients(5.0, 0.005)
+    assert abs(np.sum(b)) < 1e-12 * np.sum(np.abs(b))
     ramp = np.arange(2000) * 0.005
     out = signal.lfilter(b, a, ramp)
     assert out[-1] == pytest.approx(1.0, rel=1e-9)
@@ -87,8 +87,8 @@ def test_accuracy_on_the_nominal_scene(nominal20):
     assert max(err) < 0.01
     assert np.median(err) < 2.0 * np.median(ref)
     sel = est.diagnostics['filter_selection']
-    assert sel['chosen_s'] == est.diagnostics['filter_time_constant_s']
-    assert est.diagnostics['filtered_noise_share'] <= 0.005
+    assert sel['chosen_hz'] == est.diagnostics['filter_cutoff_hz']
+    assert est.diagnostics['filtered_noise_share'] <= 0.002
 
 
 def test_standard_errors_are_calibrated(nominal20):
@@ -124,13 +124,16 @@ def test_noise_dominated_record_is_not_ok(nominal20):
                               'model_mismatch')
 
 
-def test_given_time_constant_is_used(nominal20):
-    """``window`` is the filter time constant [s]; no selection is recorded then."""
-    est = estimate(*_noisy(nominal20, seed=5), method='filtered', window=0.08, model='full',
+def test_given_window_sets_the_cutoff(nominal20):
+    """``window`` is the cutoff's period ``1 / fc`` [s]; no selection is recorded then, and a
+    cutoff above the Nyquist frequency is one clear error."""
+    est = estimate(*_noisy(nominal20, seed=5), method='filtered', window=0.5, model='full',
                    torque_bias='off')
-    assert est.diagnostics['filter_time_constant_s'] == pytest.approx(0.08)
+    assert est.diagnostics['filter_cutoff_hz'] == pytest.approx(2.0)
     assert 'filter_selection' not in est.diagnostics
     assert est.status == 'ok'
+    with pytest.raises(ValueError, match='Nyquist'):
+        estimate(*_noisy(nominal20, seed=5), method='filtered', window=0.005)
 
 
 def test_wheel_momentum_input():
