@@ -49,6 +49,9 @@ if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
 WHEEL_AXIS = (0.0, 0.0, -1.0)
+#: ``--cutoff-rule wheel``: the filtered method's cutoff is the flywheel's lowest rotation
+#: frequency in the window divided by this (4th-order Butterworth: -16 dB there).
+WHEEL_CUTOFF_MARGIN = 1.6
 POLE_PAIRS = 7
 
 
@@ -134,6 +137,18 @@ def combined_cog(t: np.ndarray, w: np.ndarray, a: np.ndarray) -> np.ndarray:
     return np.linalg.lstsq(np.array(rows).reshape(-1, 3), -af.reshape(-1), rcond=None)[0]
 
 
+def object_inertia(I_prime: np.ndarray, I_dev: np.ndarray, m_dev: float, x_dev: np.ndarray,
+                   m_obj: float, x_test: np.ndarray) -> np.ndarray:
+    """The object's tensor about its own centre of mass (the authors' ``translateI``).
+
+    ``I_prime`` is the whole body's tensor without the flywheel's ``J 1`` about the combined
+    centre of mass ``x_test``; the device (``I_dev`` about its centre of mass ``x_dev``) and
+    both parallel-axis terms are removed.  Positions relative to the IMU [m], kg, kg m^2.
+    """
+    r = (m_dev / m_obj) * (x_dev - x_test)
+    return I_prime - _steiner(m_dev, x_test - x_dev) - I_dev - _steiner(m_obj, r)
+
+
 def principal(I: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     lam, v = np.linalg.eigh(I)
     return lam, v
@@ -146,42 +161,180 @@ def psi(I: np.ndarray, It: np.ndarray) -> float:
     return float(max(math.acos(min(1.0, abs(float(v[:, k] @ vt[:, k])))) for k in range(3)))
 
 
-def bench(args: argparse.Namespace) -> int:
+def _window(s: dict[str, np.ndarray], e: dict, delay: float = 0.0
+            ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The authors' fit window of one throw: ``t``, ``w``, ``a``, flywheel speed.
+
+    ``delay`` [s] > 0 reads the flywheel speed that much later (telemetry lagging the gyro).
+    """
+    a0, a1 = e['fit_window']
+    t = s['t'][a0:a1]
+    fw = s['wheel'][a0:a1] if delay == 0.0 else np.interp(t + delay, s['t'], s['wheel'])
+    return t, s['w'][a0:a1], s['a'][a0:a1], fw
+
+
+def _estimate_unit(s: dict[str, np.ndarray], e: dict, J0: float, args: argparse.Namespace
+                   ) -> tuple[object, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """One throw's estimate in units of the flywheel inertia.
+
+    The estimate is linear in ``J`` (the only scale input), so the throw is estimated once with
+    ``J0`` and returned as ``I_total / J0`` with its covariance (6, 6) ``/ J0^2``; ``I' =
+    I_total - J 1`` for any calibrated ``J`` is then ``J (I_total / J0 - 1)``.  Returns
+    ``(result, I_unit (3, 3) or None, cov_unit (6, 6), cog (3,) [m], t)``.
+    """
     from inertia_ros.core.estimation.momentum import Wheel, estimate_with_momentum, wheels_momentum
 
-    idx = json.loads(Path(args.index).read_text())
-    wheel = Wheel('flywheel', idx['wheel']['axis'], idx['wheel']['inertia'],
-                  args.wheel_inertia_rel_std * idx['wheel']['inertia'])
-    dev = idx['device']
-    out = []
+    t, w, acc, fw = _window(s, e, args.delay)
+    window = args.window
+    if args.method == 'filtered' and window is None and args.cutoff_rule == 'wheel':
+        # below the flywheel's lowest rotation frequency in the window: its imbalance shakes
+        # the gyro at that frequency (and above), which is not rigid-body motion
+        window = WHEEL_CUTOFF_MARGIN * 2.0 * math.pi / max(float(np.min(np.abs(fw))), 1.0)
+    if args.prefilter:
+        dt = float(np.median(np.diff(t)))
+        w, fw = _lowpass(w, dt, args.prefilter), _lowpass(fw, dt, args.prefilter)
+    mom = wheels_momentum(t, fw[:, None], [Wheel('flywheel', WHEEL_AXIS, J0, 0.0)])
+    res = estimate_with_momentum(t, w, np.zeros(0), np.zeros((0, 3)), mom,
+                                 method=args.method, model='full',
+                                 torque_bias=args.torque_bias, window=window,
+                                 gyro_noise=args.gyro_noise)
+    if res.inertia is None or not np.all(np.isfinite(res.inertia)) or res.covariance is None:
+        return res, None, np.full((6, 6), np.nan), np.full(3, np.nan), t
+    return (res, np.asarray(res.inertia) / J0, np.asarray(res.covariance) / J0 ** 2,
+            combined_cog(t, w, acc), t)
+
+
+def _theta(I: np.ndarray) -> np.ndarray:
+    return np.array([I[0, 0], I[1, 1], I[2, 2], I[0, 1], I[0, 2], I[1, 2]])
+
+
+def _matrix(th: np.ndarray) -> np.ndarray:
+    """(..., 6) -> (..., 3, 3)."""
+    i, j = (0, 1, 2, 0, 0, 1), (0, 1, 2, 1, 2, 2)
+    M = np.zeros(th.shape[:-1] + (3, 3))
+    for k in range(6):
+        M[..., i[k], j[k]] = th[..., k]
+        M[..., j[k], i[k]] = th[..., k]
+    return M
+
+
+def proof_body(idx: dict) -> tuple[float, np.ndarray]:
+    """Mass [kg] and inertia [kg m^2] of the calibration cuboid, about its centre of mass.
+
+    As the authors' ``input/final_calibration/config.py``: sides ``(a, b, c) = (30.2, 60,
+    70) mm`` with ``Ixx = m (a^2 + c^2) / 12``, ``Iyy = m (a^2 + b^2) / 12``, ``Izz = m (b^2 +
+    c^2) / 12`` (the 30.2 mm side is common to x and y, the 60 mm side lies along x).
+    """
+    pb = idx['proof_body']
+    m = float(pb['m'])
+    a, b, c = pb.get('dims', (0.0302, 0.06, 0.07))
+    return m, m / 12.0 * np.diag([a * a + c * c, a * a + b * b, b * b + c * c])
+
+
+def calibrate(idx: dict, root: Path, args: argparse.Namespace, rng: np.random.Generator,
+              draws: int) -> dict:
+    """The authors' calibration (``calibrate.py``) redone with this estimator.
+
+    Device-only throws give ``I'_dev / J`` and the device's centre of mass; throws with the
+    proof body (a cuboid of known mass and size) give ``I'_dev+cal / J``; ``J`` is the
+    projection that makes their difference the proof body's inertia (moved to the combined
+    centre of mass), as the authors do.  The calibration is only as good as the throws agree:
+    the throw means are drawn ``draws`` times from their scatter (standard error of the mean)
+    and every draw gives its own ``J`` and ``I_dev``, which the bench propagates.
+    """
+    J0 = idx['wheel']['inertia']
+    sets: dict[str, list] = {'device_only': [], 'proof_body': []}
     for e in idx['logs']:
-        if e.get('series', 'final_tests') != 'final_tests':
+        if e.get('series') != 'final_calibration' or e.get('config') not in sets:
             continue
-        p = Path(args.csv_root) / e['csv']
+        p = root / e['csv']
         if not p.is_file():
             continue
-        s = read_throw_csv(p)
-        a0, a1 = e['fit_window']
-        t, w, acc, fw = s['t'][a0:a1], s['w'][a0:a1], s['a'][a0:a1], s['wheel'][a0:a1]
-        mom = wheels_momentum(t, fw[:, None], [wheel])
-        res = estimate_with_momentum(t, w, np.zeros(0), np.zeros((0, 3)), mom,
-                                     method=args.method, model='full',
-                                     torque_bias=args.torque_bias)
-        row = {'config': e['config'], 'log': p.stem, 'status': res.status,
-               'method': res.method, 'model': res.model}
-        if res.inertia is not None and np.all(np.isfinite(res.inertia)):
-            Ip = res.inertia - wheel.inertia * np.eye(3)
-            xt = combined_cog(t, w, acc)
+        res, Iu, _, x, _ = _estimate_unit(read_throw_csv(p), e, J0, args)
+        if Iu is not None:
+            sets[e['config']].append((_theta(Iu - np.eye(3)), x))
+    if min(len(v) for v in sets.values()) < 2:
+        raise SystemExit(f'{root}: calibration throws missing (device_only '
+                         f'{len(sets["device_only"])}, proof_body {len(sets["proof_body"])}); '
+                         'use --calibration authors')
+    m_dev, m_pb, I_pb = idx['device']['m'], *proof_body(idx)
+
+    def draw(v: list) -> tuple[np.ndarray, np.ndarray]:
+        th = np.array([a for a, _ in v])
+        xs = np.array([b for _, b in v])
+        n = len(v)
+        return (th.mean(0) + rng.normal(size=(draws, 6)) * th.std(0, ddof=1) / np.sqrt(n),
+                xs.mean(0) + rng.normal(size=(draws, 3)) * xs.std(0, ddof=1) / np.sqrt(n))
+
+    def solve(td: np.ndarray, tc: np.ndarray, xd: np.ndarray, xc: np.ndarray
+              ) -> tuple[float, np.ndarray]:
+        s = xd - xc
+        r = (m_dev / m_pb) * s
+        left = _theta(I_pb + _steiner(m_pb, r) + _steiner(m_dev, s))
+        right = tc - td
+        J = float(right @ left / (right @ right))
+
+        return J, J * td
+
+    (td, xd), (tc, xc) = draw(sets['device_only']), draw(sets['proof_body'])
+    mean = [np.mean(np.array([a for a, _ in sets[k]]), 0) for k in sets]
+    xm = [np.mean(np.array([b for _, b in sets[k]]), 0) for k in sets]
+    J, th_dev = solve(mean[0], mean[1], xm[0], xm[1])
+    Js, devs = zip(*(solve(td[k], tc[k], xd[k], xc[k]) for k in range(draws)), strict=True)
+    return {'J': J, 'I_dev': _matrix(th_dev), 'x_dev': xm[0],
+            'J_draws': np.array(Js), 'I_dev_draws': _matrix(np.array(devs)),
+            'x_dev_draws': xd, 'throws': {k: len(v) for k, v in sets.items()}}
+
+
+def bench(args: argparse.Namespace) -> int:
+    idx = json.loads(Path(args.index).read_text())
+    root = Path(args.csv_root)
+    rng = np.random.default_rng(args.seed)
+    draws = args.draws
+    J0 = idx['wheel']['inertia']
+    dev = idx['device']
+    if args.calibration == 'ours':
+        cal = calibrate(idx, root, args, rng, draws)
+        print(f"calibration (this estimator, {cal['throws']} throws): J = {cal['J']:.5g} kg m^2 "
+              f"+- {100 * np.std(cal['J_draws']) / cal['J']:.2f} % (authors' {J0:.5g}); "
+              f"I_dev diag {np.round(np.diag(cal['I_dev']) * 1e6, 2)} g cm^2 x 100 "
+              f"(authors' {np.round(np.diag(np.array(dev['I_prime'])) * 1e6, 2)})", flush=True)
+    else:
+        rel = args.wheel_inertia_rel_std
+        cal = {'J': J0, 'I_dev': np.array(dev['I_prime']), 'x_dev': np.array(dev['x']),
+               'J_draws': J0 * (1.0 + rel * rng.normal(size=draws)),
+               'I_dev_draws': np.repeat(np.array(dev['I_prime'])[None], draws, 0),
+               'x_dev_draws': np.repeat(np.array(dev['x'])[None], draws, 0)}
+    out = []
+    tests = [e for e in idx['logs'] if e.get('series', 'final_tests') == 'final_tests']
+    for e in tests[::args.every]:
+        p = root / e['csv']
+        if not p.is_file():
+            continue
+        res, Iu, cu, xt, t = _estimate_unit(read_throw_csv(p), e, J0, args)
+        row: dict = {'config': e['config'], 'log': p.stem, 'status': res.status,
+                     'method': res.method, 'model': res.model,
+                     'cutoff_hz': res.diagnostics.get('filter_cutoff_hz')}
+        if Iu is not None:
             tr = e['truth_object']
             m, It = tr['m'], np.array(tr['I'])
-            xd = np.array(dev['x'])
-            r = (dev['m'] / m) * (xd - xt)
-            I_obj = Ip - _steiner(dev['m'], xt - xd) - np.array(dev['I_prime']) \
-                - _steiner(m, r)
+
+            def obj(Iu_: np.ndarray, J: float, I_dev: np.ndarray, xd: np.ndarray,
+                    m: float = m, xt: np.ndarray = xt) -> np.ndarray:
+                return object_inertia(J * (Iu_ - np.eye(3)), I_dev, dev['m'], xd, m, xt)
+
+            I_obj = obj(Iu, cal['J'], cal['I_dev'], cal['x_dev'])
+            # sigma: the throw's own covariance and the calibration's draws, together
+            th = _theta(Iu) + rng.multivariate_normal(np.zeros(6), 0.5 * (cu + cu.T),
+                                                      size=draws, method='eigh')
+            Is = _matrix(th)
+            lam_d = np.array([np.linalg.eigvalsh(obj(Is[k], cal['J_draws'][k],
+                                                     cal['I_dev_draws'][k],
+                                                     cal['x_dev_draws'][k]))
+                              for k in range(draws)])
             lam = np.linalg.eigvalsh(I_obj)
             lam_t = np.linalg.eigvalsh(It)
-            # the object's moments carry the whole estimate's std (the removal is exact)
-            mstd = np.asarray(res.diagnostics.get('principal_moments_std', np.full(3, np.nan)))
+            mstd = lam_d.std(0, ddof=1)
             z = (lam - lam_t) / mstd
             row.update(eps=float(np.linalg.norm(lam - lam_t) / np.linalg.norm(lam_t)),
                        psi_deg=math.degrees(psi(I_obj, It)),
@@ -194,19 +347,30 @@ def bench(args: argparse.Namespace) -> int:
               + (f"eps {100 * row['eps']:5.2f} %  Psi {row['psi_deg']:4.1f} deg  "
                  f"fro {100 * row['fro']:5.2f} %  z {np.round(row['z'], 1)}"
                  if 'eps' in row else ''), flush=True)
-    ok = [r for r in out if 'eps' in r]
-    if ok:
-        E = np.array([r['eps'] for r in ok])
-        F = np.array([r['fro'] for r in ok])
-        Z = np.concatenate([r['z'] for r in ok])
-        print(f'throws {len(out)}, with a tensor {len(ok)}; eps median {100 * np.median(E):.2f} '
-              f'% mean {100 * E.mean():.2f} % max {100 * E.max():.2f} %; Frobenius median '
-              f'{100 * np.median(F):.2f} %; principal moments within 3 sigma '
-              f'{np.mean(np.abs(Z) <= 3):.0%}; status ok with eps > 10 %: '
-              f"{sum(1 for r in ok if r['status'] == 'ok' and r['eps'] > 0.10)}")
+    summary(out)
     if args.out:
         Path(args.out).write_text(json.dumps(out, indent=1))
     return 0
+
+
+def summary(out: list[dict]) -> None:
+    """Print the acceptance figures of a bench run (per configuration and over all throws)."""
+    ok = [r for r in out if 'eps' in r]
+    if not ok:
+        print('no throw gave a tensor')
+        return
+    for name in sorted({r['config'] for r in ok}) + ['all']:
+        rows = [r for r in ok if name in ('all', r['config'])]
+        E = np.array([r['eps'] for r in rows])
+        F = np.array([r['fro'] for r in rows])
+        Z = np.concatenate([r['z'] for r in rows])
+        n_ok = sum(1 for r in rows if r['status'] == 'ok')
+        print(f'{name:<12} throws {len(rows)}, ok {n_ok}; eps median {100 * np.median(E):.2f} '
+              f'% mean {100 * E.mean():.2f} % max {100 * E.max():.2f} %; Frobenius median '
+              f'{100 * np.median(F):.2f} %; Psi mean '
+              f"{np.mean([r['psi_deg'] for r in rows]):.1f} deg; moments within 3 sigma "
+              f'{np.mean(np.abs(Z) <= 3):.0%}; ok with eps > 10 %: '
+              f"{sum(1 for r in rows if r['status'] == 'ok' and r['eps'] > 0.10)}")
 
 
 def convert(args: argparse.Namespace) -> int:
@@ -236,11 +400,35 @@ def main(argv: list[str] | None = None) -> int:
     b = sub.add_parser('bench', help='estimate every throw and compare with the truth')
     b.add_argument('--csv-root', required=True)
     b.add_argument('--index', required=True)
-    b.add_argument('--method', default='auto')
+    b.add_argument('--method', default='filtered',
+                   help='estimation method (default filtered: the filtered form with the '
+                        'cutoff from --cutoff-rule)')
     b.add_argument('--torque-bias', default='off')
+    b.add_argument('--window', type=float, default=None,
+                   help='window [s] of the method (filtered: the filter time constant)')
+    b.add_argument('--calibration', choices=('authors', 'ours'), default='authors',
+                   help="flywheel J and device inertia: the authors' published values "
+                        "(default: only the estimator differs from their pipeline), or their "
+                        "calibrate.py procedure redone with this estimator on "
+                        "input/final_calibration")
     b.add_argument('--wheel-inertia-rel-std', type=float, default=0.005,
-                   help='relative one-sigma of J (default 0.5 %%: the authors\' proof-body '
-                        'reproduction)')
+                   help="relative one-sigma of the authors' J (--calibration authors; default "
+                        "0.5 %%: their proof-body reproduction)")
+    b.add_argument('--delay', type=float, default=0.0,
+                   help='flywheel telemetry delay [s] behind the gyro (read the speed that '
+                        'much later)')
+    b.add_argument('--draws', type=int, default=400,
+                   help='Monte Carlo draws of the calibration and estimate uncertainty')
+    b.add_argument('--seed', type=int, default=0)
+    b.add_argument('--gyro-noise', type=float, default=None,
+                   help='gyro white-noise std [rad/s] (default: from the data)')
+    b.add_argument('--every', type=int, default=1, help='every n-th test throw only')
+    b.add_argument('--cutoff-rule', choices=('wheel', 'data'), default='wheel',
+                   help="filtered method without --window: cutoff below the flywheel's lowest "
+                        "rotation frequency (wheel, default) or the estimator's own choice")
+    b.add_argument('--prefilter', type=float, default=0.0,
+                   help='zero-phase 4th-order Butterworth cutoff [Hz] on gyro and flywheel '
+                        'speed before the estimate (0: none; the authors use 20 Hz)')
     b.add_argument('--out')
     b.set_defaults(func=bench)
     args = ap.parse_args(argv)

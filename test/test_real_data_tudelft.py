@@ -1,0 +1,69 @@
+"""Acceptance on the TU Delft thrown-flywheel recordings (issue 14), when the user has them.
+
+The data set states no licence, so nothing of it is shipped: set ``INERTIA_ROS_TUDELFT_INDEX``
+to the ``index.json`` of the converted throws (``scripts/tudelft_throw.py``; the CSVs next to
+it) to run the real-data tests; without it only the data-free checks run.
+"""
+from __future__ import annotations
+
+import importlib.util
+import json
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from conftest import ROOT
+
+SCRIPT = ROOT / 'scripts' / 'tudelft_throw.py'
+REAL = Path(os.environ.get('INERTIA_ROS_TUDELFT_INDEX', '/nonexistent/index.json'))
+#: The authors' own pipeline on the same 45 throws (``make table`` at f83da37, rerun):
+#: median of eps, the orientation-free error of the sorted principal moments.
+AUTHORS_MEDIAN_EPS = 0.0144
+
+
+def _load():
+    spec = importlib.util.spec_from_file_location('tudelft_throw', SCRIPT)
+    mod = importlib.util.module_from_spec(spec)
+    assert spec.loader is not None
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def test_proof_body_is_the_authors_cuboid():
+    """The calibration cuboid as in the authors' config.py (not the sorted diagonal)."""
+    m, I = _load().proof_body({'proof_body': {'m': 0.346, 'dims': [0.0302, 0.06, 0.07]}})
+    assert m == 0.346
+    assert np.allclose(np.diag(I), [1.6758e-4, 1.3010e-4, 2.4508e-4], rtol=1e-4)
+
+
+def test_summary_counts_ok_above_ten_percent(capsys: pytest.CaptureFixture):
+    """The bench summary names the acceptance figures, per configuration and overall."""
+    rows = [{'config': 'c', 'status': 'ok', 'eps': 0.12, 'fro': 0.1, 'psi_deg': 1.0,
+             'z': [0.5, 1.0, 4.0]},
+            {'config': 'c', 'status': 'model_mismatch', 'eps': 0.01, 'fro': 0.02,
+             'psi_deg': 2.0, 'z': [0.1, 0.2, 0.3]}]
+    _load().summary(rows)
+    out = capsys.readouterr().out
+    assert 'eps median 6.50 %' in out and 'within 3 sigma 83%' in out
+    assert 'ok with eps > 10 %: 1' in out
+
+
+@pytest.mark.skipif(not REAL.is_file(), reason='TU Delft recordings absent (not shipped: no '
+                    'licence; set INERTIA_ROS_TUDELFT_INDEX); see docs/real_data_tudelft.md')
+@pytest.mark.parametrize('calibration', ['authors', 'ours'])
+def test_real_throws_acceptance(tmp_path: Path, calibration: str) -> None:
+    """Filtered form, cutoff below the flywheel's rotation: no ok with eps > 10 % and >= 90 %
+    of the principal moments within 3 sigma (both calibrations); the median eps at or below
+    the authors' with their calibration (measured 1.35 % vs 1.44 %; ours: 1.49 %)."""
+    res = tmp_path / 'r.json'
+    assert _load().main(['bench', '--csv-root', str(REAL.parent), '--index', str(REAL),
+                         '--calibration', calibration, '--out', str(res)]) == 0
+    rows = [r for r in json.loads(res.read_text()) if 'eps' in r]
+    assert len(rows) >= 40
+    assert not [r['log'] for r in rows if r['status'] == 'ok' and r['eps'] > 0.10]
+    z = np.concatenate([r['z'] for r in rows])
+    assert np.mean(np.abs(z) <= 3) >= 0.90
+    median = float(np.median([r['eps'] for r in rows]))
+    assert median <= (AUTHORS_MEDIAN_EPS if calibration == 'authors' else 0.016)
