@@ -161,13 +161,17 @@ def psi(I: np.ndarray, It: np.ndarray) -> float:
     return float(max(math.acos(min(1.0, abs(float(v[:, k] @ vt[:, k])))) for k in range(3)))
 
 
-def _window(s: dict[str, np.ndarray], e: dict, delay: float = 0.0
+def _window(s: dict[str, np.ndarray], e: dict, delay: float = 0.0, offset: int | None = None
             ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The authors' fit window of one throw: ``t``, ``w``, ``a``, flywheel speed.
 
-    ``delay`` [s] > 0 reads the flywheel speed that much later (telemetry lagging the gyro).
+    ``delay`` [s] > 0 reads the flywheel speed that much later (telemetry lagging the gyro);
+    ``offset`` starts the window that many samples after the throw start instead (the
+    authors: 300).
     """
     a0, a1 = e['fit_window']
+    if offset is not None:
+        a0 = e['throw_start'] + offset
     t = s['t'][a0:a1]
     fw = s['wheel'][a0:a1] if delay == 0.0 else np.interp(t + delay, s['t'], s['wheel'])
     return t, s['w'][a0:a1], s['a'][a0:a1], fw
@@ -184,7 +188,7 @@ def _estimate_unit(s: dict[str, np.ndarray], e: dict, J0: float, args: argparse.
     """
     from inertia_ros.core.estimation.momentum import Wheel, estimate_with_momentum, wheels_momentum
 
-    t, w, acc, fw = _window(s, e, args.delay)
+    t, w, acc, fw = _window(s, e, args.delay, args.offset)
     window = args.window
     if args.method == 'filtered' and window is None and args.cutoff_rule == 'wheel':
         # below the flywheel's lowest rotation frequency in the window: its imbalance shakes
@@ -423,6 +427,9 @@ def main(argv: list[str] | None = None) -> int:
     b.add_argument('--gyro-noise', type=float, default=None,
                    help='gyro white-noise std [rad/s] (default: from the data)')
     b.add_argument('--every', type=int, default=1, help='every n-th test throw only')
+    b.add_argument('--offset', type=int, default=None,
+                   help="window start in samples after the throw start (default: the index's "
+                        "fit_window, the authors' 300)")
     b.add_argument('--cutoff-rule', choices=('wheel', 'data'), default='wheel',
                    help="filtered method without --window: cutoff below the flywheel's lowest "
                         "rotation frequency (wheel, default) or the estimator's own choice")

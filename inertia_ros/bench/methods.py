@@ -272,7 +272,7 @@ def method_specs(*, include_pinocchio: bool = True, quick: bool = False
                    'differences (package baseline)', _package(method='differential_fd')),
         MethodSpec('differential_sg/0.1s', 'package', 'differential form, Savitzky-Golay 0.1 s',
                    _package(method='differential_sg', window=0.1)),
-        MethodSpec('filtered', 'package', 'both sides through 1/(1 + sT)^2, T from the data',
+        MethodSpec('filtered', 'package', 'both sides through one low-pass, cutoff from data',
                    _package(method='filtered')),
         MethodSpec('hand_fd', 'baseline', 'by hand: np.gradient + np.linalg.lstsq',
                    _run_hand_fd),
