@@ -38,7 +38,7 @@ from ..tensor import principal_axes, theta_to_matrix
 from .options import ALPHA, IDENTIFIABILITY_TOL
 
 __all__ = ['Momentum', 'Wheel', 'as_momentum', 'equivalent_torque', 'estimate_with_momentum',
-           'wheel_momentum', 'wheels_momentum']
+           'wheel_inputs', 'wheel_momentum', 'wheels_momentum']
 
 
 @dataclass(frozen=True)
@@ -101,6 +101,12 @@ class Momentum:
     noise_cov : ndarray, shape (3, 3), optional
         Covariance of the white measurement noise of ``h`` [N^2 m^2 s^2]; estimated from the
         samples (high-order differences) when None.
+    torque : ndarray, shape (K, 3), optional
+        A known torque on the same stamps [N m] (e.g. rotor thrust and drag torques), linear
+        between its samples; None: none.
+    torque_std : ndarray, shape (P, K, 3), optional
+        One-sigma changes of ``torque`` from the same ``P`` uncertain inputs [N m] (None:
+        zeros).
     """
 
     t: np.ndarray
@@ -108,6 +114,8 @@ class Momentum:
     h_std: np.ndarray
     names: tuple[str, ...] = ()
     noise_cov: np.ndarray | None = None
+    torque: np.ndarray | None = None
+    torque_std: np.ndarray | None = None
 
 
 def wheel_momentum(wheels: list[Wheel], speed: Any) -> np.ndarray:
@@ -132,9 +140,10 @@ def wheel_momentum(wheels: list[Wheel], speed: Any) -> np.ndarray:
     return s @ coef
 
 
-def wheels_momentum(t: Any, speed: Any, wheels: list[Wheel]) -> Momentum:
-    """:class:`Momentum` of sampled wheel speeds, with one uncertain input per wheel whose
-    ``inertia_std`` is positive (named ``inertia:<joint>``).
+def wheel_inputs(t: Any, speed: Any, wheels: list[Wheel]) -> Momentum:
+    """The momentum input of a block of wheel speeds (unvalidated, any K >= 1; the online
+    estimator's form): ``h`` with one uncertain input per wheel whose ``inertia_std`` is
+    positive (named ``inertia:<joint>``); ``noise_cov`` None.
 
     Parameters
     ----------
@@ -152,13 +161,28 @@ def wheels_momentum(t: Any, speed: Any, wheels: list[Wheel]) -> Momentum:
             pert.append(np.outer(s[:, k], wh.inertia_std * wh.axis))
             names.append(f'inertia:{wh.joint}')
     h_std = np.array(pert) if pert else np.zeros((0, len(h), 3))
+    return Momentum(np.asarray(t, dtype=float).reshape(-1), h, h_std, tuple(names))
+
+
+def wheels_momentum(t: Any, speed: Any, wheels: list[Wheel]) -> Momentum:
+    """:class:`Momentum` of sampled wheel speeds (:func:`wheel_inputs`), validated, with the
+    noise covariance of ``h`` from the speeds' white noise (high-order differences per wheel).
+
+    Parameters
+    ----------
+    t : array_like, shape (K,)
+        Sample times [s].
+    speed : array_like, shape (K, n_wheels)
+        Wheel speeds [rad/s], columns in the order of ``wheels``.
+    wheels : list of Wheel
+    """
     from .noise import noise_std_from_differences
 
-    sd = noise_std_from_differences(s)                 # per wheel [rad/s]
+    m = wheel_inputs(t, speed, wheels)
+    sd = noise_std_from_differences(np.asarray(speed, dtype=float))   # per wheel [rad/s]
     cov = sum(((wh.inertia * sd[k]) ** 2) * np.outer(wh.axis, wh.axis)
               for k, wh in enumerate(wheels))
-    return as_momentum(Momentum(np.asarray(t, dtype=float), h, h_std, tuple(names),
-                                np.asarray(cov, dtype=float).reshape(3, 3)))
+    return as_momentum(replace(m, noise_cov=np.asarray(cov, dtype=float).reshape(3, 3)))
 
 
 def as_momentum(momentum: Any) -> Momentum:
@@ -169,10 +193,10 @@ def as_momentum(momentum: Any) -> Momentum:
     ValueError
         Wrong shapes, non-finite values, fewer than 2 samples, times not strictly increasing.
     """
-    cov = None
+    cov = tq = tq_std = None
     if isinstance(momentum, Momentum):
         t, h, h_std, names = momentum.t, momentum.h, momentum.h_std, momentum.names
-        cov = momentum.noise_cov
+        cov, tq, tq_std = momentum.noise_cov, momentum.torque, momentum.torque_std
     else:
         try:
             t, h = momentum
@@ -200,11 +224,30 @@ def as_momentum(momentum: Any) -> Momentum:
     cov = np.asarray(cov, dtype=float)
     if cov.shape != (3, 3) or not np.all(np.isfinite(cov)):
         raise ValueError(f'momentum: noise_cov must be a finite (3, 3) matrix, got {cov.shape}')
-    return Momentum(t, h, h_std, tuple(names), cov)
+    tq, tq_std = _check_torque(tq, tq_std, len(t), len(h_std))
+    return Momentum(t, h, h_std, tuple(names), cov, tq, tq_std)
+
+
+def _check_torque(tq: Any, tq_std: Any, k: int, p: int
+                  ) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """Validate the optional torque (K, 3) of a momentum input and its changes (P, K, 3)."""
+    if tq is None:
+        if tq_std is not None:
+            raise ValueError('momentum: torque_std given without torque')
+        return None, None
+    tq = np.asarray(tq, dtype=float)
+    if tq.shape != (k, 3) or not np.all(np.isfinite(tq)):
+        raise ValueError(f'momentum: torque must be finite with shape ({k}, 3), got {tq.shape}')
+    tq_std = np.zeros((p, k, 3)) if tq_std is None else np.asarray(tq_std, dtype=float)
+    if tq_std.shape != (p, k, 3) or not np.all(np.isfinite(tq_std)):
+        raise ValueError(f'momentum: torque_std must be finite with shape ({p}, {k}, 3), got '
+                         f'{tq_std.shape}')
+    return tq, tq_std
 
 
 def equivalent_torque(tg: np.ndarray, w: np.ndarray, t_h: np.ndarray, h: np.ndarray,
-                      ts: np.ndarray, tau: np.ndarray, hold: str
+                      ts: np.ndarray, tau: np.ndarray, hold: str,
+                      tq_h: np.ndarray | None = None
                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Piecewise-constant torque whose held integral is ``int tau - dh - int w x h``.
 
@@ -218,6 +261,8 @@ def equivalent_torque(tg: np.ndarray, w: np.ndarray, t_h: np.ndarray, h: np.ndar
         Other known torque (M = 0: none) [s], [N m].
     hold : {'zoh', 'linear'}
         Hold of ``tau`` between its samples.
+    tq_h : ndarray, shape (K, 3), optional
+        Known torque on the momentum stamps (linear between them) [N m], added.
 
     Returns
     -------
@@ -252,6 +297,9 @@ def equivalent_torque(tg: np.ndarray, w: np.ndarray, t_h: np.ndarray, h: np.ndar
         else:
             tq = np.column_stack([np.interp(grid, ts, tau[:, k]) for k in range(3)])
             out[:-1] += 0.5 * (tq[1:] + tq[:-1])
+    if tq_h is not None:
+        tr = np.column_stack([np.interp(grid, t_h, tq_h[:, k]) for k in range(3)])
+        out[:-1] += 0.5 * (tr[1:] + tr[:-1])
     out[-1] = out[-2]
     return grid, out, inside
 
@@ -296,6 +344,10 @@ def _noise_terms(tg: np.ndarray, w: np.ndarray, inside: np.ndarray, grid: np.nda
         # white torque noise held over the torque's own interval: the same random walk when
         # held over the (finer) grid intervals needs the std scaled by sqrt(ratio)
         tn = tn * np.sqrt(float(np.median(np.diff(ts))) / float(np.median(np.diff(grid))))
+    if mom.torque is not None:      # the momentum input's own torque (rotors): the same rule
+        tr = noise_std_from_differences(mom.torque) * np.sqrt(
+            float(np.median(np.diff(mom.t))) / float(np.median(np.diff(grid))))
+        tn = np.sqrt(tn ** 2 + tr ** 2)
     # a wheel sample's noise is shared by the gyro equations around it (interpolated): for
     # the covariance of the fit that is white noise of about that many times the variance
     share = max(1.0, float(np.median(np.diff(mom.t))) / float(np.median(np.diff(tg))))
@@ -345,7 +397,7 @@ def estimate_with_momentum(t_gyro: Any, omega: Any, t_torque: Any, torque: Any,
     hold = options.pop('hold', HOLDS[0])
     check_choice('hold', hold, BATCH_HOLDS)
     hold = HOLDS[0] if hold not in HOLDS else hold   # of the other torque; the result is held
-    grid, tq, inside = equivalent_torque(tg, w, mom.t, mom.h, ts, tau, hold)
+    grid, tq, inside = equivalent_torque(tg, w, mom.t, mom.h, ts, tau, hold, mom.torque)
     if int(np.sum(inside)) < 6 or len(grid) < 2:
         raise ValueError(f'momentum: its samples [{mom.t[0]:.6g}, {mom.t[-1]:.6g}] s cover '
                          f'{int(np.sum(inside))} gyro samples of [{tg[0]:.6g}, {tg[-1]:.6g}] s '
@@ -413,8 +465,8 @@ def _propagate(res: Any, tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.
     if fixed['model'] not in ('full', 'diagonal', 'axisymmetric'):
         return res
     if res.method == 'ml':      # the same linear response without the refinement's cost
-        ref = _estimate(tg, w, *equivalent_torque(tg, w, mom.t, mom.h, ts, tau, hold)[:2],
-                        torque_noise=tn, **fixed)
+        ref = _estimate(tg, w, *equivalent_torque(tg, w, mom.t, mom.h, ts, tau, hold,
+                                                  mom.torque)[:2], torque_noise=tn, **fixed)
     else:
         ref = res
     var6 = np.zeros(6)
@@ -423,8 +475,10 @@ def _propagate(res: Any, tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.
     var_r = np.zeros((3, 3))
     var_a = np.zeros(3)
     per: dict[str, Any] = {}
-    for name, dh in zip(mom.names, mom.h_std, strict=True):
-        grid, tq, _ = equivalent_torque(tg, w, mom.t, mom.h + dh, ts, tau, hold)
+    dtq = mom.torque_std if mom.torque is not None else [None] * len(mom.names)
+    for name, dh, dt in zip(mom.names, mom.h_std, dtq, strict=True):
+        grid, tq, _ = equivalent_torque(tg, w, mom.t, mom.h + dh, ts, tau, hold,
+                                        None if dt is None else mom.torque + dt)
         p = _estimate(tg, w, grid, tq, torque_noise=tn, **fixed)
         if p.inertia is None or ref.inertia is None:
             continue

@@ -104,6 +104,10 @@ class RecursiveEstimator:
         propagated into the standard errors as by :func:`~.batch.estimate`.
     """
 
+    #: White noise in the equations' right-hand side besides the gyro's (a momentum input's,
+    #: set by :class:`.recursive_momentum.MomentumRecursiveEstimator`) [N^2 m^2 s^2].
+    _white_y_cov: np.ndarray | None = None
+
     def __init__(self, model: str = 'full', torque_bias: bool | str = False,
                  forgetting: float = 1.0, window: float | None = None, hold: str = 'zoh',
                  symmetry_axis: Any = None, gyro_noise: Any = None, alpha: float = ALPHA,
@@ -624,7 +628,7 @@ class RecursiveEstimator:
                                      int(round(g.w0)), int(round(g.neff)), 1, kind='anchored',
                                      eiv_var=nv, weighted=True, walk_time=g.walk,
                                      torque_dt=self._tau_dt, omega_m2=self._omega_m2(),
-                                     gyro_dt=self._gyro_dt())
+                                     gyro_dt=self._gyro_dt(), white_y_cov=self._white_y_cov)
                 fk = fit_two_pass(st, f.basis, f.bias, nv, tv, None, theta0)
                 fits.append((fk.beta, fk.cov * (g.w00 / g.w0), 0.5 * (g.t0 + g.t1)))
             thetas = np.array([x[0] for x in fits])
@@ -649,6 +653,11 @@ class RecursiveEstimator:
             return self._gyro_noise ** 2
         return self._gyro_nv.variance()
 
+    def _torque_variance(self) -> np.ndarray | None:
+        """Torque white-noise variance per axis (None before 16 samples); the hook where a
+        momentum input states its own (:mod:`.recursive_momentum`)."""
+        return self._tau_nv.variance() if self._tau_nv.count >= 16 else None
+
     def _stats(self, nv: np.ndarray, n_eff: float, gyro_scale: float = 1.0) -> SufficientStats:
         """The weighted statistics of everything merged, in the batch estimator's form.
 
@@ -668,7 +677,8 @@ class RecursiveEstimator:
         return SufficientStats(C_all, CP, int(round(self._w0 + self._wc)), int(round(n_eff)), 1,
                                kind='anchored', eiv_var=nv, weighted=True,
                                walk_time=self._walkc + walk, torque_dt=self._tau_dt,
-                               omega_m2=self._omega_m2(), gyro_dt=self._gyro_dt())
+                               omega_m2=self._omega_m2(), gyro_dt=self._gyro_dt(),
+                               white_y_cov=self._white_y_cov)
 
     def estimate(self) -> InertiaEstimate:
         """Current estimate from everything merged so far (flushes covered samples first).
@@ -690,7 +700,7 @@ class RecursiveEstimator:
             diag['warnings'].append(f'{self.gaps} gap(s) in the streams: each started a new '
                                     'segment; gyro samples inside torque gaps were dropped')
         n_eff = self._neffc + (self._w0 - self._w00 / self._w0 if self._w0 > 0 else 0.0)
-        self._tau_var = self._tau_nv.variance() if self._tau_nv.count >= 16 else None
+        self._tau_var = self._torque_variance()
         if self.samples_used < MIN_GYRO_SAMPLES or n_eff < MIN_EQUATIONS:
             diag['reason'] = f'only {self.samples_used} gyro samples covered by torque so far'
             return status_only('insufficient_data', diag, base)

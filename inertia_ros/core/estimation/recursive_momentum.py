@@ -1,0 +1,379 @@
+"""Online estimation with wheel, flywheel or rotor input: :class:`MomentumRecursiveEstimator`.
+
+The online form of :func:`.momentum.estimate_with_momentum`. The internal angular momentum
+``h`` (wheels, rotors) and a known torque on the same stamps (rotor thrust and drag) arrive
+as blocks (:meth:`MomentumRecursiveEstimator.add_momentum`, or
+:meth:`~MomentumRecursiveEstimator.add_wheels` with ``h`` alone), next to the gyro and,
+optionally, another torque stream. They are turned, as they become covered, into the exactly
+equivalent piecewise-constant torque on the union grid of gyro and momentum stamps (the
+batch rule of :func:`.momentum.equivalent_torque`: its held integral is ``int tau - (h - h0)
+- int w x h``, ``h`` by cubic Hermite interpolation with the slopes of ``np.gradient``, ``w
+x h`` by the trapezoid on the grid), which feeds the :class:`~.recursive.RecursiveEstimator`
+this class extends: nothing is differentiated and ``h0`` joins each segment's intercept.
+
+A grid interval is emitted once everything it needs has arrived: the momentum sample after
+its end (the Hermite slope there), a gyro sample at or after its end, and (with another
+torque stream) the torque sample holding over it.  The noise model is the batch one: the
+momentum noise (estimated from the recent ``h`` samples' high-order differences, per axis)
+is white noise in the right-hand side (``white_y_cov``), and the gyro noise ``n x h``, the
+momentum noise ``w x e`` in the ``w x h`` integral and the torques' own noise are white
+torque noise held over each grid interval (:meth:`_torque_variance`).
+
+Uncertain inputs (wheel inertias, rotor coefficients: ``names`` at construction, one-sigma
+changes of ``h`` and of the torque with every block) are propagated by the estimate's
+sensitivity: one :class:`~.recursive.RecursiveEstimator` per input is fed the same gyro and
+the equivalent torque of the input's change alone; the fit is linear in the right-hand side,
+so its fit with the final estimate's parameter set and weights is the change of the estimate
+``d theta``, and ``cov += sum d theta d theta'`` (``diagnostics['input_uncertainty']``).
+"""
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import replace
+from typing import Any
+
+import numpy as np
+
+from ..tensor import theta_to_matrix
+from .fit import fit_two_pass
+from .model import model_basis
+from .momentum import Momentum, _cross_matrices
+from .noise import StreamingNoise
+from .recursive import RecursiveEstimator
+from .result import InertiaEstimate
+from .uncertainty import principal_with_std, ratio_cov
+
+__all__ = ['MomentumRecursiveEstimator']
+
+
+class _Buffer:
+    """Samples of one stream not yet consumed: times (n,) and any number of value arrays."""
+
+    def __init__(self, *widths: tuple[int, ...]) -> None:
+        self.t = np.empty(0)
+        # (0, c) for per-sample rows, (p, 0, c) for p stacked series
+        self.v = [np.empty((0, w[0])) if len(w) == 1 else np.empty((w[0], 0, w[1]))
+                  for w in widths]
+
+    def add(self, t: np.ndarray, *values: np.ndarray) -> None:
+        self.t = np.concatenate([self.t, t])
+        self.v = [np.concatenate([a, b], axis=-2 if a.ndim == 3 else 0)
+                  for a, b in zip(self.v, values, strict=True)]
+
+    def keep_from(self, i: int) -> None:
+        """Drop the samples before index ``i``."""
+        if i > 0:
+            self.t = self.t[i:]
+            self.v = [a[:, i:] if a.ndim == 3 else a[i:] for a in self.v]
+
+
+def _hermite(t_h: np.ndarray, h: np.ndarray, slopes: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """Cubic Hermite interpolation of ``h`` (K, 3) with ``slopes`` at ``t`` (inside t_h)."""
+    j = np.clip(np.searchsorted(t_h, t, side='right') - 1, 0, len(t_h) - 2)
+    dx = (t_h[j + 1] - t_h[j])[:, None]
+    u = (t - t_h[j])[:, None] / dx
+    h00, h10 = 2 * u ** 3 - 3 * u ** 2 + 1, u ** 3 - 2 * u ** 2 + u
+    h01, h11 = -2 * u ** 3 + 3 * u ** 2, u ** 3 - u ** 2
+    return h00 * h[j] + h10 * dx * slopes[j] + h01 * h[j + 1] + h11 * dx * slopes[j + 1]
+
+
+def _interval_torque(grid: np.ndarray, wg: np.ndarray, hg: np.ndarray,
+                     trg: np.ndarray | None) -> np.ndarray:
+    """Held torque (G - 1, 3) over the grid intervals: ``-dh/dt - trap(w x h) + trap(tr)``."""
+    c = np.cross(wg, hg)
+    out = -np.diff(hg, axis=0) / np.diff(grid)[:, None] - 0.5 * (c[1:] + c[:-1])
+    if trg is not None:
+        out += 0.5 * (trg[1:] + trg[:-1])
+    return out
+
+
+class MomentumRecursiveEstimator(RecursiveEstimator):
+    """:class:`~.recursive.RecursiveEstimator` with internal momentum (wheels, rotors) input.
+
+    Parameters
+    ----------
+    names : sequence of str
+        The uncertain inputs whose one-sigma changes every :meth:`add_momentum` block gives
+        (e.g. ``inertia:rw1``, ``k_f:m1``); empty: none.
+    other_torque : bool
+        True: another known torque arrives through :meth:`add_torque` and the equations wait
+        for it; False: the momentum input is the only known torque.
+    **kwargs
+        The options of :class:`~.recursive.RecursiveEstimator`.
+    """
+
+    def __init__(self, names: Sequence[str] = (), other_torque: bool = True,
+                 **kwargs: Any) -> None:
+        self.names = tuple(names)
+        self.other_torque = bool(other_torque)
+        self._kwargs = dict(kwargs)
+        super().__init__(**kwargs)
+
+    def reset(self) -> None:
+        """Forget everything (also the per-input sensitivity estimators)."""
+        super().reset()
+        p = len(getattr(self, 'names', ()))
+        self._g = _Buffer((3,))                       # gyro: w
+        self._m = _Buffer((3,), (3,), (p, 3), (p, 3))  # momentum: h, torque, dh, dtorque
+        self._o = _Buffer((3,))                       # other torque
+        self._cursor: float | None = None             # start of the next grid interval [s]
+        self._pert = [RecursiveEstimator(**self._kwargs) for _ in range(p)]
+        self._h_noise = StreamingNoise(floor=False)
+        self._tr_noise = StreamingNoise(floor=False)
+        self._o_noise = StreamingNoise(floor=False)
+        self._o_dt: list[float] = []
+        self._m_dt: list[float] = []
+        self._walk_h = np.zeros((3, 3))          # sum over the grid of [h]x_ij^2
+        self._walk_w = np.zeros((3, 3, 3))       # sum over the grid of [w]x_ij [w]x_ik
+        self._walk_n = 0
+        self.momentum_samples = 0
+
+    # ------------------------------------------------------------------ input
+    def add_gyro(self, t: Any, omega: Any) -> None:
+        """Add gyro samples (as :meth:`.RecursiveEstimator.add_gyro`)."""
+        from .._validate import as_sample_block
+
+        ta, wa = as_sample_block(np.atleast_1d(np.asarray(t, dtype=float)),
+                                 np.asarray(omega, dtype=float).reshape(-1, 3), 'omega')
+        if len(ta) == 0:
+            return
+        if len(self._g.t) and ta[0] <= self._g.t[-1]:
+            raise ValueError(f'omega: time {ta[0]!r} is not after the previous gyro sample '
+                             f'{self._g.t[-1]!r} (call reset() after a clock jump)')
+        self._g.add(ta, wa)
+        self._advance()
+
+    def add_torque(self, t: Any, tau: Any) -> None:
+        """Add samples of the other known torque [N m] (``other_torque=True`` only)."""
+        from .._validate import as_sample_block
+
+        if not self.other_torque:
+            raise ValueError('torque: this estimator was built with other_torque=False (the '
+                             'momentum input is the only known torque)')
+        ta, xa = as_sample_block(np.atleast_1d(np.asarray(t, dtype=float)),
+                                 np.asarray(tau, dtype=float).reshape(-1, 3), 'torque')
+        if len(ta) == 0:
+            return
+        if len(self._o.t) and ta[0] <= self._o.t[-1]:
+            raise ValueError(f'torque: time {ta[0]!r} is not after the previous torque sample '
+                             f'{self._o.t[-1]!r} (call reset() after a clock jump)')
+        self._o.add(ta, xa)
+        self._o_noise.add(xa)
+        self._o_dt = (self._o_dt + np.diff(self._o.t[-len(ta) - 1:]).tolist())[-64:]
+        self._advance()
+
+    def add_wheels(self, t: Any, h: Any) -> None:
+        """Add internal angular momentum samples ``h`` (n, 3) [N m s], body frame, at ``t``
+        (n,) [s] (no torque, no uncertain inputs; see :meth:`add_momentum`)."""
+        h = np.asarray(h, dtype=float).reshape(-1, 3)
+        self.add_momentum(Momentum(np.atleast_1d(np.asarray(t, dtype=float)), h,
+                                   np.zeros((len(self.names), len(h), 3)), self.names))
+
+    def add_momentum(self, m: Momentum) -> None:
+        """Add a block of the momentum input (:func:`.momentum.wheel_inputs`,
+        :meth:`.rotors.RotorSet.inputs`): stamps, ``h``, optional torque and the one-sigma
+        changes of both for each of ``names`` (in that order)."""
+        t = np.atleast_1d(np.asarray(m.t, dtype=float))
+        k, p = len(t), len(self.names)
+        h = np.asarray(m.h, dtype=float).reshape(k, 3)
+        tq = np.zeros((k, 3)) if m.torque is None else np.asarray(m.torque, float).reshape(k, 3)
+        dh = np.asarray(m.h_std, dtype=float).reshape(p, k, 3)
+        dt = np.zeros((p, k, 3)) if m.torque_std is None else \
+            np.asarray(m.torque_std, dtype=float).reshape(p, k, 3)
+        if tuple(m.names) != self.names and p:
+            raise ValueError(f'momentum: uncertain inputs {list(m.names)} differ from the '
+                             f'estimator\'s {list(self.names)}')
+        if not (np.all(np.isfinite(t)) and np.all(np.isfinite(h)) and np.all(np.isfinite(tq))):
+            raise ValueError('momentum: contains NaN or inf')
+        if np.any(np.diff(t) <= 0) or (len(self._m.t) and k and t[0] <= self._m.t[-1]):
+            raise ValueError('momentum: times must be strictly increasing across blocks (call '
+                             'reset() after a clock jump)')
+        if k == 0:
+            return
+        self._m.add(t, h, tq, dh, dt)
+        self._h_noise.add(h)
+        if m.torque is not None:
+            self._tr_noise.add(tq)
+        self._m_dt = (self._m_dt + np.diff(self._m.t[-k - 1:]).tolist())[-64:]
+        self.momentum_samples += k
+        self._advance()
+
+    # ------------------------------------------------------------------ the grid
+    def _horizon(self) -> float | None:
+        """Latest grid time whose interval can be emitted, or None."""
+        if len(self._m.t) < 3 or len(self._g.t) == 0:
+            return None
+        hi = min(float(self._m.t[-2]), float(self._g.t[-1]))
+        if self.other_torque:
+            if len(self._o.t) == 0:
+                return None
+            hi = min(hi, float(self._o.t[-1]) if self.hold == 'linear' else np.inf)
+        return hi
+
+    def _advance(self) -> None:
+        """Emit the equivalent torque of every grid interval now covered (and its gyro)."""
+        hi = self._horizon()
+        if hi is None:
+            return
+        if self._cursor is None and not self._start():
+            return
+        c = float(self._cursor)
+        tg, tm = self._g.t, self._m.t
+        grid = np.union1d(tg[(tg >= c) & (tg <= hi)], tm[(tm >= c) & (tm <= hi)])
+        grid = np.union1d([c], grid)
+        if self.other_torque and self.hold != 'linear':
+            # zero-order hold: interval [g_i, g_i+1) needs the torque sample at or before g_i
+            # to be the last one: a torque sample at or after g_i has arrived
+            grid = grid[:int(np.searchsorted(grid, self._o.t[-1], side='right')) + 1]
+            grid = grid[grid <= hi]
+        if len(grid) < 2:
+            return
+        self._emit(grid)
+
+    def _start(self) -> bool:
+        """Set the first grid time (the batch's common coverage start); drop earlier gyro."""
+        lo = max(float(self._g.t[0]), float(self._m.t[0]))
+        if self.other_torque:
+            lo = max(lo, float(self._o.t[0]))
+        if lo > self._g.t[-1] or lo > self._m.t[-1]:
+            return False
+        early = int(np.searchsorted(self._g.t, lo, side='left'))
+        self.samples_dropped += early
+        self._g.keep_from(early - 1)      # one earlier sample stays for interpolation at lo
+        self._cursor = lo
+        return True
+
+    def _emit(self, grid: np.ndarray) -> None:
+        """Feed the equivalent torque on ``grid`` (and the gyro samples it covers)."""
+        tm = self._m.t
+        h, tq, dh, dtq = self._m.v
+        slopes = np.gradient(h, tm, axis=0)
+        hg = _hermite(tm, h, slopes, grid)
+        wg = np.column_stack([np.interp(grid, self._g.t, self._g.v[0][:, k])
+                              for k in range(3)])
+        has_tr = self._tr_noise.count > 0
+
+        def lin(y: np.ndarray) -> np.ndarray:
+            return np.column_stack([np.interp(grid, tm, y[:, k]) for k in range(3)])
+        out = _interval_torque(grid, wg, hg, lin(tq) if has_tr else None)
+        if self.other_torque:
+            out = out + self._other_on(grid)
+        self._walk(hg[:-1], wg[:-1])
+        gi = (self._g.t >= grid[0]) & (self._g.t <= grid[-1])
+        t_in = self._g.t[gi]
+        w_in = self._g.v[0][gi]
+        fresh = t_in > (self._last_t_in if self._last_t_in is not None else -np.inf)
+        super().add_torque(grid[:-1], out)
+        if np.any(fresh):
+            super().add_gyro(t_in[fresh], w_in[fresh])
+        for i, est in enumerate(self._pert):
+            dslopes = np.gradient(dh[i], tm, axis=0)
+            d = _interval_torque(grid, wg, _hermite(tm, dh[i], dslopes, grid),
+                                 lin(dtq[i]) if has_tr else None)
+            est.add_torque(grid[:-1], d)
+            if np.any(fresh):
+                est.add_gyro(t_in[fresh], w_in[fresh])
+        self._cursor = float(grid[-1])
+        self._trim()
+
+    def _other_on(self, grid: np.ndarray) -> np.ndarray:
+        """The other torque over each grid interval (G - 1, 3): held or trapezoid."""
+        ts, tau = self._o.t, self._o.v[0]
+        if self.hold == 'linear':
+            tq = np.column_stack([np.interp(grid, ts, tau[:, k]) for k in range(3)])
+            return 0.5 * (tq[1:] + tq[:-1])
+        j = np.clip(np.searchsorted(ts, grid[:-1], side='right') - 1, 0, len(ts) - 1)
+        return tau[j]
+
+    def _trim(self) -> None:
+        """Drop the consumed samples (keeping what interpolation at the cursor needs)."""
+        c = self._cursor
+        gi = max(int(np.searchsorted(self._g.t, c, side='right')) - 1, 0)
+        self._g.keep_from(gi)
+        # the momentum interval holding the cursor and the sample before it (its slope)
+        mi = max(int(np.searchsorted(self._m.t, c, side='right')) - 2, 0)
+        self._m.keep_from(mi)
+        if self.other_torque:
+            oi = max(int(np.searchsorted(self._o.t, c, side='right')) - 1, 0)
+            self._o.keep_from(oi)
+
+    def _walk(self, hg: np.ndarray, wg: np.ndarray) -> None:
+        """Accumulate the grid sums of the ``n x h`` and ``w x e`` torque-noise walks."""
+        hx = _cross_matrices(hg)
+        wx = _cross_matrices(wg)
+        self._walk_h += np.einsum('nij,nij->ij', hx, hx)
+        self._walk_w += np.einsum('nij,nik->ijk', wx, wx)
+        self._walk_n += len(hg)
+
+    # ------------------------------------------------------------------ noise and estimate
+    def _share(self) -> float:
+        """Gyro samples per momentum sample (those sharing one momentum sample's noise)."""
+        if not self._m_dt or self._gyro_dt() <= 0:
+            return 1.0
+        return max(1.0, float(np.median(self._m_dt)) / self._gyro_dt())
+
+    def _torque_variance(self) -> np.ndarray | None:
+        """The equivalent torque's white-noise variance (3,) [N^2 m^2], as the batch's."""
+        if self._walk_n == 0 or self._tau_dt <= 0:
+            return None
+        share = self._share()
+        cov = np.diag(self._h_noise.variance()) if self._h_noise.count >= 6 else np.zeros((3, 3))
+        self._white_y_cov = cov * share
+        var = np.zeros(3)
+        for nv, dts in ((self._o_noise, self._o_dt), (self._tr_noise, self._m_dt)):
+            if nv.count >= 6 and dts:
+                var = var + nv.variance() * float(np.median(dts)) / self._tau_dt
+        g2 = self._gyro_var()
+        var = var + self._walk_h @ g2 / self._walk_n
+        var = var + share * np.einsum('ijk,jk->i', self._walk_w, cov) / self._walk_n
+        return var
+
+    def estimate(self) -> InertiaEstimate:
+        """The current estimate (see :meth:`.RecursiveEstimator.estimate`), with the momentum
+        input's record in ``diagnostics['momentum']`` and its uncertain inputs propagated."""
+        est = super().estimate()
+        diag = est.diagnostics
+        diag['momentum'] = {'samples': self.momentum_samples,
+                            'h_noise_std': self._h_noise.std(),
+                            'gyro_per_wheel_sample': self._share(),
+                            'other_torque': self.other_torque}
+        if est.status == 'insufficient_data' and self.other_torque and len(self._o.t) == 0:
+            diag['reason'] = ('no other torque sample yet: the momentum input waits for it '
+                              '(build with other_torque=False when there is none)')
+        if self._pert and est.status in ('ok', 'model_mismatch') and est.theta is not None \
+                and np.all(np.isfinite(est.theta)):
+            est = self._propagate(est)
+        return est
+
+    def _propagate(self, est: InertiaEstimate) -> InertiaEstimate:
+        """Add ``sum d theta d theta'`` of the uncertain inputs to the covariance."""
+        name = (est.model or 'full').removesuffix('+bias')
+        if name not in ('full', 'diagonal', 'axisymmetric'):
+            return est
+        basis = model_basis(name, self.axis)
+        bias = bool(est.model and est.model.endswith('+bias'))
+        nv = self._gyro_var()
+        n_eff = self._neffc + (self._w0 - self._w00 / self._w0 if self._w0 > 0 else 0.0)
+        k = basis.shape[1]
+        per, outer = {}, np.zeros((6, 6))
+        for nm, p in zip(self.names, self._pert, strict=True):
+            p._process()
+            p._white_y_cov = self._white_y_cov
+            f = fit_two_pass(p._stats(nv, n_eff), basis, bias, nv, np.zeros(3), None, est.theta)
+            d6 = np.nan_to_num(basis @ f.beta[:k])
+            per[nm] = {'theta_change': d6}
+            outer += np.outer(d6, d6)
+        cov6 = np.asarray(est.covariance) + outer
+        diag = dict(est.diagnostics)
+        theta = est.theta
+        moments, axes = principal_with_std(est.inertia, cov6, diag)
+        r_se = np.sqrt(np.maximum(np.diag(ratio_cov(theta, cov6)), 0.0))
+        diag['input_uncertainty'] = {
+            'inputs': per, 'theta_std_added': np.sqrt(np.diag(outer)),
+            'rule': 'linear sensitivity of the estimate to each input, added in quadrature'}
+        return replace(est, covariance=cov6,
+                       inertia_std=theta_to_matrix(np.sqrt(np.maximum(np.diag(cov6), 0.0)),
+                                                   check_finite=False),
+                       ratios_std=theta_to_matrix(r_se, check_finite=False),
+                       principal_moments=moments, principal_axes=axes, diagnostics=diag)
+
