@@ -73,6 +73,14 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument('--wheel-topic', metavar='T',
                    help='sensor_msgs/JointState topic of the wheel speeds (velocity, rad/s); '
                         'found by type when omitted')
+    p.add_argument('--rotors', metavar='FILE', type=Path,
+                   help='multirotor rotors YAML (joint, position, spin, k_f, k_m[, '
+                        'time_constant, inertia, *_std] per rotor; README "Rotor input"): '
+                        'the rotor torques (and momentum) from the JointState rotor speeds '
+                        'are the known torque; a torque topic, if any, adds to it')
+    p.add_argument('--rotor-topic', metavar='T',
+                   help='sensor_msgs/JointState topic of the rotor speeds (velocity, rad/s); '
+                        'found by type when omitted')
     p.add_argument('--format', choices=('text', 'json'), default='text',
                    help='report format (default text)')
     p.add_argument('-o', '--output', metavar='FILE', type=Path,
@@ -159,13 +167,14 @@ def _read(args: argparse.Namespace, progress: _Progress) -> Any:
 
     try:
         torque_topic = args.torque_topic
-        if args.wheels is not None and torque_topic is None and not _has_torque_topic(args.path):
-            torque_topic = 'none'       # wheels only: no other known torque
+        actuated = args.wheels is not None or args.rotors is not None
+        if actuated and torque_topic is None and not _has_torque_topic(args.path):
+            torque_topic = 'none'       # wheels or rotors only: no other known torque
         log = read_log(args.path, args.omega_topic, torque_topic,
                        ignore_frames=args.ignore_frames, torque_delay=args.torque_delay,
                        progress=progress)
         js = sorted(t for t, ty in log.topics.items() if ty == 'sensor_msgs/msg/JointState')
-        if args.wheels is None and js:
+        if args.wheels is None and args.rotors is None and js:
             log.warnings.append(f'{", ".join(js)}: JointState in the log; if it carries '
                                 'wheel speeds, pass --wheels WHEELS.yaml to use them')
         return log
@@ -195,7 +204,7 @@ def _estimate(args: argparse.Namespace, log: Any) -> Any:
     """Run the estimator on the log's streams with the command's options."""
     from inertia_ros.core.estimation import estimate
 
-    if args.wheels is not None:
+    if args.wheels is not None or args.rotors is not None:
         return _estimate_wheels(args, log)
     try:
         return estimate(log.omega.t, log.omega.values, log.torque.t, log.torque.values,
@@ -220,27 +229,30 @@ def _has_torque_topic(path: Any) -> bool:
 
 
 def _estimate_wheels(args: argparse.Namespace, log: Any) -> Any:
-    """``--wheels``: the wheels' momentum from the JointState topic enters the momentum form
+    """``--wheels`` / ``--rotors``: the wheels' (rotors') momentum and the rotors' torque from
+    the JointState topic enter the momentum form
     (:func:`inertia_ros.core.estimation.momentum.estimate_with_momentum`)."""
-    from inertia_ros.core.estimation.momentum import estimate_with_momentum, wheels_momentum
+    from inertia_ros.core.estimation.momentum import estimate_with_momentum
     from inertia_ros.io.joint_state import read_wheel_speeds
     from inertia_ros.io.logs import LogError
-    from inertia_ros.io.wheels import load_wheels
+    from inertia_ros.io.rotors import load_actuators
 
+    kind = 'wheels' if args.wheels is not None else 'rotors'
     try:
-        wheels = load_wheels(args.wheels)
-        topic, t_ns, speed = read_wheel_speeds(args.path, [w.joint for w in wheels],
-                                               args.wheel_topic)
+        act = load_actuators(args.wheels, args.rotors)
+        assert act is not None
+        topic, t_ns, speed = read_wheel_speeds(
+            args.path, act.joints, args.wheel_topic if kind == 'wheels' else args.rotor_topic,
+            what=kind)
+        mom = act.record((t_ns - log.epoch_ns) * 1e-9, speed)
     except (LogError, ValueError) as exc:
         raise UserError(_first_line(exc)) from None
     log.warnings[:] = [w for w in log.warnings if 'torque-free data' not in w]
-    args.wheel_info = {'file': str(args.wheels), 'topic': topic, 'samples': int(len(t_ns)),
-                       'joints': [w.joint for w in wheels]}
+    args.wheel_info = {'file': str(act.file), 'topic': topic, 'samples': int(len(t_ns)),
+                       'joints': act.joints, 'kind': kind}
     try:
-        return estimate_with_momentum(
-            log.omega.t, log.omega.values, log.torque.t, log.torque.values,
-            wheels_momentum((t_ns - log.epoch_ns) * 1e-9, speed, wheels),
-            **_estimator_options(args))
+        return estimate_with_momentum(log.omega.t, log.omega.values, log.torque.t,
+                                      log.torque.values, mom, **_estimator_options(args))
     except ValueError as exc:
         raise UserError(f'{args.path}: cannot estimate: {_first_line(exc)}') from None
 
@@ -282,9 +294,11 @@ def _run(args: argparse.Namespace) -> int:
     from inertia_ros.cli.report import build_report, format_text, numerical_warnings
 
     _check_outputs(args)
-    if args.wheels is not None and args.plot is not None:
-        raise UserError('--plot: not drawn for --wheels logs yet (its convergence curve '
-                        'refits with torque only); drop one of them')
+    if args.wheels is not None and args.rotors is not None:
+        raise UserError('--wheels and --rotors: give one of them (one JointState input)')
+    if (args.wheels is not None or args.rotors is not None) and args.plot is not None:
+        raise UserError('--plot: not drawn for --wheels/--rotors logs yet (its convergence '
+                        'curve refits with torque only); drop one of them')
     if args.model == 'axisymmetric' and args.symmetry_axis is None:
         raise UserError('--model axisymmetric needs --symmetry-axis x|y|z')
     progress = _Progress(sys.stderr.isatty() and not args.no_progress)
@@ -305,7 +319,7 @@ def _run(args: argparse.Namespace) -> int:
         raise UserError(f'{failure}{hint}') from None
     report = build_report(est, log, args.torque_delay, args.hold, list(found))
     if getattr(args, 'wheel_info', None):
-        report['diagnostics']['wheels'] = args.wheel_info
+        report['diagnostics'][args.wheel_info.pop('kind')] = args.wheel_info
     try:
         text = (json.dumps(report, indent=2, allow_nan=False) + '\n' if args.format == 'json'
                 else format_text(report))

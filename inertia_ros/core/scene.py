@@ -543,7 +543,7 @@ class InertiaChange:
 
 _TOP_KEYS = ('name', 'description', 'seed', 'duration', 'body', 'initial_omega', 'torque',
              'disturbance', 'command_rate', 'gyro', 'torque_sensor', 'imperfections',
-             'inertia_change', 'wheels')
+             'inertia_change', 'wheels', 'rotors')
 
 
 @dataclass(frozen=True, eq=False)
@@ -601,7 +601,8 @@ class Scene:
     com: np.ndarray | None = None
     description: str = ''
     source: Mapping[str, Any] = field(default_factory=dict, repr=False)
-    #: The ``wheels`` section (:class:`inertia_ros.core.wheel_sim.WheelScene`), or None.
+    #: The ``wheels`` section (:class:`inertia_ros.core.wheel_sim.WheelScene`) or the
+    #: ``rotors`` one (:class:`inertia_ros.core.rotor_sim.RotorScene`), or None.
     wheels: Any = None
 
     @classmethod
@@ -655,6 +656,11 @@ class Scene:
         if d.get('wheels') is not None:
             from inertia_ros.core.wheel_sim import parse_wheels
             wheels = parse_wheels(d['wheels'])
+        if d.get('rotors') is not None:        # rotors are JointState actuators like wheels
+            if wheels is not None:
+                raise SceneError('rotors: a scene has wheels or rotors, not both')
+            from inertia_ros.core.rotor_sim import parse_rotors
+            wheels = parse_rotors(d['rotors'], duration)
         return cls(wheels=wheels, name=name, seed=seed, duration=duration, inertia=inertia,
                    initial_omega=omega0, torque=torque, disturbance=disturbance,
                    command_rate=command_rate, gyro=gyro, torque_sensor=torque_sensor,

@@ -67,6 +67,10 @@ class WheelScene:
             hd += np.outer(wh.accel(t), wh.inertia * wh.axis)
         return h, hd
 
+    def max_hdot(self) -> float:
+        """Largest ``|h'|`` [N m] over the run (bounds the integrator's substeps)."""
+        return sum(abs(w.amplitude) * 2 * np.pi * w.frequency * w.inertia for w in self.wheels)
+
 
 def parse_wheels(value: Any, key: str = 'wheels') -> WheelScene:
     """Validate the ``wheels`` section of a scene.
@@ -124,8 +128,9 @@ def integrate_with_wheels(t_events: np.ndarray, torque: np.ndarray, inertia: np.
         Whole-body tensor [kg m^2].
     omega0 : ndarray, shape (3,)
         Angular velocity at ``t_events[0]`` [rad/s].
-    wheels : WheelScene
-        Wheel speeds are prescribed functions of time (``h`` smooth: RK4 stays 4th order).
+    wheels : WheelScene or RotorScene
+        Wheel (rotor) speeds are prescribed functions of time (``h`` smooth: RK4 stays 4th
+        order); a rotor scene's ``torque(t)`` is added to ``torque``.
     max_step_angle : float
         Largest body rotation per substep [rad].
 
@@ -139,14 +144,17 @@ def integrate_with_wheels(t_events: np.ndarray, torque: np.ndarray, inertia: np.
     t_events = np.asarray(t_events, dtype=float)
     k = len(t_events)
     inertia = np.broadcast_to(np.asarray(inertia, dtype=float), (max(k - 1, 1), 3, 3))
-    # largest |h'| [N m]: the rate change it can cause bounds the substep
-    hdmax = sum(abs(w.amplitude) * 2 * np.pi * w.frequency * w.inertia for w in wheels.wheels)
+    # largest |h'| (and actuator torque) [N m]: the rate change it can cause bounds the substep
+    hdmax = wheels.max_hdot()
+    extra = getattr(wheels, 'torque', None)      # rotors: their thrust and drag torques
 
     def f(t: float, y: np.ndarray, I: np.ndarray, Ii: np.ndarray, tq: np.ndarray
           ) -> np.ndarray:
         w, q = y[:3], y[3:]
         h, hd = wheels.momentum(np.array([t]))
         r = tq - hd[0] - np.cross(w, I @ w + h[0])
+        if extra is not None:
+            r = r + extra(np.array([t]))[0]
         qw, qx, qy, qz = q
         wx, wy, wz = w
         dq = 0.5 * np.array([-(qx * wx + qy * wy + qz * wz), qw * wx + qy * wz - qz * wy,

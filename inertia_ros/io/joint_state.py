@@ -159,8 +159,8 @@ def joint_state_topics(path: str | Path) -> list[str]:
     return sorted(out)
 
 
-def read_wheel_speeds(path: str | Path, joints: Sequence[str], topic: str | None = None
-                      ) -> tuple[str, np.ndarray, np.ndarray]:
+def read_wheel_speeds(path: str | Path, joints: Sequence[str], topic: str | None = None,
+                      what: str = 'wheels') -> tuple[str, np.ndarray, np.ndarray]:
     """Wheel speeds of the named joints from the JointState messages of a log.
 
     Parameters
@@ -171,6 +171,8 @@ def read_wheel_speeds(path: str | Path, joints: Sequence[str], topic: str | None
         Joint names wanted (the wheels file's ``joint`` entries).
     topic : str, optional
         JointState topic; found by type when there is exactly one.
+    what : {'wheels', 'rotors'}
+        What the joints are (names the CLI option and the file in the messages).
 
     Returns
     -------
@@ -192,11 +194,11 @@ def read_wheel_speeds(path: str | Path, joints: Sequence[str], topic: str | None
     if topic is None:
         found = joint_state_topics(path)
         if not found:
-            raise LogError(f'{path}: no sensor_msgs/msg/JointState topic; record the wheel '
-                           'speeds as JointState or drop --wheels')
+            raise LogError(f'{path}: no sensor_msgs/msg/JointState topic; record the '
+                           f'{what[:-1]} speeds as JointState or drop --{what}')
         if len(found) > 1:
             raise LogError(f'{path}: several JointState topics {found}; choose one with '
-                           '--wheel-topic')
+                           f'--{what[:-1]}-topic')
         topic = found[0]
     stamps: list[int] = []
     rows: list[np.ndarray] = []
@@ -221,7 +223,7 @@ def read_wheel_speeds(path: str | Path, joints: Sequence[str], topic: str | None
     missing = [j for j in joints if j not in seen]
     if missing:
         raise LogError(f'{topic}: joint(s) {missing} never appear in JointState.name '
-                       f'(names seen: {sorted(seen)}); fix the wheels file\'s joint names')
+                       f'(names seen: {sorted(seen)}); fix the {what} file\'s joint names')
     if len(stamps) < 2:
         raise LogError(f'{topic}: fewer than 2 messages carry velocities for all of '
                        f'{list(joints)}')
