@@ -60,12 +60,13 @@ from rclpy.event_handler import PublisherEventCallbacks
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.subscription import Subscription
-from sensor_msgs.msg import Imu
+from sensor_msgs.msg import Imu, JointState
 from std_msgs.msg import Float64MultiArray
 from std_srvs.srv import Trigger
 from visualization_msgs.msg import MarkerArray
 
 from inertia_ros.core.estimation.recursive import RecursiveEstimator
+from inertia_ros.core.estimation.recursive_momentum import MomentumRecursiveEstimator
 from inertia_ros.core.estimation.result import InertiaEstimate
 from inertia_ros.core.estimation.windowed import BatchWindow, OnlineEstimator
 from inertia_ros.io import cdr_decode
@@ -114,7 +115,8 @@ REFUSED_WINDOW = 1.0
 REFUSED_MIN_SAMPLES = 10
 
 
-def make_estimator(cfg: dict[str, Any]) -> Callable[[], OnlineEstimator]:
+def make_estimator(cfg: dict[str, Any], actuators: Any = None
+                   ) -> Callable[[], OnlineEstimator]:
     """Return a factory for the online estimator described by ``cfg`` (validated now).
 
     Parameters
@@ -122,7 +124,11 @@ def make_estimator(cfg: dict[str, Any]) -> Callable[[], OnlineEstimator]:
     cfg : dict
         The node's parameter values (``method``, ``batch_method``, ``model``,
         ``symmetry_axis``, ``torque_bias``, ``forgetting``, ``window`` [s], ``hold``,
-        ``publish_rate`` [Hz]).
+        ``publish_rate`` [Hz], ``wheels_file``, ``rotors_file``, ``torque_topic``).
+    actuators : inertia_ros.io.rotors.ActuatorInput, optional
+        Wheels or rotors on ``joint_states``: a
+        :class:`~inertia_ros.core.estimation.recursive_momentum.MomentumRecursiveEstimator`
+        with their uncertain inputs (another torque only when ``torque_topic`` is not 'none').
 
     Returns
     -------
@@ -136,6 +142,8 @@ def make_estimator(cfg: dict[str, Any]) -> Callable[[], OnlineEstimator]:
         From the core, naming the offending setting.
     """
     axis = cfg['symmetry_axis'] or None
+    if (cfg.get('wheels_file') or cfg.get('rotors_file')) and cfg['method'] != 'recursive':
+        raise ValueError("wheels_file / rotors_file need method 'recursive'")
     if cfg['method'] == 'recursive':
         # model selection ('auto') re-run about once a second, its choice reused in between:
         # the per-update cost (and so the latency) stays that of one fit
@@ -146,6 +154,10 @@ def make_estimator(cfg: dict[str, Any]) -> Callable[[], OnlineEstimator]:
                       torque_scale_std=float(cfg['torque_scale_std']),
                       gyro_scale_std=float(cfg['gyro_scale_std']))
         RecursiveEstimator(**kwargs)  # validates
+        if actuators is not None:
+            names = actuators.names
+            other = cfg['torque_topic'].strip().lower() != 'none'
+            return lambda: MomentumRecursiveEstimator(names=names, other_torque=other, **kwargs)
         return lambda: RecursiveEstimator(**kwargs)
     window = float(cfg['window']) or BATCH_DEFAULT_WINDOW
     options = dict(method=cfg['batch_method'], model=cfg['model'],
@@ -216,10 +228,11 @@ class InertiaEstimatorNode(Node):
             raise ValueError(problem)
         self._cfg = cfg
         self._lock = threading.RLock()
+        self._actuators = self._load_actuators(cfg)
         # The subscriptions first: discovery starts now, before anything else is built.
         self._torque_free = cfg['torque_topic'].strip().lower() == 'none'
         self._make_inputs(cfg)
-        self._factory = make_estimator(cfg)
+        self._factory = make_estimator(cfg, self._actuators)
         self._estimator: OnlineEstimator = self._factory()
         self._epoch_ns: int | None = None
         self._frame: str | None = cfg['frame_id'] or None
@@ -240,13 +253,28 @@ class InertiaEstimatorNode(Node):
         torque = ('no torque stream (torque_topic none): torque-free estimation'
                   if self._torque_free else
                   f'{self._torque.topic} ({TORQUE_TYPES[cfg["torque_msg_type"]][0].__name__})')
+        if self._joints is not None:
+            torque += (f' and {self._joints.topic} (JointState: {self._actuators.kind} of '
+                       f'{self._actuators.file})')
         self.get_logger().info(
             f'listening on {self._gyro.topic} ({OMEGA_TYPES[cfg["omega_msg_type"]][0].__name__})'
             f' and {torque}; '
             f'method={cfg["method"]}, model={cfg["model"]}, torque_bias={cfg["torque_bias"]}')
 
+    @staticmethod
+    def _load_actuators(cfg: dict[str, Any]) -> Any:
+        """The wheels or rotors of ``wheels_file`` / ``rotors_file`` (None: neither); a bad
+        file is a one-line ValueError naming the parameter."""
+        from inertia_ros.io.rotors import load_actuators
+
+        try:
+            return load_actuators(cfg['wheels_file'], cfg['rotors_file'])
+        except ValueError as exc:
+            name = 'wheels_file' if cfg['wheels_file'] else 'rotors_file'
+            raise ValueError(f'parameter {name!r}: {exc}') from None
+
     def _make_inputs(self, cfg: dict[str, Any]) -> None:
-        """The two polled input subscriptions and the steady-clock poll timer."""
+        """The polled input subscriptions and the steady-clock poll timer."""
         om_type, om_topic, om_cdr, om_field = OMEGA_TYPES[cfg['omega_msg_type']]
         tq_type, tq_topic, tq_cdr, tq_field = TORQUE_TYPES[cfg['torque_msg_type']]
         qos = sensor_qos(int(cfg['qos_depth']))
@@ -256,6 +284,9 @@ class InertiaEstimatorNode(Node):
         self._torque = _Stream('torque', tq_cdr, tq_field, sub=None if self._torque_free else
                                polled_subscription(self, tq_type, cfg['torque_topic'] or
                                                    tq_topic, qos, polled))
+        self._joints = None if self._actuators is None else _Stream(
+            'joints', 'sensor_msgs/msg/JointState', 'velocity',
+            sub=polled_subscription(self, JointState, 'joint_states', qos, polled))
         # Polling and the diagnostics run on the steady clock: with use_sim_time they must
         # not stop when /clock pauses, nor speed up with a fast bag.
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
@@ -330,11 +361,11 @@ class InertiaEstimatorNode(Node):
             rate_changed = cfg['publish_rate'] != self._cfg['publish_rate']
             self._cfg = cfg
             if rebuild:
-                self._factory = make_estimator(cfg)
+                self._factory = make_estimator(cfg, self._actuators)
                 self._reset('parameters changed')
             elif rate_changed:
                 # the model-selection period follows the publish rate; the estimate is kept
-                self._factory = make_estimator(cfg)
+                self._factory = make_estimator(cfg, self._actuators)
                 if isinstance(self._estimator, RecursiveEstimator):
                     self._estimator.reselect_every = _reselect_every(cfg)
         return SetParametersResult(successful=True)
@@ -348,7 +379,67 @@ class InertiaEstimatorNode(Node):
             payloads = take_raw(s.sub)
             if payloads:
                 self._accept(s, payloads)
+        if self._joints is not None:
+            payloads = take_raw(self._joints.sub)
+            if payloads:
+                self._accept_joints(payloads)
         self._maybe_update()
+
+    def _accept_joints(self, payloads: list[bytes]) -> None:
+        """Decode JointState messages and queue the speeds of the file's joints, in order.
+
+        Messages without every joint of the file (other joints on the same topic) are
+        skipped; malformed ones, NaN/Inf speeds and zero stamps are refused and counted;
+        stamps not after the newest are dropped as out of order.  Before the first gyro
+        message (no estimation frame yet) samples are dropped, as torque samples are.
+        """
+        from inertia_ros.io.joint_state import decode_joint_state
+
+        s = self._joints
+        joints = self._actuators.joints
+        now = time.monotonic()
+        refused = s.refused_total
+        stamps: list[int] = []
+        rows: list[np.ndarray] = []
+        for data in payloads:
+            try:
+                st, names, _pos, vel = decode_joint_state(data)
+            except ValueError:
+                s.malformed += 1
+                continue
+            idx = {n: i for i, n in enumerate(names)}
+            if len(vel) != len(names) or any(j not in idx for j in joints):
+                continue
+            v = vel[[idx[j] for j in joints]]
+            if not np.all(np.isfinite(v)):
+                s.nan_dropped += 1
+            elif st <= 0:
+                s.bad_stamp += 1
+            else:
+                stamps.append(st)
+                rows.append(v)
+        with self._lock:
+            s.received += len(payloads)
+            s.last_rx = now
+            s.recent.append((now, len(payloads), s.refused_total - refused))
+            if self._frame is None or self._epoch_ns is None:
+                s.before_gyro += len(stamps)
+                return
+            for st, v in zip(stamps, rows, strict=True):
+                if s.last_ns is not None and st <= s.last_ns:
+                    s.out_of_order += 1
+                    continue
+                s.last_ns = st
+                s.t_ns.append(np.array([st], dtype=np.int64))
+                s.values.append(v[None, :])
+
+    def _add_joints(self, t: np.ndarray, speed: np.ndarray) -> None:
+        """Hand JointState speeds to the estimator as its momentum input; samples the
+        estimator refuses (stamps of an older timeline after a reset) are counted."""
+        try:
+            self._estimator.add_momentum(self._actuators.block(t, speed))
+        except ValueError:
+            self._joints.out_of_order += len(t)
 
     def _accept(self, s: _Stream, payloads: list[bytes]) -> None:
         """Decode a batch of serialised messages and queue the usable samples.
@@ -511,6 +602,11 @@ class InertiaEstimatorNode(Node):
         and axes until the torque stream starts; the first torque message drops it.
         """
         gyro = self._flush(self._gyro, self._estimator.add_gyro)
+        if self._joints is not None:          # wheels or rotors: no torque-free shadow
+            self._flush(self._joints, self._add_joints)
+            if not self._torque_free:
+                self._flush(self._torque, self._estimator.add_torque)
+            return
         if self._torque_free:
             if gyro is not None:
                 self._estimator.add_torque(gyro[0], np.zeros_like(gyro[1]))
@@ -529,10 +625,12 @@ class InertiaEstimatorNode(Node):
         """Forget every sample (estimator, pending buffers, epoch); counts are kept."""
         with self._lock:
             self._estimator = self._factory()
-            for s in (self._gyro, self._torque):
+            for s in self._streams():
                 s.t_ns.clear()
                 s.values.clear()
                 s.last_ns = None  # held samples stay: they may lead the new timeline
+            if self._actuators is not None:
+                self._actuators.reset()           # the motor-lag state
             self._shadow = None
             self._epoch_ns = None
             self._last_estimate = None
@@ -582,7 +680,7 @@ class InertiaEstimatorNode(Node):
     # ------------------------------------------------------------------ output
     def _maybe_update(self) -> None:
         """Update when samples are pending and the publish period has elapsed."""
-        if not (self._gyro.t_ns or self._torque.t_ns):
+        if not any(s.t_ns for s in self._streams()):
             return
         now = time.monotonic()
         if now - self._last_update >= 1.0 / self._cfg['publish_rate']:
@@ -610,6 +708,12 @@ class InertiaEstimatorNode(Node):
         try:
             est = self._estimator.estimate()
             self._core_error = None
+            if self._joints is not None and est.status == 'insufficient_data' \
+                    and not self._torque_free and not self._torque.received:
+                est.diagnostics['reason'] = (
+                    f'no torque message on {self._torque.topic} yet: the {self._actuators.kind} '
+                    'input waits for it (set torque_topic:=none when the '
+                    f'{self._actuators.kind} are the only known torque)')
             if self._shadow is not None and est.status == 'insufficient_data':
                 free = self._shadow.estimate()
                 if free.status != 'insufficient_data':
@@ -673,7 +777,7 @@ class InertiaEstimatorNode(Node):
         """Node-level conditions for the diagnostics: (level, message) each."""
         out: list[tuple[bytes, str]] = []
         timeout = self._cfg['stream_timeout']
-        for s in ((self._gyro,) if self._torque_free else (self._gyro, self._torque)):
+        for s in self._streams(timeouts=True):
             if s.last_rx is None:
                 if now - self._started > timeout:
                     out.append((DiagnosticStatus.WARN, f'no {s.name} message on {s.topic} yet'))
@@ -683,8 +787,14 @@ class InertiaEstimatorNode(Node):
         if self._frame_problem and now - self._frame_problem[0] <= max(timeout,
                                                                    2 * DIAGNOSTIC_PERIOD):
             out.append((DiagnosticStatus.ERROR, self._frame_problem[1]))
+        if self._joints is not None and self._joints.received and self._joints.last_ns is None \
+                and not self._joints.before_gyro:
+            out.append((DiagnosticStatus.WARN, (
+                f'joints: {self._joints.received} JointState messages on '
+                f'{self._joints.topic}, none with every joint of {self._actuators.file} '
+                f'({", ".join(self._actuators.joints)})')))
         limit = self._cfg['max_refused_fraction']
-        for s in (self._gyro, self._torque):
+        for s in self._streams():
             frac, n = s.refused_fraction(now)
             if n >= REFUSED_MIN_SAMPLES and frac > limit:
                 out.append((DiagnosticStatus.WARN, (
@@ -700,7 +810,7 @@ class InertiaEstimatorNode(Node):
         """Node-level counts and ages reported in the diagnostics (also used by tests)."""
         now = time.monotonic()
         out: dict[str, Any] = {}
-        for s in (self._gyro, self._torque):
+        for s in self._streams():
             out[f'{s.name}_received'] = s.received
             out[f'{s.name}_malformed'] = s.malformed
             out[f'{s.name}_nan_dropped'] = s.nan_dropped
@@ -709,13 +819,18 @@ class InertiaEstimatorNode(Node):
             out[f'{s.name}_bad_stamp_refused'] = s.bad_stamp
             out[f'{s.name}_refused_fraction'] = s.refused_fraction(now)[0]
         out['torque_before_gyro_dropped'] = self._torque.before_gyro
-        for s in (self._gyro, self._torque):
+        for s in self._streams():
             out[f'{s.name}_age_s'] = None if s.last_rx is None else now - s.last_rx
         out['resets'] = self._resets
         out['last_reset_reason'] = self._reset_reason or ''
         out['frame_id'] = self._frame or ''
         out['update_ms'] = self._update_ms
         return out
+
+    def _streams(self, timeouts: bool = False) -> tuple[_Stream, ...]:
+        """The input streams (with ``timeouts``: those a silence of is a problem)."""
+        out = (self._gyro,) if (timeouts and self._torque_free) else (self._gyro, self._torque)
+        return out + ((self._joints,) if self._joints is not None else ())
 
     def force_update(self) -> None:
         """Publish the diagnostics now (the 1 Hz timer calls this; so may tests and tools).

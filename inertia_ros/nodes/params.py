@@ -319,6 +319,14 @@ ESTIMATOR: dict[str, ParamSpec] = {
     'torque_topic': ParamSpec('torque', "torque input topic; 'none' = no torque stream: "
                               'torque-free estimation (ratios and principal axes, status '
                               'scale_unobservable)', read_only=True),
+    'wheels_file': ParamSpec('', "wheels/flywheels YAML (joint, axis, inertia[, inertia_std] "
+                             "per wheel): their momentum from the wheel speeds on "
+                             "'joint_states' (sensor_msgs/JointState) enters the estimate; "
+                             "'' = none", read_only=True),
+    'rotors_file': ParamSpec('', "multirotor rotors YAML (joint, position, spin, k_f, k_m[, "
+                             "time_constant, inertia, *_std] per rotor): the rotor torques "
+                             "(and momentum) from the speeds on 'joint_states' are the known "
+                             "torque; '' = none", read_only=True),
     'qos_depth': ParamSpec(1000, 'history depth of the sensor-data subscriptions [messages]',
                            1, 100000, read_only=True),
     'poll_period': ParamSpec(0.01, 'period at which queued input messages are taken and '
