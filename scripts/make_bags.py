@@ -30,6 +30,8 @@ BAGS = {
     'disturbance': 'constant unmeasured disturbance torque: needs the torque-bias model',
     'wheels': 'three reaction wheels, JointState speeds on /joint_states, no other torque '
               '(estimate with --wheels bags/wheels_wheels.yaml)',
+    'quadrotor': 'quadrotor (X) with rotor speeds as JointState on /joint_states, no torque '
+                 'topic of its own (zeros) (estimate with --rotors bags/quadrotor_rotors.yaml)',
 }
 MAX_BYTES = 2 * 1024 * 1024
 
@@ -43,6 +45,9 @@ def make(name: str, out_dir: Path = ROOT / 'bags') -> Path:
     wheels_file = ROOT / 'config' / 'wheels' / f'{name}.yaml'
     if wheels_file.is_file():
         shutil.copyfile(wheels_file, out_dir / f'{name}_wheels.yaml')
+    rotors_file = ROOT / 'config' / 'rotors' / f'{name}.yaml'
+    if rotors_file.is_file():
+        shutil.copyfile(rotors_file, out_dir / f'{name}_rotors.yaml')
     result = simulate(load_scene(scene_copy))
     path = out_dir / f'{name}.mcap'
     counts = write_simulation(path, result, overwrite=True)

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from test_wheels import THETA_IDX, scene_dict
 
 from inertia_ros.core.estimation.momentum import (
     Momentum,
@@ -21,7 +22,6 @@ from inertia_ros.core.estimation.recursive import RecursiveEstimator
 from inertia_ros.core.estimation.recursive_momentum import MomentumRecursiveEstimator
 from inertia_ros.core.scene import Scene
 from inertia_ros.core.simulation import simulate
-from test_wheels import THETA_IDX, scene_dict
 
 BLOCK = 0.1            # s, the node's update period at publish_rate 10 Hz
 

@@ -20,13 +20,13 @@ rclpy = pytest.importorskip('rclpy')
 from rclpy.parameter import Parameter  # noqa: E402
 from rclpy.serialization import serialize_message  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
+from test_wheels import THETA_IDX, scene_dict  # noqa: E402
 
 from inertia_ros.core.scene import Scene  # noqa: E402
 from inertia_ros.core.simulation import simulate  # noqa: E402
 from inertia_ros.io.scene_file import load_scene  # noqa: E402
-from inertia_ros.nodes import messages  # noqa: E402
 from inertia_ros.nodes import estimator as en  # noqa: E402
-from test_wheels import THETA_IDX, scene_dict  # noqa: E402
+from inertia_ros.nodes import messages  # noqa: E402
 
 pytestmark = pytest.mark.ros
 
@@ -81,7 +81,9 @@ def joint_payloads(t_ns, names, speed):
 
 def feed(n, sim, names, torque=False, chunk=0.1):
     """Feed gyro, JointState (and torque) in ``chunk``-second batches, updating each second."""
-    ns = (lambda t: EPOCH_NS + np.round(t * 1e9).astype(np.int64))
+
+    def ns(t):
+        return EPOCH_NS + np.round(t * 1e9).astype(np.int64)
     tg, tw, tt = ns(sim.t_gyro), ns(sim.t_wheel), ns(sim.t_torque)
     kg = np.floor(sim.t_gyro / chunk + 1e-9).astype(int)
     kw = np.floor(sim.t_wheel / chunk + 1e-9).astype(int)
