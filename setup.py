@@ -24,6 +24,7 @@ setup(
          glob('config/*.yaml') + glob('config/*.rviz') + glob('config/*.json')),
         ('share/' + package_name + '/config/scenes', glob('config/scenes/*.yaml')),
         ('share/' + package_name + '/config/wheels', glob('config/wheels/*.yaml')),
+        ('share/' + package_name + '/config/rotors', glob('config/rotors/*.yaml')),
         ('share/' + package_name + '/bags', glob('bags/*.mcap') + glob('bags/*.yaml')),
     ],
     install_requires=['setuptools'],
