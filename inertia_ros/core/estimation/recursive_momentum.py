@@ -127,6 +127,8 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
         self._walk_w = np.zeros((3, 3, 3))       # sum over the grid of [w]x_ij [w]x_ik
         self._walk_n = 0
         self.momentum_samples = 0
+        self._prop_cache: tuple[str | None, dict[str, Any], np.ndarray] | None = None
+        self._prop_left = 0
 
     # ------------------------------------------------------------------ input
     def add_gyro(self, t: Any, omega: Any) -> None:
@@ -345,11 +347,9 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
             est = self._propagate(est)
         return est
 
-    def _propagate(self, est: InertiaEstimate) -> InertiaEstimate:
-        """Add ``sum d theta d theta'`` of the uncertain inputs to the covariance."""
-        name = (est.model or 'full').removesuffix('+bias')
-        if name not in ('full', 'diagonal', 'axisymmetric'):
-            return est
+    def _sensitivities(self, est: InertiaEstimate, name: str
+                       ) -> tuple[dict[str, Any], np.ndarray]:
+        """``d theta`` (6,) of every uncertain input and ``sum d theta d theta'`` (6, 6)."""
         basis = model_basis(name, self.axis)
         bias = bool(est.model and est.model.endswith('+bias'))
         nv = self._gyro_var()
@@ -363,6 +363,23 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
             d6 = np.nan_to_num(basis @ f.beta[:k])
             per[nm] = {'theta_change': d6}
             outer += np.outer(d6, d6)
+        return per, outer
+
+    def _propagate(self, est: InertiaEstimate) -> InertiaEstimate:
+        """Add ``sum d theta d theta'`` of the uncertain inputs to the covariance (the
+        sensitivities recomputed every ``reselect_every`` estimates, as the model selection,
+        and reused in between while the parameter set stays)."""
+        name = (est.model or 'full').removesuffix('+bias')
+        if name not in ('full', 'diagonal', 'axisymmetric'):
+            return est
+        cached = self._prop_cache
+        if cached is not None and cached[0] == est.model and self._prop_left > 0:
+            self._prop_left -= 1
+            per, outer = cached[1], cached[2]
+        else:
+            per, outer = self._sensitivities(est, name)
+            self._prop_cache = (est.model, per, outer)
+            self._prop_left = self.reselect_every - 1
         cov6 = np.asarray(est.covariance) + outer
         diag = dict(est.diagnostics)
         theta = est.theta

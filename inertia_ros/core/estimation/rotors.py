@@ -273,15 +273,15 @@ def motor_lag(t: np.ndarray, command: np.ndarray, time_constant: np.ndarray,
 def rotors_momentum(t: Any, speed: Any, rotors: RotorSet) -> Momentum:
     """:class:`~.momentum.Momentum` of a whole record of rotor speeds (the batch input).
 
-    The momentum's noise covariance comes from the speeds' white noise (high-order
-    differences per rotor, as for wheels); the torque's noise is estimated from the torque
-    itself by :func:`.momentum.estimate_with_momentum`.
+    The momentum's noise covariance comes from the white noise of its component along the
+    thrust axis (high-order differences, after any motor lag); the torque's noise is
+    estimated from the torque itself by :func:`.momentum.estimate_with_momentum`.
     """
     from .noise import noise_std_from_differences
 
     m = rotors.inputs(t, speed)
-    sd = noise_std_from_differences(np.abs(np.asarray(speed, dtype=float)))
     a = rotors.axis
-    var = sum((r.inertia * sd[i]) ** 2 for i, r in enumerate(rotors.rotors))
-    cov = var * np.outer(a, a)
+    # h lies along the thrust axis: the white noise of its component (after any motor lag)
+    sd = float(noise_std_from_differences((m.h @ a)[:, None])[0])
+    cov = sd ** 2 * np.outer(a, a)
     return as_momentum(Momentum(m.t, m.h, m.h_std, m.names, cov, m.torque, m.torque_std))
