@@ -25,7 +25,7 @@ The uncertainty of the wheel inertias ``J_k`` (an input, like a scale factor) is
 by the sensitivity of the estimate to each ``J_k``: the estimate is repeated with ``J_k``
 moved by one sigma (the same method, model, bias, noise levels and segments), and the change
 of every reported quantity is added in quadrature to its standard error
-(``diagnostics['wheel_inertia']``).
+(``diagnostics['wheel_inertia']``, also as ``diagnostics['input_uncertainty']``).
 """
 from __future__ import annotations
 
@@ -410,8 +410,8 @@ def estimate_with_momentum(t_gyro: Any, omega: Any, t_torque: Any, torque: Any,
     diag = dict(base.diagnostics)
     diag['momentum'] = info
     if base.status == 'model_mismatch' and len(mom.h_std) and 'reason' in diag:
-        diag['reason'] = (f"{diag['reason']}; or wheel inertias off by about their stated "
-                          'std (the data resolve them better than stated)')
+        diag['reason'] = (f"{diag['reason']}; or wheel inertias / rotor coefficients off by "
+                          'about their stated std (the data resolve them better than stated)')
     res = replace(base, samples_dropped=base.samples_dropped + int(np.sum(~inside)),
                   diagnostics=diag)
     if len(mom.h_std) and res.inertia is not None and np.all(np.isfinite(res.inertia)):
@@ -511,6 +511,8 @@ def _propagate(res: Any, tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.
     diag['wheel_inertia'] = {'inputs': per, 'theta_std_added': np.sqrt(var6),
                              'rule': 'one-sigma change of the estimate per input, added in '
                                      'quadrature'}
+    # the online estimator's name for the same record (wheel inertias, rotor coefficients)
+    diag['input_uncertainty'] = diag['wheel_inertia']
     cov = None if res.covariance is None else np.asarray(res.covariance) + outer
     return replace(res, inertia_std=inertia_std, ratios_std=ratios_std, covariance=cov,
                    diagnostics=diag)
