@@ -162,3 +162,30 @@ def test_waits_for_the_other_torque_and_validates() -> None:
     with pytest.raises(ValueError, match='uncertain inputs'):
         MomentumRecursiveEstimator(names=('inertia:a',)).add_momentum(
             Momentum(np.array([0.0]), np.zeros((1, 3)), np.zeros((1, 1, 3)), ('inertia:b',)))
+
+
+def test_a_stalled_momentum_stream_bounds_the_buffer(monkeypatch) -> None:
+    """Gyro samples waiting for a stalled JointState stream are capped (half dropped and
+    counted); when the stream comes back the momentum gap is skipped (not interpolated
+    across) and starts a new segment: the estimate stays within 4 sigma."""
+    import inertia_ros.core.estimation.recursive_momentum as rm
+
+    monkeypatch.setattr(rm, '_MAX_BUFFER', 250)
+    sc = Scene.from_dict(scene_dict(duration=6.0, gyro_rate=100.0))
+    r = simulate(sc, 3)
+    ws = [Wheel(w.joint, w.axis, w.inertia) for w in sc.wheels.wheels]
+    e = MomentumRecursiveEstimator(other_torque=False, torque_bias=False, segment=2.0)
+    first = r.t_wheel < 1.0
+    e.add_momentum(wheel_inputs(r.t_wheel[first], r.wheel_speed[first], ws))
+    gap = (r.t_gyro >= 1.0) & (r.t_gyro < 4.0)
+    e.add_gyro(r.t_gyro[r.t_gyro < 4.0], r.omega[r.t_gyro < 4.0])
+    assert len(e._g.t) <= 250 and e.samples_dropped >= int(np.sum(gap)) - 250
+    late = r.t_wheel >= 4.0
+    e.add_momentum(wheel_inputs(r.t_wheel[late], r.wheel_speed[late], ws))
+    e.add_gyro(r.t_gyro[r.t_gyro >= 4.0], r.omega[r.t_gyro >= 4.0])
+    est = e.estimate()
+    # the first second and the last two (but their last samples) are used; the momentum gap
+    # started a new segment
+    assert est.samples_used >= 290 and e.gaps >= 1, (est.samples_used, e.gaps)
+    z = (est.theta - r.inertia[THETA_IDX]) / est.theta_std
+    assert est.status == 'ok' and np.all(np.abs(z) < 4), z

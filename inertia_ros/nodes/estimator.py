@@ -791,7 +791,8 @@ class InertiaEstimatorNode(Node):
                 and not self._joints.before_gyro:
             out.append((DiagnosticStatus.WARN, (
                 f'joints: {self._joints.received} JointState messages on '
-                f'{self._joints.topic}, none with every joint of {self._actuators.file} '
+                f'{self._joints.topic}, none with a velocity for every joint of '
+                f'{self._actuators.file} '
                 f'({", ".join(self._actuators.joints)})')))
         limit = self._cfg['max_refused_fraction']
         for s in self._streams():

@@ -39,11 +39,14 @@ from .fit import fit_two_pass
 from .model import model_basis
 from .momentum import Momentum, _cross_matrices
 from .noise import StreamingNoise
+from .options import GAP_FACTOR
 from .recursive import RecursiveEstimator
 from .result import InertiaEstimate
 from .uncertainty import principal_with_std, ratio_cov
 
 __all__ = ['MomentumRecursiveEstimator']
+
+_MAX_BUFFER = 400_000        # samples a stream may wait for the others (then half are dropped)
 
 
 class _Buffer:
@@ -144,6 +147,7 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
                              f'{self._g.t[-1]!r} (call reset() after a clock jump)')
         self._g.add(ta, wa)
         self._advance()
+        self._cap(self._g)
 
     def add_torque(self, t: Any, tau: Any) -> None:
         """Add samples of the other known torque [N m] (``other_torque=True`` only)."""
@@ -199,6 +203,7 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
         self._m_dt = (self._m_dt + np.diff(self._m.t[-k - 1:]).tolist())[-64:]
         self.momentum_samples += k
         self._advance()
+        self._cap(self._m)
 
     # ------------------------------------------------------------------ the grid
     def _horizon(self) -> float | None:
@@ -219,7 +224,7 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
             return
         if self._cursor is None and not self._start():
             return
-        c = float(self._cursor)
+        c, hi = self._skip_gaps(float(self._cursor), hi)
         tg, tm = self._g.t, self._m.t
         grid = np.union1d(tg[(tg >= c) & (tg <= hi)], tm[(tm >= c) & (tm <= hi)])
         grid = np.union1d([c], grid)
@@ -231,6 +236,27 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
         if len(grid) < 2:
             return
         self._emit(grid)
+
+    def _skip_gaps(self, c: float, hi: float) -> tuple[float, float]:
+        """Momentum gaps (an interval over ``GAP_FACTOR`` nominal ones): nothing known of
+        ``h`` inside.  A cursor in a gap jumps to its end (the gyro samples skipped are
+        dropped; the jump of the emitted torque stamps starts a new anchored segment, whose
+        intercept takes the unknown change); the grid stops at the next gap.  Returns the
+        cursor and the horizon."""
+        if len(self._m_dt) < 2:
+            return c, hi
+        tm = self._m.t
+        big = np.flatnonzero(np.diff(tm) > GAP_FACTOR * float(np.median(self._m_dt)))
+        for i in big:
+            if tm[i] <= c < tm[i + 1]:
+                skipped = (self._g.t > c) & (self._g.t < tm[i + 1])
+                self.samples_dropped += int(np.sum(skipped))
+                self.gaps += 1
+                c = float(tm[i + 1])
+                self._cursor = c
+            elif tm[i] >= c:
+                return c, min(hi, float(tm[i]))
+        return c, hi
 
     def _start(self) -> bool:
         """Set the first grid time (the batch's common coverage start); drop earlier gyro."""
@@ -277,6 +303,18 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
                 est.add_gyro(t_in[fresh], w_in[fresh])
         self._cursor = float(grid[-1])
         self._trim()
+
+    def _cap(self, buf: _Buffer) -> None:
+        """A stalled stream: keep the newest half of a buffer grown past :data:`_MAX_BUFFER`
+        (the dropped gyro samples counted) and restart the grid after them; the jump of the
+        emitted torque stamps is a gap, which starts a new anchored segment."""
+        if len(buf.t) <= _MAX_BUFFER:
+            return
+        drop = len(buf.t) - _MAX_BUFFER // 2
+        if buf is self._g:
+            self.samples_dropped += drop
+        buf.keep_from(drop)
+        self._cursor = None
 
     def _other_on(self, grid: np.ndarray) -> np.ndarray:
         """The other torque over each grid interval (G - 1, 3): held or trapezoid."""
