@@ -172,7 +172,7 @@ def test_node_joint_states_topic_is_remappable_and_checked(node, tmp_path):
                                                            'base_link'))])
     n._accept_joints(joint_payloads([EPOCH_NS + 10**7], ['other'], [[1.0]]))
     problems = ' '.join(text for _, text in n._problems(time.monotonic()))
-    assert 'none with every joint' in problems and 'rw1' in problems
+    assert 'none with a velocity for every joint' in problems and 'rw1' in problems
 
 
 def test_node_actuator_parameter_errors(node, tmp_path):
