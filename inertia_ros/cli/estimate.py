@@ -75,9 +75,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         'found by type when omitted')
     p.add_argument('--rotors', metavar='FILE', type=Path,
                    help='multirotor rotors YAML (joint, position, spin, k_f, k_m[, '
-                        'time_constant, inertia, *_std] per rotor; README "Rotor input"): '
-                        'the rotor torques (and momentum) from the JointState rotor speeds '
-                        'are the known torque; a torque topic, if any, adds to it')
+                        'time_constant, inertia, *_std] per rotor; example '
+                        'config/rotors/quadrotor.yaml): the rotor torques (and momentum) from '
+                        'the JointState rotor speeds are the known torque; a torque topic, if '
+                        'any, adds to it')
     p.add_argument('--rotor-topic', metavar='T',
                    help='sensor_msgs/JointState topic of the rotor speeds (velocity, rad/s); '
                         'found by type when omitted')
