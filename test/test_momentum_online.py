@@ -118,6 +118,8 @@ def test_online_wheels_calibrated_and_as_good_as_torque_input() -> None:
     rms = float(np.sqrt(np.mean(np.square(zs))))
     assert 0.7 <= rms <= 1.5, rms
     assert ok >= 18, ok
+    per_element = np.sqrt(np.mean(np.square(zs), axis=0))     # no element miscalibrated
+    assert np.all((per_element >= 0.5) & (per_element <= 1.8)), per_element
     assert np.median(err_w) <= 1.25 * np.median(err_t), (np.median(err_w), np.median(err_t))
 
 

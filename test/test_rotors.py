@@ -181,6 +181,8 @@ def test_rotor_input_calibrated_with_coefficient_errors() -> None:
     rms = float(np.sqrt(np.mean(np.square(zs))))
     assert 0.7 <= rms <= 1.5, rms
     assert np.median(errs) < 0.05, np.median(errs)
+    per_element = np.sqrt(np.mean(np.square(zs), axis=0))     # no element miscalibrated
+    assert np.all((per_element >= 0.5) & (per_element <= 1.8)), per_element
 
 
 def test_exact_coefficients_give_an_accurate_tensor() -> None:

@@ -130,8 +130,8 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
         self._walk_w = np.zeros((3, 3, 3))       # sum over the grid of [w]x_ij [w]x_ik
         self._walk_n = 0
         self.momentum_samples = 0
-        self._prop_cache: tuple[str | None, dict[str, Any], np.ndarray] | None = None
-        self._prop_left = 0
+        # (model, per-input record, sum d theta d theta', data span [s] when computed)
+        self._prop_cache: tuple[str | None, dict[str, Any], np.ndarray, float] | None = None
 
     # ------------------------------------------------------------------ input
     def add_gyro(self, t: Any, omega: Any) -> None:
@@ -385,6 +385,12 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
             est = self._propagate(est)
         return est
 
+    def _fresh(self, then: float, now: float) -> bool:
+        """Sensitivities computed at data span ``then`` [s] still hold at ``now``: the data
+        grew by under 5 % (and by under a tenth of the memory ``window``, if any)."""
+        grown = now - then
+        return grown < 0.05 * max(then, 1e-9) and (not self.window or grown < 0.1 * self.window)
+
     def _sensitivities(self, est: InertiaEstimate, name: str
                        ) -> tuple[dict[str, Any], np.ndarray]:
         """``d theta`` (6,) of every uncertain input and ``sum d theta d theta'`` (6, 6)."""
@@ -405,19 +411,18 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
 
     def _propagate(self, est: InertiaEstimate) -> InertiaEstimate:
         """Add ``sum d theta d theta'`` of the uncertain inputs to the covariance (the
-        sensitivities recomputed every ``reselect_every`` estimates, as the model selection,
-        and reused in between while the parameter set stays)."""
+        sensitivities reused while the parameter set stays and the data grew by under 5 %,
+        :meth:`_fresh`)."""
         name = (est.model or 'full').removesuffix('+bias')
         if name not in ('full', 'diagonal', 'axisymmetric'):
             return est
+        span = (self._t_last or 0.0) - (self._t0 or 0.0)
         cached = self._prop_cache
-        if cached is not None and cached[0] == est.model and self._prop_left > 0:
-            self._prop_left -= 1
+        if cached is not None and cached[0] == est.model and self._fresh(cached[3], span):
             per, outer = cached[1], cached[2]
         else:
             per, outer = self._sensitivities(est, name)
-            self._prop_cache = (est.model, per, outer)
-            self._prop_left = self.reselect_every - 1
+            self._prop_cache = (est.model, per, outer, span)
         cov6 = np.asarray(est.covariance) + outer
         diag = dict(est.diagnostics)
         theta = est.theta
