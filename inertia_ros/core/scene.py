@@ -502,12 +502,16 @@ class TorqueComponent:
 
 @dataclass(frozen=True)
 class GyroSpec:
-    """Gyro stream: sample rate [Hz], white-noise std [rad/s], constant bias [rad/s], frame."""
+    """Gyro stream: sample rate [Hz], white-noise std [rad/s], constant bias [rad/s], frame,
+    first-order low-pass time constant [s] (0: none) and quantisation step [rad/s] (0: none).
+    """
 
     rate: float = 200.0
     noise_std: float = 0.0
     bias: tuple[float, float, float] = (0.0, 0.0, 0.0)
     frame_id: str = 'base_link'
+    time_constant: float = 0.0
+    lsb: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -543,7 +547,7 @@ class InertiaChange:
 
 _TOP_KEYS = ('name', 'description', 'seed', 'duration', 'body', 'initial_omega', 'torque',
              'disturbance', 'command_rate', 'gyro', 'torque_sensor', 'imperfections',
-             'inertia_change', 'wheels', 'rotors')
+             'inertia_change', 'wheels', 'rotors', 'damping')
 
 
 @dataclass(frozen=True, eq=False)
@@ -568,6 +572,9 @@ class Scene:
         Commanded-torque components, summed; empty = torque-free.
     disturbance : numpy.ndarray, shape (3,)
         Constant torque acting on the body but absent from the torque stream [N m].
+    damping : numpy.ndarray, shape (3,)
+        Diagonal aerodynamic damping ``D`` [N m s/rad]: the torque ``-D w`` acts on the body
+        but is absent from the torque stream.
     command_rate : float
         Torque command update rate [Hz]; commands are held between updates (zero-order hold).
     gyro : GyroSpec
@@ -604,6 +611,8 @@ class Scene:
     #: The ``wheels`` section (:class:`inertia_ros.core.wheel_sim.WheelScene`) or the
     #: ``rotors`` one (:class:`inertia_ros.core.rotor_sim.RotorScene`), or None.
     wheels: Any = None
+    #: Diagonal aerodynamic damping ``D`` (3,) [N m s/rad]; ``-D w`` acts, unmeasured.
+    damping: np.ndarray = field(default_factory=lambda: np.zeros(3))
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any]) -> Scene:
@@ -661,7 +670,8 @@ class Scene:
                 raise SceneError('rotors: a scene has wheels or rotors, not both')
             from inertia_ros.core.rotor_sim import parse_rotors
             wheels = parse_rotors(d['rotors'], duration)
-        return cls(wheels=wheels, name=name, seed=seed, duration=duration, inertia=inertia,
+        return cls(wheels=wheels, damping=_damping(d, wheels), name=name, seed=seed,
+                   duration=duration, inertia=inertia,
                    initial_omega=omega0, torque=torque, disturbance=disturbance,
                    command_rate=command_rate, gyro=gyro, torque_sensor=torque_sensor,
                    imperfections=imperfections, inertia_change=change, parts=parts,
@@ -673,16 +683,32 @@ class Scene:
         return copy.deepcopy(dict(self.source))
 
 
+def _damping(d: Mapping[str, Any], actuators: Any) -> np.ndarray:
+    """The ``damping`` key (3,) [N m s/rad], each >= 0; refused with wheels or rotors."""
+    damping = _vector(d.get('damping', [0.0, 0.0, 0.0]), 'damping', nonneg=True)
+    if actuators is not None and np.any(damping > 0.0):
+        raise SceneError('damping: not simulated together with wheels or rotors; give one '
+                         'of them')
+    return damping
+
+
 def _sensors(d: Mapping[str, Any]) -> tuple[GyroSpec, TorqueSensorSpec, Imperfections]:
     """The ``gyro``, ``torque_sensor`` and ``imperfections`` sections, validated."""
-    g = _mapping(d.get('gyro'), 'gyro', ('rate', 'noise_std', 'bias', 'frame_id'))
+    g = _mapping(d.get('gyro'), 'gyro', ('rate', 'noise_std', 'bias', 'frame_id',
+                                         'time_constant', 'lsb'))
     gyro = GyroSpec(
         rate=_number(g.get('rate', 200.0), 'gyro.rate', positive=True),
         noise_std=_number(g.get('noise_std', 0.0), 'gyro.noise_std', nonneg=True),
         bias=tuple(_vector(g.get('bias', [0.0, 0.0, 0.0]), 'gyro.bias').tolist()),
-        frame_id=_string(g.get('frame_id', 'base_link'), 'gyro.frame_id'))
+        frame_id=_string(g.get('frame_id', 'base_link'), 'gyro.frame_id'),
+        time_constant=_number(g.get('time_constant', 0.0), 'gyro.time_constant',
+                              nonneg=True),
+        lsb=_number(g.get('lsb', 0.0), 'gyro.lsb', nonneg=True))
     if not gyro.frame_id:
         raise SceneError('gyro.frame_id: must not be empty')
+    if gyro.time_constant > 1.0:
+        raise SceneError(f'gyro.time_constant: a first-order sensor filter of '
+                         f'{gyro.time_constant:g} s is not a gyro; give at most 1 s')
     ts = _mapping(d.get('torque_sensor'), 'torque_sensor', ('rate', 'noise_rel', 'noise_std'))
     torque_sensor = TorqueSensorSpec(
         rate=_number(ts.get('rate', 50.0), 'torque_sensor.rate', positive=True),

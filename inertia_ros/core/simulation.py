@@ -112,7 +112,8 @@ def command_grid(scene: Scene) -> np.ndarray:
 
 
 def integrate_rigid_body(t_events: np.ndarray, torque: np.ndarray, inertia: np.ndarray,
-                         omega0: np.ndarray, *, max_step_angle: float = MAX_STEP_ANGLE
+                         omega0: np.ndarray, *, max_step_angle: float = MAX_STEP_ANGLE,
+                         damping: np.ndarray | None = None
                          ) -> tuple[np.ndarray, np.ndarray]:
     """Integrate Euler's equations and the attitude over piecewise-constant torque.
 
@@ -128,6 +129,8 @@ def integrate_rigid_body(t_events: np.ndarray, torque: np.ndarray, inertia: np.n
         Angular velocity at ``t_events[0]`` [rad/s]; the attitude starts at identity.
     max_step_angle : float, optional
         Largest body rotation per RK4 substep [rad].
+    damping : numpy.ndarray, shape (3,), optional
+        Diagonal damping ``D`` [N m s/rad]: the torque ``-D omega`` acts as well.
 
     Returns
     -------
@@ -159,6 +162,7 @@ def integrate_rigid_body(t_events: np.ndarray, torque: np.ndarray, inertia: np.n
     if max_step_angle <= 0.0:
         raise ValueError(f'max_step_angle: must be positive, got {max_step_angle}')
     omega0 = np.asarray(omega0, dtype=float).reshape(3)
+    dx, dy, dz = (0.0, 0.0, 0.0) if damping is None else (float(v) for v in damping)
     wx, wy, wz = (float(v) for v in omega0)
     qw, qx, qy, qz = 1.0, 0.0, 0.0, 0.0
     rows = [(wx, wy, wz, qw, qx, qy, qz)]
@@ -193,9 +197,9 @@ def integrate_rigid_body(t_events: np.ndarray, torque: np.ndarray, inertia: np.n
                 hx = a00 * wx + a01 * wy + a02 * wz
                 hy = a10 * wx + a11 * wy + a12 * wz
                 hz = a20 * wx + a21 * wy + a22 * wz
-                rx = tx - (wy * hz - wz * hy)
-                ry = ty - (wz * hx - wx * hz)
-                rz = tz - (wx * hy - wy * hx)
+                rx = tx - dx * wx - (wy * hz - wz * hy)
+                ry = ty - dy * wy - (wz * hx - wx * hz)
+                rz = tz - dz * wz - (wx * hy - wy * hx)
                 k1x = b00 * rx + b01 * ry + b02 * rz
                 k1y = b10 * rx + b11 * ry + b12 * rz
                 k1z = b20 * rx + b21 * ry + b22 * rz
@@ -209,9 +213,9 @@ def integrate_rigid_body(t_events: np.ndarray, torque: np.ndarray, inertia: np.n
                 hx = a00 * ux + a01 * uy + a02 * uz
                 hy = a10 * ux + a11 * uy + a12 * uz
                 hz = a20 * ux + a21 * uy + a22 * uz
-                rx = tx - (uy * hz - uz * hy)
-                ry = ty - (uz * hx - ux * hz)
-                rz = tz - (ux * hy - uy * hx)
+                rx = tx - dx * ux - (uy * hz - uz * hy)
+                ry = ty - dy * uy - (uz * hx - ux * hz)
+                rz = tz - dz * uz - (ux * hy - uy * hx)
                 k2x = b00 * rx + b01 * ry + b02 * rz
                 k2y = b10 * rx + b11 * ry + b12 * rz
                 k2z = b20 * rx + b21 * ry + b22 * rz
@@ -225,9 +229,9 @@ def integrate_rigid_body(t_events: np.ndarray, torque: np.ndarray, inertia: np.n
                 hx = a00 * ux + a01 * uy + a02 * uz
                 hy = a10 * ux + a11 * uy + a12 * uz
                 hz = a20 * ux + a21 * uy + a22 * uz
-                rx = tx - (uy * hz - uz * hy)
-                ry = ty - (uz * hx - ux * hz)
-                rz = tz - (ux * hy - uy * hx)
+                rx = tx - dx * ux - (uy * hz - uz * hy)
+                ry = ty - dy * uy - (uz * hx - ux * hz)
+                rz = tz - dz * uz - (ux * hy - uy * hx)
                 k3x = b00 * rx + b01 * ry + b02 * rz
                 k3y = b10 * rx + b11 * ry + b12 * rz
                 k3z = b20 * rx + b21 * ry + b22 * rz
@@ -241,9 +245,9 @@ def integrate_rigid_body(t_events: np.ndarray, torque: np.ndarray, inertia: np.n
                 hx = a00 * ux + a01 * uy + a02 * uz
                 hy = a10 * ux + a11 * uy + a12 * uz
                 hz = a20 * ux + a21 * uy + a22 * uz
-                rx = tx - (uy * hz - uz * hy)
-                ry = ty - (uz * hx - ux * hz)
-                rz = tz - (ux * hy - uy * hx)
+                rx = tx - dx * ux - (uy * hz - uz * hy)
+                ry = ty - dy * uy - (uz * hx - ux * hz)
+                rz = tz - dz * uz - (ux * hy - uy * hx)
                 k4x = b00 * rx + b01 * ry + b02 * rz
                 k4y = b10 * rx + b11 * ry + b12 * rz
                 k4z = b20 * rx + b21 * ry + b22 * rz
@@ -327,11 +331,7 @@ def simulate(scene: Scene, seed: int | None = None) -> SimResult:
     omega_true = w_ev[pick]
     attitude = q_ev[pick][:, [1, 2, 3, 0]]
 
-    # Gyro stream.
-    n_g = t_g.size
-    omega = omega_true + np.asarray(scene.gyro.bias)
-    if scene.gyro.noise_std > 0.0:
-        omega = omega + r_gnoise.normal(0.0, scene.gyro.noise_std, size=(n_g, 3))
+    omega = _gyro_reading(scene, omega_true, r_gnoise)
 
     # Torque stream.
     ts = scene.torque_sensor
@@ -354,6 +354,31 @@ def simulate(scene: Scene, seed: int | None = None) -> SimResult:
         frame_id=scene.gyro.frame_id, scene=scene, seed=int(seed))
 
 
+def _gyro_reading(scene: Scene, omega_true: np.ndarray, rng: np.random.Generator
+                  ) -> np.ndarray:
+    """The gyro stream (N, 3) [rad/s]: low-pass, bias, white noise, then quantisation."""
+    g = scene.gyro
+    omega = _lowpass(omega_true, g.time_constant, 1.0 / g.rate) + np.asarray(g.bias)
+    if g.noise_std > 0.0:
+        omega = omega + rng.normal(0.0, g.noise_std, size=omega.shape)
+    if g.lsb > 0.0:
+        omega = g.lsb * np.round(omega / g.lsb)
+    return omega
+
+
+def _lowpass(omega: np.ndarray, T: float, h: float) -> np.ndarray:
+    """The first-order sensor filter ``y' = (omega - y) / T`` on the gyro grid (step ``h``
+    [s]; exact for ``omega`` linear between samples), at rest on ``omega[0]``; ``T = 0``: none.
+    """
+    if T <= 0.0:
+        return omega
+    from scipy.signal import lfilter  # lazily: scipy.signal costs start-up time
+
+    a = math.exp(-h / T)
+    c = T / h * (1.0 - a)
+    return lfilter([1.0 - c, c - a], [1.0, -a], omega - omega[0], axis=0) + omega[0]
+
+
 def _integrate(scene: Scene, t_ev: np.ndarray, applied: np.ndarray,
                inertia_seg: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Body rates and attitude at the events: with the scene's wheels when it has any."""
@@ -361,7 +386,8 @@ def _integrate(scene: Scene, t_ev: np.ndarray, applied: np.ndarray,
         from inertia_ros.core.wheel_sim import integrate_with_wheels
         return integrate_with_wheels(t_ev, applied, inertia_seg, scene.initial_omega,
                                      scene.wheels)
-    return integrate_rigid_body(t_ev, applied, inertia_seg, scene.initial_omega)
+    return integrate_rigid_body(t_ev, applied, inertia_seg, scene.initial_omega,
+                                damping=scene.damping)
 
 
 def _wheel_result(scene: Scene, seed: int) -> dict[str, np.ndarray]:

@@ -89,6 +89,7 @@ from .homogeneous import homogeneous_estimate, is_torque_free
 from .ml import refine
 from .model import model_basis, symmetry_axis
 from .noise import isotropy_floor, noise_std_from_differences
+from .nuisance import nuisance_hook
 from .options import (
     ADEQUACY_MIN_WINDOW_S,
     ADEQUACY_WINDOWS,
@@ -119,13 +120,14 @@ _SEGMENT_CANDIDATES = (5.0, 10.0, 20.0, 40.0)   # s, anchored-segment lengths tr
 _EIV_MAX_SHARE = 0.02                          # differentiated-gyro noise share tolerated
 
 
+@nuisance_hook
 def estimate(t_gyro: Any, omega: Any, t_torque: Any, torque: Any, *,
              method: str = 'auto', model: str = 'auto', torque_bias: str = 'auto',
              symmetry_axis: Any = None, hold: str = 'auto', alpha: float = ALPHA,
              gyro_noise: Any = None, torque_noise: Any = None, segment: float | None = None,
              window: float | None = None, identifiability_tol: float = IDENTIFIABILITY_TOL,
              physical: bool = True, torque_scale_std: float = 0.0,
-             gyro_scale_std: float = 0.0) -> InertiaEstimate:
+             gyro_scale_std: float = 0.0, nuisance: Any = 'off') -> InertiaEstimate:
     """Estimate the inertia tensor from gyro and torque samples (Euler's equations).
 
     Parameters
@@ -161,11 +163,12 @@ def estimate(t_gyro: Any, omega: Any, t_torque: Any, torque: Any, *,
     identifiability_tol : float
         Largest standard error of an identifiable element, as a share of the tensor scale.
     physical : bool
-        Project a physically impossible tensor onto the nearest valid one (reported in
-        ``diagnostics['physical']``).
+        Project an impossible tensor onto the nearest valid one (``diagnostics['physical']``).
     torque_scale_std, gyro_scale_std : float
         Relative one-sigma scale uncertainty of the torque and the gyro calibration (0.01 =
         1 %; default 0): invisible in the data, so stated (``diagnostics['calibration']``).
+    nuisance : 'auto', 'off' or list of str
+        Sensor nuisance terms, applied by :func:`.nuisance.nuisance_hook` (default ``off``).
 
     Returns
     -------

@@ -21,7 +21,9 @@ __all__ = ['ADEQUACY_ALPHA', 'ADEQUACY_MIN_WINDOW_S', 'ADEQUACY_WINDOWS', 'ALPHA
            'GAP_FACTOR',
            'HOLDS', 'IDENTIFIABILITY_TOL', 'MAX_RESIDUAL_EXCESS', 'METHODS', 'MIN_EQUATIONS',
            'MIN_GYRO_SAMPLES', 'ML_AUTO_MAX_SAMPLES', 'MODELS', 'STATUSES', 'TORQUE_BIAS',
-           'TORQUE_FREE_SIGMAS', 'check_choice']
+           'NUISANCE_EIV_SHARE', 'NUISANCE_INTERVALS_S', 'NUISANCE_MAX_DELAY_S',
+           'NUISANCE_MAX_TIME_CONSTANT_S',
+           'NUISANCE_TERMS', 'TORQUE_FREE_SIGMAS', 'check_choice', 'check_nuisance']
 
 #: Batch methods (``estimate(method=...)``, ``--method``).
 METHODS: tuple[str, ...] = ('auto', 'ml', 'integral', 'integral_ls', 'integral_sliding',
@@ -65,6 +67,20 @@ MAX_RESIDUAL_EXCESS = 1.5
 ADEQUACY_WINDOWS = 4
 ADEQUACY_MIN_WINDOW_S = 5.0
 
+#: Sensor nuisance terms (``estimate(nuisance=...)``, ``--nuisance``; :mod:`.nuisance`):
+#: a constant gyro bias, a torque-to-gyro stamp offset, linear aerodynamic damping and a
+#: first-order gyro low-pass.  Each is kept only when a likelihood-ratio test at ``alpha``
+#: (the level of the model-selection tests, :data:`ALPHA`) supports it.
+NUISANCE_TERMS: tuple[str, ...] = ('gyro_bias', 'torque_delay', 'damping', 'gyro_lowpass')
+#: Largest torque-stamp offset searched [s] (either sign).
+NUISANCE_MAX_DELAY_S = 0.05
+#: Largest gyro low-pass time constant searched [s].
+NUISANCE_MAX_TIME_CONSTANT_S = 0.05
+#: Candidate lengths [s] of the independent momentum equations of the nuisance fit: the
+#: shortest whose gyro-noise share (errors in variables) is at most NUISANCE_EIV_SHARE.
+NUISANCE_INTERVALS_S: tuple[float, ...] = (0.1, 0.2, 0.5, 1.0, 2.0, 5.0)
+NUISANCE_EIV_SHARE = 0.005
+
 
 def check_choice(name: str, value: object, choices: tuple[str, ...]) -> str:
     """Return ``value`` if it is one of ``choices``, else raise one clear ``ValueError``.
@@ -86,3 +102,31 @@ def check_choice(name: str, value: object, choices: tuple[str, ...]) -> str:
     if not isinstance(value, str) or value not in choices:
         raise ValueError(f'{name}: must be one of {", ".join(choices)}; got {value!r}')
     return value
+
+
+def check_nuisance(value: object) -> str | tuple[str, ...]:
+    """The ``nuisance`` option: ``'auto'``, ``'off'`` or terms of :data:`NUISANCE_TERMS`.
+
+    Parameters
+    ----------
+    value : object
+        ``'auto'``, ``'off'``, a list/tuple of term names or one comma-separated string.
+
+    Returns
+    -------
+    str or tuple of str
+        ``'auto'``, ``'off'`` or the terms (in :data:`NUISANCE_TERMS` order, no repeats).
+    """
+    if value in ('auto', 'off'):
+        return str(value)
+    items = value.split(',') if isinstance(value, str) else value
+    if not isinstance(items, (list, tuple)) or not items \
+            or not all(isinstance(v, str) for v in items):
+        raise ValueError(f"nuisance: must be 'auto', 'off' or a list of terms "
+                         f"({', '.join(NUISANCE_TERMS)}); got {value!r}")
+    names = [v.strip() for v in items]
+    bad = [v for v in names if v not in NUISANCE_TERMS]
+    if bad:
+        raise ValueError(f"nuisance: unknown term {bad[0]!r}; use 'auto', 'off' or terms of "
+                         f"{', '.join(NUISANCE_TERMS)}")
+    return tuple(t for t in NUISANCE_TERMS if t in names)
