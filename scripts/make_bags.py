@@ -32,6 +32,10 @@ BAGS = {
               '(estimate with --wheels bags/wheels_wheels.yaml)',
     'quadrotor': 'quadrotor (X) with rotor speeds as JointState on /joint_states, no torque '
                  'topic of its own (zeros) (estimate with --rotors bags/quadrotor_rotors.yaml)',
+    'gyro_bias': 'constant gyro bias, wide rate swings (estimate with --nuisance auto)',
+    'torque_delay': 'torque stamps 15 ms late (estimate with --nuisance auto)',
+    'damping': 'aerodynamic damping -D w, unmeasured (estimate with --nuisance auto)',
+    'gyro_lowpass': 'gyro behind a 15 ms first-order filter, quantised (--nuisance auto)',
 }
 MAX_BYTES = 2 * 1024 * 1024
 

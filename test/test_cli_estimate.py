@@ -27,7 +27,10 @@ EXPECTED = {'torque_free': ('scale_unobservable',),
             # without --wheels the wheel-driven body looks torque-free, but is not
             'wheels': ('scale_unobservable', 'insufficient_excitation'),
             # likewise the rotor-driven quadrotor without --rotors (its torque topic is zeros)
-            'quadrotor': ('scale_unobservable', 'insufficient_excitation')}
+            'quadrotor': ('scale_unobservable', 'insufficient_excitation'),
+            # sensor nuisance samples: without --nuisance the model lacks the term
+            **dict.fromkeys(('gyro_bias', 'torque_delay', 'damping', 'gyro_lowpass'),
+                            ('model_mismatch',))}
 DEFAULT_BAG = ROOT / 'bags' / 'default.mcap'
 needs_default = pytest.mark.skipif(not DEFAULT_BAG.exists(), reason='bags/default.mcap absent')
 

@@ -20,7 +20,14 @@ from pathlib import Path
 from typing import Any
 
 from inertia_ros.cli import UserError, bounded
-from inertia_ros.core.estimation.options import BATCH_HOLDS, METHODS, MODELS, TORQUE_BIAS
+from inertia_ros.core.estimation.options import (
+    BATCH_HOLDS,
+    METHODS,
+    MODELS,
+    NUISANCE_TERMS,
+    TORQUE_BIAS,
+    check_nuisance,
+)
 
 __all__ = ['MAX_TORQUE_DELAY', 'add_parser', 'run']
 
@@ -64,6 +71,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    default=0.0, metavar='S',
                    help=f'torque stamps lag the applied torque by S seconds, |S| <= '
                         f'{MAX_TORQUE_DELAY:g} (default 0)')
+    p.add_argument('--nuisance', type=_nuisance_arg, default='off', metavar='TERMS',
+                   help='sensor nuisance terms: auto (each kept when the data support it), '
+                        f'off (default) or a comma list of {", ".join(NUISANCE_TERMS)}')
     p.add_argument('--ignore-frames', action='store_true',
                    help='accept different header.frame_id values on the two streams')
     p.add_argument('--wheels', metavar='FILE', type=Path,
@@ -201,15 +211,27 @@ def _first_line(exc: BaseException) -> str:
     return text.splitlines()[0] if text else type(exc).__name__
 
 
+def _nuisance_arg(text: str) -> str | tuple[str, ...]:
+    """``--nuisance``: auto, off or a comma list of terms."""
+    try:
+        return check_nuisance(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc).removeprefix('nuisance: ')) from None
+
+
 def _estimate(args: argparse.Namespace, log: Any) -> Any:
     """Run the estimator on the log's streams with the command's options."""
     from inertia_ros.core.estimation import estimate
 
+    nuisance = getattr(args, 'nuisance', 'off')
     if args.wheels is not None or args.rotors is not None:
+        if nuisance != 'off':
+            raise UserError('--nuisance: not available with --wheels or --rotors yet; drop '
+                            'one of them')
         return _estimate_wheels(args, log)
     try:
         return estimate(log.omega.t, log.omega.values, log.torque.t, log.torque.values,
-                        **_estimator_options(args))
+                        **_estimator_options(args), nuisance=nuisance)
     except ValueError as exc:
         raise UserError(f'{args.path}: cannot estimate: {_first_line(exc)}') from None
 

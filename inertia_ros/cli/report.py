@@ -231,12 +231,29 @@ def _footer_lines(report: dict) -> list[str]:
              for key in ('condition_number', 'residual_rms') if diag.get(key) is not None]
     if facts:
         lines.append('diagnostics: ' + ', '.join(facts))
+    lines += nuisance_lines(diag.get('nuisance'))
     truth = diag.get('truth')
     if truth and 'relative_error' in truth:
         lines.append(f'recorded truth: relative error {100 * truth["relative_error"]:.3g}% '
                      f'(max abs {truth["max_abs_error"]:.3g} kg m^2)')
     if diag.get('warnings'):
         lines += ['', 'warnings:'] + [f'  - {w}' for w in diag['warnings']]
+    return lines
+
+
+def nuisance_lines(rec: dict | None) -> list[str]:
+    """The ``diagnostics.nuisance`` record in a line or two (nothing when not requested)."""
+    if not rec:
+        return []
+    if rec.get('skipped'):
+        return [f'nuisance: not fitted ({rec["skipped"]})']
+    chosen = rec.get('chosen') or []
+    parts = [f'{t} {_short(rec["values"][t])} +- {_short(rec["sigma"][t])} '
+             f'{rec["units"][t]}' for t in chosen]
+    lines = ['nuisance: ' + ('; '.join(parts) if parts else 'none chosen')]
+    tested = [f'{t} p={v["p_value"]:.2g}' for t, v in (rec.get('evidence') or {}).items()]
+    if tested:
+        lines.append('  evidence: ' + ', '.join(tested))
     return lines
 
 
