@@ -139,8 +139,7 @@ def estimate(t_gyro: Any, omega: Any, t_torque: Any, torque: Any, *,
     torque : array_like, shape (M, 3)
         Known applied torque about the centre of mass, body axes [N m].
     method : str
-        One of :data:`METHODS` (``auto``: ``ml``, or ``integral`` over
-        :data:`ML_AUTO_MAX_SAMPLES` gyro samples).
+        One of :data:`METHODS` (auto: ml to :data:`ML_AUTO_MAX_SAMPLES` samples, else integral).
     model : {'auto', 'full', 'diagonal', 'axisymmetric'}
         Parameter set; ``auto`` picks the smallest the data supports (Wald tests at ``alpha``;
         ``axisymmetric`` is only a candidate when ``symmetry_axis`` is given).
