@@ -9,10 +9,13 @@ stays under a minute.
 from __future__ import annotations
 
 import copy
+import json
 
 import numpy as np
 import pytest
 
+from conftest import ROOT
+from inertia_ros.cli import main
 from inertia_ros.core.estimation import estimate
 from inertia_ros.core.estimation.nuisance import fit_nuisance
 from inertia_ros.core.estimation.options import ALPHA, NUISANCE_TERMS, check_nuisance
@@ -178,3 +181,28 @@ def test_new_scene_keys_are_validated(changes, message) -> None:
     with pytest.raises(SceneError, match=message) as info:
         _scene(**changes)
     assert '\n' not in str(info.value)
+
+
+# ------------------------------------------------------------------------------------------
+# command line
+# ------------------------------------------------------------------------------------------
+
+def test_cli_nuisance_on_the_delay_sample(capsys: pytest.CaptureFixture) -> None:
+    """``estimate bags/torque_delay.mcap --nuisance auto``: the offset found, in JSON and text."""
+    bag = str(ROOT / 'bags' / 'torque_delay.mcap')
+    assert main(['estimate', bag, '--nuisance', 'auto', '--format', 'json',
+                 '--no-progress']) == 0
+    rep = json.loads(capsys.readouterr().out)
+    rec = rep['diagnostics']['nuisance']
+    assert rep['status'] == 'ok' and rec['chosen'] == ['torque_delay']
+    assert abs(rec['values']['torque_delay'] - 0.015) < 3 * rec['sigma']['torque_delay']
+    assert main(['estimate', bag, '--nuisance', 'torque_delay', '--no-progress']) == 0
+    text = capsys.readouterr().out
+    assert 'nuisance: torque_delay 0.01' in text and ' s' in text
+
+
+def test_cli_refuses_an_unknown_term(capsys: pytest.CaptureFixture) -> None:
+    """A bad ``--nuisance`` value: exit 2, one line naming the option."""
+    assert main(['estimate', str(ROOT / 'bags' / 'default.mcap'), '--nuisance', 'wind']) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and '--nuisance' in err[0] and 'wind' in err[0]
