@@ -1,9 +1,9 @@
 """Scene simulation: Euler's rotational equations with quaternion attitude, and the sensors.
 
 The body rotates under the commanded torque (a zero-order hold at ``scene.command_rate``)
-plus the constant disturbance:
+plus the constant disturbance and the aerodynamic damping ``-D omega`` (``scene.damping``):
 
-    I * omega_dot + omega x (I * omega) = tau_command + d          (body axes)
+    I * omega_dot + omega x (I * omega) = tau_command + d - D omega  (body axes)
     q_dot = 1/2 * q (x) [0, omega]                                   (q: body -> inertial)
 
 The applied torque is piecewise constant, so the equations are integrated segment by segment
@@ -17,9 +17,11 @@ calls for a 7-element state).
 At an inertia change the angular velocity is continuous (a payload that detaches or a
 mass that moves inside the body without impulse), so angular momentum jumps.
 
-Sensors: the gyro samples the true angular velocity at its nominal instants ``k / rate`` and
-adds a constant bias and white Gaussian noise.  The torque sensor reports the command in
-effect at its nominal instants plus white noise of per-axis std
+Sensors: the gyro samples the true angular velocity at its nominal instants ``k / rate``
+(through a first-order low-pass of time constant ``gyro.time_constant`` when set), adds a
+constant bias and white Gaussian noise, and rounds to multiples of ``gyro.lsb`` when set.
+The torque sensor reports the command in effect at its nominal instants plus white noise of
+per-axis std
 ``noise_std + noise_rel * rms(command on that axis)``.  Imperfections act on the recorded
 stamps (jitter, torque-stream delay) and drop samples independently in both streams.
 

@@ -70,7 +70,6 @@ __all__ = ['NuisanceFit', 'apply_nuisance', 'fit_nuisance', 'nuisance_hook', 'wi
 
 _BASIS = np.array([theta_to_matrix(e) for e in np.eye(6)])     # (6, 3, 3) dI / dtheta_j
 _SIZES = {'gyro_bias': 3, 'torque_delay': 1, 'damping': 3, 'gyro_lowpass': 1}
-_LINEAR = ('gyro_bias', 'damping')
 _GRID = 11                      # profile grid points over a nonlinear term's range
 _GOLDEN_STEPS = 20              # golden-section iterations after the grid
 _BIAS_ITERATIONS = 3            # Gauss-Newton passes of the gyro-bias linearisation
