@@ -54,6 +54,7 @@ import numpy as np
 from .._validate import as_noise_std, as_sample_block
 from .assemble import add_calibration, assemble, status_only
 from .fit import Fit, solve_symmetric
+from .homogeneous import is_torque_free
 from .model import model_basis, parameter_names
 from .model import symmetry_axis as unit_axis
 from .noise import StreamingNoise, gyroscopic_walk_cov
@@ -681,6 +682,11 @@ class TrackingEstimator:
         if self._warm is not None:
             diag['reason'] = (f'start-up: {self.samples_used} gyro samples, the tensor is '
                               f'not determined yet (needs {self.warmup:g} s of excitation)')
+            tq = self._tau[-4096:]
+            if len(tq) >= 16 and is_torque_free(np.sqrt(np.mean(tq ** 2, axis=0)),
+                                                np.sqrt(self._tv)):
+                diag['reason'] = ('torque-free data: the tracker needs a known torque for the '
+                                  'scale (method recursive gives the ratios and axes)')
             return status_only('insufficient_data', diag, base)
         return self._result(diag, base)
 
