@@ -124,3 +124,15 @@ def test_chi2_quantile(dof) -> None:
     for level in (1e-3, 1e-6):
         rel = 1e-6 if dof == 3 else 0.02
         assert chi2_upper_quantile(dof, level) == pytest.approx(chi2.isf(level, dof), rel=rel)
+
+
+def test_bench_tracking_subcommand(capsys: pytest.CaptureFixture) -> None:
+    """``bench tracking`` parses its options; an absurd memory is one line, exit 2."""
+    from inertia_ros.cli import build_parser, main
+
+    args = build_parser('bench').parse_args(['bench', 'tracking', '--seeds', '2',
+                                             '--memory', '5'])
+    assert (args.kind, args.seeds, args.memory) == ('tracking', 2, 5.0)
+    assert main(['bench', 'tracking', '--memory', '0']) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and '--memory' in err, err
