@@ -136,3 +136,31 @@ def test_bench_tracking_subcommand(capsys: pytest.CaptureFixture) -> None:
     assert main(['bench', 'tracking', '--memory', '0']) == 2
     err = capsys.readouterr().err
     assert len(err.strip().splitlines()) == 1 and '--memory' in err, err
+
+
+@pytest.mark.parametrize('stream', ['gyro', 'torque'])
+def test_gap_reanchors_and_keeps_tracking(stream) -> None:
+    """A 2 s hole in either stream: the filter re-anchors after it (counted), stays ok and
+    accurate; gyro samples the held torque would have covered wrongly are dropped."""
+    rec = simulate_truth(TruthCase(duration=20.0), [5])[0]
+    keep_g = np.ones(len(rec.t_gyro), bool)
+    keep_t = np.ones(len(rec.t_torque), bool)
+    hole = lambda t: (t > 8.0) & (t < 10.0)  # noqa: E731
+    if stream == 'gyro':
+        keep_g &= ~hole(rec.t_gyro)
+    else:
+        keep_t &= ~hole(rec.t_torque)
+    est = TrackingEstimator(window=10.0)
+    tg, w = rec.t_gyro[keep_g], rec.omega[keep_g]
+    tq, tau = rec.t_torque[keep_t], rec.torque[keep_t]
+    for a in np.arange(0.0, 20.0, 0.5):
+        sg, sq = (tg >= a) & (tg < a + 0.5), (tq >= a) & (tq < a + 0.5)
+        est.add_torque(tq[sq], tau[sq])
+        est.add_gyro(tg[sg], w[sg])
+    res = est.estimate()
+    assert est.gaps == 1
+    assert not est.changes
+    assert res.status == 'ok'
+    assert np.linalg.norm(res.inertia - rec.inertia) / np.linalg.norm(rec.inertia) < 0.01
+    if stream == 'torque':
+        assert res.samples_dropped > 300

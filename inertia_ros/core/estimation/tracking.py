@@ -77,7 +77,7 @@ _DT_HISTORY = 64          # recent sample intervals kept per stream for the nomi
 _MAX_BUFFER = 400_000     # gyro samples kept waiting for torque
 _EXCESS_TIME = 2.0        # time constant of the innovation excess average [s]
 _MISMATCH_EXCESS = 1.5    # innovation excess above which the status is model_mismatch
-_DIFFUSE = 1e6            # prior variance of the momentum after a gap, in squared scale units
+_DIFFUSE = 1e6            # prior variance of the empty filter, in squared scale units
 _PRIOR_INFLATION = 100.0  # start-up fit covariance -> the filter's prior
 _EIV_MAX = 0.05           # largest entry of P B_eff for the first-order compensation
 _SETTLED = 0.05           # relative sigma of the moments below which the weights follow x
@@ -262,6 +262,7 @@ class TrackingEstimator:
         self._R_at = -math.inf
         self._R_for: np.ndarray | None = None
         self._gdt = 0.0                     # nominal gyro interval [s]
+        self._tdt = 0.0                     # nominal torque interval [s]
         self._walk = np.zeros((3, 3))       # momentum variance rate [N^2 m^2 s]
         self._B = np.zeros((self.k, self.k))  # gyro noise's own information per block
         self._restart()
@@ -411,17 +412,27 @@ class TrackingEstimator:
         self._trim_torque()
 
     def _run(self, t: np.ndarray, w: np.ndarray, flush: bool = True) -> int:
-        """Fold in samples ``t`` (n,), ``w`` (n, 3) in blocks of ``block`` seconds (across
-        a gap the momentum is unknown again); return where the unfolded rest starts."""
+        """Fold in samples ``t`` (n,), ``w`` (n, 3) in blocks of ``block`` seconds; return
+        where the unfolded rest starts.  Across a gap of either stream (an interval over
+        ``GAP_FACTOR`` nominal ones) the filter re-anchors after it (:meth:`_reanchor`)."""
         lo = 0
         gap = GAP_FACTOR * (self._gdt if self._gdt > 0 else math.inf)
         while lo < len(t):
-            if t[lo] - self._prev[0] > gap:
-                self._forget_momentum(float(t[lo]), w[lo])
-                lo += 1
-                continue
             end = self._prev[0] + self.block
             hi = max(int(np.searchsorted(t, end - 1e-9, side='right')), lo + 1)
+            after = self._torque_gap(float(t[hi - 1]))
+            if after is not None:                      # samples the held torque misses
+                skip = int(np.searchsorted(t, after, side='left'))
+                self.samples_dropped += skip - lo
+                if skip >= len(t):
+                    return len(t)
+                self._reanchor(float(t[skip]), w[skip])
+                lo = skip + 1
+                continue
+            if t[lo] - self._prev[0] > gap:
+                self._reanchor(float(t[lo]), w[lo])
+                lo += 1
+                continue
             step = np.flatnonzero(np.diff(t[lo:hi]) > gap)
             if len(step):
                 hi = lo + int(step[0]) + 1
@@ -431,12 +442,27 @@ class TrackingEstimator:
             lo = hi
         return lo
 
-    def _forget_momentum(self, t: float, w: np.ndarray) -> None:
-        """Across a gap: re-anchor at ``(t, w)`` with the momentum unknown again."""
+    def _torque_gap(self, t: float) -> float | None:
+        """The end [s] of a torque gap between the anchor and ``t``, or None."""
+        if self._tdt <= 0:
+            return None
+        a = max(int(np.searchsorted(self._ts, self._prev[0], side='right')) - 1, 0)
+        b = int(np.searchsorted(self._ts, t, side='left'))
+        long = np.flatnonzero(np.diff(self._ts[a:b + 1]) > GAP_FACTOR * self._tdt)
+        return float(self._ts[a + long[-1] + 1]) if len(long) else None
+
+    def _reanchor(self, t: float, w: np.ndarray) -> None:
+        """Across a gap: anchor at ``(t, w)`` with the momentum ``L = I w`` of the current
+        tensor (covariance from the tensor's and the gyro noise's)."""
+        R, _nv = self._cached()
+        A = np.zeros((3, self.n))
+        A[:, :self.k] = momentum_matrix(w) @ self.basis
         L = slice(self.k + self.nb, self.n)
-        self.P[L, :] = 0.0
-        self.P[:, L] = 0.0
-        self.P[L, L] = np.eye(3) * _DIFFUSE * self._scale() ** 2
+        AP = A @ self.P
+        self.x[L] = A @ self.x
+        self.P[L, :] = AP
+        self.P[:, L] = AP.T
+        self.P[L, L] = AP @ A.T + R
         self._prev = (t, w.copy())
         self.gaps += 1
 
@@ -593,6 +619,7 @@ class TrackingEstimator:
             self._R, self._nv_R = self._weight()
             self._R_at, self._R_for = t, self._R_theta
             self._gdt = float(np.median(self._g_dts)) if len(self._g_dts) else 0.0
+            self._tdt = float(np.median(self._tq_dts)) if len(self._tq_dts) else 0.0
             self._walk = self._momentum_walk(self._nv_R)
             E = momentum_matrix(np.eye(3)) @ self.basis           # (3, 3, k): L(e_c) T
             self._B = np.einsum('c,cik,ij,cjl->kl', self._nv_R, E, np.linalg.inv(self._R), E)
