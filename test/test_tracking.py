@@ -164,3 +164,20 @@ def test_gap_reanchors_and_keeps_tracking(stream) -> None:
     assert np.linalg.norm(res.inertia - rec.inertia) / np.linalg.norm(rec.inertia) < 0.01
     if stream == 'torque':
         assert res.samples_dropped > 300
+
+
+def test_memory_bounded_while_undetermined() -> None:
+    """Rotation about one axis never determines the tensor: the start-up buffer stays
+    bounded (insufficient_data with the reason), it does not grow with the record."""
+    t = np.arange(0.0, 60.0, 0.005)
+    w = np.column_stack([np.zeros_like(t), np.zeros_like(t), 0.3 + 0.01 * np.sin(t)])
+    tq = np.arange(0.0, 60.0, 0.02)
+    tau = np.column_stack([np.zeros_like(tq), np.zeros_like(tq), 0.01 * np.cos(tq)])
+    est = TrackingEstimator(window=10.0)
+    for a in range(60):
+        est.add_torque(tq[(tq >= a) & (tq < a + 1)], tau[(tq >= a) & (tq < a + 1)])
+        est.add_gyro(t[(t >= a) & (t < a + 1)], w[(t >= a) & (t < a + 1)])
+    res = est.estimate()
+    assert res.status == 'insufficient_data' and res.diagnostics['reason']
+    kept = sum(len(x[0]) for x in est._warm)
+    assert kept <= 5 * 2.0 * 200 + 400 and len(est._ts) <= 5 * 2.0 * 50 + 200

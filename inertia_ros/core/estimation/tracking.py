@@ -80,6 +80,7 @@ _MISMATCH_EXCESS = 1.5    # innovation excess above which the status is model_mi
 _DIFFUSE = 1e6            # prior variance of the empty filter, in squared scale units
 _PRIOR_INFLATION = 100.0  # start-up fit covariance -> the filter's prior
 _EIV_MAX = 0.05           # largest entry of P B_eff for the first-order compensation
+_WARM_KEEP = 5.0          # start-up samples kept while undetermined [warmup lengths]
 _SETTLED = 0.05           # relative sigma of the moments below which the weights follow x
 _REFRESH = 0.25          # data time between re-derivations of the weights [s]
 _NOISE_EVERY = 500        # gyro samples between re-readings of the noise levels
@@ -340,6 +341,11 @@ class TrackingEstimator:
             self._fold_in(t, w, flush=False)
             return
         self._warm.append((t, w))
+        while len(self._warm) > 1 and t[-1] - self._warm[1][0][0] >= _WARM_KEEP * self.warmup:
+            del self._warm[0]                  # never determined yet: keep the newest only
+        j = int(np.searchsorted(self._ts, self._warm[0][0][0], side='right')) - 1
+        if j > 0:
+            self._ts, self._tau = self._ts[j:], self._tau[j:]
         span = t[-1] - self._warm[0][0][0]
         if span >= self.warmup and t[-1] - self._tried >= 0.25 * self.warmup:
             self._tried = float(t[-1])
