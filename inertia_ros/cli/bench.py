@@ -16,6 +16,7 @@ KIND runs one focused benchmark and prints its figures:
 ``node``         the estimator node as a process fed at 1 kHz + 1 kHz (needs ROS 2)
 ``simulate``     simulate + write a 60 s, 200 Hz scene (target < 2 s)
 ``honesty``      calibration of sigma and status on an independent simulator, every path
+``tracking``     the Kalman tracker against a forgetting RLS on a payload step and a drift
 
 This module imports nothing heavy: the benchmark modules are imported when they run.
 """
@@ -93,6 +94,12 @@ def _add_kinds(kinds: Any) -> None:
     k.add_argument('--cases', default=None, help='comma-separated case names (default all)')
     k.add_argument('--paths', default='api,cli,node', help='comma-separated: api, cli, node')
     k.add_argument('--json', type=Path, metavar='FILE', help='also write the outcomes here')
+    k = kinds.add_parser('tracking', help='the Kalman tracker against a forgetting RLS of the '
+                                          'same memory on a payload step and a drift')
+    k.add_argument('--seeds', type=bounded(1, 1000, 'records', integer=True), default=10,
+                   help='records per scene, 1-1000 (10)')
+    k.add_argument('--memory', type=bounded(0.5, 3600.0, 's'), default=10.0,
+                   help='memory time constant of both estimators, 0.5-3600 s (10)')
 
 
 def add_parser(sub: Any) -> argparse.ArgumentParser:
@@ -145,6 +152,7 @@ _KINDS: dict[str, tuple[str, dict[str, str]]] = {
     'node': ('node', {'rate': 'rate', 'duration': 'duration', 'publish_rate': 'publish_rate',
                       'method': 'method', 'seed': 'seed'}),
     'simulate': ('simulate', {'scene': 'scene_path', 'repeat': 'repeat'}),
+    'tracking': ('tracking', {'seeds': 'seeds', 'memory': 'memory'}),
 }
 
 

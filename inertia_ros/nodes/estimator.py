@@ -68,6 +68,7 @@ from visualization_msgs.msg import MarkerArray
 from inertia_ros.core.estimation.recursive import RecursiveEstimator
 from inertia_ros.core.estimation.recursive_momentum import MomentumRecursiveEstimator
 from inertia_ros.core.estimation.result import InertiaEstimate
+from inertia_ros.core.estimation.tracking import TrackingEstimator
 from inertia_ros.core.estimation.windowed import BatchWindow, OnlineEstimator
 from inertia_ros.io import cdr_decode
 from inertia_ros.nodes import messages, params
@@ -105,6 +106,7 @@ TORQUE_TYPES = {'wrench': (WrenchStamped, 'torque', 'geometry_msgs/msg/WrenchSta
 PARAMETERS: dict[str, ParamSpec] = params.ESTIMATOR
 
 BATCH_DEFAULT_WINDOW = 30.0  # s, batch re-solve when window = 0
+TRACKING_DEFAULT_WINDOW = 10.0  # s, tracking memory when window = 0
 #: Consecutive samples that confirm a jump of the stamps (else the jumped ones are refused).
 STAMP_CONFIRM = 5
 #: Smallest forward stamp jump held for confirmation [ns] (clock_jump_threshold if larger).
@@ -133,8 +135,9 @@ def make_estimator(cfg: dict[str, Any], actuators: Any = None
     Returns
     -------
     callable
-        ``() -> OnlineEstimator``: a RecursiveEstimator (``method='recursive'``) or a
-        BatchWindow (``'batch'``).
+        ``() -> OnlineEstimator``: a RecursiveEstimator (``method='recursive'``), a
+        TrackingEstimator (``'tracking'``: memory ``window`` or 10 s) or a BatchWindow
+        (``'batch'``).
 
     Raises
     ------
@@ -159,6 +162,15 @@ def make_estimator(cfg: dict[str, Any], actuators: Any = None
             other = cfg['torque_topic'].strip().lower() != 'none'
             return lambda: MomentumRecursiveEstimator(names=names, other_torque=other, **kwargs)
         return lambda: RecursiveEstimator(**kwargs)
+    if cfg['method'] == 'tracking' and cfg['torque_topic'].strip().lower() == 'none':
+        return torque_free_estimator(cfg)
+    if cfg['method'] == 'tracking':
+        kwargs = dict(window=float(cfg['window']) or TRACKING_DEFAULT_WINDOW,
+                      model=cfg['model'], torque_bias=cfg['torque_bias'], hold=cfg['hold'],
+                      symmetry_axis=axis, torque_scale_std=float(cfg['torque_scale_std']),
+                      gyro_scale_std=float(cfg['gyro_scale_std']))
+        TrackingEstimator(**kwargs)  # validates
+        return lambda: TrackingEstimator(**kwargs)
     window = float(cfg['window']) or BATCH_DEFAULT_WINDOW
     options = dict(method=cfg['batch_method'], model=cfg['model'],
                    torque_bias=cfg['torque_bias'], hold=cfg['hold'], symmetry_axis=axis,
@@ -166,6 +178,17 @@ def make_estimator(cfg: dict[str, Any], actuators: Any = None
                    gyro_scale_std=float(cfg['gyro_scale_std']))
     BatchWindow(window, **options)  # validates
     return lambda: BatchWindow(window, **options)
+
+
+def torque_free_estimator(cfg: dict[str, Any]) -> Callable[[], OnlineEstimator]:
+    """The factory for torque-free data: ``make_estimator``'s, but the recursive estimator
+    (memory ``window`` or 10 s) for ``method='tracking'``, whose Kalman filter needs the
+    torque for the scale (the recursive one gives the ratios and axes, ``scale_unobservable``).
+    """
+    if cfg['method'] != 'tracking':
+        return make_estimator(cfg)
+    return make_estimator(dict(cfg, method='recursive',
+                               window=float(cfg['window']) or TRACKING_DEFAULT_WINDOW))
 
 
 def _reselect_every(cfg: dict[str, Any]) -> int:
@@ -615,7 +638,7 @@ class InertiaEstimatorNode(Node):
             self._shadow = None
         elif gyro is not None:
             if self._shadow is None:
-                self._shadow = self._factory()
+                self._shadow = torque_free_estimator(self._cfg)()
             self._shadow.add_gyro(*gyro)
             self._shadow.add_torque(gyro[0], np.zeros_like(gyro[1]))
         self._flush(self._torque, self._estimator.add_torque)

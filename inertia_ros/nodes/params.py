@@ -334,8 +334,10 @@ ESTIMATOR: dict[str, ParamSpec] = {
     'frame_id': ParamSpec('', "frame the gyro and torque must be expressed in; '' adopts the "
                           "first gyro message's frame"),
     'method': ParamSpec('recursive', "'recursive' (core RecursiveEstimator over all data or "
-                        "the window) or 'batch' (core estimate() re-solved over the sliding "
-                        'window)', choices=ONLINE_METHODS),
+                        "the window), 'tracking' (core TrackingEstimator: a Kalman filter that "
+                        'follows a changing tensor with memory window, default 10 s, and '
+                        "finds payload steps) or 'batch' (core estimate() re-solved over the "
+                        'sliding window)', choices=(*ONLINE_METHODS, 'tracking')),
     'batch_method': ParamSpec('integral', "core estimator of the 'batch' method: 'integral' "
                               "(fast), 'ml' (maximum likelihood, at the Cramer-Rao bound, ~5x "
                               "the time), 'auto' or another name of the core's METHODS",
@@ -352,8 +354,8 @@ ESTIMATOR: dict[str, ParamSpec] = {
     'forgetting': ParamSpec(1.0, 'recursive forgetting factor per gyro sample; 1 = none '
                             '[dimensionless]', 0.5, 1.0),
     'window': ParamSpec(0.0, 'recursive: memory time constant, weights decay as '
-                        'exp(-age/window) [s], 0 = no decay; batch: sliding-window length '
-                        '[s], 0 = 30 s', 0.0, 86400.0),
+                        'exp(-age/window) [s], 0 = no decay; tracking: the same memory, 0 = '
+                        '10 s; batch: sliding-window length [s], 0 = 30 s', 0.0, 86400.0),
     'hold': ParamSpec('zoh', "torque between samples: 'zoh' (held) or 'linear'",
                       choices=HOLDS),
     'torque_scale_std': ParamSpec(0.0, 'relative one-sigma uncertainty of the torque scale '

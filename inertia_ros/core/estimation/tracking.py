@@ -1,0 +1,754 @@
+"""Tracking a changing tensor: :class:`TrackingEstimator`, a Kalman filter on the momentum.
+
+The state is ``x = [psi (k), d (3, optional), L (3)]``: the tensor parameters of the chosen
+model (``theta = T psi``), an optional constant disturbance torque [N m] and the body's angular
+momentum in body axes ``L = I w`` [N m s].  The package's anchored momentum equation,
+``I w_b + int_s^b w x (I w) dt - d (t_b - s) - L_s = int_s^b tau dt``, is exactly the
+measurement model of this state: every gyro sample after a block's anchor ``s`` (the last
+sample of the previous block) gives
+
+    H_b x_s = y_b,  H_b = [(L(w_b) + Q(int_s^b m dt)) T,  -(t_b - s) 1,  -1],  y_b = int_s^b tau,
+
+with the white error ``-I n_b`` of the gyro noise (covariance ``I S_g I``: the weights of the
+batch ``integral`` method), the same trapezoid monomial integrals with the gyro-noise
+correction ``-sigma^2 (t - s)`` (:func:`.regressors.cumulative_monomials`) and the same held
+torque integral (:func:`.regressors.cumulative_torque`).  The equations of a block (``block``
+seconds, 0.1 s by default) share the anchor state, so the block enters as their mean, one
+3-row Kalman update with the error covariance ``I S_g I / n``: O(state^2) per block plus O(1)
+per sample, whatever the memory; nothing is re-solved.
+
+Between blocks the momentum is propagated by the same equation,
+``L_e = L_s + int tau + d (e - s) - Q(int m) theta``, with the process noise of the integrated
+torque noise and the gyroscopic noise walk (:func:`.noise.gyroscopic_walk_cov`), and the
+tensor parameters random-walk with the covariance ``(exp(dt / window) - 1) P_psi``: the
+process noise that gives the filter exactly the memory of exponential forgetting with time
+constant ``window`` (a forgetting-factor RLS at ``lambda = exp(-dt / window)`` per update), so
+the memory setting means what the recursive estimator's ``window`` means.
+
+Errors in variables: the averaged gyro noise in each block's regressor carries its own
+"information" ``B`` (the batch fit's ``n B``); the reported estimate removes its first-order
+effect with the sum of ``B`` under the same forgetting (:meth:`TrackingEstimator._compensated`).
+
+A change the memory cannot follow (a payload step) is found by the innovation test: the
+normalised innovation ``nu' S^-1 nu`` of a block is chi-square with 3 degrees of freedom under
+the model; above its ``change_level`` upper quantile the prior covariance of the tensor is
+inflated (``change_inflation`` of its scale, one sigma) and the block folded in again, so the
+filter re-converges on the new body in about a second instead of one memory time.  The
+momentum is kept (a payload attached without impulse conserves it; the rate jumps).  A
+persistent excess of the innovations over the noise model gives ``model_mismatch`` with the
+covariance inflated by it, as the batch adequacy rule does.
+
+The reported covariance is against the *current* tensor: half the filter's ``P_psi`` (the
+noise of exponentially weighted estimates, the sandwich ``sum w^2 / sum w``, as the recursive
+estimator reports) plus ``lag lag'``, the lag ``rate * window`` of the exponential memory
+behind a tensor changing at the rate the recent estimates show (a slow drift such as fuel
+use).
+"""
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from .._validate import as_noise_std, as_sample_block
+from .assemble import add_calibration, assemble, status_only
+from .fit import Fit, solve_symmetric
+from .homogeneous import is_torque_free
+from .model import model_basis, parameter_names
+from .model import symmetry_axis as unit_axis
+from .noise import StreamingNoise, gyroscopic_walk_cov
+from .options import (
+    ALPHA,
+    GAP_FACTOR,
+    HOLDS,
+    IDENTIFIABILITY_TOL,
+    MODELS,
+    TORQUE_BIAS,
+    check_choice,
+)
+from .regressors import cumulative_monomials, cumulative_torque, gyroscopic_matrix, momentum_matrix
+from .result import InertiaEstimate
+from .selection import SelectionPolicy
+
+__all__ = ['TrackingEstimator', 'chi2_upper_quantile']
+
+_DT_HISTORY = 64          # recent sample intervals kept per stream for the nominal interval
+_MAX_BUFFER = 400_000     # gyro samples kept waiting for torque
+_EXCESS_TIME = 2.0        # time constant of the innovation excess average [s]
+_MISMATCH_EXCESS = 1.5    # innovation excess above which the status is model_mismatch
+_DIFFUSE = 1e6            # prior variance of the empty filter, in squared scale units
+_PRIOR_INFLATION = 100.0  # start-up fit covariance -> the filter's prior
+_EIV_MAX = 0.05           # largest entry of P B_eff for the first-order compensation
+_WARM_KEEP = 5.0          # start-up samples kept while undetermined [warmup lengths]
+_SETTLED = 0.05           # relative sigma of the moments below which the weights follow x
+_REFRESH = 0.25          # data time between re-derivations of the weights [s]
+_NOISE_EVERY = 500        # gyro samples between re-readings of the noise levels
+
+
+def chi2_upper_quantile(dof: int, level: float) -> float:
+    """Upper ``level`` quantile of the chi-square distribution, without scipy.
+
+    Exact (bisection on the closed-form tail) for 3 degrees of freedom, the block test's;
+    the Wilson-Hilferty approximation otherwise (within 2 % for ``dof >= 30``).
+
+    Parameters
+    ----------
+    dof : int
+        Degrees of freedom (>= 1).
+    level : float
+        Upper-tail probability in (0, 0.5).
+
+    Returns
+    -------
+    float
+        ``q`` with ``P(chi2_dof > q) = level``.
+    """
+    def bisect(tail: Any, hi: float) -> float:
+        lo = 0.0
+        for _ in range(80):
+            mid = 0.5 * (lo + hi)
+            lo, hi = (mid, hi) if tail(mid) > level else (lo, mid)
+        return 0.5 * (lo + hi)
+
+    if dof == 3:
+        return bisect(lambda x: math.erfc(math.sqrt(x / 2.0))
+                      + math.sqrt(2.0 * x / math.pi) * math.exp(-x / 2.0), 400.0)
+    z = bisect(lambda x: 0.5 * math.erfc(x / math.sqrt(2.0)), 40.0)
+    a = 2.0 / (9.0 * dof)
+    return dof * (1.0 - a + z * math.sqrt(a)) ** 3
+
+
+class _Trend:
+    """Exponentially weighted straight-line fit of the estimates against time: the rate at
+    which the tracked tensor is changing (time constant ``tau`` [s])."""
+
+    def __init__(self, tau: float, p: int) -> None:
+        self.tau = tau
+        self.W = 0.0
+        self.t_mean = 0.0
+        self.x_mean = np.zeros(p)
+        self.Stt = 0.0
+        self.Stx = np.zeros(p)
+        self.t0: float | None = None
+
+    def add(self, t: float, x: np.ndarray, dt: float) -> None:
+        """One estimate ``x`` (p,) at time ``t`` [s], weighted by its span ``dt`` [s]."""
+        if self.t0 is None:
+            self.t0 = t
+        a = math.exp(-dt / self.tau)
+        self.W *= a
+        self.Stt *= a
+        self.Stx = self.Stx * a
+        d = t - self.t_mean
+        self.W += dt
+        f = dt / self.W
+        self.t_mean += f * d
+        self.x_mean = self.x_mean + f * (x - self.x_mean)
+        self.Stt += dt * d * (t - self.t_mean)
+        self.Stx = self.Stx + dt * d * (x - self.x_mean)
+
+    def rate(self, t: float) -> np.ndarray | None:
+        """The fitted rate (p,) [units of x per s], or None before one time constant."""
+        if self.t0 is None or t - self.t0 < self.tau or self.Stt <= 0:
+            return None
+        return self.Stx / self.Stt
+
+
+class TrackingEstimator:
+    """Kalman filter on the tensor parameters and the angular momentum (see the module doc).
+
+    Parameters
+    ----------
+    window : float
+        Memory time constant [s] (> 0): the tensor's random-walk process noise is that of
+        exponential forgetting with this time constant.
+    model : {'full', 'diagonal', 'axisymmetric', 'auto'}
+        Parameter set; ``auto`` tracks the full tensor.
+    torque_bias : bool or {'auto', 'on', 'off'}
+        Track a constant disturbance torque [N m] (``on``); ``auto`` and ``off`` do not.
+    hold : {'zoh', 'linear'}
+        Torque between samples.
+    symmetry_axis : {'x', 'y', 'z'} or array_like (3,), optional
+        For the axisymmetric model.
+    gyro_noise : float or array_like (3,), optional
+        Gyro white-noise std [rad/s]; estimated from the stream when omitted.
+    block : float
+        Longest block of gyro samples folded in at once [s] (> 0).
+    warmup : float, optional
+        Start-up length [s]: the first ``warmup`` seconds are filtered twice, the second time
+        with the equation weights ``(I S_g I)^-1`` of the first pass (default
+        ``min(window / 5, 2)``).
+    change_level : float
+        False-alarm probability per block of the change (innovation) test; 0 disables it.
+    change_inflation : float
+        Relative size (one sigma) of the change assumed when the test fires.
+    torque_scale_std, gyro_scale_std : float
+        Relative one-sigma scale uncertainties added to the covariance, as in the batch.
+    alpha : float
+        Test level (kept for the selection policy).
+    """
+
+    def __init__(self, window: float = 10.0, model: str = 'full',
+                 torque_bias: bool | str = 'off', hold: str = 'zoh', symmetry_axis: Any = None,
+                 gyro_noise: Any = None, block: float = 0.1, warmup: float | None = None,
+                 change_level: float = 1e-6, change_inflation: float = 0.5,
+                 torque_scale_std: float = 0.0, gyro_scale_std: float = 0.0,
+                 alpha: float = ALPHA) -> None:
+        if not (isinstance(window, (int, float)) and math.isfinite(window) and window > 0):
+            raise ValueError(f'window: must be a positive number of seconds, got {window!r}')
+        check_choice('model', model, MODELS)
+        if isinstance(torque_bias, bool):
+            torque_bias = 'on' if torque_bias else 'off'
+        check_choice('torque_bias', torque_bias, TORQUE_BIAS)
+        check_choice('hold', hold, HOLDS)
+        if not block > 0:
+            raise ValueError(f'block: must be > 0 s, got {block!r}')
+        if warmup is not None and not warmup > 0:
+            raise ValueError(f'warmup: must be > 0 s, got {warmup!r}')
+        if not 0.0 <= change_level < 0.5:
+            raise ValueError(f'change_level: must be in [0, 0.5), got {change_level!r}')
+        if not change_inflation > 0:
+            raise ValueError(f'change_inflation: must be > 0, got {change_inflation!r}')
+        self.policy = SelectionPolicy(alpha, torque_scale_std=torque_scale_std,
+                                      gyro_scale_std=gyro_scale_std)
+        self.window = float(window)
+        self.model = 'full' if model == 'auto' else model
+        self.torque_bias = torque_bias
+        self.hold = hold
+        self.axis = unit_axis(symmetry_axis)
+        self.basis = model_basis(self.model, self.axis)
+        self.k = self.basis.shape[1]
+        self.nb = 3 if torque_bias == 'on' else 0
+        self.n = self.k + self.nb + 3
+        self.block = float(block)
+        self.warmup = float(warmup) if warmup is not None else min(self.window / 5.0, 2.0)
+        self.change_level = float(change_level)
+        self.change_inflation = float(change_inflation)
+        self._gyro_noise = None if gyro_noise is None else as_noise_std(gyro_noise,
+                                                                          'gyro_noise')
+        self._thresholds: dict[int, float] = {}
+        self.reset()
+
+    # ------------------------------------------------------------------------------ input
+    def reset(self) -> None:
+        """Forget everything (clock jump, new run); the configuration is kept."""
+        self._gt: list[np.ndarray] = []
+        self._gw: list[np.ndarray] = []
+        self._ts = np.empty(0)
+        self._tau = np.empty((0, 3))
+        self._g_dts = np.empty(0)
+        self._tq_dts = np.empty(0)
+        self._gyro_nv = StreamingNoise(floor=True)
+        self._tau_nv = StreamingNoise(floor=False)
+        self._m2_sum = np.zeros((3, 3))
+        self._m2_n = 0.0
+        self._last_t_in: float | None = None
+        self._last_tau_in: float | None = None
+        self.samples_used = 0
+        self.samples_dropped = 0
+        self.changes: list[float] = []      # times [s] at which the change test fired
+        self.updates = 0                    # blocks folded in
+        self.gaps = 0                       # gaps that made the momentum unknown again
+        self._warm: list[tuple[np.ndarray, np.ndarray]] | None = []   # start-up samples
+        self._tried = -math.inf             # last start-up fit attempt [s]
+        self._nv: np.ndarray | None = None  # gyro noise variance [rad^2/s^2], refreshed
+        self._tv = np.zeros(3)              # torque noise variance [N^2 m^2], refreshed
+        self._noise_at = 0
+        self._armed = 1 << 62               # blocks before the change test is armed
+        self._R_theta: np.ndarray | None = None   # tensor of the weights when held fixed
+        self._pend: tuple[np.ndarray, np.ndarray] | None = None  # partial block
+        self._R: np.ndarray | None = None  # cached weights (see _cached)
+        self._nv_R = np.zeros(3)
+        self._R_at = -math.inf
+        self._R_for: np.ndarray | None = None
+        self._gdt = 0.0                     # nominal gyro interval [s]
+        self._tdt = 0.0                     # nominal torque interval [s]
+        self._walk = np.zeros((3, 3))       # momentum variance rate [N^2 m^2 s]
+        self._B = np.zeros((self.k, self.k))  # gyro noise's own information per block
+        self._restart()
+
+    def _restart(self) -> None:
+        """Empty filter state: diffuse prior, no anchor."""
+        self.x = np.zeros(self.n)
+        self.P = np.eye(self.n) * _DIFFUSE
+        self._prev: tuple[float, np.ndarray] | None = None
+        self._excess = 1.0
+        self._excess_w = 0.0
+        self._Beff = np.zeros((self.k, self.k))  # its sum, forgotten as the information
+        self._trend = _Trend(2.0 * self.window, self.k + self.nb)
+
+    def add_gyro(self, t: Any, omega: Any) -> None:
+        """Add gyro samples: ``t`` (n,) [s] increasing across calls, ``omega`` (n, 3) [rad/s]."""
+        ta, wa = as_sample_block(t, omega, 'omega')
+        if len(ta) == 0:
+            return
+        if self._last_t_in is not None and ta[0] <= self._last_t_in:
+            raise ValueError(f'omega: time {ta[0]!r} is not after the previous gyro sample '
+                             f'{self._last_t_in!r} (call reset() after a clock jump)')
+        self._last_t_in = float(ta[-1])
+        self._gt.append(ta)
+        self._gw.append(wa)
+        if sum(len(x) for x in self._gt) > _MAX_BUFFER:        # torque stalled: keep newest
+            t, w = np.concatenate(self._gt), np.concatenate(self._gw)
+            self.samples_dropped += len(t) - _MAX_BUFFER // 2
+            self._gt, self._gw = [t[-(_MAX_BUFFER // 2):]], [w[-(_MAX_BUFFER // 2):]]
+        if len(self._ts):
+            self._process()
+
+    def add_torque(self, t: Any, tau: Any) -> None:
+        """Add torque samples: ``t`` (n,) [s] increasing across calls, ``tau`` (n, 3) [N m]."""
+        ta, xa = as_sample_block(t, tau, 'torque')
+        if len(ta) == 0:
+            return
+        if self._last_tau_in is not None and ta[0] <= self._last_tau_in:
+            raise ValueError(f'torque: time {ta[0]!r} is not after the previous torque sample '
+                             f'{self._last_tau_in!r} (call reset() after a clock jump)')
+        edges = ta if self._last_tau_in is None else np.concatenate([[self._last_tau_in], ta])
+        self._tq_dts = np.concatenate([self._tq_dts, np.diff(edges)])[-_DT_HISTORY:]
+        self._last_tau_in = float(ta[-1])
+        self._ts = np.concatenate([self._ts, ta])
+        self._tau = np.concatenate([self._tau, xa])
+        self._tau_nv.add(xa)
+        if self._gt:
+            self._process()
+
+    # ------------------------------------------------------------------------- processing
+    def _process(self) -> None:
+        """Fold in the buffered gyro samples the torque now covers, block by block."""
+        if not self._gt or len(self._ts) == 0:
+            return
+        t, w = np.concatenate(self._gt), np.concatenate(self._gw)
+        early = t < self._ts[0]
+        if np.any(early):                                # before any torque: never usable
+            self.samples_dropped += int(np.sum(early))
+            t, w = t[~early], w[~early]
+        ready = t <= self._ts[-1]
+        self._gt, self._gw = ([t[~ready]], [w[~ready]]) if not np.all(ready) else ([], [])
+        t, w = t[ready], w[ready]
+        if len(t) == 0:
+            return
+        if self._gyro_noise is None:
+            self._gyro_nv.add(w)
+        self._m2_sum = self._m2_sum + w.T @ w
+        self._m2_n += len(w)
+        last = self._warm[-1][0][-1] if self._warm else self._prev[0] if self._prev else None
+        edges = t if last is None else np.concatenate([[last], t])
+        self._g_dts = np.concatenate([self._g_dts, np.diff(edges)])[-_DT_HISTORY:]
+        self.samples_used += len(t)
+        self._refresh_noise()
+        if self._warm is None:
+            self._fold_in(t, w, flush=False)
+            return
+        self._warm.append((t, w))
+        while len(self._warm) > 1 and t[-1] - self._warm[1][0][0] >= _WARM_KEEP * self.warmup:
+            del self._warm[0]                  # never determined yet: keep the newest only
+        j = int(np.searchsorted(self._ts, self._warm[0][0][0], side='right')) - 1
+        if j > 0:
+            self._ts, self._tau = self._ts[j:], self._tau[j:]
+        span = t[-1] - self._warm[0][0][0]
+        if span >= self.warmup and t[-1] - self._tried >= 0.25 * self.warmup:
+            self._tried = float(t[-1])
+            self._initialise()
+
+    def _refresh_noise(self) -> None:
+        """Re-read the streams' noise levels every :data:`_NOISE_EVERY` gyro samples (they
+        are medians over thousands of samples: once a block would cost more than the rest)."""
+        if self._warm is None and self.samples_used - self._noise_at < _NOISE_EVERY:
+            return
+        self._noise_at = self.samples_used
+        if self._gyro_noise is not None:
+            self._nv = self._gyro_noise ** 2
+        else:
+            v = self._gyro_nv.variance()
+            self._nv = v if np.any(v > 0) else np.full(3, 1e-12)
+        self._tv = self._tau_nv.variance() if self._tau_nv.count >= 16 else np.zeros(3)
+
+    def _initialise(self) -> None:
+        """Start the filter on the start-up samples.
+
+        The anchored equations of every start-up sample after the first (one segment, its
+        momentum a state) are solved by weighted least squares in two passes (unit weights,
+        then ``(I S_g I)^-1`` of the first), as the batch ``integral`` method; the filter
+        starts from that solution with its covariance times :data:`_PRIOR_INFLATION` (the
+        fit ignores the integrated torque noise, and the start-up data are folded in once
+        more) and folds the start-up samples in block by block.  Nothing happens while the
+        fit leaves a principal-diagonal element undetermined.
+        """
+        t = np.concatenate([x[0] for x in self._warm])
+        w = np.concatenate([x[1] for x in self._warm])
+        self._prev = (float(t[0]), w[0].copy())
+        H, y = self._equations(t[1:], w[1:], self._nv)
+        theta = None
+        for _ in range(2):
+            R, _nv = self._weight(theta)
+            Wc = np.linalg.cholesky(np.linalg.inv(R))
+            Hw = np.einsum('ij,nik->njk', Wc, H).reshape(-1, self.n)
+            x0 = np.linalg.lstsq(Hw, (y @ Wc).reshape(-1), rcond=None)[0]
+            theta = self.basis @ x0[:self.k]
+        cov = solve_symmetric(Hw.T @ Hw, np.eye(self.n)) * _PRIOR_INFLATION
+        se = np.sqrt(np.maximum(np.diag(self.basis @ cov[:self.k, :self.k] @ self.basis.T),
+                                0.0))
+        if not (np.all(theta[:3] > 0) and np.all(se[:3] < 0.5 * theta[:3])):
+            self._prev = None
+            return
+        self.x, self.P = x0, 0.5 * (cov + cov.T)
+        self._warm = None
+        self._run(t[1:], w[1:])
+        self._armed = self.updates
+        self._trim_torque()
+
+    def _settled(self) -> bool:
+        """Every principal-diagonal element positive and known to :data:`_SETTLED`."""
+        theta = self.basis @ self.x[:self.k]
+        se = np.sqrt(np.maximum(np.diag(self.basis @ self.P[:self.k, :self.k]
+                                        @ self.basis.T), 0.0))
+        return bool(np.all(theta[:3] > 0) and np.all(se[:3] < _SETTLED * theta[:3]))
+
+    def _fold_in(self, t: np.ndarray, w: np.ndarray, flush: bool) -> None:
+        """Fold in the pending samples and ``t`` (n,), ``w`` (n, 3): every full block, and
+        the last partial one only with ``flush``."""
+        if self._pend is not None:
+            t = np.concatenate([self._pend[0], t])
+            w = np.concatenate([self._pend[1], w])
+            self._pend = None
+        lo = self._run(t, w, flush)
+        if lo < len(t):
+            self._pend = (t[lo:], w[lo:])
+        self._trim_torque()
+
+    def _run(self, t: np.ndarray, w: np.ndarray, flush: bool = True) -> int:
+        """Fold in samples ``t`` (n,), ``w`` (n, 3) in blocks of ``block`` seconds; return
+        where the unfolded rest starts.  Across a gap of either stream (an interval over
+        ``GAP_FACTOR`` nominal ones) the filter re-anchors after it (:meth:`_reanchor`)."""
+        lo = 0
+        gap = GAP_FACTOR * (self._gdt if self._gdt > 0 else math.inf)
+        while lo < len(t):
+            end = self._prev[0] + self.block
+            hi = max(int(np.searchsorted(t, end - 1e-9, side='right')), lo + 1)
+            after = self._torque_gap(float(t[hi - 1]))
+            if after is not None:                      # samples the held torque misses
+                skip = int(np.searchsorted(t, after, side='left'))
+                self.samples_dropped += skip - lo
+                if skip >= len(t):
+                    return len(t)
+                self._reanchor(float(t[skip]), w[skip])
+                lo = skip + 1
+                continue
+            if t[lo] - self._prev[0] > gap:
+                self._reanchor(float(t[lo]), w[lo])
+                lo += 1
+                continue
+            step = np.flatnonzero(np.diff(t[lo:hi]) > gap)
+            if len(step):
+                hi = lo + int(step[0]) + 1
+            elif hi == len(t) and t[-1] < end - 1e-9 and not flush:
+                break                                   # a partial block: wait for more
+            self._block(t[lo:hi], w[lo:hi])
+            lo = hi
+        return lo
+
+    def _torque_gap(self, t: float) -> float | None:
+        """The end [s] of a torque gap between the anchor and ``t``, or None."""
+        if self._tdt <= 0:
+            return None
+        a = max(int(np.searchsorted(self._ts, self._prev[0], side='right')) - 1, 0)
+        b = int(np.searchsorted(self._ts, t, side='left'))
+        long = np.flatnonzero(np.diff(self._ts[a:b + 1]) > GAP_FACTOR * self._tdt)
+        return float(self._ts[a + long[-1] + 1]) if len(long) else None
+
+    def _reanchor(self, t: float, w: np.ndarray) -> None:
+        """Across a gap: anchor at ``(t, w)`` with the momentum ``L = I w`` of the current
+        tensor (covariance from the tensor's and the gyro noise's)."""
+        R, _nv = self._cached()
+        A = np.zeros((3, self.n))
+        A[:, :self.k] = momentum_matrix(w) @ self.basis
+        L = slice(self.k + self.nb, self.n)
+        AP = A @ self.P
+        self.x[L] = A @ self.x
+        self.P[L, :] = AP
+        self.P[:, L] = AP.T
+        self.P[L, L] = AP @ A.T + R
+        self._prev = (t, w.copy())
+        self.gaps += 1
+
+    def _trim_torque(self) -> None:
+        """Drop torque samples no longer needed (keep the one at or before the anchor)."""
+        if self._prev is None or self._warm is not None:
+            return
+        j = int(np.searchsorted(self._ts, self._prev[0], side='right')) - 1
+        if j > 0:
+            self._ts, self._tau = self._ts[j:], self._tau[j:]
+
+    # ------------------------------------------------------------------------ the filter
+    def _scale(self) -> float:
+        """Tensor scale [kg m^2]: mean principal-diagonal element of the estimate (or 1)."""
+        theta = self.basis @ self.x[:self.k]
+        s = float(np.mean(theta[:3]))
+        return s if s > 0 and math.isfinite(s) else 1.0
+
+    def _weight(self, theta: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Equation error covariance ``R = I S_g I`` (3, 3) at ``theta`` (default: the
+        state's; None before any fit: isotropic) and the gyro variance (3,)."""
+        from ..tensor import theta_to_matrix
+
+        nv = self._nv
+        if theta is None and self._warm is not None:
+            I = np.eye(3)                                # first pass: unit weights
+        else:
+            if theta is None:
+                theta = self._R_theta if self._R_theta is not None else \
+                    self.basis @ self.x[:self.k]
+            I = theta_to_matrix(np.nan_to_num(theta), check_finite=False)
+            lam, V = np.linalg.eigh(I)                   # moments kept within 10x
+            top = max(float(lam[-1]), 1e-12)
+            I = (V * np.clip(lam, 0.1 * top, top)) @ V.T
+        R = I @ np.diag(np.maximum(nv, 1e-30)) @ I
+        return 0.5 * (R + R.T), nv
+
+    def _equations(self, t: np.ndarray, w: np.ndarray, nv: np.ndarray
+                   ) -> tuple[np.ndarray, np.ndarray]:
+        """Equations ``H`` (n, 3, nx), ``y`` (n, 3) of the samples after the anchor."""
+        s, ws = self._prev
+        tt = np.concatenate([[s], t])
+        M = cumulative_monomials(tt, np.vstack([ws, w]), nv, end_correction=False)[1:]
+        T = cumulative_torque(self._ts, self._tau, tt, self.hold)
+        y = T[1:] - T[0]
+        n = len(t)
+        H = np.zeros((n, 3, self.n))
+        H[:, :, :self.k] = (momentum_matrix(w) + gyroscopic_matrix(M)) @ self.basis
+        eye = np.eye(3)
+        if self.nb:
+            H[:, :, self.k:self.k + 3] = -(t - s)[:, None, None] * eye
+        H[:, :, self.k + self.nb:] = -eye
+        return H, y
+
+    def _block(self, t: np.ndarray, w: np.ndarray) -> None:
+        """Fold one block in, test it, propagate the momentum to its last sample.
+
+        The block's equations share the anchor state, so their mean is one 3-row equation
+        ``mean(H_b) x_s = mean(y_b)`` with the error covariance ``R / n`` (the gyro noise of
+        ``n`` samples averaged); it carries all the block's information but the tiny spread
+        of its regressors over the block, and averages the gyro noise out of the regressor
+        (errors in variables) before it can bias the update.
+        """
+        R, nv = self._cached()
+        s, ws = self._prev
+        tt = np.concatenate([[s], t])
+        M = cumulative_monomials(tt, np.vstack([ws, w]), nv, end_correction=False)
+        T = cumulative_torque(self._ts, self._tau, tt, self.hold)
+        n = len(t)
+        H = self._regressor(w.mean(axis=0), M[1:].mean(axis=0), float(np.mean(t - s)))
+        nu = (T[1:].mean(axis=0) - T[0]) - H @ self.x
+        PH = self.P @ H.T
+        S = H @ PH + R / n
+        nis = float(nu @ np.linalg.solve(S, nu))
+        if self._changed(nis, 3):
+            self.changes.append(float(t[0]))
+            self._R_theta = self.basis @ self.x[:self.k]     # weights held until settled
+            self._armed = 1 << 62
+            self._inflate()
+            self._Beff = np.zeros((self.k, self.k))
+            PH = self.P @ H.T
+            S = H @ PH + R / n
+        K = np.linalg.solve(S, PH.T).T
+        self.x = self.x + K @ nu
+        P = self.P - K @ PH.T
+        self.P = 0.5 * (P + P.T)
+        self._note_excess(nis / 3.0, float(t[-1] - s))
+        self._Beff = self._Beff * math.exp(-float(t[-1] - s) / self.window) + self._B
+        self._predict(t, w, T[-1] - T[0], M[-1], nv)
+        self.updates += 1
+        if self.changes and self.changes[-1] == float(t[0]):
+            self._trend = _Trend(2.0 * self.window, self.k + self.nb)   # the jump is no trend
+        self._trend.add(float(t[-1]), self._compensated(), float(t[-1] - s))
+        if self._armed > self.updates and self.changes and self._settled():
+            self._R_theta, self._armed = None, self.updates       # re-converged
+
+    def _regressor(self, w: np.ndarray, m: np.ndarray, dt: float) -> np.ndarray:
+        """``H`` (3, nx) of one equation: ``[(L(w) + Q(m)) T, -dt 1, -1]``."""
+        H = np.zeros((3, self.n))
+        H[:, :self.k] = (momentum_matrix(w) + gyroscopic_matrix(m)) @ self.basis
+        if self.nb:
+            H[:, self.k:self.k + 3] = -dt * np.eye(3)
+        H[:, self.k + self.nb:] = -np.eye(3)
+        return H
+
+    def _changed(self, nis: float, dof: int) -> bool:
+        """Whether the block's normalised innovation exceeds its change threshold."""
+        if not self.change_level or self.updates < self._armed:
+            return False
+        q = self._thresholds.get(dof)
+        if q is None:
+            q = self._thresholds[dof] = chi2_upper_quantile(dof, self.change_level)
+        return nis > q
+
+    def _inflate(self) -> None:
+        """Inflate the prior covariance of the tensor after a change (the momentum is kept:
+        a payload attached without impulse conserves it, the rate jumps instead)."""
+        s = self._scale() * self.change_inflation
+        self.P[:self.k, :self.k] += np.eye(self.k) * s ** 2
+
+    def _note_excess(self, ratio: float, dt: float) -> None:
+        """Running mean of the innovation excess (NIS / dof) over about ``_EXCESS_TIME`` s."""
+        a = math.exp(-dt / _EXCESS_TIME)
+        self._excess_w = a * self._excess_w + (1 - a)
+        self._excess += (1 - a) / self._excess_w * (ratio - self._excess)
+
+    def _predict(self, t: np.ndarray, w: np.ndarray, y_end: np.ndarray, m_end: np.ndarray,
+                 nv: np.ndarray, forget: bool = True) -> None:
+        """Propagate the momentum to the block's last sample; add the process noise (the
+        tensor's only with ``forget``, and only while its largest variance is below the
+        squared scale: an unexcited direction does not grow without bound)."""
+        dt = float(t[-1] - self._prev[0])
+        k, nb, L = self.k, self.nb, slice(self.k + self.nb, self.n)
+        F = np.eye(self.n)
+        F[L, :k] = -gyroscopic_matrix(m_end) @ self.basis
+        if nb:
+            F[L, k:k + 3] = dt * np.eye(3)
+        x = self.x.copy()
+        x[L] = F[L] @ self.x + y_end
+        P = F @ self.P @ F.T
+        if forget and float(np.max(np.diag(self.P)[:k])) < self._scale() ** 2:
+            grow = math.expm1(dt / self.window)      # forgetting: P_psi *= exp(dt / window)
+            P[:k + nb, :k + nb] += grow * self.P[:k + nb, :k + nb]
+        P[L, L] += dt * self._walk
+        self.x, self.P = x, 0.5 * (P + P.T)
+        self._prev = (float(t[-1]), w[-1].copy())
+
+    def _cached(self) -> tuple[np.ndarray, np.ndarray]:
+        """The weights ``R`` and the gyro variance, re-derived (with the momentum's walk and
+        the nominal sample intervals) every :data:`_REFRESH` s of data or when the weights'
+        tensor was set: they move slowly, and deriving them costs more than a block."""
+        t = self._prev[0]
+        if self._R is None or t - self._R_at >= _REFRESH or self._R_for is not self._R_theta:
+            self._R, self._nv_R = self._weight()
+            self._R_at, self._R_for = t, self._R_theta
+            self._gdt = float(np.median(self._g_dts)) if len(self._g_dts) else 0.0
+            self._tdt = float(np.median(self._tq_dts)) if len(self._tq_dts) else 0.0
+            self._walk = self._momentum_walk(self._nv_R)
+            E = momentum_matrix(np.eye(3)) @ self.basis           # (3, 3, k): L(e_c) T
+            self._B = np.einsum('c,cik,ij,cjl->kl', self._nv_R, E, np.linalg.inv(self._R), E)
+        return self._R, self._nv_R
+
+    def _momentum_walk(self, nv: np.ndarray) -> np.ndarray:
+        """Variance rate of the momentum [N^2 m^2 s]: integrated torque noise and the gyro
+        noise integrated by the gyroscopic term (:func:`.noise.gyroscopic_walk_cov`)."""
+        tdt = float(np.median(self._tq_dts)) if len(self._tq_dts) else 0.0
+        if tdt <= 0:
+            return np.zeros((3, 3))
+        gdt = float(np.median(self._g_dts)) if len(self._g_dts) else 0.0
+        from ..tensor import theta_to_matrix
+
+        I = theta_to_matrix(self.basis @ self.x[:self.k], check_finite=False)
+        m2 = self._m2_sum / max(self._m2_n, 1.0)
+        G = gyroscopic_walk_cov(I, nv, m2, gdt, tdt) if np.all(np.isfinite(I)) else 0.0
+        return tdt * (np.diag(self._tv) + G)
+
+    # ---------------------------------------------------------------------------- output
+    def _covariance(self) -> np.ndarray:
+        """Covariance (p, p) of ``[psi, d]`` against the current tensor.
+
+        The noise part of exponentially weighted estimates is half the filter's ``P`` (the
+        sandwich ``sum w^2 / sum w`` of the weights; the recursive estimator's ``w00 / w0``);
+        the memory lags ``rate * window`` behind a tensor that changes at ``rate``
+        (:class:`_Trend` of the recent estimates), which is added as ``lag lag'``.
+        """
+        p = self.k + self.nb
+        cov = 0.5 * self.P[:p, :p]
+        rate = self._trend.rate(self._prev[0]) if self._prev is not None else None
+        if rate is not None:
+            lag = rate * self.window
+            cov = cov + np.outer(lag, lag)
+        return cov
+
+    def _compensated(self) -> np.ndarray:
+        """``[psi, d]`` without the errors-in-variables bias (p,).
+
+        Each block's regressor carries the averaged gyro noise, whose own information ``B``
+        (``sum_c sigma_c^2 L(e_c)' R^-1 L(e_c)``, the batch fit's ``n B``) the filter counts
+        as signal: with ``B_eff`` their sum under the same forgetting, the filter estimate is
+        ``(1 - P B_eff) psi`` to first order, which is undone here while ``P B_eff`` is small
+        (the state itself keeps it: a per-block subtraction can make the information
+        indefinite).
+        """
+        p, k = self.k + self.nb, self.k
+        out = self.x[:p].copy()
+        PB = self.P[:k, :k] @ self._Beff
+        if float(np.max(np.abs(PB))) < _EIV_MAX:       # first order; not while re-converging
+            out[:k] = out[:k] + PB @ out[:k]
+        return out
+
+    def current(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """The tracked tensor ``theta`` (6,) [kg m^2] and its covariance (6, 6) now, without
+        the status rules of :meth:`estimate` (None during the start-up)."""
+        self._process()
+        if self._warm is not None:
+            return None
+        if self._pend is not None:
+            self._fold_in(np.empty(0), np.empty((0, 3)), flush=True)
+        cov = self._covariance()[:self.k, :self.k]
+        return self.basis @ self._compensated()[:self.k], self.basis @ cov @ self.basis.T
+
+    def estimate(self) -> InertiaEstimate:
+        """The current tensor with its covariance and status (``method='tracking'``).
+
+        Returns
+        -------
+        InertiaEstimate
+            ``insufficient_data`` during the start-up; then ``ok`` (or ``model_mismatch``
+            when the innovations persistently exceed the noise model, or
+            ``partially_identifiable`` / ``insufficient_excitation`` by the batch rules on
+            the filter's covariance).  ``diagnostics`` carries ``memory_s``,
+            ``changes_detected``, ``last_change_s`` and ``innovation_excess``.
+        """
+        self._process()
+        if self._warm is None and self._pend is not None:
+            self._fold_in(np.empty(0), np.empty((0, 3)), flush=True)
+        base = dict(method='tracking', samples_used=self.samples_used,
+                    samples_dropped=self.samples_dropped)
+        nv = self._nv if self._nv is not None else np.zeros(3)
+        diag: dict[str, Any] = {'gyro_noise_std': np.sqrt(nv), 'warnings': [],
+                                'memory_s': self.window, 'changes_detected': len(self.changes),
+                                'last_change_s': self.changes[-1] if self.changes else None,
+                                'innovation_excess': self._excess, 'updates': self.updates}
+        if self._warm is not None:
+            diag['reason'] = (f'start-up: {self.samples_used} gyro samples, the tensor is '
+                              f'not determined yet (needs {self.warmup:g} s of excitation)')
+            tq = self._tau[-4096:]
+            if len(tq) >= 16 and is_torque_free(np.sqrt(np.mean(tq ** 2, axis=0)),
+                                                np.sqrt(self._tv)):
+                diag['reason'] = ('torque-free data: the tracker needs a known torque for the '
+                                  'scale (method recursive gives the ratios and axes)')
+            return status_only('insufficient_data', diag, base)
+        return self._result(diag, base)
+
+    def _result(self, diag: dict[str, Any], base: dict[str, Any]) -> InertiaEstimate:
+        """Identifiability, status and the :class:`InertiaEstimate` of the filter state."""
+        p = self.k + self.nb
+        beta, cov = self._compensated(), self._covariance()
+        recent = bool(self.changes) and self._prev is not None and \
+            self._prev[0] - self.changes[-1] < 2.0 * _EXCESS_TIME
+        status = 'ok'
+        if self._excess > _MISMATCH_EXCESS and not recent:
+            status = 'model_mismatch'
+            cov = cov * self._excess
+            diag['reason'] = (f'the model does not explain the data: the innovations are '
+                              f'{self._excess:.3g} times the noise model')
+        info = solve_symmetric(cov, np.eye(p))
+        f = Fit(beta, cov, info, info, self.basis, bool(self.nb), np.zeros(3),
+                3 * self.samples_used, excess=max(self._excess, 1.0))
+        add_calibration(f, self.policy, None, diag)
+        theta = self.basis @ beta[:self.k]
+        se = np.sqrt(np.maximum(np.diag(self.basis @ f.cov[:self.k, :self.k]
+                                        @ self.basis.T), 0.0))
+        scale = max(float(np.max(theta[:3])), 0.0)
+        free = se <= IDENTIFIABILITY_TOL * scale
+        if scale <= 0 or not np.any(free[:3]):
+            diag['reason'] = 'no principal-diagonal element is determined by the data'
+            return status_only('insufficient_excitation', diag, base)
+        if not np.all(free):
+            status = 'partially_identifiable'
+        diag['parameters'] = parameter_names(self.basis, bool(self.nb), self.model)
+        return assemble(status, f, self.model, free, diag, base,
+                        physical=self.policy.physical and status != 'partially_identifiable')
