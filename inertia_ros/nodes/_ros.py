@@ -72,9 +72,18 @@ def run_node(make_node: Callable[[], Node], name: str, args: list[str] | None = 
     except ValueError as exc:
         print(f'{name}: error: {exc}', file=sys.stderr)
         status = 2
+    except Exception:
+        if rclpy.ok():
+            raise
+        # SIGINT/SIGTERM shut the context down while a callback was publishing: that
+        # callback's RCLError is the shutdown itself, not a fault to print.
     finally:
         if node is not None:
-            node.destroy_node()
+            try:
+                node.destroy_node()
+            except Exception:
+                if rclpy.ok():
+                    raise
         rclpy.try_shutdown()
     if status:
         sys.exit(status)
