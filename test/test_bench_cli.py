@@ -48,6 +48,8 @@ def test_variants_share_the_colour_but_not_the_marker() -> None:
     (['bench', 'offline', '--minutes', '2', '--skip-slow'],
      {'kind': 'offline', 'minutes': 2.0, 'skip_slow': True}),
     (['bench', 'node', '--rate', '500'], {'kind': 'node', 'rate': 500.0}),
+    (['bench', 'node', '--rate', '8000', '--torque-rate', '1000'],
+     {'kind': 'node', 'rate': 8000.0, 'torque_rate': 1000.0}),
     (['bench', 'recursive', '--duration', '5'], {'kind': 'recursive', 'duration': 5.0}),
     (['bench', 'estimators', '--quick', '--seeds', '2'], {'kind': 'estimators', 'seeds': 2}),
     (['bench', 'simulate', '--repeat', '1'], {'kind': 'simulate', 'repeat': 1}),
@@ -160,3 +162,24 @@ def test_functions_in_cli_and_bench_are_short() -> None:
                 if n > 80:
                     long.append(f'{p.name}:{node.name} {n}')
     assert long == []
+
+
+def test_node_bench_schedule_and_latency_at_unequal_rates():
+    """bench node at 8 kHz gyro + 1 kHz torque: every message sent once in due order, and a
+    latency measured from the last message carrying the estimate's stamp."""
+    import numpy as np
+
+    from inertia_ros.bench.node import latencies_ms, schedule
+
+    due, stream, index = schedule(80, 10, 125_000, 1_000_000)
+    assert due.size == 90 and np.all(np.diff(due) >= 0)
+    assert sorted(index[stream == 0]) == list(range(80))
+    assert sorted(index[stream == 1]) == list(range(10))
+    torque_due = due[stream == 1]
+    assert np.array_equal(torque_due, np.arange(10) * 1_000_000 + 62_500)
+    send = np.arange(due.size, dtype=np.int64) * 1000 + 5_000_000
+    epoch = 10**18
+    stamps = np.array([epoch + due[7], epoch + torque_due[3], epoch + 1])  # last: no such
+    lat = latencies_ms(stamps, np.full(3, 9_000_000, np.int64), epoch, due, send)
+    i_t = int(np.flatnonzero((stream == 1) & (index == 3))[0])
+    assert np.allclose(lat, [(9_000_000 - send[7]) * 1e-6, (9_000_000 - send[i_t]) * 1e-6])

@@ -1,11 +1,11 @@
 """``bench node``: the inertia_estimator node as a separate process fed at 1 kHz + 1 kHz.
 
 Starts ``python -m inertia_ros.inertia_estimator_node`` on a private ROS_DOMAIN_ID, then
-publishes from this process a simulated gyro stream (sensor_msgs/Imu) and torque stream
-(geometry_msgs/WrenchStamped), each at ``rate`` Hz (default 1000) for ``duration`` seconds
-(default 60), with sensor-data QoS.  Gyro sample k is sent at k/rate and the torque sample
-half a period later, each stamped with its own send schedule, so every input stamp identifies
-one message and its send instant.
+publishes from this process a simulated gyro stream (sensor_msgs/Imu) at ``rate`` Hz (default
+1000) and torque stream (geometry_msgs/WrenchStamped) at ``torque_rate`` Hz (default: the
+gyro rate) for ``duration`` seconds (default 60), with sensor-data QoS.  Gyro sample k is sent
+at k / rate and torque sample j half a gyro period after j / torque_rate, each stamped with
+its own send schedule, so an input stamp identifies its message and send instant.
 
 Measured:
 
@@ -14,7 +14,9 @@ Measured:
 - CPU of the estimator process while streaming [% of one core] from /proc/PID/stat;
 - latency from the newest input to the published estimate: the estimate's header stamp is
   the newest input stamp it has seen; latency = receive time of the estimate here minus the
-  send time of that input (both CLOCK_MONOTONIC in this process) [ms]: median, p95, max.
+  send time of that input (both CLOCK_MONOTONIC in this process) [ms]: median, p95, p99, max;
+- the estimator's resident memory [MiB] when streaming starts and when it ends (VmRSS of
+  /proc/PID/status): flat memory means the two agree.
 
 Targets: no drop, CPU < 30 % of a core, median latency < 5 ms.  Prints one table and a JSON
 line; exit status 0 when all targets are met, 1 otherwise, 2 when the node never subscribed.
@@ -36,7 +38,7 @@ import numpy as np
 
 from .common import nominal_scene
 
-__all__ = ['TARGETS', 'cpu_seconds', 'latencies_ms', 'run']
+__all__ = ['TARGETS', 'cpu_seconds', 'latencies_ms', 'rss_mib', 'run', 'schedule']
 
 #: The pass criteria: dropped messages, CPU [% of one core], median latency [ms].
 TARGETS = {'dropped': 0, 'cpu_percent': 30.0, 'median_latency_ms': 5.0}
@@ -49,9 +51,25 @@ def cpu_seconds(pid: int) -> float:
     return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
 
 
-def latencies_ms(stamps: np.ndarray, recv_ns: np.ndarray, epoch: int, period_ns: int,
+def schedule(n_gyro: int, n_torque: int, gyro_period_ns: int,
+             torque_period_ns: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Send order of both streams: due time [ns from the start], stream (0 gyro, 1 torque)
+    and sample index of every message, sorted by due time (gyro first on a tie).
+
+    Gyro k is due at ``k * gyro_period_ns``, torque j at ``j * torque_period_ns +
+    gyro_period_ns // 2``; each message is stamped ``epoch + due``.
+    """
+    due = np.r_[np.arange(n_gyro, dtype=np.int64) * gyro_period_ns,
+                np.arange(n_torque, dtype=np.int64) * torque_period_ns + gyro_period_ns // 2]
+    stream = np.r_[np.zeros(n_gyro, np.int64), np.ones(n_torque, np.int64)]
+    index = np.r_[np.arange(n_gyro), np.arange(n_torque)]
+    order = np.lexsort((stream, due))
+    return due[order], stream[order], index[order]
+
+
+def latencies_ms(stamps: np.ndarray, recv_ns: np.ndarray, epoch: int, due_ns: np.ndarray,
                  send_mono: np.ndarray) -> np.ndarray:
-    """Latency of each estimate from the input that carried its stamp [ms].
+    """Latency of each estimate from the newest input that carried its stamp [ms].
 
     Parameters
     ----------
@@ -60,18 +78,24 @@ def latencies_ms(stamps: np.ndarray, recv_ns: np.ndarray, epoch: int, period_ns:
     recv_ns : numpy.ndarray of int64, shape (E,)
         Their monotonic receive times [ns].
     epoch : int
-        Stamp of gyro sample 0 [ns]; torque sample k is stamped half a period after gyro k.
-    period_ns : int
-        Sample period of each stream [ns].
-    send_mono : numpy.ndarray of int64, shape (2 n,)
-        Monotonic send time of gyro k at ``2k`` and torque k at ``2k + 1`` [ns].
+        Stamp of gyro sample 0 [ns].
+    due_ns : numpy.ndarray of int64, shape (M,)
+        Due times of the sent messages in send order, from :func:`schedule` [ns].
+    send_mono : numpy.ndarray of int64, shape (M,)
+        Monotonic send time of each message, in the same order [ns].
     """
-    n = send_mono.size // 2
     offset = stamps - epoch
-    k = offset // period_ns
-    j = (offset % period_ns) // (period_ns // 2)
-    ok = (k >= 0) & (k < n) & ((offset % period_ns) % (period_ns // 2) == 0)
-    return (recv_ns[ok] - send_mono[2 * k[ok] + j[ok]]) * 1e-6
+    i = np.searchsorted(due_ns, offset, side='right') - 1   # the last send with that stamp
+    ok = (i >= 0) & (due_ns[np.maximum(i, 0)] == offset)
+    return (recv_ns[ok] - send_mono[i[ok]]) * 1e-6
+
+
+def rss_mib(pid: int) -> float:
+    """Resident memory of a process [MiB] (VmRSS of /proc/PID/status)."""
+    for line in Path(f'/proc/{pid}/status').read_text().splitlines():
+        if line.startswith('VmRSS:'):
+            return int(line.split()[1]) / 1024.0
+    return float('nan')
 
 
 def _start_estimator(publish_rate: float, method: str) -> tuple[subprocess.Popen, Any]:
@@ -95,26 +119,26 @@ def _wait_matched(probe: Any, proc: subprocess.Popen, timeout: float = 20.0) -> 
     return True
 
 
-def _stream(probe: Any, msgs: list[list[Any]], period_ns: int) -> tuple[np.ndarray, int]:
-    """Publish gyro k at k periods and torque k half a period later, on schedule.
+def _stream(probe: Any, msgs: list[list[Any]], due_ns: np.ndarray, stream: np.ndarray,
+            index: np.ndarray, period_ns: int) -> tuple[np.ndarray, int]:
+    """Publish every message at its due time (:func:`schedule`).
 
-    Returns the monotonic send times (gyro k at 2k, torque k at 2k + 1) [ns] and the number
-    of sends more than one period late.
+    Returns the monotonic send times in send order [ns] and the number of sends more than
+    one gyro period late.
     """
-    n = len(msgs[0])
-    send_mono = np.zeros(2 * n, dtype=np.int64)
+    send_mono = np.zeros(due_ns.size, dtype=np.int64)
     t0 = time.monotonic_ns()
     late = 0
-    for k in range(n):
-        for j in (0, 1):
-            due = t0 + k * period_ns + j * (period_ns // 2)
-            now = time.monotonic_ns()
-            if due > now:
-                time.sleep((due - now) * 1e-9)
-            elif now - due > period_ns:
-                late += 1
-            send_mono[2 * k + j] = time.monotonic_ns()
-            probe.publish(j, msgs[j][k])
+    for m, (d, j, k) in enumerate(zip(due_ns.tolist(), stream.tolist(), index.tolist(),
+                                             strict=True)):
+        due = t0 + d
+        now = time.monotonic_ns()
+        if due > now:
+            time.sleep((due - now) * 1e-9)
+        elif now - due > period_ns:
+            late += 1
+        send_mono[m] = time.monotonic_ns()
+        probe.publish(j, msgs[j][k])
     return send_mono, late
 
 
@@ -127,9 +151,9 @@ def _stop(proc: subprocess.Popen) -> None:
         proc.kill()
 
 
-def _summary(n: int, late: int, wall: float, cpu_pct: float, lat: np.ndarray,
+def _summary(n: tuple[int, int], late: int, wall: float, cpu_pct: float, lat: np.ndarray,
              listener: Any, config: dict[str, Any]) -> dict[str, Any]:
-    """The JSON result."""
+    """The JSON result; ``n`` is (gyro, torque) messages sent."""
     last = listener.diags[-1] if listener.diags else {}
     upd = np.array([float(d['update_ms']) for d in listener.diags if 'update_ms' in d])
     got_g, got_q = int(last.get('gyro_received', -1)), int(last.get('torque_received', -1))
@@ -137,13 +161,13 @@ def _summary(n: int, late: int, wall: float, cpu_pct: float, lat: np.ndarray,
     def q(p: float) -> float | None:
         return round(float(np.percentile(lat, p)), 3) if lat.size else None
 
-    result = dict(config, sent={'gyro': n, 'torque': n},
+    result = dict(config, sent={'gyro': n[0], 'torque': n[1]},
                   received={'gyro': got_g, 'torque': got_q},
-                  dropped=(n - got_g) + (n - got_q), publisher_late_sends=late,
+                  dropped=(n[0] - got_g) + (n[1] - got_q), publisher_late_sends=late,
                   stream_wall_s=round(wall, 3),
                   estimator_cpu_percent_of_core=round(cpu_pct, 1),
                   estimates_received=len(listener.received),
-                  latency_ms={'median': q(50), 'p95': q(95), 'max': q(100)},
+                  latency_ms={'median': q(50), 'p95': q(95), 'p99': q(99), 'max': q(100)},
                   last_status=last.get('status'),
                   update_ms_median=round(float(np.median(upd)), 3) if upd.size else None)
     result['targets_met'] = bool(
@@ -154,8 +178,8 @@ def _summary(n: int, late: int, wall: float, cpu_pct: float, lat: np.ndarray,
 
 def _print(r: dict[str, Any]) -> None:
     """The table and the JSON line."""
-    n = r['sent']['gyro']
-    print(f"sent {n} + {n} messages in {r['stream_wall_s']} s "
+    print(f"sent {r['sent']['gyro']} + {r['sent']['torque']} messages in "
+          f"{r['stream_wall_s']} s "
           f"({r['publisher_late_sends']} sends more than one period late)")
     print(f"received by the estimator: gyro {r['received']['gyro']}, torque "
           f"{r['received']['torque']}; dropped {r['dropped']} (target 0)")
@@ -163,20 +187,24 @@ def _print(r: dict[str, Any]) -> None:
           f"(target < {TARGETS['cpu_percent']:g} %)")
     lat = r['latency_ms']
     print(f"estimates: {r['estimates_received']}; latency newest input -> estimate: median "
-          f"{lat['median']} ms, p95 {lat['p95']} ms, max {lat['max']} ms (target median < "
+          f"{lat['median']} ms, p95 {lat['p95']} ms, p99 {lat['p99']} ms, max {lat['max']} ms "
+          f"(target median < "
           f"{TARGETS['median_latency_ms']:g} ms); core flush + estimate per update: median "
           f"{r['update_ms_median']} ms")
+    mem = r['estimator_rss_mib']
+    print(f"estimator memory: {mem['start']} MiB at the start of streaming, {mem['end']} MiB "
+          f"at its end")
     print(json.dumps(r))
 
 
 def run(rate: float = 1000.0, duration: float = 60.0, publish_rate: float = 10.0,
-        method: str = 'recursive', seed: int = 1) -> int:
+        method: str = 'recursive', seed: int = 1, torque_rate: float | None = None) -> int:
     """Run the benchmark; return 0 when every target is met, 1 when not, 2 on no match.
 
     Parameters
     ----------
     rate : float
-        Gyro and torque rate [Hz].
+        Gyro rate [Hz].
     duration : float
         Streamed time [s].
     publish_rate : float
@@ -185,6 +213,8 @@ def run(rate: float = 1000.0, duration: float = 60.0, publish_rate: float = 10.0
         The estimator's ``method`` parameter.
     seed : int
         Simulation seed.
+    torque_rate : float, optional
+        Torque rate [Hz]; default ``rate``.
     """
     from inertia_ros.core.simulation import simulate
 
@@ -192,8 +222,13 @@ def run(rate: float = 1000.0, duration: float = 60.0, publish_rate: float = 10.0
     # publishing loop: that would be the benchmark's latency, not the estimator's.
     sys.setswitchinterval(2e-4)
     os.environ['ROS_DOMAIN_ID'] = str(150 + os.getpid() % 70)
+    torque_rate = rate if torque_rate is None else torque_rate
     sim = simulate(nominal_scene(duration, rate=rate), seed=seed)
-    n = min(sim.t_gyro.size, sim.t_torque.size)
+    t_rate = 1.0 / float(np.median(np.diff(sim.t_torque)))
+    step = max(1, int(round(t_rate / torque_rate)))      # the scene's torque, decimated
+    t_torque, torque = sim.t_torque[::step], sim.torque[::step]
+    ng = sim.t_gyro.size
+    nt = min(t_torque.size, int(duration * torque_rate) + 1)
     from inertia_ros.nodes.probe import EstimatorProbe
 
     proc, log = _start_estimator(publish_rate, method)
@@ -202,23 +237,27 @@ def run(rate: float = 1000.0, duration: float = 60.0, publish_rate: float = 10.0
         if not _wait_matched(listener, proc):
             print(f'estimator did not subscribe; see {log.name}', file=sys.stderr)
             return 2
-        period_ns, epoch = int(round(1e9 / rate)), time.time_ns()
-        msgs = [[listener.gyro_message(epoch + k * period_ns, sim.omega[k], sim.frame_id)
-                 for k in range(n)],
-                [listener.torque_message(epoch + k * period_ns + period_ns // 2,
-                                         sim.torque[k], sim.frame_id) for k in range(n)]]
-        cpu0, wall0 = cpu_seconds(proc.pid), time.monotonic()
-        send_mono, late = _stream(listener, msgs, period_ns)
+        pg, pt = int(round(1e9 / rate)), int(round(1e9 / torque_rate))
+        epoch = time.time_ns()
+        due, stream, index = schedule(ng, nt, pg, pt)
+        msgs = [[listener.gyro_message(epoch + k * pg, sim.omega[k], sim.frame_id)
+                 for k in range(ng)],
+                [listener.torque_message(epoch + j * pt + pg // 2, torque[j], sim.frame_id)
+                 for j in range(nt)]]
+        cpu0, wall0, rss0 = cpu_seconds(proc.pid), time.monotonic(), rss_mib(proc.pid)
+        send_mono, late = _stream(listener, msgs, due, stream, index, pg)
         wall, cpu = time.monotonic() - wall0, cpu_seconds(proc.pid) - cpu0
+        rss1 = rss_mib(proc.pid)
         time.sleep(2.5)      # let the last estimate and a watchdog diagnostic arrive
     finally:
         listener.close()
         _stop(proc)
         log.close()
     rec = np.array(listener.received, dtype=np.int64).reshape(-1, 2)
-    lat = latencies_ms(rec[:, 0], rec[:, 1], epoch, period_ns, send_mono)
-    result = _summary(n, late, wall, 100.0 * cpu / wall, lat, listener,
-                      {'rate_hz': rate, 'duration_s': duration, 'method': method,
-                       'publish_rate_hz': publish_rate})
+    lat = latencies_ms(rec[:, 0], rec[:, 1], epoch, due, send_mono)
+    result = _summary((ng, nt), late, wall, 100.0 * cpu / wall, lat, listener,
+                      {'rate_hz': rate, 'torque_rate_hz': torque_rate, 'duration_s': duration,
+                       'method': method, 'publish_rate_hz': publish_rate})
+    result['estimator_rss_mib'] = {'start': round(rss0, 1), 'end': round(rss1, 1)}
     _print(result)
     return 0 if result['targets_met'] else 1

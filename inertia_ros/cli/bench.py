@@ -76,7 +76,9 @@ def _add_kinds(kinds: Any) -> None:
     k.add_argument('--blas-threads', type=bounded(1, 256, 'threads', integer=True),
                    default=None, help='OPENBLAS/OMP_NUM_THREADS of the stages (inherited)')
     k = kinds.add_parser('node', help='the estimator node fed at 1 kHz + 1 kHz (ROS 2)')
-    k.add_argument('--rate', type=_RATE, default=1000.0, help='Hz per stream, 1-20000 (1000)')
+    k.add_argument('--rate', type=_RATE, default=1000.0, help='gyro Hz, 1-20000 (1000)')
+    k.add_argument('--torque-rate', type=_RATE, default=None,
+                   help='torque Hz, 1-20000 (default: --rate)')
     k.add_argument('--duration', type=bounded(1.0, 3600.0, 's'), default=60.0,
                    help='streamed time, 1-3600 s (60)')
     k.add_argument('--publish-rate', type=bounded(0.1, 1000.0, 'Hz'), default=10.0,
@@ -150,7 +152,7 @@ _KINDS: dict[str, tuple[str, dict[str, str]]] = {
                             'skip_slow': 'skip_slow', 'repeat': 'repeat', 'json': 'json_path',
                             'blas_threads': 'blas_threads'}),
     'node': ('node', {'rate': 'rate', 'duration': 'duration', 'publish_rate': 'publish_rate',
-                      'method': 'method', 'seed': 'seed'}),
+                      'method': 'method', 'seed': 'seed', 'torque_rate': 'torque_rate'}),
     'simulate': ('simulate', {'scene': 'scene_path', 'repeat': 'repeat'}),
     'tracking': ('tracking', {'seeds': 'seeds', 'memory': 'memory'}),
 }
