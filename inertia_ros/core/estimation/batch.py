@@ -85,7 +85,7 @@ from .assemble import conclude, status_only
 from .equations import Equations, build_equations
 from .filtered import equations_for
 from .fit import Fit, fit_two_pass
-from .homogeneous import homogeneous_estimate, is_torque_free
+from .homogeneous import homogeneous_estimate, is_torque_free, torque_free_stats
 from .ml import refine
 from .model import model_basis, symmetry_axis
 from .noise import isotropy_floor, noise_std_from_differences
@@ -512,7 +512,7 @@ def _homogeneous(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau
         tau = np.zeros((2, 3))
     meth = method if method != 'integral_ls' else 'integral'
     eq = equations_for(meth, tg, w, ts, tau, mask, breaks, hold, gyro_var, window)
-    st = sufficient_stats(eq, segment, ts, float(ts[-1]), np.zeros(3))
+    st = torque_free_stats(eq, w[mask], segment)
     return homogeneous_estimate(st, gyro_var, diag, base)
 
 
