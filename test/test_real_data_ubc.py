@@ -45,9 +45,8 @@ def test_simulated_toss_gives_the_ratios_and_axes():
     """Torque-free toss: Ix/Iz within 0.2 % and Iy/Iz within 2 % of the simulated body's
     (20 seeds: scatter 0.02 % and 0.3 %), the principal axes within 2 deg of the phone axes.
 
-    The ratio sigma is not asserted: on these short 100 Hz tosses the torque-free estimate's
-    sigma is about half the seed-to-seed scatter (RMS z 1.9-2.0 over 20 seeds; see
-    docs/real_data_tudelft.md, UBC section).
+    The ratio sigma's calibration over seeds is test_torque_free_calibration's (RMS z 1.0 on
+    these tosses since the covariance carries the gyroscopic noise walk; it was 1.9-2.0).
     """
     mod = _load()
     r = _toss(3)
@@ -57,6 +56,8 @@ def test_simulated_toss_gives_the_ratios_and_axes():
     got = np.array(row['ratios'])
     assert np.all(np.abs(got / want - 1) < [0.002, 0.02]), (got, want)
     assert np.all(np.array(row['ratios_std']) > 0)
+    # the error within 5 sigma (the defect rule)
+    assert np.all(np.abs(got - want) < 5 * np.array(row['ratios_std'])), (got, row)
     assert max(row['axis_angle_deg']) < 2.0
 
 
@@ -109,7 +110,9 @@ def test_clone_to_mcap_to_cli_and_bench(tmp_path: Path, capsys: pytest.CaptureFi
                     'docs/real_data_tudelft.md')
 def test_real_tosses_ratios_and_axes(tmp_path: Path) -> None:
     """The real tosses: >= 100 with ratios; median Iy/Iz and Ix/Iz within 1 sigma of the
-    pendulum truth; principal axes within 5 deg of the phone axes (median)."""
+    pendulum truth; principal axes within 5 deg of the phone axes (median); the tosses'
+    robust scatter about their median within 1.5x their median stated sigma (it was 2.1x
+    before the covariance carried the gyroscopic noise walk; measured 1.08, 1.09)."""
     mod = _load()
     res = tmp_path / 'r.json'
     assert mod.main(['bench', '--repo', str(REAL), '--out', str(res)]) == 0
@@ -119,3 +122,6 @@ def test_real_tosses_ratios_and_axes(tmp_path: Path) -> None:
     tr, ts = mod.truth_ratios()
     assert np.all(np.abs(med - tr) <= ts)
     assert np.all(np.median([r['axis_angle_deg'] for r in rows], axis=0) < 5.0)
+    R = np.array([r['ratios'] for r in rows])
+    mad = 1.4826 * np.median(np.abs(R - np.median(R, axis=0)), axis=0)
+    assert np.all(mad <= 1.5 * np.median([r['ratios_std'] for r in rows], axis=0))
