@@ -24,10 +24,12 @@ from inertia_ros.core.simulation import simulate
 BODY = [19.35e-3, 1.45e-3, 20.7e-3]
 
 
-def _toss(seed: int, duration: float, rate: float, noise: float) -> tuple:
-    """A toss about the intermediate axis (12 rad/s) from the core simulator."""
-    sc = Scene.from_dict({'duration': duration, 'body': {'inertia': [*BODY, 0.0, 0.0, 0.0]},
-                          'initial_omega': [12.0, 0.3, 0.4], 'torque': [],
+def _toss(seed: int, duration: float, rate: float, noise: float, body: list | None = None,
+          omega0: tuple = (12.0, 0.3, 0.4)) -> tuple:
+    """A toss (default: the racquet about its intermediate axis) from the core simulator."""
+    body = BODY if body is None else body
+    sc = Scene.from_dict({'duration': duration, 'body': {'inertia': [*body, 0.0, 0.0, 0.0]},
+                          'initial_omega': list(omega0), 'torque': [],
                           'gyro': {'rate': rate, 'noise_std': noise}})
     r = simulate(sc, seed)
     return r.t_gyro, r.omega, r.inertia
@@ -61,6 +63,22 @@ def test_tosses_ratio_and_axis_sigma_calibrated(duration, rate, noise, seeds):
     """Core simulator, intermediate-axis tosses: RMS z of the principal ratios and axis angles
     in [0.7, 1.5] over the seeds, no |z| > 5."""
     _assert_calibrated([_z(*_toss(s, duration, rate, noise)) for s in range(seeds)])
+
+
+#: A body well inside the triangle inequality [kg m^2] (the racquet is a near-lamina).
+GENERIC = [2.0e-3, 1.5e-3, 3.0e-3]
+
+
+@pytest.mark.parametrize('omega0', [
+    (8.0, 0.3, 0.4),                # intermediate axis: the flip (was 1.3 with a mean rate)
+    (0.3, 8.0, 0.4),                # minor axis, steady (was 0.65 / 1.32 without the cross
+    (0.3, 0.4, 8.0),                # major axis, steady  term: was 0.52 / 1.42)
+    (3.0, 4.0, 5.0),                # a general tumble
+])
+def test_spins_about_each_axis_calibrated(omega0):
+    """A generic body spun about each principal axis and tumbling (2 s, 100 Hz, 0.01 rad/s),
+    25 seeds: RMS z in [0.7, 1.5], no |z| > 5."""
+    _assert_calibrated([_z(*_toss(s, 2.0, 100.0, 0.01, GENERIC, omega0)) for s in range(25)])
 
 
 def test_reference_simulator_tosses_calibrated():

@@ -512,8 +512,8 @@ def _homogeneous(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau
         tau = np.zeros((2, 3))
     meth = method if method != 'integral_ls' else 'integral'
     eq = equations_for(meth, tg, w, ts, tau, mask, breaks, hold, gyro_var, window)
-    st = torque_free_stats(eq, w[mask], segment)
-    return homogeneous_estimate(st, gyro_var, diag, base)
+    st, walk = torque_free_stats(eq, tg[mask], w[mask], segment)
+    return homogeneous_estimate(st, gyro_var, diag, base, walk=walk)
 
 
 def _maximum_likelihood(first: InertiaEstimate, tg: np.ndarray, w: np.ndarray, ts: np.ndarray,

@@ -22,16 +22,19 @@ from typing import Any
 import numpy as np
 
 from ..tensor import THETA_NAMES, check_physical, nearest_physical, principal_axes, theta_to_matrix
-from .equations import Equations
-from .fit import fit_two_pass
-from .model import TRACE, TRACE_FREE, describe_direction
+from .equations import Equations, segment_starts
+from .fit import Fit, equation_weight, fit_weighted, solve_symmetric
+from .model import TRACE, TRACE_FREE, describe_direction, selector
 from .options import TORQUE_FREE_SIGMAS
-from .regressors import MOMENTUM_BASIS, metric
+from .regressors import MOMENTUM_BASIS, N_REGRESSOR_VARIABLES, gram, lift, metric
 from .result import InertiaEstimate
 from .statistics import SufficientStats, sufficient_stats
 from .uncertainty import axis_std, moment_std
 
-__all__ = ['homogeneous_estimate', 'is_torque_free', 'torque_free_stats']
+#: :func:`walk_grams`: the walk's cross Grams ``K`` and their cross Grams with the white part.
+WalkGrams = tuple[np.ndarray, np.ndarray]
+
+__all__ = ['homogeneous_estimate', 'is_torque_free', 'torque_free_stats', 'walk_grams']
 
 
 def is_torque_free(torque_rms: np.ndarray, torque_std: np.ndarray) -> bool:
@@ -52,40 +55,112 @@ def is_torque_free(torque_rms: np.ndarray, torque_std: np.ndarray) -> bool:
     return float(np.max(torque_rms)) <= TORQUE_FREE_SIGMAS * float(np.max(torque_std))
 
 
-def torque_free_stats(eq: Equations, omega: np.ndarray, segment: float | None) -> SufficientStats:
+def torque_free_stats(eq: Equations, t_gyro: np.ndarray, omega: np.ndarray,
+                      segment: float | None) -> tuple[SufficientStats, WalkGrams | None]:
     """Statistics of torque-free equations, with the gyroscopic noise walk of the covariance.
 
-    The walk (:func:`.noise.gyroscopic_walk_cov`) needs the motion's second moment and the
-    sums of the regressors after each step of the walk (``CP`` of
-    :class:`~.statistics.SufficientStats`); with no torque stream the steps are the gyro
-    intervals of the equations.  Equations of another kind (``hac``) get plain statistics.
+    The walk's variance (:func:`.noise.gyroscopic_walk_cov`, for the residual excess) needs
+    the motion's second moment and walk steps; with no torque stream the steps are the gyro
+    intervals of the equations.  Its exact covariance needs the rate at every step:
+    :func:`walk_grams`.  Equations of another kind (``hac``) get plain statistics.
 
     Parameters
     ----------
     eq : Equations
         Equations of a torque-free record (``motion`` is set here).
-    omega : ndarray, shape (N, 3)
-        The used gyro samples [rad/s].
+    t_gyro, omega : ndarray, shape (N,), (N, 3)
+        The used gyro stamps [s] and samples [rad/s].
     segment : float, optional
         Segment length [s] of the anchored equations.
 
     Returns
     -------
-    SufficientStats
+    st : SufficientStats
+    walk : tuple of ndarray or None
+        :func:`walk_grams` (anchored equations only).
     """
     t = eq.t
     dt = float(np.median(np.diff(t))) if len(t) > 1 else 0.0
     eq.motion = (omega.T @ omega / max(len(omega), 1), dt)
     if eq.kind != 'anchored' or len(t) < 2:
         return sufficient_stats(eq, segment, t[:1], float(t[-1]) if len(t) else 0.0,
-                                np.zeros(3))
+                                np.zeros(3)), None
     # walk steps at the equations' stamps; the unit "torque variance" only asks for the
     # walk's statistics (the fit is given zero torque noise: the walk is all gyroscopic)
-    return sufficient_stats(eq, segment, t, float(t[-1]), np.ones(3))
+    st = sufficient_stats(eq, segment, t, float(t[-1]), np.ones(3))
+    w_eq = np.column_stack([np.interp(t, t_gyro, omega[:, c]) for c in range(3)])
+    return st, walk_grams(eq.V, t, w_eq, segment_starts(t, eq.breaks, segment))
+
+
+def walk_grams(V: np.ndarray, t: np.ndarray, omega: np.ndarray,
+               starts: np.ndarray) -> WalkGrams:
+    """Cross Grams of the gyroscopic noise walk, step by step with the rate of each step.
+
+    Anchored equation ``b`` integrates ``w x (I w)`` over the measured rates, so gyro noise
+    ``n_j`` of step ``j`` (the interval ``h_j`` after equation ``j``) adds ``h_j J(w_j) n_j``
+    to every later equation of its segment, ``J(w) = sum_i w_i A_i`` (``A_i = [e_i]x I -
+    [I e_i]x``).  With segment-demeaned variables, ``D_j = sum_{b > j} (V_b - m_seg(b))``,
+    the walk's meat is ``sum_il sum_j h_j^2 w_ji w_jl X(D_j)' W A_i S_g A_l' W X(D_j)``, and
+    since ``n_j`` is also the white error ``I n_j`` of equation ``j``, the two parts are
+    correlated.  These Grams keep the rate of every step and that cross term: the mean-rate
+    form of :func:`.noise.gyroscopic_walk_cov` without it misplaces the variance between the
+    elements (a steady spin about the major axis: sigma of one ratio 2x too large, of the
+    others 1.4x too small).
+
+    Parameters
+    ----------
+    V : ndarray, shape (n, 13)
+        Per-equation variables (:func:`.regressors.variables`).
+    t : ndarray, shape (n,)
+        Equation stamps [s].
+    omega : ndarray, shape (n, 3)
+        Rate at the equation stamps [rad/s].
+    starts : ndarray of int
+        Segment start indices (beginning with 0).
+
+    Returns
+    -------
+    K : ndarray, shape (3, 3, 3, 3, 10, 10)
+        ``K[i, l]``: cross Grams (3, 3, 10, 10) of the blocks ``h_j w_ji X(D_j)`` and
+        ``h_j w_jl X(D_j)``, the torque variable dropped.
+    Kx : ndarray, shape (3, 3, 3, 10, 10)
+        ``Kx[i]``: cross Grams of the demeaned blocks ``X_j`` and ``h_j w_ji X(D_j)``: the
+        same noise sample is in equation ``j`` (white, ``I n_j``) and in the walk of the
+        later ones, so the two parts of the meat are correlated.
+    """
+    n = len(t)
+    bounds = np.append(starts, n)
+    Xd = np.zeros((n, 13))                            # segment-demeaned variables
+    D = np.zeros((n, N_REGRESSOR_VARIABLES))
+    h = np.append(np.diff(t), 0.0)
+    for a, b in zip(bounds[:-1], bounds[1:], strict=True):
+        X = V[a:b, :N_REGRESSOR_VARIABLES] - V[a:b, :N_REGRESSOR_VARIABLES].mean(axis=0)
+        Xd[a:b, :N_REGRESSOR_VARIABLES] = X
+        # the later equations of the same segment (the rest of the record cancels)
+        D[a:b] = np.cumsum(X[::-1], axis=0)[::-1] - X
+        h[b - 1] = 0.0
+    R = ((h[:, None] * omega)[:, :, None] * D[:, None, :]).reshape(n, -1)   # (n, 3 x 10)
+    G = gram(R).reshape(3, 10, 3, 10).transpose(0, 2, 1, 3)
+    Gx = np.einsum('np,nq->pq', Xd, R).reshape(13, 3, 10)
+    K = np.zeros((3, 3, 3, 3, 10, 10))
+    Kx = np.zeros((3, 3, 3, 10, 10))
+    G13 = np.zeros((13, 13))
+    for i in range(3):
+        for j in range(3):
+            G13[:N_REGRESSOR_VARIABLES, :N_REGRESSOR_VARIABLES] = G[i, j]
+            K[i, j] = lift(G13)
+        G13[:, :N_REGRESSOR_VARIABLES] = Gx[:, i]
+        G13[:, N_REGRESSOR_VARIABLES:] = 0.0
+        Kx[i] = lift(G13)
+    for k in (K, Kx):                    # the torque variable: noise only here
+        k[..., 9, :] = 0.0
+        k[..., :, 9] = 0.0
+    return K, Kx
 
 
 def homogeneous_estimate(st: SufficientStats, gyro_var: np.ndarray, diag: dict[str, Any],
-                         base: dict[str, Any], cov_scale: float = 1.0) -> InertiaEstimate:
+                         base: dict[str, Any], cov_scale: float = 1.0,
+                         walk: WalkGrams | None = None) -> InertiaEstimate:
     """Torque-free data: the ratios ``inertia / trace`` with their standard errors, and axes.
 
     With no torque the equations are homogeneous, ``X6 theta = e``: ``theta`` is fitted
@@ -108,6 +183,9 @@ def homogeneous_estimate(st: SufficientStats, gyro_var: np.ndarray, diag: dict[s
         Diagnostics (updated in place) and the common result fields.
     cov_scale : float
         Factor on the covariance (the recursive estimator's forgetting weights).
+    walk : tuple of ndarray, optional
+        :func:`walk_grams` of the equations: the exact gyroscopic-walk covariance (without:
+        the mean-rate form of the fit's noise model, as for the torque-driven fits).
 
     Returns
     -------
@@ -152,17 +230,64 @@ def homogeneous_estimate(st: SufficientStats, gyro_var: np.ndarray, diag: dict[s
         diag['weakest_direction'] = describe_direction(vec[:, 1] / d, list(THETA_NAMES))
         return InertiaEstimate(status='insufficient_excitation', diagnostics=diag,
                                **base)   # type: ignore[arg-type]
-    return _ratios(st, gyro_var, diag, base, cov_scale)
+    return _ratios(st, gyro_var, diag, base, cov_scale, walk)
+
+
+def _walk_covariance(st: SufficientStats, f: Fit, W: np.ndarray, theta: np.ndarray,
+                     gyro_var: np.ndarray, walk: WalkGrams,
+                     offset: np.ndarray) -> np.ndarray:
+    """Sandwich covariance (p, p) of the fit ``f`` (weight ``W``) with the exact walk.
+
+    Meat: the white gyro noise of each equation (as :func:`.fit.fit_weighted`) plus the
+    gyroscopic walk step by step and its correlation with the white part
+    (:func:`walk_grams`); inflated, never deflated, by the fit's
+    residual excess.
+    """
+    T = selector(TRACE_FREE, False, offset)
+    p = T.shape[1] - 1
+    Im = theta_to_matrix(theta)
+    Sg = np.diag(gyro_var)
+    S = Im @ Sg @ Im
+    if st.white_y_cov is not None:
+        S = S + st.white_y_cov
+    meat = metric(st.C, W @ S @ W)
+    A = [_skew(e) @ Im - _skew(Im @ e) for e in np.eye(3)]
+    K, Kx = walk
+    for i in range(3):
+        for j in range(3):
+            meat += metric(K[i, j], W @ A[i] @ Sg @ A[j].T @ W)
+        cross = metric(Kx[i], W @ Im @ Sg @ A[i].T @ W)
+        meat += cross + cross.T
+    meat = (T.T @ meat @ T)[:p, :p]
+    Hinv = solve_symmetric(f.H, np.eye(p))
+    cov = Hinv @ meat @ Hinv.T
+    return 0.5 * (cov + cov.T) * max(f.excess, 1.0)
+
+
+def _skew(v: np.ndarray) -> np.ndarray:
+    """Cross-product matrix ``[v]x`` (3, 3)."""
+    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
 
 
 def _ratios(st: SufficientStats, gyro_var: np.ndarray, diag: dict[str, Any],
-            base: dict[str, Any], cov_scale: float) -> InertiaEstimate:
+            base: dict[str, Any], cov_scale: float,
+            walk: WalkGrams | None) -> InertiaEstimate:
     """The ``scale_unobservable`` result: ``theta`` fitted under ``trace = 1`` (torque column
     of ``st`` already dropped), projected onto a physical tensor when needed."""
     offset = TRACE / 3.0
-    f = fit_two_pass(st, TRACE_FREE, False, gyro_var, np.zeros(3), offset)
+    # the two passes of fit.fit_two_pass, with the weight of the final pass kept
+    zero = np.zeros(3)
+    W = np.eye(3)
+    f = fit_weighted(st, TRACE_FREE, False, W, gyro_var, zero, st.weighted, offset)
     theta = TRACE_FREE @ f.beta + offset
-    cov6 = cov_scale * (TRACE_FREE @ f.cov @ TRACE_FREE.T)
+    if st.weighted and np.all(gyro_var > 0) and np.all(np.isfinite(theta)):
+        W = equation_weight(theta, gyro_var, st.white_y_cov)
+        f = fit_weighted(st, TRACE_FREE, False, W, gyro_var, zero, st.weighted, offset)
+        theta = TRACE_FREE @ f.beta + offset
+    cov = f.cov
+    if walk is not None and st.kind == 'anchored':
+        cov = _walk_covariance(st, f, W, theta, gyro_var, walk, offset)
+    cov6 = cov_scale * (TRACE_FREE @ cov @ TRACE_FREE.T)
     diag['residual_excess'] = f.excess
     R = theta_to_matrix(theta)
     chk = check_physical(R)
