@@ -20,7 +20,7 @@ from inertia_ros.cli import main
 GOLDEN = ROOT / 'test' / 'data' / 'golden'
 BAGS = ('default', 'torque_free', 'single_axis', 'disturbance')
 METHODS = ('', 'integral', 'integral_ls', 'integral_sliding', 'differential_fd',
-           'differential_sg')
+           'differential_sg', 'filtered')
 #: Relative tolerance of a number: reordered floating-point sums, nothing more.
 RTOL = 1e-9
 
