@@ -127,7 +127,8 @@ def shared_raw(eq: Equations, t_tau: np.ndarray, tau_end: float,
     """Statistics of the (globally centred) variables that every segmentation shares."""
     if eq.raw is not None:
         return eq.raw
-    eq.V -= eq.V.mean(axis=0)[None]           # a constant shift cancels in segment demeaning
+    # a constant shift cancels in segment demeaning (the mean as a BLAS product: 2x np.mean)
+    eq.V -= (np.ones(len(eq.V)) @ eq.V / len(eq.V))[None]
     walk = np.any(torque_var > 0) and len(t_tau) > 1
     # (two threads overlapping the Gram and the torque sums no longer pay: with the sparse
     # interval sums a 1M-sample record is faster on one thread, measured 0.51 s against 0.65 s)
