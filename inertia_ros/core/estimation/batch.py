@@ -225,13 +225,16 @@ def _estimate_direct(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray,
     if selection is not None:
         diag['method_selection'] = selection
 
-    def run(h: str, d: dict[str, Any], head: int | None = None) -> InertiaEstimate:
-        """The estimate with hold ``h`` (on the first ``head`` gyro samples when given)."""
+    def run(h: str, d: dict[str, Any], head: int | None = None,
+            final: bool = True) -> InertiaEstimate:
+        """The estimate with hold ``h`` (on the first ``head`` gyro samples when given;
+        without the adequacy tests, which do not change the residual excess, unless
+        ``final``)."""
         n = len(tg) if head is None else head
         m = len(ts) if head is None else int(np.searchsorted(ts, tg[n - 1], side='right')) + 1
         return _estimate_shifted(method, tg[:n] - t_origin, w[:n], ts[:m] - t_origin, tau[:m],
                                  h, gyro_std ** 2, torque_std ** 2, segment, window, model,
-                                 torque_bias, axis, policy, d, white_y_cov)
+                                 torque_bias, axis, policy, d, white_y_cov, final)
     if hold != 'auto':
         return run(hold, diag)
     return _auto_hold(run, diag, torque_std, len(tg))
@@ -254,14 +257,15 @@ def _auto_hold(run: Any, diag: dict[str, Any], torque_std: np.ndarray,
     results = {}
     for h in HOLDS:
         d = dict(diag, warnings=list(diag['warnings']))
-        results[h] = run(h, d, head)
+        # the held result is the usual answer: complete; the linear one only when chosen
+        results[h] = run(h, d, head, final=h == 'zoh' and head is None)
         if h == 'zoh' and (results[h].model == 'homogeneous' or not np.any(torque_std > 0)):
             break
     excess = {h: float(r.diagnostics.get('residual_excess', np.inf)) for h, r in
               results.items()}
     # a held command is the usual case and the one ml refines: linear only when clearly better
     chosen = 'linear' if excess.get('linear', np.inf) < 0.9 * excess['zoh'] else 'zoh'
-    est = results[chosen] if head is None else run(
+    est = results[chosen] if chosen == 'zoh' and head is None else run(
         chosen, dict(diag, warnings=list(diag['warnings'])))
     est.diagnostics['hold'] = chosen
     est.diagnostics['hold_selection'] = {
@@ -337,8 +341,12 @@ def _estimate_shifted(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray
                       segment: float | None, window: float | None, model: str,
                       torque_bias: str, axis: np.ndarray | None, policy: SelectionPolicy,
                       diag: dict[str, Any],
-                      white_y_cov: np.ndarray | None = None) -> InertiaEstimate:
-    """Every method but ``ml`` on validated, origin-shifted data: coverage, rules, fit."""
+                      white_y_cov: np.ndarray | None = None,
+                      final: bool = True) -> InertiaEstimate:
+    """Every method but ``ml`` on validated, origin-shifted data: coverage, rules, fit.
+
+    ``final=False`` leaves out the adequacy tests (a result only compared, not reported).
+    """
     mask, tau_end = _coverage(tg, ts, hold, diag)
     used = int(np.sum(mask))
     base = dict(method=method, samples_used=used, samples_dropped=len(tg) - used)
@@ -394,8 +402,8 @@ def _estimate_shifted(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray
         """``d beta / d g`` of the final fit for a relative gyro scale error ``g``."""
         return _gyro_sensitivity(eq, segment, ts, tau_end, gyro_var, torque_var, f)
 
-    return conclude(fit, model, torque_bias, axis, policy, diag, base, adequacy,
-                    gyro_sensitivity)
+    return conclude(fit, model, torque_bias, axis, policy, diag, base,
+                    adequacy if final else None, gyro_sensitivity)
 
 
 def _gyro_sensitivity(eq: Equations, segment: float | None, ts: np.ndarray, tau_end: float,
