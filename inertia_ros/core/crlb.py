@@ -143,7 +143,9 @@ class Dynamics:
     monomials), so each evaluation is a handful of small matrix products.
     """
 
-    def __init__(self, inertia: np.ndarray, n_par: int, bias: bool) -> None:
+    def __init__(self, inertia: np.ndarray, n_par: int, bias: bool, bias_at: int = 9) -> None:
+        """``n_par`` sensitivity columns ``[theta (6), w0 (3), d (3)]`` (``d`` when ``bias``,
+        its columns from ``bias_at``: 6 for a layout without ``w0``)."""
         self.I = inertia
         self.Ii = np.linalg.inv(inertia)
         theta = inertia[THETA_ROWS, THETA_COLS]
@@ -160,7 +162,7 @@ class Dynamics:
         self.n_par = n_par
         self.forcing = np.zeros((3, n_par + 6))   # constant columns of the linear part
         if bias:
-            self.forcing[:, 9:12] = self.Ii            # d(w_dot)/dd
+            self.forcing[:, bias_at:bias_at + 3] = self.Ii     # d(w_dot)/dd
         self.forcing[:, n_par + 3:] = self.Ii          # Psi' = Jw Psi + I^-1
         self.mIi = -self.Ii
 

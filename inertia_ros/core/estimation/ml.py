@@ -166,13 +166,14 @@ def _shoot(dyn: Dynamics, r0: np.ndarray, h: np.ndarray, H: np.ndarray, iiu: np.
 def _columns(Z: np.ndarray, basis: np.ndarray, n_par: int) -> np.ndarray:
     """Sensitivities ``Z = [S | Phi | Psi]`` rearranged as ``[Phi | Psi | S_theta basis (| S_d)]``.
 
-    The columns of ``delta_j``, ``nu_j`` and ``dp``; ``w0``'s (the path's start) dropped.
+    The columns of ``delta_j``, ``nu_j`` and ``dp`` (``S = [S_theta (6) (, S_d (3))]``: every
+    interval starts from its own reference, so there is no ``w0`` column).
     """
     parts = [Z[..., n_par:], Z[..., :6]]
     if basis.shape[1] < 6 or not np.array_equal(basis, np.eye(6)):
         parts[1] = Z[..., :6] @ basis
-    if n_par == 12:
-        parts.append(Z[..., 9:12])
+    if n_par == 9:
+        parts.append(Z[..., 6:9])
     return np.concatenate(parts, axis=-1)
 
 
@@ -337,8 +338,8 @@ class _Problem:
 
     @property
     def n_par(self) -> int:
-        """Sensitivity columns of the dynamics: theta, w0 (, d)."""
-        return 12 if self.bias else 9
+        """Sensitivity columns of the dynamics: theta (, d)."""
+        return 9 if self.bias else 6
 
     @property
     def npar(self) -> int:
@@ -401,7 +402,7 @@ def _dynamics(pb: _Problem, beta: np.ndarray, d: np.ndarray) -> tuple[Dynamics, 
     Im = theta_to_matrix(pb.basis @ beta)
     if not np.all(np.isfinite(Im)) or np.linalg.eigvalsh(Im)[0] <= 0:
         raise _PassError('the tensor left the positive-definite set')
-    dyn = Dynamics(Im, pb.n_par, pb.bias)
+    dyn = Dynamics(Im, pb.n_par, pb.bias, bias_at=6)
     return dyn, (pb.u + d) @ dyn.Ii.T
 
 
