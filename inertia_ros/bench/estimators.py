@@ -1,7 +1,10 @@
 """``bench estimators``: batch speed on a long record, recursive cost, accuracy per method.
 
-Prints three blocks of figures:
+Prints four blocks of figures:
 
+* default: the default method's time per 60 s record (median of 25 calls) and its
+  efficiency against the Cramer-Rao bound (:func:`bench_default_record`; alone:
+  ``python -m inertia_ros.bench.estimators [--hour]``);
 * batch: :func:`~inertia_ros.core.estimation.estimate` on a physically simulated nominal
   record of 1 000 001 gyro samples (200 Hz, 5000 s, 250 000 torque samples; ``--quick``: a
   tenth), default options and a fixed model, best of 3;
@@ -27,7 +30,8 @@ from inertia_ros.core.simulation import simulate
 
 from .common import best_of, nominal_scene, relative_error
 
-__all__ = ['bench_accuracy', 'bench_batch', 'bench_recursive_cost', 'run']
+__all__ = ['bench_accuracy', 'bench_batch', 'bench_default_record', 'bench_recursive_cost',
+           'main', 'run']
 
 
 def bench_batch(sim: Any) -> None:
@@ -139,7 +143,93 @@ def run(quick: bool = False, seeds: int = 10) -> int:
     t0 = time.perf_counter()
     sim = simulate(nominal_scene(duration), seed=1)
     print(f'simulated {duration:g} s in {time.perf_counter() - t0:.1f} s')
+    bench_default_record(seeds=max(seeds, 2))
     bench_batch(sim)
     bench_recursive_cost(sim, n_single=50_000 if quick else 200_000)
     bench_accuracy(seeds)
     return 0
+
+
+def _timings(fn: Any, runs: int) -> np.ndarray:
+    """Wall times [s] of ``runs`` calls of ``fn`` after one warm-up call."""
+    fn()
+    out = np.empty(runs)
+    for i in range(runs):
+        t0 = time.perf_counter()
+        fn()
+        out[i] = time.perf_counter() - t0
+    return out
+
+
+def bench_default_record(runs: int = 25, seeds: int = 30, hour: bool = False
+                         ) -> dict[str, float]:
+    """Print and return the default method's time per 60 s record and its efficiency.
+
+    Time: ``estimate()`` with default options on the nominal record (60 s, gyro 200 Hz,
+    torque 50 Hz, seed 1), median of ``runs`` calls after a warm-up (also ``integral`` for
+    reference; with ``hour``, the one-hour record, median of 5).  Efficiency:
+    ``trace(CRLB) / trace(MSE)`` of the default method over ``seeds`` records of the nominal
+    scene (seeds 1000, 1001, ...; the bound of the first two), as ``make bench`` computes it.
+
+    Returns
+    -------
+    dict
+        ``median_ms``, ``integral_median_ms``, ``efficiency``, ``efficiency_se``,
+        ``mse_over_crlb`` (and ``hour_median_s``).
+    """
+    from .methods import DEFAULT_METHOD, method_specs
+    from .montecarlo import run_monte_carlo, scene_bound, summarize
+
+    sim = simulate(nominal_scene(60.0), seed=1)
+    args = (sim.t_gyro, sim.omega, sim.t_torque, sim.torque)
+    est = estimate(*args)
+    t_def = _timings(lambda: estimate(*args), runs)
+    t_int = _timings(lambda: estimate(*args, method='integral'), runs)
+    print(f'default method per record: {len(sim.t_gyro)} gyro + {len(sim.t_torque)} torque '
+          f'samples (60 s), method {est.method}, status {est.status}, {runs} runs')
+    print(f'  default  median {1e3 * np.median(t_def):7.2f} ms (min {1e3 * np.min(t_def):.2f},'
+          f' 90th percentile {1e3 * np.percentile(t_def, 90):.2f})')
+    print(f'  integral median {1e3 * np.median(t_int):7.2f} ms (min {1e3 * np.min(t_int):.2f})')
+    out = {'median_ms': 1e3 * float(np.median(t_def)),
+           'integral_median_ms': 1e3 * float(np.median(t_int))}
+    if hour:
+        long = simulate(nominal_scene(3600.0), seed=1)
+        t_h = _timings(lambda: estimate(long.t_gyro, long.omega, long.t_torque, long.torque), 5)
+        out['hour_median_s'] = float(np.median(t_h))
+        print(f'  one-hour record ({len(long.t_gyro)} gyro samples): median '
+              f'{np.median(t_h):.3f} s of 5 (min {np.min(t_h):.3f})')
+    scene = nominal_scene(60.0)
+    spec = next(s for s in method_specs(include_pinocchio=False, quick=True)[0]
+                if s.name == DEFAULT_METHOD)
+    mc = run_monte_carlo({'nominal': scene}, [spec], {'nominal': seeds})
+    s = summarize(mc, {'nominal': scene_bound(scene, [1000, 1001])})[0]
+    out.update(efficiency=s.efficiency, efficiency_se=s.efficiency_se,
+               mse_over_crlb=1.0 / s.efficiency)
+    print(f'  efficiency trace(CRLB)/trace(MSE) {s.efficiency:.2f} +- {s.efficiency_se:.2f} '
+          f'over {s.ok}/{s.runs} ok records: MSE = {1.0 / s.efficiency:.2f} x the bound; '
+          f'median compute time there {1e3 * s.median_seconds:.1f} ms')
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m inertia_ros.bench.estimators [--runs N] [--seeds N] [--hour]``.
+
+    The default method's per-record time and efficiency alone (:func:`bench_default_record`).
+    """
+    import argparse
+
+    p = argparse.ArgumentParser(prog='python -m inertia_ros.bench.estimators',
+                                description='the default method per 60 s record: time '
+                                '(median of --runs) and efficiency against the bound')
+    p.add_argument('--runs', type=int, default=25, help='timed calls (25)')
+    p.add_argument('--seeds', type=int, default=30, help='records for the efficiency (30)')
+    p.add_argument('--hour', action='store_true', help='also time the one-hour record')
+    a = p.parse_args(argv)
+    if a.runs < 20 or a.seeds < 2:
+        p.error('--runs must be >= 20 and --seeds >= 2')
+    bench_default_record(a.runs, a.seeds, a.hour)
+    return 0
+
+
+if __name__ == '__main__':
+    raise SystemExit(main())

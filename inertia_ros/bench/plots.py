@@ -17,8 +17,8 @@ from .methods import DEFAULT_METHOD, MethodSpec, method_of
 from .montecarlo import Bound, Summary, pareto_front
 from .stability import SILENT_THRESHOLD, Cell
 
-__all__ = ['METHOD_STYLE', 'method_colour', 'plot_speed_vs_accuracy', 'plot_stability_map',
-           'setting_markers']
+__all__ = ['METHOD_STYLE', 'PREVIOUS_DEFAULT_SECONDS', 'method_colour', 'plot_speed_vs_accuracy',
+           'plot_stability_map', 'setting_markers']
 
 #: The one colour and legend name of each method, in every benchmark chart.  Keys are the
 #: ``--method`` names of the package's estimators and the baselines; a setting named
@@ -75,6 +75,7 @@ def _scene_panel(ax: Any, scene: str, rows: Sequence[Summary], marker: dict[str,
                        marker=marker.get(s.method, 'o'), s=70 if dflt else 40,
                        edgecolor='k' if dflt else 'none', zorder=3, label=s.method)
         handles.setdefault(s.method, h)
+    _previous_default(ax, scene, rows)
     front = pareto_front(pts)
     if front:
         ft, fe = [pts[i][0] for i in front], [pts[i][1] for i in front]
@@ -95,6 +96,26 @@ def _scene_panel(ax: Any, scene: str, rows: Sequence[Summary], marker: dict[str,
     if failed:
         ax.text(0.02, 0.02, 'no ok result: ' + ', '.join(failed), transform=ax.transAxes,
                 fontsize=7, color='tab:red', wrap=True)
+
+
+#: The default method's median time per record [s] on a scene before the speed work of
+#: issue 18 item 7 (docs/BENCHMARKS.md at commit f04292c): drawn hollow, with an arrow to
+#: where it is now.
+PREVIOUS_DEFAULT_SECONDS = {'nominal': 0.132}
+
+
+def _previous_default(ax: Any, scene: str, rows: Sequence[Summary]) -> None:
+    """The default method's earlier time (:data:`PREVIOUS_DEFAULT_SECONDS`) and an arrow."""
+    old = PREVIOUS_DEFAULT_SECONDS.get(scene)
+    now = next((s for s in rows if s.method == DEFAULT_METHOD), None)
+    if old is None or now is None or not np.isfinite(now.median_error):
+        return
+    c = method_colour(DEFAULT_METHOD)
+    ax.scatter(old, now.median_error, facecolor='none', edgecolor=c, s=70, lw=1.2, zorder=3)
+    ax.annotate('', xy=(now.median_seconds, now.median_error), xytext=(old, now.median_error),
+                arrowprops={'arrowstyle': '->', 'color': c, 'lw': 1.0}, zorder=2)
+    ax.text(old, now.median_error * 1.15, f'{DEFAULT_METHOD} before', color=c, fontsize=7,
+            ha='center', va='bottom')
 
 
 def plot_speed_vs_accuracy(summaries: Sequence[Summary], specs: Sequence[MethodSpec],

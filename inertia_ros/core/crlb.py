@@ -143,7 +143,9 @@ class Dynamics:
     monomials), so each evaluation is a handful of small matrix products.
     """
 
-    def __init__(self, inertia: np.ndarray, n_par: int, bias: bool) -> None:
+    def __init__(self, inertia: np.ndarray, n_par: int, bias: bool, bias_at: int = 9) -> None:
+        """``n_par`` sensitivity columns ``[theta (6), w0 (3), d (3)]`` (``d`` when ``bias``,
+        its columns from ``bias_at``: 6 for a layout without ``w0``)."""
         self.I = inertia
         self.Ii = np.linalg.inv(inertia)
         theta = inertia[THETA_ROWS, THETA_COLS]
@@ -160,7 +162,7 @@ class Dynamics:
         self.n_par = n_par
         self.forcing = np.zeros((3, n_par + 6))   # constant columns of the linear part
         if bias:
-            self.forcing[:, 9:12] = self.Ii            # d(w_dot)/dd
+            self.forcing[:, bias_at:bias_at + 3] = self.Ii     # d(w_dot)/dd
         self.forcing[:, n_par + 3:] = self.Ii          # Psi' = Jw Psi + I^-1
         self.mIi = -self.Ii
 
@@ -181,20 +183,27 @@ class Dynamics:
         Zd[..., :6] += self.mIi @ Y
         return wd, Zd
 
+    def rate(self, w: np.ndarray, Iiu: np.ndarray) -> np.ndarray:
+        """``w_dot`` alone (no sensitivities), shape of ``w``."""
+        mono = w[..., MONOMIAL_I] * w[..., MONOMIAL_J]
+        return Iiu + mono @ self.gyro_wd
+
     def rk4(self, w: np.ndarray, Z: np.ndarray, Iiu: np.ndarray, h: float | np.ndarray,
-            n: int) -> tuple[np.ndarray, np.ndarray]:
+            n: int, first: tuple[np.ndarray, np.ndarray] | None = None
+            ) -> tuple[np.ndarray, np.ndarray]:
         """``n`` classical RK4 steps of length ``h`` [s] from ``(w, Z)`` under constant ``Iiu``.
 
         ``h`` is a scalar, or one step length per leading batch index of ``w`` (shape
-        ``w.shape[:-1]``: every interval of a batch integrated at once).
+        ``w.shape[:-1]``: every interval of a batch integrated at once).  ``first``: the
+        derivatives ``self(w, Z, Iiu)`` at the start, when the caller already has them.
         """
         if isinstance(h, float):
             hw = hz = h
         else:
             hw = np.asarray(h, dtype=float)[..., None]  # broadcasts over w's last axis
             hz = hw[..., None]                          # and over Z's last two
-        for _ in range(n):
-            k1w, k1 = self(w, Z, Iiu)
+        for i in range(n):
+            k1w, k1 = first if i == 0 and first is not None else self(w, Z, Iiu)
             k2w, k2 = self(w + 0.5 * hw * k1w, Z + 0.5 * hz * k1, Iiu)
             k3w, k3 = self(w + 0.5 * hw * k2w, Z + 0.5 * hz * k2, Iiu)
             k4w, k4 = self(w + hw * k3w, Z + hz * k3, Iiu)

@@ -116,6 +116,8 @@ __all__ = ['BATCH_HOLDS', 'METHODS', 'ML_AUTO_MAX_SAMPLES', 'MODELS', 'TORQUE_BI
            'model_basis']
 
 _SELECT_MAX_ROWS = 100_000                     # equations used by the segment-length search
+_HOLD_PREFIX_FROM = 300_000                    # gyro samples from which holds are compared on
+                                               # the first _SELECT_MAX_ROWS only
 _SEGMENT_CANDIDATES = (5.0, 10.0, 20.0, 40.0)   # s, anchored-segment lengths tried
 _EIV_MAX_SHARE = 0.02                          # differentiated-gyro noise share tolerated
 
@@ -223,40 +225,74 @@ def _estimate_direct(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray,
     if selection is not None:
         diag['method_selection'] = selection
 
-    def run(h: str, d: dict[str, Any]) -> InertiaEstimate:
-        return _estimate_shifted(method, tg - t_origin, w, ts - t_origin, tau, h,
-                                 gyro_std ** 2, torque_std ** 2, segment, window, model,
-                                 torque_bias, axis, policy, d, white_y_cov)
+    def run(h: str, d: dict[str, Any], head: int | None = None, final: bool = True,
+            chosen: tuple[float | None, dict[str, Any]] | None = None) -> InertiaEstimate:
+        """The estimate with hold ``h`` (on the first ``head`` gyro samples when given;
+        without the adequacy tests, which do not change the residual excess, unless
+        ``final``; with the segment length ``chosen`` by an earlier run when given)."""
+        n = len(tg) if head is None else head
+        m = len(ts) if head is None else int(np.searchsorted(ts, tg[n - 1], side='right')) + 1
+        return _estimate_shifted(method, tg[:n] - t_origin, w[:n], ts[:m] - t_origin, tau[:m],
+                                 h, gyro_std ** 2, torque_std ** 2, segment, window, model,
+                                 torque_bias, axis, policy, d, white_y_cov, final, chosen)
     if hold != 'auto':
         return run(hold, diag)
-    return _auto_hold(run, diag, torque_std)
+    return _auto_hold(run, diag, torque_std, len(tg))
 
 
-def _auto_hold(run: Any, diag: dict[str, Any], torque_std: np.ndarray) -> InertiaEstimate:
+def _auto_hold(run: Any, diag: dict[str, Any], torque_std: np.ndarray,
+               n_gyro: int) -> InertiaEstimate:
     """``hold='auto'``: both holds, the one whose residuals the noise model explains better.
 
     A held command (zero-order hold) and a torque that varies continuously between its
     samples (linear) give the same number of parameters, so the residual excess over the same
     noise model compares them fairly; ``linear`` must win by 10 % (at low signal-to-noise the
     two are alike and the held model, which ``ml`` refines, stays).  Torque-free data need no
-    choice (``zoh``).
+    choice (``zoh``).  Records over :data:`_HOLD_PREFIX_FROM` gyro samples are compared on
+    their first :data:`_SELECT_MAX_ROWS` (how the torque behaves between its samples is a
+    property of its source, not of the record length), and only the chosen hold runs on the
+    whole record.
     """
+    head = _SELECT_MAX_ROWS if n_gyro > _HOLD_PREFIX_FROM else None
     results = {}
     for h in HOLDS:
         d = dict(diag, warnings=list(diag['warnings']))
-        results[h] = run(h, d)
+        # the held result is the usual answer: complete; the linear one only when chosen, and
+        # at the held one's segment length (the same segmentation compares the holds fairly)
+        results[h] = run(h, d, head, final=h == 'zoh' and head is None,
+                         chosen=_segment_choice(results.get('zoh'), False))
         if h == 'zoh' and (results[h].model == 'homogeneous' or not np.any(torque_std > 0)):
             break
     excess = {h: float(r.diagnostics.get('residual_excess', np.inf)) for h, r in
               results.items()}
     # a held command is the usual case and the one ml refines: linear only when clearly better
     chosen = 'linear' if excess.get('linear', np.inf) < 0.9 * excess['zoh'] else 'zoh'
-    est = results[chosen]
+    est = results[chosen] if chosen == 'zoh' and head is None else run(
+        chosen, dict(diag, warnings=list(diag['warnings'])),
+        chosen=_segment_choice(results[chosen], head is not None))
     est.diagnostics['hold'] = chosen
     est.diagnostics['hold_selection'] = {
         'requested': 'auto', 'chosen': chosen, 'residual_excess': excess,
         'rule': 'linear when its residual excess is at least 10 % below the held one'}
+    if head is not None:
+        est.diagnostics['hold_selection']['compared_on_gyro_samples'] = head
     return est
+
+
+def _segment_choice(est: InertiaEstimate | None, from_head: bool
+                    ) -> tuple[float | None, dict[str, Any]] | None:
+    """The segment length an earlier run chose, and its record, to reuse (or ``None``).
+
+    The search depends on the motion, not on the hold, and looks at the first
+    :data:`_SELECT_MAX_ROWS` equations only; a run on those alone (``from_head``) that chose
+    one whole segment is not reused (on the whole record that would mean one segment).
+    """
+    if est is None or 'segment_selection' not in est.diagnostics:
+        return None
+    seg = est.diagnostics.get('segment_s')
+    if from_head and seg is None:
+        return None
+    return seg, est.diagnostics['segment_selection']
 
 
 def _check_counts(tg: np.ndarray, ts: np.ndarray) -> None:
@@ -324,8 +360,15 @@ def _estimate_shifted(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray
                       segment: float | None, window: float | None, model: str,
                       torque_bias: str, axis: np.ndarray | None, policy: SelectionPolicy,
                       diag: dict[str, Any],
-                      white_y_cov: np.ndarray | None = None) -> InertiaEstimate:
-    """Every method but ``ml`` on validated, origin-shifted data: coverage, rules, fit."""
+                      white_y_cov: np.ndarray | None = None,
+                      final: bool = True,
+                      chosen: tuple[float | None, dict[str, Any]] | None = None
+                      ) -> InertiaEstimate:
+    """Every method but ``ml`` on validated, origin-shifted data: coverage, rules, fit.
+
+    ``final=False`` leaves out the adequacy tests (a result only compared, not reported);
+    ``chosen``: the segment length and its selection record from an earlier run.
+    """
     mask, tau_end = _coverage(tg, ts, hold, diag)
     used = int(np.sum(mask))
     base = dict(method=method, samples_used=used, samples_dropped=len(tg) - used)
@@ -350,7 +393,7 @@ def _estimate_shifted(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray
     if early is not None:
         return early
     if eq.kind == 'anchored' and segment is None:
-        segment, diag['segment_selection'] = _choose_segment(
+        segment, diag['segment_selection'] = chosen if chosen is not None else _choose_segment(
             eq, ts, tau_end, gyro_var, torque_var, torque_bias != 'off')
     st = sufficient_stats(eq, segment, ts, tau_end, torque_var)
     if eq.kind == 'anchored':
@@ -381,8 +424,8 @@ def _estimate_shifted(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray
         """``d beta / d g`` of the final fit for a relative gyro scale error ``g``."""
         return _gyro_sensitivity(eq, segment, ts, tau_end, gyro_var, torque_var, f)
 
-    return conclude(fit, model, torque_bias, axis, policy, diag, base, adequacy,
-                    gyro_sensitivity)
+    return conclude(fit, model, torque_bias, axis, policy, diag, base,
+                    adequacy if final else None, gyro_sensitivity)
 
 
 def _gyro_sensitivity(eq: Equations, segment: float | None, ts: np.ndarray, tau_end: float,

@@ -9,21 +9,29 @@ same Gauss-Newton step is computed without a sequential filter:
 
 * **multiple shooting**: every torque interval ``[s_j, s_{j+1})`` is integrated from its own
   reference state ``r_j`` (smoothed gyro at the first pass, the smoothed state afterwards),
-  all intervals at once (vectorised RK4, :class:`~inertia_ros.core.crlb.Dynamics`), with the
-  transition ``Phi``, the torque-noise input ``Psi`` and the parameter sensitivities ``S``;
+  all intervals at once (vectorised RK4 over the whole interval,
+  :class:`~inertia_ros.core.crlb.Dynamics`), with the transition ``Phi``, the torque-noise
+  input ``Psi`` and the parameter sensitivities ``S``; the states and sensitivities at the
+  gyro times inside an interval are cubic Hermite interpolants of the interval's ends (values
+  and derivatives; error ``h^4 x/384``, orders of magnitude below the gyro noise);
 * the deviations ``delta_j = w(s_j) - r_j`` are unknowns linked by the exact linearised
   continuity ``delta_{j+1} = Phi_j delta_j + g_j + S_j dp + Psi_j nu_j``; eliminating
   ``nu_j = Psi_j^-1 (...)`` leaves a least-squares problem whose rows each touch
   ``delta_j, delta_{j+1}`` and ``dp`` only: block-tridiagonal normal equations with a dense
   border, solved by a banded Cholesky factorisation and a Schur complement;
+* the rows are laid out per interval (the prior rows of ``nu_j``, then the interval's gyro
+  samples, padded), so the normal-equation blocks are one batched product;
 * for a linear Gaussian model the minimum over the path of the joint quadratic is the
   marginal likelihood (up to a log-determinant that the bound also neglects), so the Schur
   complement is the Fisher information of ``p = [theta, d]`` with ``w0 = r_0 + delta_0`` a
   free nuisance: its inverse is the estimate's covariance, the same as the bound's at the
   estimate.
 
-Each pass costs a few vectorised operations per gyro sample; 2-4 passes converge from the
-``integral`` estimate.
+The first pass from the ``integral`` estimate moves by about one standard error; the next
+passes keep its sensitivities and factorisation (chord steps: only the states are
+re-integrated, a sixth of the cost), which changes the step by a fraction
+``step x sigma / theta`` of itself.  A pass whose step exceeds ``_CHORD_MAX_STEP`` standard
+errors or grows is a full one.  Two passes usually converge (second step ~1e-3 sigma).
 """
 from __future__ import annotations
 
@@ -40,6 +48,9 @@ __all__ = ['MLRefinement', 'refine']
 _MAX_STEP_ANGLE = 0.02      # rad turned per RK4 substep, at most (as in crlb)
 _MAX_SUBSTEPS = 256         # RK4 substeps per torque interval: beyond, ml is not worth its cost
 _SIGMA_T_FLOOR = 1e-3       # torque-noise std floor, relative to the largest axis or torque rms
+_CHORD_MAX_STEP = 3.0       # std errors: after a smaller step, the next pass keeps the Jacobian
+#: Quadratic 9-point Savitzky-Golay smoothing weights (reference states only).
+_SMOOTH = np.array([-21.0, 14.0, 39.0, 54.0, 59.0, 54.0, 39.0, 14.0, -21.0]) / 231.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -79,52 +90,107 @@ class MLRefinement:
 
 
 def _events(tg: np.ndarray, s: np.ndarray, t_end: float
-            ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Per-interval event times (gyro times, then the interval end), padded with the end.
+            ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Gyro samples laid out per torque interval: ``(M, K)`` slots, padded.
 
-    Returns ``T (M, K)``, the interval of each gyro sample ``(N,)`` and its event column
-    ``(N,)``.
+    Returns the interval lengths ``h (M,)`` [s], the Hermite weights ``H (M, K, 4)`` of every
+    slot (see :func:`_hermite`), the slot mask ``(M, K)`` and the slot of every gyro sample as
+    a flat index ``(N,)`` into ``(M, K)``.
     """
     M = len(s)
     j = np.searchsorted(s, tg, side='right') - 1
     first = np.searchsorted(j, np.arange(M), side='left')
     col = np.arange(len(tg)) - first[j]
-    counts = np.bincount(j, minlength=M)
-    K = int(counts.max()) + 1
-    ends = np.append(s[1:], t_end)
-    T = np.repeat(ends[:, None], K, axis=1)
-    T[j, col] = tg
-    return T, j, col
+    K = int(np.bincount(j, minlength=M).max())
+    h = np.append(s[1:], t_end) - s
+    U = np.ones((M, K))
+    U[j, col] = (tg - s[j]) / np.where(h[j] > 0, h[j], 1.0)
+    valid = np.zeros((M, K), dtype=bool)
+    valid[j, col] = True
+    return h, _hermite(U, h), valid, j * K + col
 
 
-def _shoot(dyn: Dynamics, r0: np.ndarray, s: np.ndarray, T: np.ndarray, iiu: np.ndarray,
-           jg: np.ndarray, cg: np.ndarray, q: int
+def _hermite(U: np.ndarray, h: np.ndarray) -> np.ndarray:
+    """Cubic Hermite weights ``(..., 4)`` at the relative times ``U`` of intervals ``h`` [s].
+
+    ``x(s + U h) = H0 x0 + H1 x0' + H2 x1 + H3 x1'`` from the values and derivatives at both
+    ends (the derivative weights carry ``h``).
+    """
+    U2, U3 = U * U, U * U * U
+    hh = h[:, None]
+    return np.stack([2 * U3 - 3 * U2 + 1, (U3 - 2 * U2 + U) * hh, 3 * U2 - 2 * U3,
+                     (U3 - U2) * hh], axis=-1)
+
+
+def _interp(H: np.ndarray, x0: np.ndarray, d0: np.ndarray, x1: np.ndarray,
+            d1: np.ndarray) -> np.ndarray:
+    """Hermite interpolation ``(M, K, ...)`` of per-interval end values ``x (M, ...)``."""
+    M = len(x0)
+    ends = np.stack([x0.reshape(M, -1), d0.reshape(M, -1), x1.reshape(M, -1),
+                     d1.reshape(M, -1)], axis=1)
+    return (H @ ends).reshape(H.shape[:2] + x0.shape[1:])
+
+
+def _substeps(w: np.ndarray, iiu: np.ndarray, h: np.ndarray) -> int:
+    """RK4 substeps per torque interval (at most ``_MAX_STEP_ANGLE`` turned per substep)."""
+    hmax = float(np.max(h))
+    vmax = float(np.max(np.linalg.norm(w, axis=1))) + float(
+        np.max(np.linalg.norm(iiu, axis=1))) * hmax
+    nsub = max(1, int(np.ceil(vmax * hmax / _MAX_STEP_ANGLE)))
+    if nsub > _MAX_SUBSTEPS:          # bounded cost: the integral estimate stands
+        raise _PassError(f'the body turns {vmax * hmax:.3g} rad per torque interval '
+                         f'({nsub} RK4 substeps needed, at most {_MAX_SUBSTEPS})')
+    return nsub
+
+
+def _shoot(dyn: Dynamics, r0: np.ndarray, h: np.ndarray, H: np.ndarray, iiu: np.ndarray,
+           basis: np.ndarray, n_par: int
            ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Integrate every interval from its reference; states and ``Z`` at gyro times and ends."""
-    M, K = T.shape
-    w = r0.copy()
-    Z = np.zeros((M, 3, q))
-    Z[:, :, q - 6:q - 3] = np.eye(3)
-    n = len(jg)
-    wg = np.empty((n, 3))
-    Zg = np.empty((n, 3, q))
-    t_prev = s.copy()
-    for k in range(K):
-        h_tot = T[:, k] - t_prev
-        t_prev = T[:, k]
-        if np.any(h_tot > 0):
-            vmax = float(np.max(np.linalg.norm(w, axis=1))) + float(
-                np.max(np.linalg.norm(iiu, axis=1)) * np.max(h_tot))
-            nsub = max(1, int(np.ceil(vmax * float(np.max(h_tot)) / _MAX_STEP_ANGLE)))
-            if nsub > _MAX_SUBSTEPS:      # bounded cost: the integral estimate stands
-                raise _PassError(f'the body turns {vmax * float(np.max(h_tot)):.3g} rad '
-                                 f'between samples ({nsub} RK4 substeps needed, at most '
-                                 f'{_MAX_SUBSTEPS})')
-            w, Z = dyn.rk4(w, Z, iiu, h_tot / nsub, nsub)
-        at = cg == k
-        wg[at] = w[jg[at]]
-        Zg[at] = Z[jg[at]]
-    return wg, Zg, w, Z
+    """Integrate every interval from its reference (RK4 over the whole interval at once).
+
+    Returns the states and :func:`_columns` at the slots, ``(M, K, 3)`` and ``(M, K, 3, c)`` (cubic
+    Hermite interpolation between the interval ends, whose error ``h^4 x''''/384`` is many
+    orders below the gyro noise), and at the interval ends, ``(M, 3)`` and ``(M, 3, c)``.
+    """
+    M, q = len(h), n_par + 6
+    Z0 = np.zeros((M, 3, q))
+    Z0[:, :, q - 6:q - 3] = np.eye(3)
+    nsub = _substeps(r0, iiu, h)
+    d0w, d0Z = dyn(r0, Z0, iiu)
+    w1, Z1 = dyn.rk4(r0, Z0, iiu, h / nsub, nsub, first=(d0w, d0Z))
+    d1w, d1Z = dyn(w1, Z1, iiu)
+    Zt = _columns(np.stack([Z0, d0Z, Z1, d1Z], axis=1), basis, q - 6)   # (M, 4, 3, c)
+    return _interp(H, r0, d0w, w1, d1w), _interp(H, *Zt.transpose(1, 0, 2, 3)), w1, Zt[:, 2]
+
+
+def _columns(Z: np.ndarray, basis: np.ndarray, n_par: int) -> np.ndarray:
+    """Sensitivities ``Z = [S | Phi | Psi]`` rearranged as ``[Phi | Psi | S_theta basis (| S_d)]``.
+
+    The columns of ``delta_j``, ``nu_j`` and ``dp`` (``S = [S_theta (6) (, S_d (3))]``: every
+    interval starts from its own reference, so there is no ``w0`` column).
+    """
+    parts = [Z[..., n_par:], Z[..., :6]]
+    if basis.shape[1] < 6 or not np.array_equal(basis, np.eye(6)):
+        parts[1] = Z[..., :6] @ basis
+    if n_par == 9:
+        parts.append(Z[..., 6:9])
+    return np.concatenate(parts, axis=-1)
+
+
+def _shoot_states(dyn: Dynamics, r0: np.ndarray, h: np.ndarray, H: np.ndarray,
+                  iiu: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_shoot` without sensitivities: slot states ``(M, K, 3)``, end states ``(M, 3)``."""
+    nsub = _substeps(r0, iiu, h)
+    hs = (h / nsub)[:, None]
+    w = r0
+    d0 = dyn.rate(r0, iiu)
+    for i in range(nsub):
+        k1 = d0 if i == 0 else dyn.rate(w, iiu)
+        k2 = dyn.rate(w + 0.5 * hs * k1, iiu)
+        k3 = dyn.rate(w + 0.5 * hs * k2, iiu)
+        k4 = dyn.rate(w + hs * k3, iiu)
+        w = w + hs / 6.0 * (k1 + 2.0 * (k2 + k3) + k4)
+    return _interp(H, r0, d0, w, dyn.rate(w, iiu)), w
 
 
 def _banded(D: np.ndarray, O: np.ndarray) -> np.ndarray:
@@ -144,51 +210,6 @@ def _banded(D: np.ndarray, O: np.ndarray) -> np.ndarray:
         for c in range(3):
             ab[5 + r - (3 + c), base + 3 + c] = O[:, r, c]
     return ab
-
-
-class _Normal:
-    """Normal equations of row blocks ``a delta_j + b delta_{j+1} + c dp ~ z`` (weights ``wv``).
-
-    ``D (M + 1, 3, 3)`` and ``O (M, 3, 3)``: block-tridiagonal part in the path deviations;
-    ``Dp (M + 1, 3, p)``: border; ``bd (M + 1, 3)``: right-hand side of the path part.
-    """
-
-    def __init__(self, M: int, npar: int) -> None:
-        self.D = np.zeros((M + 1, 3, 3))
-        self.O = np.zeros((M, 3, 3))
-        self.Dp = np.zeros((M + 1, 3, npar))
-        self.bd = np.zeros((M + 1, 3))
-
-    def add(self, a: np.ndarray, b: np.ndarray, c: np.ndarray, z: np.ndarray, wv: np.ndarray,
-            groups: tuple[np.ndarray, np.ndarray] | None
-            ) -> tuple[np.ndarray, np.ndarray, float]:
-        """Add ``n`` row blocks (``a, b (n, 3, 3)``, ``c (n, 3, p)``, ``z (n, 3)``).
-
-        ``groups=None``: block ``j`` belongs to interval ``j`` (``n = M``); else
-        ``(intervals, first rows)``: rows sorted by interval, summed per interval.
-        Returns the border's own blocks ``(c' W c (p, p), c' W z (p,), z' W z)``.
-        """
-        aw = a.transpose(0, 2, 1) * wv
-        bw = b.transpose(0, 2, 1) * wv
-        zc = z[:, :, None]
-        blocks = (aw @ a, bw @ b, aw @ b, aw @ c, bw @ c, (aw @ zc)[..., 0], (bw @ zc)[..., 0])
-        if groups is not None:
-            blocks = tuple(np.add.reduceat(x, groups[1], axis=0) for x in blocks)
-            j: np.ndarray | slice = groups[0]
-            jn: np.ndarray | slice = groups[0] + 1
-            jo: np.ndarray | slice = groups[0]
-        else:
-            j, jn, jo = slice(0, -1), slice(1, None), slice(None)
-        self.D[j] += blocks[0]
-        self.D[jn] += blocks[1]
-        self.O[jo] += blocks[2]
-        self.Dp[j] += blocks[3]
-        self.Dp[jn] += blocks[4]
-        self.bd[j] += blocks[5]
-        self.bd[jn] += blocks[6]
-        cw = c * wv[:, None]
-        return (np.einsum('nri,nrj->ij', cw, c), np.einsum('nri,nr->i', cw, z),
-                float(np.sum(z * z * wv)))
 
 
 def refine(tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.ndarray,
@@ -231,16 +252,7 @@ def refine(tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.ndarray,
     ValueError
         Inconsistent shapes, or gyro samples before the first torque sample.
     """
-    tg = np.asarray(tg, dtype=float)
-    w = np.asarray(w, dtype=float)
-    if w.shape != (len(tg), 3):
-        raise ValueError(f'w: expected shape ({len(tg)}, 3), got {w.shape}')
-    if len(ts) < 2 or tau.shape != (len(ts), 3):
-        raise ValueError('ts, tau: need >= 2 torque samples with shape (M,), (M, 3)')
-    if tg[0] < ts[0]:
-        raise ValueError('tg: gyro samples before the first torque sample')
-    if max_iter < 2:
-        raise ValueError(f'max_iter: must be >= 2, got {max_iter!r}')
+    tg, w = _checked(tg, w, ts, tau, max_iter)
     pb = _Problem.build(tg, w, ts, tau, np.asarray(basis, dtype=float), bias0 is not None,
                         gyro_std, torque_std)
     k, bias = pb.k, pb.bias
@@ -250,12 +262,18 @@ def refine(tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.ndarray,
     steps: list[float] = []
     cov = np.full((pb.npar, pb.npar), np.nan)
     excess = float('nan')
+    lin: _Linear | None = None
     for it in range(1, max_iter + 1):
         try:
-            dp, delta, cov, excess = _gauss_newton_pass(pb, beta, d, r)
+            # close to the optimum (a small, shrinking step) the sensitivities stand
+            if lin is None or steps[-1] > min(_CHORD_MAX_STEP, steps[max(len(steps) - 2, 0)]):
+                dp, delta, excess, lin = _full_pass(pb, beta, d, r)
+            else:
+                dp, delta, excess = _chord_pass(pb, lin, beta, d, r)
         except _PassError as exc:
             return MLRefinement(False, beta, d if bias else None, cov, it, excess, steps,
                                 str(exc))
+        cov = lin.cov
         se = np.sqrt(np.maximum(np.diag(cov), 0.0))
         step = float(np.max(np.abs(dp) / np.where(se > 0, se, np.inf)))
         steps.append(step)
@@ -273,6 +291,22 @@ def refine(tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.ndarray,
                         excess, steps, f'no convergence in {max_iter} Gauss-Newton passes')
 
 
+def _checked(tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.ndarray,
+             max_iter: int) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`refine`'s input checks; the gyro times and rates as float arrays."""
+    tg = np.asarray(tg, dtype=float)
+    w = np.asarray(w, dtype=float)
+    if w.shape != (len(tg), 3):
+        raise ValueError(f'w: expected shape ({len(tg)}, 3), got {w.shape}')
+    if len(ts) < 2 or tau.shape != (len(ts), 3):
+        raise ValueError('ts, tau: need >= 2 torque samples with shape (M,), (M, 3)')
+    if tg[0] < ts[0]:
+        raise ValueError('tg: gyro samples before the first torque sample')
+    if max_iter < 2:
+        raise ValueError(f'max_iter: must be >= 2, got {max_iter!r}')
+    return tg, w
+
+
 class _PassError(Exception):
     """A Gauss-Newton pass that cannot go on; the message is the reason."""
 
@@ -281,19 +315,15 @@ class _PassError(Exception):
 class _Problem:
     """The fixed parts of the refinement: data, interval events, weights, parameter map."""
 
-    tg: np.ndarray             # (N,) gyro times [s]
-    w: np.ndarray              # (N, 3) measured angular velocity [rad/s]
+    n_gyro: int                # gyro samples
     s: np.ndarray              # (M,) torque samples before the last gyro sample [s]
     u: np.ndarray              # (M, 3) their torque [N m]
-    T: np.ndarray              # event times (see _events)
-    jg: np.ndarray             # interval of each gyro sample
-    cg: np.ndarray             # event index of each gyro sample
-    g_int: np.ndarray          # intervals holding gyro samples
-    g_start: np.ndarray        # first gyro sample of each of those
+    h: np.ndarray              # (M,) interval lengths [s]
+    H: np.ndarray              # (M, K, 4) Hermite weights of the gyro slots (see _events)
+    Y: np.ndarray              # (M, K, 3) measured angular velocity per slot [rad/s] (0: none)
+    swg: np.ndarray            # (M, K, 3) square-root gyro weights per slot [s/rad] (0: none)
+    swt: np.ndarray            # (3,) square-root torque weights [1/(N m)]
     basis: np.ndarray          # (6, k)
-    Tp: np.ndarray             # (n_par, npar): sensitivity columns -> dp
-    wg: np.ndarray             # (3,) gyro weights [s^2/rad^2]
-    wt: np.ndarray             # (3,) torque weights [1/(N^2 m^2)]
     bias: bool
 
     @property
@@ -308,8 +338,8 @@ class _Problem:
 
     @property
     def n_par(self) -> int:
-        """Sensitivity columns of the dynamics: theta, w0 (, d)."""
-        return 12 if self.bias else 9
+        """Sensitivity columns of the dynamics: theta (, d)."""
+        return 9 if self.bias else 6
 
     @property
     def npar(self) -> int:
@@ -323,82 +353,137 @@ class _Problem:
         """Events, weights (torque-noise std floored) and the parameter map."""
         keep = ts < tg[-1]
         s, u = ts[keep], tau[keep]
-        T, jg, cg = _events(tg, s, float(tg[-1]))
-        g_int, g_start = np.unique(jg, return_index=True)
-        k = basis.shape[1]
-        n_par, npar = (12 if bias else 9), k + (3 if bias else 0)
-        Tp = np.zeros((n_par, npar))
-        Tp[:6, :k] = basis
-        if bias:
-            Tp[9:12, k:] = np.eye(3)
+        h, H, valid, slot = _events(tg, s, float(tg[-1]))
+        Y = np.zeros(valid.shape + (3,))
+        Y.reshape(-1, 3)[slot] = w
         st = np.asarray(torque_std, dtype=float)
         floor = _SIGMA_T_FLOOR * max(float(np.max(st)),
                                      float(np.max(np.sqrt(np.mean(u ** 2, 0)))))
-        return _Problem(tg, w, s, u, T, jg, cg, g_int, g_start, basis, Tp,
-                        1.0 / np.asarray(gyro_std, dtype=float) ** 2,
-                        1.0 / np.maximum(st, floor) ** 2, bias)
+        swg = valid[..., None] / np.asarray(gyro_std, dtype=float)
+        return _Problem(len(tg), s, u, h, H, Y, swg, 1.0 / np.maximum(st, floor), basis,
+                        bias)
 
 
 def _reference_states(tg: np.ndarray, w: np.ndarray, s: np.ndarray) -> np.ndarray:
-    """Reference states (M + 1, 3) at the interval starts and the end: the smoothed gyro."""
-    wl = min(9, len(tg) - (1 - len(tg) % 2))
-    if wl >= 5:
-        from scipy import signal  # lazily: scipy.signal costs ~0.8 s to import
-        ws = signal.savgol_filter(w, wl, 2, axis=0)
-    else:
-        ws = w
+    """Reference states (M + 1, 3) at the interval starts and the end: the smoothed gyro.
+
+    A 9-point quadratic Savitzky-Golay smoother (the raw gyro at the four samples of either
+    end): only the linearisation point, which the passes correct.
+    """
+    ws = w
+    if len(tg) >= 2 * _SMOOTH.size:
+        ws = w.copy()
+        for c in range(3):
+            ws[4:-4, c] = np.convolve(w[:, c], _SMOOTH, mode='valid')
     bounds = np.append(s, tg[-1])
     return np.column_stack([np.interp(bounds, tg, ws[:, c]) for c in range(3)])
 
 
-def _gauss_newton_pass(pb: _Problem, beta: np.ndarray, d: np.ndarray,
-                       r: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
-    """One pass: the step ``dp``, the path correction ``delta``, the covariance and excess.
+@dataclass(frozen=True, eq=False)
+class _Linear:
+    """The linearisation of one full pass, reused by the chord passes that follow it.
+
+    ``Xc (M, 3 + 3 K, 6 + npar)``: the weighted row coefficients of every interval (the
+    prior rows of ``nu_j``, then the gyro slots) on ``[delta_j, delta_{j+1}, dp]``.
+    """
+
+    Xc: np.ndarray
+    Pinv: np.ndarray           # (M, 3, 3) inverse torque-noise input matrices
+    Zpsi: np.ndarray           # (M, K, 3, 3) torque-noise input at the gyro slots
+    cb: np.ndarray             # banded Cholesky factor of the path block
+    Dpf: np.ndarray            # (3 (M + 1), npar) border
+    X1: np.ndarray             # (3 (M + 1), npar) path block^-1 border
+    cov: np.ndarray            # (npar, npar) inverse Fisher information
+
+
+def _dynamics(pb: _Problem, beta: np.ndarray, d: np.ndarray) -> tuple[Dynamics, np.ndarray]:
+    """The dynamics at ``beta`` and ``I^-1 (u + d)`` per interval; :class:`_PassError` when the
+    tensor is not positive definite."""
+    Im = theta_to_matrix(pb.basis @ beta)
+    if not np.all(np.isfinite(Im)) or np.linalg.eigvalsh(Im)[0] <= 0:
+        raise _PassError('the tensor left the positive-definite set')
+    dyn = Dynamics(Im, pb.n_par, pb.bias, bias_at=6)
+    return dyn, (pb.u + d) @ dyn.Ii.T
+
+
+def _full_pass(pb: _Problem, beta: np.ndarray, d: np.ndarray, r: np.ndarray
+               ) -> tuple[np.ndarray, np.ndarray, float, _Linear]:
+    """One Gauss-Newton pass with new sensitivities: step, path correction, excess, model.
 
     Raises :class:`_PassError` when the tensor, the torque-noise input or the information
     matrix make the pass impossible.
     """
-    n_par, npar, M = pb.n_par, pb.npar, pb.M
-    Im = theta_to_matrix(pb.basis @ beta)
-    if np.linalg.eigvalsh(Im)[0] <= 0 or not np.all(np.isfinite(Im)):
-        raise _PassError('the tensor left the positive-definite set')
-    dyn = Dynamics(Im, n_par, pb.bias)
-    iiu = (pb.u + d) @ dyn.Ii.T
-    wk, Zk, wend, Zend = _shoot(dyn, r[:-1], pb.s, pb.T, iiu, pb.jg, pb.cg, n_par + 6)
-    Phb, Psb = Zend[:, :, n_par:n_par + 3], Zend[:, :, n_par + 3:]
-    Sb = Zend[:, :, :n_par] @ pb.Tp
-    gj = wend - r[1:]
+    M, npar = pb.M, pb.npar
+    dyn, iiu = _dynamics(pb, beta, d)
+    # sensitivities as [Phi | Psi | S_p]: on delta_j, nu_j and dp
+    wk, Zk, w1, Z1 = _shoot(dyn, r[:-1], pb.h, pb.H, iiu, pb.basis, pb.n_par)
     try:
-        Pinv = np.linalg.inv(Psb)
+        Pinv = np.linalg.inv(Z1[..., 3:6])
     except np.linalg.LinAlgError:
         raise _PassError('singular torque-noise input matrix') from None
-    # prior rows of nu_j: coefficients on delta_j, delta_{j+1}, dp and the target
-    pa, pc, pz = -Pinv @ Phb, -Pinv @ Sb, (Pinv @ gj[:, :, None])[..., 0]
-    # gyro rows
-    jg = pb.jg
-    G = Zk[:, :, n_par + 3:] @ Pinv[jg]
-    ga = Zk[:, :, n_par:n_par + 3] - G @ Phb[jg]
-    gc = Zk[:, :, :n_par] @ pb.Tp - G @ Sb[jg]
-    gz = pb.w - wk + (G @ gj[jg][:, :, None])[..., 0]
-    nrm = _Normal(M, npar)
-    Fp1, bp1, zz1 = nrm.add(pa, Pinv, pc, pz, pb.wt, None)
-    Fp2, bp2, zz2 = nrm.add(ga, G, gc, gz, pb.wg, (pb.g_int, pb.g_start))
+    # prior rows of nu_j = Pinv (delta_{j+1} - Phi delta_j - S dp - g_j): on delta_j,
+    # delta_{j+1}, dp
+    B = -Z1
+    B[..., 3:6] = np.eye(3)
+    R = Pinv @ B
+    # gyro rows: the slot's own sensitivities, with nu_j eliminated through the prior row
+    K = pb.H.shape[1]
+    Zpsi = Zk[..., 3:6]
+    rows = Zpsi.reshape(M, 3 * K, 3) @ R
+    rows += Zk.reshape(M, 3 * K, -1)
+    rows[..., 3:6] -= Zpsi.reshape(M, 3 * K, 3)
+    Xc = np.concatenate([R * pb.swt[:, None], rows * pb.swg.reshape(M, 3 * K, 1)], axis=1)
+    Gm = Xc[..., :6].transpose(0, 2, 1) @ Xc                   # (M, 6, 6 + npar)
+    Xf = Xc[..., 6:].reshape(-1, npar)
+    D = np.zeros((M + 1, 3, 3))
+    D[:-1] += Gm[:, :3, :3]
+    D[1:] += Gm[:, 3:6, 3:6]
+    Dp = np.zeros((M + 1, 3, npar))
+    Dp[:-1] += Gm[:, :3, 6:]
+    Dp[1:] += Gm[:, 3:6, 6:]
     try:
-        cb = linalg.cholesky_banded(_banded(nrm.D, nrm.O), lower=False)
+        cb = linalg.cholesky_banded(_banded(D, Gm[:, :3, 3:6]), lower=False)
     except linalg.LinAlgError:
         raise _PassError('the path normal equations are not positive definite') from None
-    Dpf = nrm.Dp.reshape(3 * (M + 1), npar)
-    X = linalg.cho_solve_banded((cb, False), np.column_stack([nrm.bd.ravel(), Dpf]))
-    F = Fp1 + Fp2 - Dpf.T @ X[:, 1:]
-    F = 0.5 * (F + F.T)
-    bp = bp1 + bp2
-    rhs = bp - Dpf.T @ X[:, 0]
-    cov = _inverse_information(F)
-    dp = cov @ rhs
-    delta = X[:, 0] - X[:, 1:] @ dp
-    rss = zz1 + zz2 - float(nrm.bd.ravel() @ delta) - float(bp @ dp)
-    excess = rss / max(3 * len(pb.tg) - 3 - npar, 1)
-    return dp, delta, cov, excess
+    Dpf = Dp.reshape(3 * (M + 1), npar)
+    X1 = linalg.cho_solve_banded((cb, False), Dpf)
+    F = Xf.T @ Xf - Dpf.T @ X1
+    lin = _Linear(Xc, Pinv, Zpsi, cb, Dpf, X1, _inverse_information(0.5 * (F + F.T)))
+    dp, delta, excess = _step(pb, lin, wk, w1, r)
+    return dp, delta, excess, lin
+
+
+def _chord_pass(pb: _Problem, lin: _Linear, beta: np.ndarray, d: np.ndarray, r: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray, float]:
+    """A pass with the previous pass's sensitivities: new residuals, same linear model.
+
+    Near the optimum the sensitivities change by a fraction ``step x sigma / theta`` of
+    themselves, so the step agrees with a full pass to that fraction at a sixth of the cost
+    (states only, no factorisation).
+    """
+    dyn, iiu = _dynamics(pb, beta, d)
+    wk, w1 = _shoot_states(dyn, r[:-1], pb.h, pb.H, iiu)
+    return _step(pb, lin, wk, w1, r)
+
+
+def _step(pb: _Problem, lin: _Linear, wk: np.ndarray, w1: np.ndarray, r: np.ndarray
+          ) -> tuple[np.ndarray, np.ndarray, float]:
+    """Gauss-Newton step of the linear model ``lin`` for the residuals of states ``wk, w1``."""
+    M = pb.M
+    pz = (lin.Pinv @ (w1 - r[1:])[..., None])[..., 0]           # prior targets (M, 3)
+    gz = pb.Y - wk + (lin.Zpsi @ pz[:, None, :, None])[..., 0]   # gyro targets (M, K, 3)
+    Xz = np.concatenate([pz * pb.swt, (gz * pb.swg).reshape(M, -1)], axis=1)
+    Gz = (Xz[:, None, :] @ lin.Xc[..., :6])[:, 0]                 # (M, 6)
+    bd = np.zeros((M + 1, 3))
+    bd[:-1] += Gz[:, :3]
+    bd[1:] += Gz[:, 3:6]
+    bd = bd.ravel()
+    bp = Xz.ravel() @ lin.Xc[..., 6:].reshape(-1, pb.npar)
+    X0 = linalg.cho_solve_banded((lin.cb, False), bd)
+    dp = lin.cov @ (bp - lin.Dpf.T @ X0)
+    delta = X0 - lin.X1 @ dp
+    rss = float(np.sum(Xz * Xz)) - float(bd @ delta) - float(bp @ dp)
+    return dp, delta, rss / max(3 * pb.n_gyro - 3 - pb.npar, 1)
 
 
 def _inverse_information(F: np.ndarray) -> np.ndarray:

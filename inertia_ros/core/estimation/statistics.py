@@ -127,7 +127,8 @@ def shared_raw(eq: Equations, t_tau: np.ndarray, tau_end: float,
     """Statistics of the (globally centred) variables that every segmentation shares."""
     if eq.raw is not None:
         return eq.raw
-    eq.V -= eq.V.mean(axis=0)[None]           # a constant shift cancels in segment demeaning
+    # a constant shift cancels in segment demeaning (the mean as a BLAS product: 2x np.mean)
+    eq.V -= (np.ones(len(eq.V)) @ eq.V / len(eq.V))[None]
     walk = np.any(torque_var > 0) and len(t_tau) > 1
     # (two threads overlapping the Gram and the torque sums no longer pay: with the sparse
     # interval sums a 1M-sample record is faster on one thread, measured 0.51 s against 0.65 s)
@@ -172,9 +173,13 @@ def sufficient_stats(eq: Equations, segment: float | None, t_tau: np.ndarray, ta
         def ZQ(k: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
             """``sum_{b<k} m_seg(b)`` and ``sum_{b<k} t_b m_seg(b)`` (one segment search)."""
             sk = np.searchsorted(starts, k, side='right') - 1
-            mk = m[sk]
-            return (Sp[sk] + (k - starts[sk])[:, None] * mk,
-                    MTp[sk] + (CT[k] - CT[starts[sk]])[:, None] * mk)
+            mk = m.take(sk, axis=0)           # take and in-place sums: 30 % less than [sk]
+            st = starts.take(sk)
+            z = (k - st)[:, None] * mk
+            z += Sp.take(sk, axis=0)
+            q = (CT.take(k) - CT.take(st))[:, None] * mk
+            q += MTp.take(sk, axis=0)
+            return z, q
 
         z0, q0 = ZQ(raw['k0'])
         z1, q1 = ZQ(raw['k1'])
