@@ -1,4 +1,4 @@
-"""``bag_player``: publishes a recorded log's gyro and torque streams (ROS 2 Jazzy).
+"""``bag_player``: publishes a recorded log's gyro, torque and joint-speed streams (ROS 2 Jazzy).
 
 For setups without rosbag2: reads a ``.mcap`` file or a rosbag2 directory with
 :func:`inertia_ros.io.logs.read_log` (topics found by message type unless given; NaN samples,
@@ -7,6 +7,9 @@ plays the two streams back with their original relative timing (``rate`` factor,
 
 ``imu``  (sensor_msgs/Imu; or ``omega``, geometry_msgs/Vector3Stamped, by parameter)
 ``torque``  (geometry_msgs/WrenchStamped)
+``joint_states``  (sensor_msgs/JointState) when the log has one JointState topic: its
+            messages that carry a velocity for every joint of the first one (wheel or rotor
+            speeds [rad/s]), names and velocities as recorded, position/effort dropped
 ``~/truth``  (geometry_msgs/InertiaStamped, transient local) when the log has ``/truth/inertia``
 
 Header stamps are the recorded ones (``original_stamps``, default) or restamped from the node
@@ -15,13 +18,75 @@ answers with a clean reset.
 """
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any
+
+import numpy as np
 
 from inertia_ros.nodes import params
 from inertia_ros.nodes._ros import run_node
 from inertia_ros.nodes.playback import PlaybackNode, spin_until_done
 
 NODE_NAME = 'bag_player'
+
+
+def read_joint_speeds(path: str | Path) -> tuple[str, list[str], np.ndarray, np.ndarray] | None:
+    """The JointState stream of a log, for playback.
+
+    Parameters
+    ----------
+    path : str or Path
+        ``.mcap`` file or rosbag2 directory.
+
+    Returns
+    -------
+    (topic, names, t_ns, speed) or None
+        ``names`` as in the first decodable message with velocities; ``t_ns`` (K,) int64
+        header stamps [ns], sorted, duplicates dropped; ``speed`` (K, len(names)) [rad/s].
+        None when the log has no JointState topic.
+
+    Raises
+    ------
+    inertia_ros.io.logs.LogError
+        Several JointState topics, or none of them with two usable messages.
+    """
+    from inertia_ros.io.joint_state import (
+        JOINT_STATE,
+        decode_joint_state,
+        joint_state_topics,
+        read_wheel_speeds,
+    )
+    from inertia_ros.io.logs import LogError, log_files
+    from inertia_ros.io.mcap_reader import McapReader
+    from inertia_ros.io.msgtypes import normalise_type
+
+    topics = joint_state_topics(path)
+    if not topics:
+        return None
+    if len(topics) > 1:
+        raise LogError(f'{path}: several JointState topics {topics}; bag_player plays one '
+                       'only: extract it (ros2 bag convert) or drop the others')
+    topic = topics[0]
+    names: list[str] | None = None
+    for f in log_files(path):
+        with McapReader(f) as r:
+            def select(ch: Any, sc: Any) -> bool:
+                return ch.topic == topic and sc is not None and \
+                    normalise_type(sc.name) == JOINT_STATE
+            for _sc, _ch, _lt, data in r.iter_messages(select):
+                try:
+                    _t, found, _p, vel = decode_joint_state(data)
+                except ValueError:
+                    continue
+                if found and len(vel) == len(found):
+                    names = list(found)
+                    break
+        if names is not None:
+            break
+    if names is None:
+        raise LogError(f'{topic}: no JointState message with a velocity for every name')
+    _topic, t_ns, speed = read_wheel_speeds(path, names, topic, what='joints')
+    return topic, names, t_ns, speed
 
 
 class BagPlayerNode(PlaybackNode):
@@ -40,11 +105,19 @@ class BagPlayerNode(PlaybackNode):
         self.log = log
         for line in log.warnings:
             self.get_logger().warning(line)
+        js = read_joint_speeds(path)
+        joints: dict[str, Any] = {}
+        if js is not None:
+            joints = {'joint_names': js[1], 't_joint': (js[2] - int(log.epoch_ns)) / 1e9,
+                      'joint_speed': js[3]}
         self.make_player(log.omega.t, log.omega.values, log.torque.t, log.torque.values,
-                         log.omega.frame_id, list(log.truth))
+                         log.omega.frame_id, list(log.truth), **joints)
+        speeds = (f' and {js[2].size} from {js[0]} (JointState, joints {js[1]})'
+                  if js is not None else '')
         self.get_logger().info(
-            f'{path}: {log.omega.t.size} samples from {log.omega.topic} and '
-            f'{log.torque.t.size} from {log.torque.topic} (frame {log.omega.frame_id!r})')
+            f'{path}: {log.omega.t.size} samples from {log.omega.topic}, '
+            f'{log.torque.t.size} from {log.torque.topic}{speeds} '
+            f'(frame {log.omega.frame_id!r})')
 
     def start_epoch_ns(self) -> int:
         """Recorded epoch with ``original_stamps``, else the node clock now [ns]."""

@@ -7,7 +7,8 @@ in batches with :mod:`inertia_ros.io.cdr_decode`; the builders here serve the pl
 outputs:
 
 - inputs as published by the players: :func:`imu_msg` (``sensor_msgs/msg/Imu``),
-  :func:`vector3_stamped`, :func:`wrench_msg` (``geometry_msgs/msg/WrenchStamped``);
+  :func:`vector3_stamped`, :func:`wrench_msg` (``geometry_msgs/msg/WrenchStamped``),
+  :func:`joint_state_msg` (``sensor_msgs/msg/JointState``: wheel or rotor speeds);
 - outputs: :func:`inertia_stamped` (``geometry_msgs/msg/InertiaStamped``, read back by
   :func:`inertia_from_msg`), :func:`principal_moments_msg` (``Vector3Stamped``) and
   :func:`principal_axes_msg` (``QuaternionStamped``), :func:`covariance_msg` (the 6x6
@@ -30,7 +31,7 @@ from geometry_msgs.msg import (
     Vector3Stamped,
     WrenchStamped,
 )
-from sensor_msgs.msg import Imu
+from sensor_msgs.msg import Imu, JointState
 from std_msgs.msg import Float64MultiArray, Header, MultiArrayDimension, MultiArrayLayout
 
 from inertia_ros.core.inertia import THETA_NAMES, axes_to_quaternion
@@ -45,6 +46,7 @@ __all__ = [
     'imu_msg',
     'inertia_from_msg',
     'inertia_stamped',
+    'joint_state_msg',
     'ns_to_stamp',
     'principal_axes_msg',
     'principal_moments_msg',
@@ -160,6 +162,38 @@ def wrench_msg(t_ns: int, tau: Any, frame_id: str) -> WrenchStamped:
     msg = WrenchStamped(header=header(t_ns, frame_id))
     msg.wrench.torque = _vector3(vec3(tau, 'tau'))
     return msg
+
+
+def joint_state_msg(t_ns: int, names: Any, velocity: Any, frame_id: str = '') -> JointState:
+    """Build a ``sensor_msgs/JointState`` carrying joint speeds only.
+
+    Parameters
+    ----------
+    t_ns : int
+        Header stamp [ns].
+    names : sequence of str, length n
+        Joint names (the wheels or rotors file's ``joint`` entries).
+    velocity : array_like, shape (n,)
+        Joint speeds [rad/s], in the order of ``names``.
+    frame_id : str, optional
+        Header frame (JointState usually leaves it empty).
+
+    Returns
+    -------
+    sensor_msgs.msg.JointState
+        ``name`` and ``velocity`` filled; ``position`` and ``effort`` empty (not measured).
+
+    Raises
+    ------
+    ValueError
+        If ``velocity`` is not a 1-D array with one entry per name.
+    """
+    names = [str(n) for n in names]
+    v = np.asarray(velocity, dtype=float)
+    if v.shape != (len(names),):
+        raise ValueError(f'velocity must have shape ({len(names)},) for joints {names}, '
+                         f'got {v.shape}')
+    return JointState(header=header(t_ns, frame_id), name=names, velocity=v.tolist())
 
 
 # --------------------------------------------------------------------------- outputs

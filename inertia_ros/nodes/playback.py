@@ -1,7 +1,10 @@
-"""Timed playback of gyro and torque arrays as ROS messages: the base of both players.
+"""Timed playback of gyro, torque and joint-speed arrays as ROS messages: the base of both
+players.
 
 :class:`StreamPlayer` publishes ``imu`` (sensor_msgs/Imu; or ``omega``, geometry_msgs/
-Vector3Stamped), ``torque`` (geometry_msgs/WrenchStamped) with sensor-data QoS and
+Vector3Stamped), ``torque`` (geometry_msgs/WrenchStamped; absent for torque-free data),
+``joint_states`` (sensor_msgs/JointState: wheel or rotor speeds, when the data have them) with
+sensor-data QoS and
 ``~/truth`` (geometry_msgs/InertiaStamped, latched) on a steady-clock timer, in real time or
 faster/slower by ``rate``; with ``publish_clock`` also ``/clock`` (rosgraph_msgs/Clock, clock
 QoS) carrying the data time, for nodes run with ``use_sim_time``.  :class:`PlaybackNode`
@@ -12,7 +15,7 @@ start on subscribers, and ends the process at the end of the data when asked
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
@@ -29,7 +32,7 @@ from rclpy.clock_type import ClockType
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock as ClockMsg
-from sensor_msgs.msg import Imu
+from sensor_msgs.msg import Imu, JointState
 
 from inertia_ros.nodes import messages, params
 from inertia_ros.nodes._ros import clock_qos, latched_qos, sensor_qos
@@ -45,7 +48,7 @@ MATCH_SETTLE = 0.3
 
 
 class StreamPlayer:
-    """Play gyro and torque arrays back on a node with their original relative timing.
+    """Play gyro, torque and joint-speed arrays back with their original relative timing.
 
     Parameters
     ----------
@@ -55,9 +58,10 @@ class StreamPlayer:
         Gyro stamps [s] relative to ``epoch_ns``, non-decreasing.
     omega : numpy.ndarray, shape (N, 3)
         Angular velocity [rad/s].
-    t_torque : numpy.ndarray, shape (M,)
-        Torque stamps [s] relative to ``epoch_ns``, non-decreasing.
-    torque : numpy.ndarray, shape (M, 3)
+    t_torque : numpy.ndarray, shape (M,), or None
+        Torque stamps [s] relative to ``epoch_ns``, non-decreasing.  None (with ``torque``
+        None): no ``torque`` topic at all (torque-free data, e.g. a wheels-only scene).
+    torque : numpy.ndarray, shape (M, 3), or None
         Torque [N m].
     frame_id : str
         Frame written into every header.
@@ -81,6 +85,13 @@ class StreamPlayer:
         node with ``use_sim_time`` reads a clock at the stamps it receives.  It advances with
         the data (``rate`` times the wall rate) and jumps back with them at a ``loop``.
         Settable later through :attr:`publish_clock`.
+    joint_names : sequence of str, optional
+        Joints of ``joint_speed``'s columns (wheels or rotors); with them the player publishes
+        ``joint_states`` (sensor_msgs/JointState, ``name`` and ``velocity`` only).
+    t_joint : numpy.ndarray, shape (K,), optional
+        JointState stamps [s] relative to ``epoch_ns``, non-decreasing.
+    joint_speed : numpy.ndarray, shape (K, n_joints), optional
+        Joint speeds [rad/s].
 
     Raises
     ------
@@ -93,16 +104,29 @@ class StreamPlayer:
                  omega_msg_type: str = 'imu', rate: float = 1.0, loop: bool = False,
                  tick: float = 0.005, truth: list[tuple[float, np.ndarray]] | None = None,
                  qos_depth: int = 100, on_finish: Callable[[], None] | None = None,
-                 publish_clock: bool = False) -> None:
+                 publish_clock: bool = False, joint_names: Sequence[str] = (),
+                 t_joint: np.ndarray | None = None,
+                 joint_speed: np.ndarray | None = None) -> None:
+        has_torque = t_torque is not None or torque is not None
         t_gyro = np.asarray(t_gyro, dtype=float)
-        t_torque = np.asarray(t_torque, dtype=float)
+        t_torque = np.asarray(t_torque if has_torque else [], dtype=float)
         omega = np.asarray(omega, dtype=float)
-        torque = np.asarray(torque, dtype=float)
+        torque = np.asarray(torque if has_torque else np.zeros((0, 3)), dtype=float)
+        self.joint_names = [str(n) for n in joint_names]
+        t_joint = np.asarray(t_joint if t_joint is not None else [], dtype=float)
+        joint_speed = np.asarray(joint_speed if joint_speed is not None
+                                 else np.zeros((0, len(self.joint_names))), dtype=float)
         if omega.shape != (t_gyro.size, 3):
             raise ValueError(f'omega must have shape ({t_gyro.size}, 3), got {omega.shape}')
         if torque.shape != (t_torque.size, 3):
             raise ValueError(f'torque must have shape ({t_torque.size}, 3), got {torque.shape}')
-        for name, t in (('t_gyro', t_gyro), ('t_torque', t_torque)):
+        if joint_speed.shape != (t_joint.size, len(self.joint_names)):
+            raise ValueError(f'joint_speed must have shape ({t_joint.size}, '
+                             f'{len(self.joint_names)}) for joints {self.joint_names}, '
+                             f'got {joint_speed.shape}')
+        if t_joint.size and not self.joint_names:
+            raise ValueError('t_joint given without joint_names')
+        for name, t in (('t_gyro', t_gyro), ('t_torque', t_torque), ('t_joint', t_joint)):
             if t.size and np.any(np.diff(t) < 0):
                 raise ValueError(f'{name} must be non-decreasing')
         if omega_msg_type not in ('imu', 'vector3'):
@@ -112,17 +136,21 @@ class StreamPlayer:
         self.loop = loop
         self.tick = float(tick)
         self.set_rate(rate)
-        # One merged, time-ordered event list: (time [s], kind 0 = gyro / 1 = torque, index).
-        times = np.concatenate([t_gyro, t_torque])
-        kinds = np.concatenate([np.zeros(t_gyro.size, int), np.ones(t_torque.size, int)])
-        idx = np.concatenate([np.arange(t_gyro.size), np.arange(t_torque.size)])
+        # One merged, time-ordered event list: (time [s], kind 0 = gyro / 1 = torque /
+        # 2 = joints, index).
+        times = np.concatenate([t_gyro, t_torque, t_joint])
+        kinds = np.concatenate([np.zeros(t_gyro.size, int), np.ones(t_torque.size, int),
+                                np.full(t_joint.size, 2)])
+        idx = np.concatenate([np.arange(t_gyro.size), np.arange(t_torque.size),
+                              np.arange(t_joint.size)])
         order = np.lexsort((kinds, times))
         self._times = times[order]
         self._kinds = kinds[order].tolist()
         self._index = idx[order].tolist()
         self._t_ns = [np.round(t_gyro * _NS).astype(np.int64).tolist(),
-                      np.round(t_torque * _NS).astype(np.int64).tolist()]
-        self._vals = [omega.tolist(), torque.tolist()]
+                      np.round(t_torque * _NS).astype(np.int64).tolist(),
+                      np.round(t_joint * _NS).astype(np.int64).tolist()]
+        self._vals = [omega.tolist(), torque.tolist(), joint_speed.tolist()]
         self._truth = sorted(truth or [], key=lambda x: x[0])
         self._on_finish = on_finish
         if omega_msg_type == 'imu':
@@ -131,13 +159,17 @@ class StreamPlayer:
         else:
             self._pub_gyro = node.create_publisher(Vector3Stamped, 'omega', sensor_qos(qos_depth))
             self._make_gyro = messages.vector3_stamped
-        self._pub_torque = node.create_publisher(WrenchStamped, 'torque', sensor_qos(qos_depth))
+        self._pub_torque = (node.create_publisher(WrenchStamped, 'torque', sensor_qos(qos_depth))
+                            if has_torque else None)
+        self._pub_joints = (node.create_publisher(JointState, 'joint_states',
+                                                  sensor_qos(qos_depth))
+                            if self.joint_names else None)
         self._pub_truth = node.create_publisher(InertiaStamped, '~/truth', latched_qos())
         self._pub_clock: Any = None
         self.clock_ns: int | None = None  # last time published on /clock [ns]
         self.publish_clock = publish_clock
         self.epoch_ns = 0
-        self.published = [0, 0]
+        self.published = [0, 0, 0]  # gyro, torque, JointState messages
         self.loops = 0
         self.finished = False
         self._timer = None
@@ -173,8 +205,19 @@ class StreamPlayer:
 
     @property
     def torque_publisher(self) -> Any:
-        """The torque publisher (for subscription counts)."""
+        """The torque publisher (for subscription counts); None without a torque stream."""
         return self._pub_torque
+
+    @property
+    def joint_publisher(self) -> Any:
+        """The ``joint_states`` publisher; None without joint speeds."""
+        return self._pub_joints
+
+    @property
+    def publishers(self) -> list[Any]:
+        """The data publishers in use (gyro, then torque and joints when present)."""
+        return [p for p in (self._pub_gyro, self._pub_torque, self._pub_joints)
+                if p is not None]
 
     @property
     def duration(self) -> float:
@@ -233,8 +276,11 @@ class StreamPlayer:
             stamp = epoch + self._t_ns[kind][i]
             if kind == 0:
                 self._pub_gyro.publish(self._make_gyro(stamp, self._vals[0][i], frame))
-            else:
+            elif kind == 1:
                 self._pub_torque.publish(messages.wrench_msg(stamp, self._vals[1][i], frame))
+            else:
+                self._pub_joints.publish(messages.joint_state_msg(
+                    stamp, self.joint_names, self._vals[2][i]))
             self.published[kind] += 1
         self._next = end
         if end >= len(self._kinds) and self._next_truth >= len(self._truth):
@@ -247,9 +293,10 @@ class StreamPlayer:
             elif not self.finished:
                 self.finished = True
                 self.stop()
+                joints = (f', {self.published[2]} JointState' if self._pub_joints else '')
                 self.node.get_logger().info(
-                    f'end of data: published {self.published[0]} gyro and '
-                    f'{self.published[1]} torque messages')
+                    f'end of data: published {self.published[0]} gyro, '
+                    f'{self.published[1]} torque{joints} messages')
                 if self._on_finish is not None:
                     self._on_finish()
 
@@ -322,16 +369,24 @@ class PlaybackNode(Node):
         """Node-specific validation; '' when valid."""
         return ''
 
-    def make_player(self, t_gyro: np.ndarray, omega: np.ndarray, t_torque: np.ndarray,
-                    torque: np.ndarray, frame_id: str,
-                    truth: list[tuple[float, np.ndarray]]) -> StreamPlayer:
-        """Create the player from the parameters and arm the start gate."""
+    def make_player(self, t_gyro: np.ndarray, omega: np.ndarray, t_torque: np.ndarray | None,
+                    torque: np.ndarray | None, frame_id: str,
+                    truth: list[tuple[float, np.ndarray]], joint_names: Sequence[str] = (),
+                    t_joint: np.ndarray | None = None,
+                    joint_speed: np.ndarray | None = None) -> StreamPlayer:
+        """Create the player from the parameters and arm the start gate.
+
+        ``t_torque``/``torque`` None: no torque topic; ``joint_names`` with ``t_joint`` (K,)
+        [s] and ``joint_speed`` (K, n) [rad/s]: a ``joint_states`` topic (see
+        :class:`StreamPlayer`).
+        """
         self.player = StreamPlayer(
             self, t_gyro, omega, t_torque, torque, frame_id,
             omega_msg_type=self.param('omega_msg_type'), rate=self.param('rate'),
             loop=self.param('loop'), tick=self.param('tick'), truth=truth,
             qos_depth=self.param('qos_depth'), on_finish=self._finished,
-            publish_clock=self.param('publish_clock'))
+            publish_clock=self.param('publish_clock'), joint_names=joint_names,
+            t_joint=t_joint, joint_speed=joint_speed)
         self._gate = self.create_timer(0.05, self._try_start,
                                        clock=Clock(clock_type=ClockType.STEADY_TIME))
         return self.player
@@ -339,17 +394,17 @@ class PlaybackNode(Node):
     def _try_start(self) -> None:
         assert self.player is not None
         want = self.param('wait_for_subscribers')
-        matched = min(self.player.gyro_publisher.get_subscription_count(),
-                      self.player.torque_publisher.get_subscription_count())
+        pubs = self.player.publishers
+        matched = min(p.get_subscription_count() for p in pubs)
         waited = time.monotonic() - self._created
         timeout = self.param('wait_timeout')
         if matched < want:
-            # discovery is per topic: wait until both streams are matched
+            # discovery is per topic: wait until every stream is matched
             if not self._waiting_logged:
                 self._waiting_logged = True
                 self.get_logger().info(
-                    f'waiting for {want} subscriber(s) on {self.player.gyro_publisher.topic_name}'
-                    f' and {self.player.torque_publisher.topic_name} (wait_for_subscribers; '
+                    f'waiting for {want} subscriber(s) on '
+                    + ' and '.join(p.topic_name for p in pubs) + ' (wait_for_subscribers; '
                     + (f'at most {timeout:g} s)' if timeout > 0 else 'no timeout)'))
             if timeout <= 0 or waited < timeout:
                 return

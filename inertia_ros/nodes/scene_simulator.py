@@ -1,11 +1,17 @@
-"""``scene_simulator``: publishes a simulated scene's gyro and torque streams (ROS 2 Jazzy).
+"""``scene_simulator``: publishes a simulated scene's gyro, torque and wheel/rotor speed streams
+(ROS 2 Jazzy).
 
 The scene (YAML, docs/SCENES.md) is simulated once at start-up by the core
 (:func:`inertia_ros.core.simulation.simulate`); the node then plays the streams back on a
 steady-clock timer, in real time or faster/slower by ``rate``:
 
 ``imu``  (sensor_msgs/Imu; or ``omega``, geometry_msgs/Vector3Stamped, by parameter)
-``torque``  (geometry_msgs/WrenchStamped, torque part) — both with sensor-data QoS
+``torque``  (geometry_msgs/WrenchStamped, torque part); not published by a scene with wheels
+            or rotors and no ``torque`` components (run the estimator with
+            ``torque_topic:=none`` and ``wheels_file``/``rotors_file``)
+``joint_states``  (sensor_msgs/JointState) for a scene with ``wheels`` or ``rotors``: the
+            measured wheel/rotor speeds [rad/s] in ``velocity``, joints named as in the scene
+            — all with sensor-data QoS
 ``~/truth``  (geometry_msgs/InertiaStamped, transient local): the true tensor at start and
              again at each scheduled inertia change
 
@@ -46,10 +52,20 @@ class SceneSimulatorNode(PlaybackNode):
         sim = simulate(scene, seed=None if seed < 0 else int(seed))
         self.sim = sim
         truth = [(0.0, sim.inertia)] + [(float(t), i) for t, i in sim.inertia_changes]
-        self.make_player(sim.t_gyro, sim.omega, sim.t_torque, sim.torque, sim.frame_id, truth)
+        joints: dict[str, Any] = {}
+        if sim.t_wheel is not None and scene.wheels is not None:
+            joints = {'joint_names': [w.joint for w in scene.wheels.wheels],
+                      't_joint': sim.t_wheel, 'joint_speed': sim.wheel_speed}
+        # an actuator scene without torque components has no torque sensor to speak of
+        torque_free = bool(joints) and not scene.torque
+        self.make_player(sim.t_gyro, sim.omega, None if torque_free else sim.t_torque,
+                         None if torque_free else sim.torque, sim.frame_id, truth, **joints)
+        torque = 'no torque' if torque_free else f'{sim.t_torque.size} torque'
+        speeds = (f' and {sim.t_wheel.size} JointState ({len(joints["joint_names"])} joints)'
+                  if joints else '')
         self.get_logger().info(
-            f'scene {scene.name!r} from {path}: {sim.t_gyro.size} gyro and '
-            f'{sim.t_torque.size} torque samples over {scene.duration:g} s, seed {sim.seed}')
+            f'scene {scene.name!r} from {path}: {sim.t_gyro.size} gyro, {torque}{speeds} '
+            f'samples over {scene.duration:g} s, seed {sim.seed}')
 
 
 def main(args: list[str] | None = None) -> None:
