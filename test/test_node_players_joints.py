@@ -19,10 +19,10 @@ from conftest import ROOT
 
 rclpy = pytest.importorskip('rclpy')
 
+from geometry_msgs.msg import WrenchStamped  # noqa: E402
 from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 from rclpy.node import Node  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
-from geometry_msgs.msg import WrenchStamped  # noqa: E402
 from sensor_msgs.msg import Imu, JointState  # noqa: E402
 from test_wheels import THETA_IDX, scene_dict  # noqa: E402
 
