@@ -207,3 +207,20 @@ def test_bag_player_wheels_log_live(context):
     finally:
         for n in (bag_node, est_node, listener.node):
             n.destroy_node()
+
+
+def test_launch_actuator_arguments_default_to_the_parameter_file():
+    """wheels_file, rotors_file and torque_topic are launch arguments of all three launch
+    files, passed down to the estimator; their defaults are config/inertia_estimator.yaml's,
+    so a launch without them behaves as before."""
+    import xml.etree.ElementTree as ET
+    cfg = yaml.safe_load((ROOT / 'config' / 'inertia_estimator.yaml').read_text())
+    defaults = cfg['inertia_estimator']['ros__parameters']
+    for name in ('estimator', 'sim', 'replay'):
+        root = ET.parse(ROOT / 'launch' / f'{name}.launch.xml').getroot()
+        args = {a.get('name'): a.get('default') for a in root.findall('arg')}
+        for key in ('wheels_file', 'rotors_file', 'torque_topic'):
+            assert args[key] == defaults[key], (name, key)
+        if name != 'estimator':
+            passed = {a.get('name'): a.get('value') for a in root.find('include').iter('arg')}
+            assert passed['wheels_file'] == '$(var wheels_file)', name
