@@ -169,7 +169,8 @@ class StreamPlayer:
         self.clock_ns: int | None = None  # last time published on /clock [ns]
         self.publish_clock = publish_clock
         self.epoch_ns = 0
-        self.published = [0, 0, 0]  # gyro, torque, JointState messages
+        self.published = [0, 0]  # gyro, torque messages
+        self.published_joints = 0  # JointState messages
         self.loops = 0
         self.finished = False
         self._timer = None
@@ -281,6 +282,8 @@ class StreamPlayer:
             else:
                 self._pub_joints.publish(messages.joint_state_msg(
                     stamp, self.joint_names, self._vals[2][i]))
+                self.published_joints += 1
+                continue
             self.published[kind] += 1
         self._next = end
         if end >= len(self._kinds) and self._next_truth >= len(self._truth):
@@ -293,7 +296,7 @@ class StreamPlayer:
             elif not self.finished:
                 self.finished = True
                 self.stop()
-                joints = (f', {self.published[2]} JointState' if self._pub_joints else '')
+                joints = (f', {self.published_joints} JointState' if self._pub_joints else '')
                 self.node.get_logger().info(
                     f'end of data: published {self.published[0]} gyro, '
                     f'{self.published[1]} torque{joints} messages')
