@@ -175,7 +175,7 @@ def test_scene_simulator_quadrotor_publishes_rotor_speeds(context):
         end = time.monotonic() + 1.5
         while time.monotonic() < end:
             exe.spin_once(timeout_sec=0.02)
-        assert p.published == [0, 0] and p.published_joints == 0  # imu matched, joint_states not: still waiting
+        assert p.published == [0, 0] and p.published_joints == 0  # joint_states unmatched: waits
         exe.shutdown()
         imu_only.destroy_node()
     finally:
