@@ -112,12 +112,12 @@ class BagPlayerNode(PlaybackNode):
                       'joint_speed': js[3]}
         self.make_player(log.omega.t, log.omega.values, log.torque.t, log.torque.values,
                          log.omega.frame_id, list(log.truth), **joints)
-        speeds = (f' and {js[2].size} from {js[0]} (JointState, joints {js[1]})'
-                  if js is not None else '')
+        streams = f'{log.torque.t.size} from {log.torque.topic}'
+        if js is not None:
+            streams += f' and {js[2].size} from {js[0]} (JointState, joints {js[1]})'
         self.get_logger().info(
-            f'{path}: {log.omega.t.size} samples from {log.omega.topic}, '
-            f'{log.torque.t.size} from {log.torque.topic}{speeds} '
-            f'(frame {log.omega.frame_id!r})')
+            f'{path}: {log.omega.t.size} samples from {log.omega.topic}'
+            f'{" and " if js is None else ", "}{streams} (frame {log.omega.frame_id!r})')
 
     def start_epoch_ns(self) -> int:
         """Recorded epoch with ``original_stamps``, else the node clock now [ns]."""

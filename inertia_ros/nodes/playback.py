@@ -296,10 +296,11 @@ class StreamPlayer:
             elif not self.finished:
                 self.finished = True
                 self.stop()
-                joints = (f', {self.published_joints} JointState' if self._pub_joints else '')
-                self.node.get_logger().info(
-                    f'end of data: published {self.published[0]} gyro, '
-                    f'{self.published[1]} torque{joints} messages')
+                counts = (f'{self.published[0]} gyro and {self.published[1]} torque'
+                          if self._pub_joints is None else
+                          f'{self.published[0]} gyro, {self.published[1]} torque and '
+                          f'{self.published_joints} JointState')
+                self.node.get_logger().info(f'end of data: published {counts} messages')
                 if self._on_finish is not None:
                     self._on_finish()
 

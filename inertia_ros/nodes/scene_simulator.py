@@ -61,11 +61,12 @@ class SceneSimulatorNode(PlaybackNode):
         self.make_player(sim.t_gyro, sim.omega, None if torque_free else sim.t_torque,
                          None if torque_free else sim.torque, sim.frame_id, truth, **joints)
         torque = 'no torque' if torque_free else f'{sim.t_torque.size} torque'
-        speeds = (f' and {sim.t_wheel.size} JointState ({len(joints["joint_names"])} joints)'
-                  if joints else '')
+        counts = (f'{sim.t_gyro.size} gyro and {torque}' if not joints else
+                  f'{sim.t_gyro.size} gyro, {torque} and {sim.t_wheel.size} JointState '
+                  f'({len(joints["joint_names"])} joints)')
         self.get_logger().info(
-            f'scene {scene.name!r} from {path}: {sim.t_gyro.size} gyro, {torque}{speeds} '
-            f'samples over {scene.duration:g} s, seed {sim.seed}')
+            f'scene {scene.name!r} from {path}: {counts} samples over {scene.duration:g} s, '
+            f'seed {sim.seed}')
 
 
 def main(args: list[str] | None = None) -> None:
