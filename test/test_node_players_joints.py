@@ -149,6 +149,8 @@ def test_scene_simulator_wheels_live(context, tmp_path):
         assert est.status == 'ok', est.diagnostics.get('reason')
         z = (est.theta - sim.inertia[THETA_IDX]) / est.theta_std
         err = np.linalg.norm(est.inertia - sim.inertia) / np.linalg.norm(sim.inertia)
+        print(f'scene_simulator wheels: {sent} JointState sent, {len(listener.stamps)} '
+              f'received; error {err:.4f}, max |z| {np.max(np.abs(z)):.2f}')
         assert np.all(np.abs(z) < 3) and err < 0.03, (z, err)
     finally:
         for n in (sim_node, est_node, listener.node):
@@ -203,6 +205,8 @@ def test_bag_player_wheels_log_live(context):
         assert est.status == 'ok', est.diagnostics.get('reason')
         z = (est.theta - truth[THETA_IDX]) / est.theta_std
         err = np.linalg.norm(est.inertia - truth) / np.linalg.norm(truth)
+        print(f'bag_player wheels.mcap: {t_ns.size} JointState sent, {len(listener.stamps)} '
+              f'received; error {err:.4f}, max |z| {np.max(np.abs(z)):.2f}')
         assert np.all(np.abs(z) < 3) and err < 0.02, (z, err)
     finally:
         for n in (bag_node, est_node, listener.node):
