@@ -30,7 +30,8 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ['STAGES', 'build_log', 'run', 'run_stage']
+__all__ = ['LAYOUTS', 'STAGES', 'build_log', 'markdown', 'run', 'run_stage', 'run_whole',
+           'whole_layout']
 
 #: Measured stages, in order.
 STAGES = ('ours_read', 'ours_end_to_end', 'mcap_raw', 'mcap_ros2')
@@ -38,6 +39,8 @@ STAGES = ('ours_read', 'ours_end_to_end', 'mcap_raw', 'mcap_ros2')
 ROOT = Path(__file__).resolve().parents[2]
 #: Tensor of the synthetic log [kg m^2].
 INERTIA = np.array([[0.8, 0.02, -0.01], [0.02, 1.1, 0.03], [-0.01, 0.03, 1.5]])
+#: Uncompressed chunk size [bytes] of rosbag2's default MCAP storage preset.
+CHUNK_SIZE = 768 * 1024
 _FREQ = np.array([[0.11, 0.23], [0.17, 0.31], [0.07, 0.19]])     # [Hz]
 _AMP = np.array([[0.6, 0.3], [0.5, 0.25], [0.7, 0.2]])           # [rad/s]
 
@@ -68,34 +71,38 @@ def _block(tb: float, rng: np.random.Generator, t0_ns: int) -> tuple[Any, ...]:
             ce.encode_wrench_stamped(ns_t, tau_m, 'base_link'))
 
 
-def build_log(path: Path, minutes: float, compression: str, seed: int = 0) -> int:
-    """Write the benchmark log with the ``mcap`` package's writer; return the message count."""
-    from mcap.writer import CompressionType, Writer
+def build_log(path: Path, minutes: float, compression: str, seed: int = 0,
+              chunk_size: int = CHUNK_SIZE) -> int:
+    """Write the benchmark log as a one-file rosbag2 bag; return the message count.
+
+    ``path`` is the ``.mcap`` file, written with :class:`inertia_ros.io.mcap_writer.McapWriter`
+    (the ``ros2 bag record`` layout: ``/imu`` with the sensor-data QoS, ``/torque``); its
+    directory also gets the bag's ``metadata.yaml``, so the directory is a rosbag2 bag that
+    ``rosbags`` can open.  ``chunk_size`` [bytes] is the uncompressed chunk target (rosbag2's
+    default storage preset: 768 KiB, zstd).
+    """
+    import yaml
 
     from inertia_ros.io import cdr_encode as ce
+    from inertia_ros.io.mcap_writer import McapWriter
 
     rng = np.random.default_rng(seed)
-    comp = {'zstd': CompressionType.ZSTD, 'none': CompressionType.NONE,
-            'lz4': CompressionType.LZ4}[compression]
     n = 0
-    with open(path, 'wb') as fh:
-        w = Writer(fh, compression=comp, chunk_size=1 << 20)
-        w.start(profile='ros2', library='inertia_ros bench')
-        chans = []
-        for topic, typ in (('/imu', ce.IMU), ('/torque', ce.WRENCH_STAMPED)):
-            sid = w.register_schema(typ, 'ros2msg', ce.schema_text(typ).encode())
-            chans.append(w.register_channel(topic, 'cdr', sid))
+    with McapWriter(path, overwrite=True, compression=compression,
+                    chunk_size=chunk_size) as w:
+        w.add_topic('/imu', ce.IMU, qos='sensor_data')
+        w.add_topic('/torque', ce.WRENCH_STAMPED)
         k = 0
         while k * 10.0 < minutes * 60.0:
             ns_g, pay_g, ns_t, pay_t = _block(k * 10.0, rng, 1_704_067_200_000_000_000)
-            allt = np.concatenate((ns_g, ns_t))
-            ng = ns_g.size
-            for i in np.argsort(allt, kind='stable').tolist():
-                c, j, pay = (0, i, pay_g) if i < ng else (1, i - ng, pay_t)
-                w.add_message(chans[c], int(allt[i]), pay[j], int(allt[i]), j)
-            n += allt.size
+            w.write_many('/imu', ns_g, pay_g)
+            w.write_many('/torque', ns_t, pay_t)
+            n += ns_g.size + ns_t.size
             k += 1
-        w.finish()
+    assert w.bag_metadata is not None
+    info = yaml.safe_load(w.bag_metadata)
+    (path.parent / 'metadata.yaml').write_text(
+        yaml.safe_dump({'rosbag2_bagfile_information': info}, sort_keys=False))
     return n
 
 
@@ -176,7 +183,8 @@ def _print_stage(r: dict[str, Any]) -> None:
 
 def run(minutes: float = 60.0, compression: str = 'zstd', skip_slow: bool = False,
         repeat: int = 1, json_path: Path | None = None,
-        blas_threads: int | None = None) -> int:
+        blas_threads: int | None = None, whole: bool = False, peer_repeat: int = 5,
+        md_path: Path | None = None) -> int:
     """Build the log, run the stages, print a table (and optionally write JSON); return 0.
 
     Parameters
@@ -193,7 +201,17 @@ def run(minutes: float = 60.0, compression: str = 'zstd', skip_slow: bool = Fals
         Also write the results here.
     blas_threads : int, optional
         ``OPENBLAS/OMP/MKL_NUM_THREADS`` of the stages (default: inherited).
+    whole : bool
+        Run :func:`run_whole` instead (both layouts, whole processes; ``compression`` is
+        then ignored, ``skip_slow`` leaves out the peers).
+    peer_repeat : int
+        ``whole``: runs per peer reader.
+    md_path : Path, optional
+        ``whole``: write the BENCHMARKS.md section here.
     """
+    if whole:
+        return run_whole(minutes, repeat, not skip_slow, peer_repeat, json_path, md_path,
+                         blas_threads)
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / 'bench.mcap'
         t = time.perf_counter()
@@ -216,4 +234,240 @@ def run(minutes: float = 60.0, compression: str = 'zstd', skip_slow: bool = Fals
                                          'compression': compression,
                                          'blas_threads': blas_threads, 'repeat': repeat,
                                          'results': results}, indent=2))
+    return 0
+
+
+# --------------------------------------------------------------------------------------------
+# Whole process: ``python -m inertia_ros estimate LOG --format json`` from exec to exit
+
+#: Layouts of the one-hour log measured by :func:`run_whole`: (name, chunk compression).
+LAYOUTS = (('uncompressed', 'none'), ('zstd', 'zstd'))
+
+#: Target of issue 18 item 6 [messages/s, whole process].
+TARGET_MSG_PER_S = 1_000_000
+
+_PHASE_CODE = r'''
+import json, sys, time
+t0 = time.perf_counter()
+sys.path.insert(0, {root!r})
+from inertia_ros.cli import estimate as cli_estimate
+from inertia_ros.cli.report import build_report, numerical_warnings
+from inertia_ros.core.estimation import estimate
+from inertia_ros.io.logs import read_log
+t1 = time.perf_counter()
+with numerical_warnings() as found:
+    log = read_log({path!r})
+    t2 = time.perf_counter()
+    est = estimate(log.omega.t, log.omega.values, log.torque.t, log.torque.values)
+    t3 = time.perf_counter()
+text = json.dumps(build_report(est, log, 0.0, 'auto', list(found)), indent=2, allow_nan=False)
+t4 = time.perf_counter()
+print(json.dumps(dict(imports=t1 - t0, read=t2 - t1, estimate=t3 - t2, report=t4 - t3,
+                      messages=int(log.omega.counts.received + log.torque.counts.received))))
+'''
+
+_PEER_CODE = r'''
+import json, sys, time
+from pathlib import Path
+t0 = time.perf_counter()
+import numpy as np
+peer, path = {peer!r}, Path({path!r})
+n = 0
+cols = {{'/imu': ([], [], [], []), '/torque': ([], [], [], [])}}
+if peer == 'mcap_ros2':
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
+    with open(path, 'rb') as f:
+        for _, ch, m, msg in make_reader(
+                f, decoder_factories=[DecoderFactory()]).iter_decoded_messages():
+            v = msg.angular_velocity if ch.topic == '/imu' else msg.wrench.torque
+            c = cols[ch.topic]
+            c[0].append(msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec)
+            c[1].append(v.x); c[2].append(v.y); c[3].append(v.z)
+            n += 1
+else:
+    from rosbags.highlevel import AnyReader
+    from rosbags.typesys import Stores, get_typestore
+    with AnyReader([path.parent], default_typestore=get_typestore(Stores.ROS2_JAZZY)) as r:
+        for conn, _, raw in r.messages():
+            msg = r.deserialize(raw, conn.msgtype)
+            v = msg.angular_velocity if conn.topic == '/imu' else msg.wrench.torque
+            c = cols[conn.topic]
+            c[0].append(msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec)
+            c[1].append(v.x); c[2].append(v.y); c[3].append(v.z)
+            n += 1
+arrays = {{k: (np.array(c[0], np.int64), np.column_stack(c[1:])) for k, c in cols.items()}}
+print(json.dumps(dict(messages=n, decode=time.perf_counter() - t0)))
+'''
+
+
+def _env(blas_threads: int | None) -> dict[str, str]:
+    """The environment of the measured processes: this source tree first on the path."""
+    env = dict(os.environ)
+    env['PYTHONPATH'] = os.pathsep.join(p for p in (str(ROOT), env.get('PYTHONPATH')) if p)
+    if blas_threads is not None:
+        for var in ('OPENBLAS_NUM_THREADS', 'OMP_NUM_THREADS', 'MKL_NUM_THREADS'):
+            env[var] = str(blas_threads)
+    return env
+
+
+def _timed(cmd: list[str], env: dict[str, str]) -> tuple[float, str]:
+    """Wall time [s] of one process from exec to exit, and its stdout; raises on failure."""
+    t = time.perf_counter()
+    proc = subprocess.run(cmd, capture_output=True, text=True, check=False, env=env)
+    dt = time.perf_counter() - t
+    if proc.returncode != 0:
+        raise RuntimeError(f'{" ".join(cmd[:4])}...: exit {proc.returncode}: '
+                           f'{(proc.stderr.strip().splitlines() or [""])[-1]}')
+    return dt, proc.stdout
+
+
+def _peer_available(peer: str) -> str | None:
+    """None when the peer reader is importable, else the note saying how to install it."""
+    import importlib.util
+
+    mod = {'mcap_ros2': 'mcap_ros2', 'rosbags': 'rosbags'}[peer]
+    if importlib.util.find_spec(mod) is None:
+        return f'{peer}: not installed (pip install -r requirements-bench.txt); skipped'
+    return None
+
+
+def whole_layout(path: Path, repeat: int = 5, peers: bool = True, peer_repeat: int = 5,
+                 blas_threads: int | None = None) -> dict[str, Any]:
+    """Measure one log: the estimate command as a process, its phases, and the peer readers.
+
+    Parameters
+    ----------
+    path : Path
+        The ``.mcap`` file (its directory a rosbag2 bag, as :func:`build_log` writes it).
+    repeat : int
+        Counted runs of the command and of the phase script (one warm-up run first).
+    peers : bool
+        Also time ``mcap_ros2`` and ``rosbags`` decoding the same file (skipped with a note
+        when not installed).
+    peer_repeat : int
+        Counted runs per peer (each decodes all 900k messages in Python: ~20 s).
+    blas_threads : int, optional
+        BLAS threads of the measured processes.
+
+    Returns
+    -------
+    dict
+        ``whole_s`` (list of wall times [s]), ``whole_median_s``, ``msg_per_s`` (median),
+        ``phases`` (median seconds per phase: interpreter, imports, read, estimate, report),
+        ``peers`` (per peer: list of seconds, median, msg/s) and ``notes``.
+    """
+    env = _env(blas_threads)
+    cmd = [sys.executable, '-m', 'inertia_ros', 'estimate', str(path), '--format', 'json',
+           '--no-progress']
+    _timed(cmd, env)                                   # warm-up: page cache, .pyc files
+    whole: list[float] = []
+    phases: list[dict[str, float]] = []
+    report = ''
+    for _ in range(repeat):
+        dt, report = _timed(cmd, env)
+        whole.append(dt)
+        ph_cmd = [sys.executable, '-c', _PHASE_CODE.format(root=str(ROOT), path=str(path))]
+        ph_dt, out = _timed(ph_cmd, env)
+        ph = json.loads(out.strip().splitlines()[-1])
+        ph['interpreter'] = ph_dt - sum(ph[k] for k in ('imports', 'read', 'estimate', 'report'))
+        phases.append(ph)
+    n = int(phases[0]['messages'])
+    med = float(np.median(whole))
+    res: dict[str, Any] = {
+        'file': path.name, 'bytes': path.stat().st_size, 'messages': n, 'whole_s': whole,
+        'whole_median_s': med, 'msg_per_s': n / med,
+        'phases': {k: float(np.median([p[k] for p in phases]))
+                   for k in ('interpreter', 'imports', 'read', 'estimate', 'report')},
+        'status': json.loads(report)['status'], 'peers': {}, 'notes': []}
+    for peer in (('mcap_ros2', 'rosbags') if peers else ()):
+        note = _peer_available(peer)
+        if note is not None:
+            res['notes'].append(note)
+            continue
+        code = _PEER_CODE.format(peer=peer, path=str(path))
+        times = []
+        for _ in range(peer_repeat):
+            dt, out = _timed([sys.executable, '-c', code], env)
+            got = json.loads(out.strip().splitlines()[-1])
+            if got['messages'] != n:
+                raise RuntimeError(f'{peer}: decoded {got["messages"]} messages, expected {n}')
+            times.append(dt)
+        pm = float(np.median(times))
+        res['peers'][peer] = {'whole_s': times, 'whole_median_s': pm, 'msg_per_s': n / pm}
+    return res
+
+
+def markdown(results: dict[str, dict[str, Any]], command: str, repeat: int,
+             peer_repeat: int) -> str:
+    """The BENCHMARKS.md section of a :func:`run_whole` result (one entry per layout)."""
+    lines = ['## Offline single log: whole process', '',
+             f'Rerun: `{command}`. The one-hour log: 720k `sensor_msgs/msg/Imu` (200 Hz) + 180k '
+             '`geometry_msgs/msg/WrenchStamped` (50 Hz) = 900k messages in one rosbag2 MCAP '
+             'file, written uncompressed and zstd-chunked with 768 KiB chunks (rosbag2\'s '
+             'default storage preset). **Whole process** = `python -m inertia_ros estimate LOG '
+             '--format json --no-progress` from exec to exit, wall clock, median of '
+             f'{repeat} runs after one warm-up; target >= {TARGET_MSG_PER_S:,} msg/s '
+             '(< 0.9 s). Phases: the same work in a fresh interpreter with timers between the '
+             'steps (median of the same runs; interpreter = its process time less the timed '
+             f'steps). Peers (median of {peer_repeat} whole processes): decoding every message '
+             'of the same file into time + xyz arrays, no estimation: `mcap_ros2` '
+             '(`make_reader(..., decoder_factories=[DecoderFactory()]).iter_decoded_messages()`) '
+             'and `rosbags` (`AnyReader` on the bag directory + `deserialize`).', '',
+             '| layout | file | whole process (median) | msg/s | min-max | interpreter | '
+             'imports | read + decode | estimate | report | mcap_ros2 | rosbags |',
+             '|---|---|---|---|---|---|---|---|---|---|---|---|']
+    for name, r in results.items():
+        ph = r['phases']
+
+        def peer(p: str, r: dict[str, Any] = r) -> str:
+            q = r['peers'].get(p)
+            return ('skipped' if q is None else
+                    f'{q["whole_median_s"]:.1f} s ({q["msg_per_s"] / 1e3:,.0f}k msg/s)')
+
+        lines.append(
+            f'| {name} | {r["bytes"] / 1e6:.0f} MB | {r["whole_median_s"]:.2f} s | '
+            f'{r["msg_per_s"] / 1e3:,.0f}k | {min(r["whole_s"]):.2f}-{max(r["whole_s"]):.2f} s | '
+            f'{ph["interpreter"]:.2f} s | {ph["imports"]:.2f} s | {ph["read"]:.2f} s | '
+            f'{ph["estimate"]:.2f} s | {ph["report"]:.2f} s | {peer("mcap_ros2")} | '
+            f'{peer("rosbags")} |')
+    notes = sorted({n for r in results.values() for n in r['notes']})
+    lines += [''] + [f'- {n}' for n in notes]
+    return '\n'.join(lines).rstrip('\n') + '\n'
+
+
+def run_whole(minutes: float = 60.0, repeat: int = 5, peers: bool = True,
+              peer_repeat: int = 5, json_path: Path | None = None,
+              md_path: Path | None = None, blas_threads: int | None = None) -> int:
+    """``bench offline --whole``: both layouts, whole process, phases and peers; return 0.
+
+    Prints one table line per layout and writes the JSON results and the Markdown section
+    when asked (``md_path``).
+    """
+    results: dict[str, dict[str, Any]] = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        for name, comp in LAYOUTS:
+            bag = Path(tmp) / name
+            bag.mkdir()
+            path = bag / f'{name}_0.mcap'
+            n = build_log(path, minutes, comp)
+            print(f'built {name}: {n} messages, {path.stat().st_size / 1e6:.0f} MB', flush=True)
+            r = whole_layout(path, repeat, peers, peer_repeat, blas_threads)
+            results[name] = r
+            ph = ', '.join(f'{k} {v:.2f} s' for k, v in r['phases'].items())
+            peer_txt = ''.join(f'; {p} {q["whole_median_s"]:.1f} s ({q["msg_per_s"]:,.0f} msg/s)'
+                               for p, q in r['peers'].items())
+            print(f'{name:13s} whole process {r["whole_median_s"]:.2f} s = '
+                  f'{r["msg_per_s"]:,.0f} msg/s (median of {repeat}; {ph}){peer_txt}',
+                  flush=True)
+            for note in r['notes']:
+                print(f'  note: {note}', flush=True)
+    command = (f'python -m inertia_ros bench offline --whole --minutes {minutes:g} '
+               f'--repeat {repeat} --peer-repeat {peer_repeat}'
+               + ('' if peers else ' --skip-slow'))
+    if json_path is not None:
+        json_path.write_text(json.dumps({'command': command, 'minutes': minutes,
+                                         'results': results}, indent=2))
+    if md_path is not None:
+        md_path.write_text(markdown(results, command, repeat, peer_repeat))
     return 0

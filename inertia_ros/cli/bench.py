@@ -12,7 +12,7 @@ KIND runs one focused benchmark and prints its figures:
 ``startup``      the command line's start-up as whole processes (:mod:`~inertia_ros.bench.startup`)
 ``estimators``   batch speed on a 1M-sample record, recursive cost, accuracy per method
 ``recursive``    the recursive estimator as the node drives it (10 ms blocks, 10 Hz estimates)
-``offline``      read/decode/estimate of a long MCAP log against mcap and mcap_ros2
+``offline``      read/decode/estimate of a long MCAP log against mcap, mcap_ros2, rosbags
 ``node``         the estimator node as a process fed at 1 kHz + 1 kHz (needs ROS 2)
 ``simulate``     simulate + write a 60 s, 200 Hz scene (target < 2 s)
 ``honesty``      calibration of sigma and status on an independent simulator, every path
@@ -75,6 +75,14 @@ def _add_kinds(kinds: Any) -> None:
     k.add_argument('--json', type=Path, metavar='FILE', help='also write the results here')
     k.add_argument('--blas-threads', type=bounded(1, 256, 'threads', integer=True),
                    default=None, help='OPENBLAS/OMP_NUM_THREADS of the stages (inherited)')
+    k.add_argument('--whole', action='store_true',
+                   help='time "estimate LOG --format json" as whole processes on the log '
+                        'uncompressed and zstd-chunked (768 KiB), with its phases and the '
+                        'mcap_ros2 and rosbags readers (median of --repeat runs)')
+    k.add_argument('--peer-repeat', type=_REPEAT, default=5,
+                   help='--whole: runs per peer reader, 1-100 (5)')
+    k.add_argument('--md', type=Path, metavar='FILE.md',
+                   help='--whole: also write the BENCHMARKS.md section here')
     k = kinds.add_parser('node', help='the estimator node fed at 1 kHz + 1 kHz (ROS 2)')
     k.add_argument('--rate', type=_RATE, default=1000.0, help='gyro Hz, 1-20000 (1000)')
     k.add_argument('--torque-rate', type=_RATE, default=None,
@@ -150,7 +158,8 @@ _KINDS: dict[str, tuple[str, dict[str, str]]] = {
                                 'profile': 'profile'}),
     'offline': ('offline', {'minutes': 'minutes', 'compression': 'compression',
                             'skip_slow': 'skip_slow', 'repeat': 'repeat', 'json': 'json_path',
-                            'blas_threads': 'blas_threads'}),
+                            'blas_threads': 'blas_threads', 'whole': 'whole',
+                            'peer_repeat': 'peer_repeat', 'md': 'md_path'}),
     'node': ('node', {'rate': 'rate', 'duration': 'duration', 'publish_rate': 'publish_rate',
                       'method': 'method', 'seed': 'seed', 'torque_rate': 'torque_rate'}),
     'simulate': ('simulate', {'scene': 'scene_path', 'repeat': 'repeat'}),
