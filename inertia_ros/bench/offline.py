@@ -301,9 +301,17 @@ print(json.dumps(dict(messages=n, decode=time.perf_counter() - t0)))
 '''
 
 
-def _env(blas_threads: int | None) -> dict[str, str]:
-    """The environment of the measured processes: this source tree first on the path."""
+def _env(blas_threads: int | None, pycache: str | None = None) -> dict[str, str]:
+    """The environment of the measured processes: this source tree first on the path.
+
+    With ``pycache`` (a directory) the processes keep their bytecode there, as an installed
+    package has it (``PYTHONDONTWRITEBYTECODE`` would make every run compile the package's
+    sources again, ~0.2 s; the source tree is never written).
+    """
     env = dict(os.environ)
+    if pycache is not None:
+        env.pop('PYTHONDONTWRITEBYTECODE', None)
+        env['PYTHONPYCACHEPREFIX'] = pycache
     env['PYTHONPATH'] = os.pathsep.join(p for p in (str(ROOT), env.get('PYTHONPATH')) if p)
     if blas_threads is not None:
         for var in ('OPENBLAS_NUM_THREADS', 'OMP_NUM_THREADS', 'MKL_NUM_THREADS'):
@@ -333,7 +341,8 @@ def _peer_available(peer: str) -> str | None:
 
 
 def whole_layout(path: Path, repeat: int = 5, peers: bool = True, peer_repeat: int = 5,
-                 blas_threads: int | None = None) -> dict[str, Any]:
+                 blas_threads: int | None = None, pycache: Path | None = None
+                 ) -> dict[str, Any]:
     """Measure one log: the estimate command as a process, its phases, and the peer readers.
 
     Parameters
@@ -349,6 +358,8 @@ def whole_layout(path: Path, repeat: int = 5, peers: bool = True, peer_repeat: i
         Counted runs per peer (each decodes all 900k messages in Python: ~20 s).
     blas_threads : int, optional
         BLAS threads of the measured processes.
+    pycache : Path, optional
+        Bytecode directory of the measured processes (default: a temporary one).
 
     Returns
     -------
@@ -357,7 +368,10 @@ def whole_layout(path: Path, repeat: int = 5, peers: bool = True, peer_repeat: i
         ``phases`` (median seconds per phase: interpreter, imports, read, estimate, report),
         ``peers`` (per peer: list of seconds, median, msg/s) and ``notes``.
     """
-    env = _env(blas_threads)
+    if pycache is None:
+        with tempfile.TemporaryDirectory() as tmp:
+            return whole_layout(path, repeat, peers, peer_repeat, blas_threads, Path(tmp))
+    env = _env(blas_threads, str(pycache))
     cmd = [sys.executable, '-m', 'inertia_ros', 'estimate', str(path), '--format', 'json',
            '--no-progress']
     _timed(cmd, env)                                   # warm-up: page cache, .pyc files
@@ -452,7 +466,8 @@ def run_whole(minutes: float = 60.0, repeat: int = 5, peers: bool = True,
             path = bag / f'{name}_0.mcap'
             n = build_log(path, minutes, comp)
             print(f'built {name}: {n} messages, {path.stat().st_size / 1e6:.0f} MB', flush=True)
-            r = whole_layout(path, repeat, peers, peer_repeat, blas_threads)
+            r = whole_layout(path, repeat, peers, peer_repeat, blas_threads,
+                             Path(tmp) / 'pycache')
             results[name] = r
             ph = ', '.join(f'{k} {v:.2f} s' for k, v in r['phases'].items())
             peer_txt = ''.join(f'; {p} {q["whole_median_s"]:.1f} s ({q["msg_per_s"]:,.0f} msg/s)'

@@ -186,11 +186,20 @@ class DecodedBatch:
 
 
 def _gather(buf: np.ndarray, starts: np.ndarray, offset: int, nbytes: int) -> np.ndarray:
-    """Bytes ``buf[s + offset : s + offset + nbytes]`` for every s, as a (n, nbytes) array."""
-    if nbytes >= 8:  # rows of a sliding-window view: one index per message, not per byte
+    """Bytes ``buf[s + offset : s + offset + nbytes]`` for every s, as a (n, nbytes) array.
+
+    ``buf`` is seen as overlapping ``nbytes``-byte void items, one starting at every byte, so
+    the gather copies one item per message (a memcpy each), not one index per byte; every
+    ``s + offset + nbytes`` must be within ``buf``.
+    """
+    n = starts.shape[0]
+    if nbytes <= 0 or n == 0:
+        return np.zeros((n, max(nbytes, 0)), dtype=np.uint8)
+    if not buf.flags.c_contiguous:
         return sliding_window_view(buf, nbytes)[starts + offset]
-    idx = starts[:, None] + (offset + np.arange(nbytes, dtype=np.int64))
-    return buf[idx]
+    items = np.ndarray(shape=(buf.shape[0] - nbytes + 1,), dtype=np.dtype(f'V{nbytes}'),
+                       buffer=buf, strides=(1,))
+    return items[starts + offset].view(np.uint8).reshape(n, nbytes)
 
 
 def decode_batch(msg_type: str, buf: np.ndarray, starts: np.ndarray, lengths: np.ndarray,

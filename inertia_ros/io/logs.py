@@ -272,9 +272,12 @@ class _Raw:
         if not self.stamp:
             z = np.zeros(0, np.int64)
             return z, z.astype(np.int32), np.zeros((0, 3)), z.astype(bool), z, z
-        order = np.argsort(np.concatenate(self.ordinal), kind='stable')
-        return tuple(np.concatenate(a)[order] for a in
-                     (self.stamp, self.frame, self.values, self.ok, self.ordinal, self.seq))
+        ordinal = np.concatenate(self.ordinal)
+        parts = (self.stamp, self.frame, self.values, self.ok, self.ordinal, self.seq)
+        if bool(np.all(ordinal[1:] > ordinal[:-1])):     # the usual case: already in order
+            return tuple(np.concatenate(a) for a in parts)
+        order = np.argsort(ordinal, kind='stable')
+        return tuple(np.concatenate(a)[order] for a in parts)
 
 
 def _bag(path: str | Path) -> BagInfo | None:
@@ -911,10 +914,14 @@ def _arrival(stamp: np.ndarray, keep: np.ndarray, seq: np.ndarray) -> tuple[np.n
     """
     idx = np.flatnonzero(keep)
     if seq.size and idx.size > 1:
-        sq = seq[idx]
-        if sq.any() and np.unique(sq).size == sq.size:
+        sq = seq[idx].astype(np.int64)
+        step = np.diff(sq)
+        if bool(np.all(step > 0)):
+            return idx, False                  # the usual case: arrival order is file order
+        if sq.any():
             order = np.argsort(sq, kind='stable')
-            if np.any(order != np.arange(order.size)):
+            # unique (no two equal after sorting): np.unique's hashing is slow on 1e6 values
+            if bool(np.all(np.diff(sq[order]) != 0)):
                 return idx[order], True
     return idx, False
 

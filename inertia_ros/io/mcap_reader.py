@@ -798,6 +798,9 @@ class McapReader:
 
     #: Unchunked messages are grouped into batches of at most this many messages.
     UNCHUNKED_BATCH = 4096
+    #: Consecutive chunks are joined into one batch per channel up to about this many
+    #: uncompressed bytes (bounded memory; one decode per run of chunks, not per chunk).
+    GROUP_BYTES = 32 << 20
     #: Top-level records are read in blocks of at least this many bytes.
     BLOCK = 1 << 20
 
@@ -1009,15 +1012,30 @@ class McapReader:
                 pending.clear()
                 pend_ord.clear()
 
+        group: list[tuple[np.ndarray, np.ndarray, np.ndarray, int]] = []
+        group_bytes = 0
+
+        def flush_group() -> Iterator[MessageBatch]:
+            nonlocal group_bytes
+            if group:
+                yield from self._group_batches(group, wanted)
+                group.clear()
+                group_bytes = 0
+
         def finish_chunk() -> Iterator[MessageBatch]:
-            nonlocal pending_chunk
+            nonlocal pending_chunk, group_bytes
             if pending_chunk is not None:
                 off, chunk = pending_chunk
                 pending_chunk = None
-                yield from self._chunk_batches(off, chunk, indexes, wanted)
+                got = self._chunk_messages(off, chunk, indexes)
                 indexes.clear()
                 if self.messages_read:
                     self._bytes_per_message = bytes_seen / self.messages_read
+                if got is not None:
+                    group.append(got)
+                    group_bytes += got[0].shape[0]
+                if group_bytes >= self.GROUP_BYTES:
+                    yield from flush_group()
 
         for op, off, body in self._top_level():
             if op == OP_MESSAGE_INDEX:
@@ -1029,6 +1047,8 @@ class McapReader:
                     pass  # the chunk is then scanned record by record
                 continue
             yield from finish_chunk()
+            if op != OP_CHUNK:
+                yield from flush_group()     # batches stay in file order
             if op == OP_MESSAGE:
                 if len(body) < _MSG.size:
                     self.damage.notes.append(
@@ -1062,6 +1082,7 @@ class McapReader:
             else:
                 self._other_record(op, body)
         yield from finish_chunk()
+        yield from flush_group()
         yield from flush_unchunked()
 
     def _other_record(self, op: int, body: bytes) -> None:
@@ -1115,9 +1136,15 @@ class McapReader:
             yield MessageBatch(ch, self.schemas.get(ch.schema_id), buf, starts, lens, log_time,
                                np.asarray([ords[k] for k in ks], dtype=np.int64), seq)
 
-    def _chunk_batches(self, off: int, chunk: Chunk, indexes: dict[int, np.ndarray],
-                       wanted: Callable[[int], bool]) -> Iterator[MessageBatch]:
-        """Decompress one chunk and yield a batch per wanted channel."""
+    def _chunk_messages(self, off: int, chunk: Chunk, indexes: dict[int, np.ndarray]
+                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray, int] | None:
+        """Decompress and check one chunk; locate its messages.
+
+        Returns ``(records, offsets, channel ids, ordinal base)``: the uncompressed records as
+        a uint8 array, each Message record's offset in it and channel id (int64 arrays, file
+        order) and the ordinal of its first message; None for a damaged chunk (counted) or
+        one without messages.
+        """
         n_idx = sum(len(v) for v in indexes.values()) or None
         try:
             raw = decompress(chunk.compression, chunk.records, chunk.uncompressed_size,
@@ -1127,34 +1154,56 @@ class McapReader:
         except McapError as exc:
             self._bad_chunk(off, n_idx, min(chunk.uncompressed_size, len(chunk.records)),
                             str(exc))
-            return
+            return None
         if chunk.uncompressed_crc and zlib.crc32(raw) != chunk.uncompressed_crc:
             self._bad_chunk(off, n_idx, chunk.uncompressed_size,
                             'CRC mismatch')
-            return
+            return None
         arr = np.frombuffer(raw, dtype=np.uint8)
         try:
             offs, chans = self._locate_messages(raw, arr, indexes)
         except (McapError, struct.error, UnicodeDecodeError) as exc:
             self._bad_chunk(off, n_idx, chunk.uncompressed_size,
                             f'bad records ({exc})')
-            return
-        n = offs.shape[0]
+            return None
         base = self.messages_read
-        self.messages_read += n
-        if n == 0:
-            return
-        for ch_id in np.unique(chans).tolist():
+        self.messages_read += offs.shape[0]
+        if offs.shape[0] == 0:
+            return None
+        return arr, offs, chans, base
+
+    def _group_batches(self, group: list[tuple[np.ndarray, np.ndarray, np.ndarray, int]],
+                       wanted: Callable[[int], bool]) -> Iterator[MessageBatch]:
+        """One batch per wanted channel over a run of consecutive chunks.
+
+        The chunks' records are joined into one buffer (one copy), so the per-batch work of
+        the caller (decoding) runs once per run of chunks rather than once per chunk.
+        """
+        if len(group) == 1:
+            arr, offs, chans, base = group[0]
+            ords = base + np.arange(offs.shape[0], dtype=np.int64)
+        else:
+            arr = np.concatenate([g[0] for g in group])
+            shift = np.cumsum([0] + [g[0].shape[0] for g in group[:-1]])
+            offs = np.concatenate([g[1] + int(sh) for g, sh in zip(group, shift, strict=True)])
+            chans = np.concatenate([g[2] for g in group])
+            ords = np.concatenate([g[3] + np.arange(g[1].shape[0], dtype=np.int64)
+                                   for g in group])
+        # channel ids are uint16: a count per id is cheaper than np.unique's hashing
+        for ch_id in np.flatnonzero(np.bincount(chans)).tolist():
             if not wanted(ch_id):
                 continue
             sel = np.flatnonzero(chans == ch_id)
             o = offs[sel]
-            rec_len = _gather_u64(arr, o + 1).astype(np.int64)
-            log_time = _gather_u64(arr, o + 15)
-            seq = sliding_window_view(arr, 4)[o + 11].view('<u4').ravel()
+            head = np.ndarray(shape=(arr.shape[0] - _MSG_HEAD + 1,), buffer=arr,
+                              dtype=np.dtype(f'V{_MSG_HEAD}'), strides=(1,))[o]
+            head = head.view(np.uint8).reshape(-1, _MSG_HEAD)   # (n, 31) record heads
+            rec_len = head[:, 1:9].copy().view('<u8').ravel().astype(np.int64)
+            seq = head[:, 11:15].copy().view('<u4').ravel()
+            log_time = head[:, 15:23].copy().view('<u8').ravel()
             ch = self.channels[ch_id]
             yield MessageBatch(ch, self.schemas.get(ch.schema_id), arr, o + _MSG_HEAD,
-                               rec_len - _MSG.size, log_time, base + sel.astype(np.int64), seq)
+                               rec_len - _MSG.size, log_time, ords[sel], seq)
 
     def _locate_messages(self, raw: bytes, arr: np.ndarray,
                          indexes: dict[int, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
