@@ -14,6 +14,11 @@ stage in a fresh interpreter, so that peak memory (ru_maxrss) belongs to that st
     ``make_reader(..., decoder_factories=[mcap_ros2 DecoderFactory()])
     .iter_decoded_messages()`` (about a minute per hour of log; ``skip_slow`` leaves it out).
 
+``--whole`` (:func:`run_whole`) instead times ``python -m inertia_ros estimate LOG --format
+json`` as whole processes on the log uncompressed and zstd-chunked (768 KiB), its phases
+(interpreter, imports, read, estimate, report) and the ``mcap_ros2`` and ``rosbags`` readers
+decoding the same file, and writes the BENCHMARKS.md section (``--md``).
+
 ``blas_threads=1`` pins BLAS to one thread: on a loaded 2-core machine OpenBLAS's own threads
 can make the estimator's Gram products tens of times slower.
 """
