@@ -38,7 +38,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import linalg
 
 from ..crlb import Dynamics
 from ..tensor import theta_to_matrix
@@ -413,6 +412,7 @@ def _full_pass(pb: _Problem, beta: np.ndarray, d: np.ndarray, r: np.ndarray
     Raises :class:`_PassError` when the tensor, the torque-noise input or the information
     matrix make the pass impossible.
     """
+    from scipy import linalg  # lazily: 0.14 s of start-up the integral path never needs
     M, npar = pb.M, pb.npar
     dyn, iiu = _dynamics(pb, beta, d)
     # sensitivities as [Phi | Psi | S_p]: on delta_j, nu_j and dp
@@ -469,6 +469,7 @@ def _chord_pass(pb: _Problem, lin: _Linear, beta: np.ndarray, d: np.ndarray, r: 
 def _step(pb: _Problem, lin: _Linear, wk: np.ndarray, w1: np.ndarray, r: np.ndarray
           ) -> tuple[np.ndarray, np.ndarray, float]:
     """Gauss-Newton step of the linear model ``lin`` for the residuals of states ``wk, w1``."""
+    from scipy import linalg  # lazily: 0.14 s of start-up the integral path never needs
     M = pb.M
     pz = (lin.Pinv @ (w1 - r[1:])[..., None])[..., 0]           # prior targets (M, 3)
     gz = pb.Y - wk + (lin.Zpsi @ pz[:, None, :, None])[..., 0]   # gyro targets (M, K, 3)
