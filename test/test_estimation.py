@@ -464,9 +464,11 @@ def test_recursive_torque_free_is_scale_unobservable():
 
 def test_recursive_torque_free_ratios_match_batch():
     """Torque-free with gyro noise: recursive ratios and their std match the batch integral
-    method's (values within 1e-5, standard errors within 8 %: the batch covariance carries
+    method's (values within 1e-5, standard errors within 10 %: the batch covariance carries
     the gyroscopic noise walk step by step with its correlation to the white part
-    (homogeneous.walk_grams), the streaming one its mean-rate form; 7 % apart here)."""
+    (homogeneous.walk_grams), the streaming one its mean-rate form, 7 % apart here; and the
+    streaming noise level comes from the 4096 samples up to the latest multiple of 1024, the
+    batch's from the whole record, 1 % apart here)."""
     t_g, w, t_t, tau = add_noise(noise_free('torque_free', duration=30.0), seed=5)
     rec = RecursiveEstimator()
     _interleaved(rec, t_g, w, t_t, tau)
@@ -474,7 +476,7 @@ def test_recursive_torque_free_ratios_match_batch():
     b = estimate(t_g, w, t_t, tau, method='integral')
     assert r.status == b.status == 'scale_unobservable'
     np.testing.assert_allclose(r.ratios, b.ratios, rtol=0, atol=1e-5)
-    np.testing.assert_allclose(r.ratios_std, b.ratios_std, rtol=0.08)
+    np.testing.assert_allclose(r.ratios_std, b.ratios_std, rtol=0.10)
 
 
 def test_recursive_auto_model_and_stalled_torque(nominal20):

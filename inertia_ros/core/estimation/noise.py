@@ -30,6 +30,8 @@ __all__ = ['ISOTROPY_FLOOR', 'STREAM_NOISE_SAMPLES', 'StreamingNoise', 'gyroscop
 ISOTROPY_FLOOR = 0.1
 #: Samples of a stream the online noise estimate looks at (the most recent ones).
 STREAM_NOISE_SAMPLES = 4096
+#: Samples between two noise estimates of a long stream (a quarter of the kept ones).
+STREAM_NOISE_STRIDE = 1024
 
 
 def isotropy_floor(std: np.ndarray) -> np.ndarray:
@@ -89,8 +91,11 @@ class StreamingNoise:
     """White-noise std per axis of a stream fed block by block: :func:`noise_std_from_differences`
     on the most recent ``keep`` samples.
 
-    The estimate is a function of the kept samples only (recomputed when new samples came), so
-    it does not depend on how the stream was cut into blocks or how often it was asked for.
+    The estimate is a function of the stream only, never of how it was cut into blocks or how
+    often it was asked for: until ``stride`` samples it is recomputed on the kept samples when
+    new ones came; after that it is the estimate on the ``keep`` samples ending at the latest
+    multiple of ``stride`` (computed once per ``stride`` samples, in :meth:`add`): a node asking
+    10 times a second at 1 kHz pays for one robust estimate a second, not ten.
 
     Parameters
     ----------
@@ -98,6 +103,9 @@ class StreamingNoise:
         Apply :func:`isotropy_floor` (the gyro stream; not the torque, whose axes may be idle).
     keep : int
         Recent samples kept (default :data:`STREAM_NOISE_SAMPLES`).
+    stride : int
+        Samples between two estimates once the stream is that long (default
+        :data:`STREAM_NOISE_STRIDE`).
 
     Attributes
     ----------
@@ -105,9 +113,11 @@ class StreamingNoise:
         Samples seen so far.
     """
 
-    def __init__(self, floor: bool = True, keep: int = STREAM_NOISE_SAMPLES) -> None:
+    def __init__(self, floor: bool = True, keep: int = STREAM_NOISE_SAMPLES,
+                 stride: int = STREAM_NOISE_STRIDE) -> None:
         self.floor = floor
         self.keep = int(keep)
+        self.stride = int(stride)
         self.count = 0
         self._buf = np.empty((0, 3))
         self._new = 0
@@ -117,9 +127,20 @@ class StreamingNoise:
         """Add consecutive samples (n, 3) of the stream."""
         if len(x) == 0:
             return
-        self._buf = np.concatenate([self._buf, x])[-self.keep:]
-        self.count += len(x)
-        self._new += len(x)
+        buf = np.concatenate([self._buf, x])
+        before, self.count = self.count, self.count + len(x)
+        last = self.count // self.stride * self.stride     # latest multiple of the stride
+        if last >= self.stride and last > before:          # crossed: estimate once, there
+            end = len(buf) - (self.count - last)
+            self._set(buf[max(0, end - self.keep):end])
+            self._new = 0
+        elif last < self.stride:
+            self._new += len(x)
+        self._buf = buf[-self.keep:]
+
+    def _set(self, window: np.ndarray) -> None:
+        est = noise_std_from_differences(window)
+        self._std = isotropy_floor(est) if self.floor else est
 
     def std(self) -> np.ndarray:
         """Noise std per axis (zeros before 6 samples), in the units of the stream.
@@ -129,8 +150,7 @@ class StreamingNoise:
         ndarray, shape (3,)
         """
         if self._new:
-            est = noise_std_from_differences(self._buf)
-            self._std = isotropy_floor(est) if self.floor else est
+            self._set(self._buf)
             self._new = 0
         return self._std
 
