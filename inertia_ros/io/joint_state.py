@@ -7,7 +7,7 @@ fixed-layout vectorised decoder of :mod:`.cdr_decode`.  Wheel speeds are ``veloc
 from __future__ import annotations
 
 import struct
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -16,8 +16,8 @@ import numpy as np
 from .cdr_encode import split_stamp
 from .logs import LogError
 
-__all__ = ['JOINT_STATE', 'decode_joint_state', 'encode_joint_state', 'joint_state_topics',
-           'read_wheel_speeds']
+__all__ = ['JOINT_STATE', 'decode_joint_state', 'encode_joint_state', 'first_joint_names',
+           'joint_messages', 'joint_state_topics', 'read_wheel_speeds']
 
 JOINT_STATE = 'sensor_msgs/msg/JointState'
 
@@ -159,6 +159,41 @@ def joint_state_topics(path: str | Path) -> list[str]:
     return sorted(out)
 
 
+def joint_messages(path: str | Path, topic: str) -> Iterator[tuple[int, list[str], Any]]:
+    """Every decodable JointState message of ``topic`` in a log, in file order.
+
+    Yields
+    ------
+    (t_ns, names, velocity)
+        Header stamp [ns], ``JointState.name`` and ``JointState.velocity`` [rad/s] (possibly
+        shorter than the names); undecodable messages are skipped.
+    """
+    from .logs import log_files
+    from .mcap_reader import McapReader
+    from .msgtypes import normalise_type
+
+    def select(ch: Any, sc: Any) -> bool:
+        return ch.topic == topic and sc is not None and normalise_type(sc.name) == JOINT_STATE
+
+    for f in log_files(path):
+        with McapReader(f) as r:
+            for _sc, _ch, _lt, data in r.iter_messages(select):
+                try:
+                    st, names, _p, vel = decode_joint_state(data)
+                except ValueError:
+                    continue
+                yield st, list(names), vel
+
+
+def first_joint_names(path: str | Path, topic: str) -> list[str] | None:
+    """The names of the first JointState message of ``topic`` with a velocity for every name
+    (None when there is none)."""
+    for _t, names, vel in joint_messages(path, topic):
+        if names and len(vel) == len(names):
+            return names
+    return None
+
+
 def read_wheel_speeds(path: str | Path, joints: Sequence[str], topic: str | None = None,
                       what: str = 'wheels') -> tuple[str, np.ndarray, np.ndarray]:
     """Wheel speeds of the named joints from the JointState messages of a log.
@@ -187,10 +222,6 @@ def read_wheel_speeds(path: str | Path, joints: Sequence[str], topic: str | None
     LogError
         No or several JointState topics, a joint never present, no velocities.
     """
-    from .logs import log_files
-    from .mcap_reader import McapReader
-    from .msgtypes import normalise_type
-
     if topic is None:
         found = joint_state_topics(path)
         if not found:
@@ -203,23 +234,14 @@ def read_wheel_speeds(path: str | Path, joints: Sequence[str], topic: str | None
     stamps: list[int] = []
     rows: list[np.ndarray] = []
     seen: set[str] = set()
-    for f in log_files(path):
-        with McapReader(f) as r:
-            def select(ch: Any, sc: Any) -> bool:
-                return ch.topic == topic and sc is not None and \
-                    normalise_type(sc.name) == JOINT_STATE
-            for _sc, _ch, _lt, data in r.iter_messages(select):
-                try:
-                    st, names, _p, vel = decode_joint_state(data)
-                except ValueError:
-                    continue
-                seen.update(names)
-                if len(vel) != len(names):
-                    continue
-                idx = {n: i for i, n in enumerate(names)}
-                if all(j in idx for j in joints):
-                    stamps.append(st)
-                    rows.append(np.array([vel[idx[j]] for j in joints]))
+    for st, names, vel in joint_messages(path, topic):
+        seen.update(names)
+        if len(vel) != len(names):
+            continue
+        idx = {n: i for i, n in enumerate(names)}
+        if all(j in idx for j in joints):
+            stamps.append(st)
+            rows.append(np.array([vel[idx[j]] for j in joints]))
     missing = [j for j in joints if j not in seen]
     if missing:
         raise LogError(f'{topic}: joint(s) {missing} never appear in JointState.name '

@@ -51,14 +51,11 @@ def read_joint_speeds(path: str | Path) -> tuple[str, list[str], np.ndarray, np.
         Several JointState topics, or none of them with two usable messages.
     """
     from inertia_ros.io.joint_state import (
-        JOINT_STATE,
-        decode_joint_state,
+        first_joint_names,
         joint_state_topics,
         read_wheel_speeds,
     )
-    from inertia_ros.io.logs import LogError, log_files
-    from inertia_ros.io.mcap_reader import McapReader
-    from inertia_ros.io.msgtypes import normalise_type
+    from inertia_ros.io.logs import LogError
 
     topics = joint_state_topics(path)
     if not topics:
@@ -67,22 +64,7 @@ def read_joint_speeds(path: str | Path) -> tuple[str, list[str], np.ndarray, np.
         raise LogError(f'{path}: several JointState topics {topics}; bag_player plays one '
                        'only: extract it (ros2 bag convert) or drop the others')
     topic = topics[0]
-    names: list[str] | None = None
-    for f in log_files(path):
-        with McapReader(f) as r:
-            def select(ch: Any, sc: Any) -> bool:
-                return ch.topic == topic and sc is not None and \
-                    normalise_type(sc.name) == JOINT_STATE
-            for _sc, _ch, _lt, data in r.iter_messages(select):
-                try:
-                    _t, found, _p, vel = decode_joint_state(data)
-                except ValueError:
-                    continue
-                if found and len(vel) == len(found):
-                    names = list(found)
-                    break
-        if names is not None:
-            break
+    names = first_joint_names(path, topic)
     if names is None:
         raise LogError(f'{topic}: no JointState message with a velocity for every name')
     _topic, t_ns, speed = read_wheel_speeds(path, names, topic, what='joints')
