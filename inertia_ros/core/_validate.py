@@ -11,7 +11,8 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ['MAX_SAMPLE_INTERVAL_S', 'MAX_TIME_S', 'as_float_array', 'as_mass', 'as_matrix33',
+__all__ = ['MAX_SAMPLE_INTERVAL_S', 'MAX_TIME_S', 'require_after', 'as_float_array', 'as_mass',
+           'as_matrix33',
            'as_noise_std', 'as_rotation',
            'as_sample_block', 'as_samples', 'as_times', 'as_unit_axis', 'as_vector3',
            'as_vectors', 'check_symmetric', 'max_asymmetry', 'refuse_nanoseconds',
@@ -256,6 +257,17 @@ def as_sample_block(t: Any, x: Any, name: str) -> tuple[np.ndarray, np.ndarray]:
     if len(ta) > 1 and (ta[1:] <= ta[:-1]).any():
         raise ValueError(f'{name}: times must be strictly increasing')
     return ta, xa
+
+
+def require_after(first: float, last: float | None, name: str) -> None:
+    """Refuse a stream block whose first time [s] is not after the stream's ``last`` one.
+
+    ``name`` is ``'omega'`` (the gyro stream) or ``'torque'``; ``last`` None = no sample yet.
+    """
+    if last is not None and first <= last:
+        what = 'gyro' if name == 'omega' else name
+        raise ValueError(f'{name}: time {first!r} is not after the previous {what} sample '
+                         f'{last!r} (call reset() after a clock jump)')
 
 
 def as_noise_std(x: Any, name: str, *, what: str = '') -> np.ndarray:

@@ -37,7 +37,7 @@ from typing import Any
 
 import numpy as np
 
-from .._validate import MAX_TIME_S, as_noise_std, as_sample_block
+from .._validate import MAX_TIME_S, as_noise_std, as_sample_block, require_after
 from .adequacy import Adequacy, check_adequacy
 from .assemble import conclude, status_only
 from .fit import Fit, fit_two_pass
@@ -219,9 +219,7 @@ class RecursiveEstimator:
                 raise ValueError(f'time {tf!r} looks like nanoseconds; give seconds')
             if not (math.isfinite(tf) and all(math.isfinite(float(v)) for v in omega)):
                 raise ValueError('omega: contains NaN or inf')
-            if self._last_t_in is not None and tf <= self._last_t_in:
-                raise ValueError(f'omega: time {tf!r} is not after the previous gyro sample '
-                                 f'{self._last_t_in!r} (call reset() after a clock jump)')
+            require_after(tf, self._last_t_in, 'omega')
             self._last_t_in = tf
             self._single_t.append(tf)
             self._single_w.append(omega)
@@ -232,9 +230,7 @@ class RecursiveEstimator:
         ta, wa = as_sample_block(t, omega, 'omega')
         if len(ta) == 0:
             return
-        if self._last_t_in is not None and ta[0] <= self._last_t_in:
-            raise ValueError(f'omega: time {ta[0]!r} is not after the previous gyro sample '
-                             f'{self._last_t_in!r} (call reset() after a clock jump)')
+        require_after(ta[0], self._last_t_in, 'omega')
         self._last_t_in = float(ta[-1])
         self._gt.append(ta)
         self._gw.append(wa)
@@ -274,10 +270,7 @@ class RecursiveEstimator:
                 raise ValueError(f'time {tf!r} looks like nanoseconds; give seconds')
             if not (math.isfinite(tf) and all(math.isfinite(float(v)) for v in tau)):
                 raise ValueError('torque: contains NaN or inf')
-            if self._last_tau_in is not None and tf <= self._last_tau_in:
-                raise ValueError(f'torque: time {tf!r} is not after the previous torque '
-                                 f'sample {self._last_tau_in!r} (call reset() after a clock '
-                                 'jump)')
+            require_after(tf, self._last_tau_in, 'torque')
             self._last_tau_in = tf
             self._new_torque = True
             self._pt.append(np.array([tf]))
@@ -286,9 +279,7 @@ class RecursiveEstimator:
         ta, xa = as_sample_block(t, tau, 'torque')
         if len(ta) == 0:
             return
-        if self._last_tau_in is not None and ta[0] <= self._last_tau_in:
-            raise ValueError(f'torque: time {ta[0]!r} is not after the previous torque sample '
-                             f'{self._last_tau_in!r} (call reset() after a clock jump)')
+        require_after(ta[0], self._last_tau_in, 'torque')
         self._last_tau_in = float(ta[-1])
         self._new_torque = True
         self._pt.append(ta)

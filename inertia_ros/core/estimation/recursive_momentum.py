@@ -136,22 +136,20 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
     # ------------------------------------------------------------------ input
     def add_gyro(self, t: Any, omega: Any) -> None:
         """Add gyro samples (as :meth:`.RecursiveEstimator.add_gyro`)."""
-        from .._validate import as_sample_block
+        from .._validate import as_sample_block, require_after
 
         ta, wa = as_sample_block(np.atleast_1d(np.asarray(t, dtype=float)),
                                  np.asarray(omega, dtype=float).reshape(-1, 3), 'omega')
         if len(ta) == 0:
             return
-        if len(self._g.t) and ta[0] <= self._g.t[-1]:
-            raise ValueError(f'omega: time {ta[0]!r} is not after the previous gyro sample '
-                             f'{self._g.t[-1]!r} (call reset() after a clock jump)')
+        require_after(ta[0], self._g.t[-1] if len(self._g.t) else None, 'omega')
         self._g.add(ta, wa)
         self._advance()
         self._cap(self._g)
 
     def add_torque(self, t: Any, tau: Any) -> None:
         """Add samples of the other known torque [N m] (``other_torque=True`` only)."""
-        from .._validate import as_sample_block
+        from .._validate import as_sample_block, require_after
 
         if not self.other_torque:
             raise ValueError('torque: this estimator was built with other_torque=False (the '
@@ -160,9 +158,7 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
                                  np.asarray(tau, dtype=float).reshape(-1, 3), 'torque')
         if len(ta) == 0:
             return
-        if len(self._o.t) and ta[0] <= self._o.t[-1]:
-            raise ValueError(f'torque: time {ta[0]!r} is not after the previous torque sample '
-                             f'{self._o.t[-1]!r} (call reset() after a clock jump)')
+        require_after(ta[0], self._o.t[-1] if len(self._o.t) else None, 'torque')
         self._o.add(ta, xa)
         self._o_noise.add(xa)
         self._o_dt = (self._o_dt + np.diff(self._o.t[-len(ta) - 1:]).tolist())[-64:]

@@ -51,7 +51,7 @@ from typing import Any
 
 import numpy as np
 
-from .._validate import as_noise_std, as_sample_block
+from .._validate import as_noise_std, as_sample_block, require_after
 from .assemble import add_calibration, assemble, status_only
 from .fit import Fit, solve_symmetric
 from .homogeneous import is_torque_free
@@ -283,9 +283,7 @@ class TrackingEstimator:
         ta, wa = as_sample_block(t, omega, 'omega')
         if len(ta) == 0:
             return
-        if self._last_t_in is not None and ta[0] <= self._last_t_in:
-            raise ValueError(f'omega: time {ta[0]!r} is not after the previous gyro sample '
-                             f'{self._last_t_in!r} (call reset() after a clock jump)')
+        require_after(ta[0], self._last_t_in, 'omega')
         self._last_t_in = float(ta[-1])
         self._gt.append(ta)
         self._gw.append(wa)
@@ -301,9 +299,7 @@ class TrackingEstimator:
         ta, xa = as_sample_block(t, tau, 'torque')
         if len(ta) == 0:
             return
-        if self._last_tau_in is not None and ta[0] <= self._last_tau_in:
-            raise ValueError(f'torque: time {ta[0]!r} is not after the previous torque sample '
-                             f'{self._last_tau_in!r} (call reset() after a clock jump)')
+        require_after(ta[0], self._last_tau_in, 'torque')
         edges = ta if self._last_tau_in is None else np.concatenate([[self._last_tau_in], ta])
         self._tq_dts = np.concatenate([self._tq_dts, np.diff(edges)])[-_DT_HISTORY:]
         self._last_tau_in = float(ta[-1])
