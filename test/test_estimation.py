@@ -581,3 +581,38 @@ def test_ml_does_not_report_an_unexplained_likelihood(nominal20):
     est = estimate(t_g, w, t_t, tau)
     assert est.diagnostics['ml']['refined'] is False
     assert est.method == 'integral'
+
+
+# ---------------------------------------------------------------------------------------------
+# adequacy windows: their statistics from the whole record's
+# ---------------------------------------------------------------------------------------------
+@pytest.mark.parametrize('cut', ['inside_intervals', 'on_torque_samples'])
+def test_window_statistics_from_the_parent_equal_a_fresh_reduction(cut):
+    """:func:`window_raw` (views and the parent's interval sums) gives the statistics a fresh
+    copy of the rows gives (the adequacy windows' previous reduction) to rounding."""
+    from inertia_ros.core.estimation.equations import integral_equations
+    from inertia_ros.core.estimation.statistics import sufficient_stats, window_raw
+
+    sim = simulate(Scene.from_dict(scene_dict('default', duration=20.0)), seed=3)
+    tg, w, ts, tau = sim.t_gyro - sim.t_gyro[0], sim.omega, sim.t_torque - sim.t_gyro[0], \
+        sim.torque
+    keep = tg >= ts[0]
+    tg, w = tg[keep], w[keep]
+    gv, tv = np.full(3, 2e-3 ** 2), np.full(3, 5e-3 ** 2)
+    eq = integral_equations(tg, w, ts, tau, slice(None), np.zeros(len(tg) - 1, bool), 'zoh', gv)
+    sufficient_stats(eq, 5.0, ts, float(ts[-1]) + 0.02, tv)   # the parent's statistics
+    if cut == 'on_torque_samples':
+        a, b = (int(np.searchsorted(eq.t, ts[k], side='left')) for k in (300, 700))
+    else:
+        a, b = 1203, 2801
+    fresh = eq.rows(a, b)                      # a copy of the centred rows, reduced anew
+    j0 = max(int(np.searchsorted(ts, fresh.t[0], side='right')) - 1, 0)
+    tsk = ts[j0:int(np.searchsorted(ts, fresh.t[-1], side='right'))]
+    want = sufficient_stats(fresh, 5.0, tsk, float(fresh.t[-1]), tv)
+    sub, (j0w, j1w) = window_raw(eq, a, b, ts, tv)
+    assert (j0w, j1w - j0w) == (j0, len(tsk))
+    got = sufficient_stats(sub, 5.0, tsk, float(sub.t[-1]), tv)
+    for g, x in ((got.C, want.C), (got.CP, want.CP)):
+        assert np.allclose(g, x, rtol=1e-9, atol=1e-9 * np.max(np.abs(x)))
+    assert (got.n, got.n_eff, got.n_seg) == (want.n, want.n_eff, want.n_seg)
+    assert not np.shares_memory(eq.V, fresh.V) and np.shares_memory(eq.V, sub.V)

@@ -143,9 +143,15 @@ class Dynamics:
     monomials), so each evaluation is a handful of small matrix products.
     """
 
-    def __init__(self, inertia: np.ndarray, n_par: int, bias: bool, bias_at: int = 9) -> None:
+    def __init__(self, inertia: np.ndarray, n_par: int, bias: bool, bias_at: int = 9,
+                 theta_at: int = 0, psi_at: int | None = None) -> None:
         """``n_par`` sensitivity columns ``[theta (6), w0 (3), d (3)]`` (``d`` when ``bias``,
-        its columns from ``bias_at``: 6 for a layout without ``w0``)."""
+        its columns from ``bias_at``: 6 for a layout without ``w0``).
+
+        ``theta_at`` and ``psi_at`` place the six ``theta`` and the three ``Psi`` columns
+        elsewhere in ``Z`` (default: ``theta`` first, ``Psi`` last, ``Phi`` before it); a
+        caller that wants ``[Phi | Psi | S]`` integrates it in that order and copies nothing.
+        """
         self.I = inertia
         self.Ii = np.linalg.inv(inertia)
         theta = inertia[THETA_ROWS, THETA_COLS]
@@ -160,15 +166,20 @@ class Dynamics:
         self.jac_w = -np.einsum('rs,asc->arc', self.Ii, Jm).reshape(3, 9)   # Jw = -Ii jac
         self.gyro_wd = -(self.gyro_w @ self.Ii.T)     # mono @ gyro_wd = -Ii (w x I w)
         self.n_par = n_par
+        psi = n_par + 3 if psi_at is None else psi_at
         self.forcing = np.zeros((3, n_par + 6))   # constant columns of the linear part
         if bias:
             self.forcing[:, bias_at:bias_at + 3] = self.Ii     # d(w_dot)/dd
-        self.forcing[:, n_par + 3:] = self.Ii          # Psi' = Jw Psi + I^-1
+        self.forcing[:, psi:psi + 3] = self.Ii         # Psi' = Jw Psi + I^-1
+        self.theta = slice(theta_at, theta_at + 6)
         self.mIi = -self.Ii
+        # -I^-1 Y(wd, mono) as one product with the (9, 18) map: no batched 3 x 3 products
+        self.y_map = np.einsum('Rr,irk->iRk', self.mIi, _Y_MAP.reshape(9, 3, 6)).reshape(9, 18)
 
     def __call__(self, w: np.ndarray, Z: np.ndarray, Iiu: np.ndarray
                  ) -> tuple[np.ndarray, np.ndarray]:
-        """``(w_dot, Z_dot)`` with ``Z = [S (3, p) | Phi (3, 3) | Psi (3, 3)]``.
+        """``(w_dot, Z_dot)`` with ``Z = [S (3, p) | Phi (3, 3) | Psi (3, 3)]`` (or the
+        constructor's layout).
 
         ``Iiu`` is ``I^-1 (u + d)`` for the interval.  Leading batch dimensions are allowed:
         ``w (..., 3)``, ``Z (..., 3, p + 6)``, ``Iiu (..., 3)`` (many intervals at once, as
@@ -177,10 +188,11 @@ class Dynamics:
         mono = w[..., MONOMIAL_I] * w[..., MONOMIAL_J]
         wd = Iiu + mono @ self.gyro_wd
         Jw = (w @ self.jac_w).reshape(w.shape[:-1] + (3, 3))
-        # Y[:, k] = E_k wd + w x (E_k w): regressor of Euler's equation in theta
-        Y = (np.concatenate((wd, mono), axis=-1) @ _Y_MAP).reshape(w.shape[:-1] + (3, 6))
-        Zd = Jw @ Z + self.forcing
-        Zd[..., :6] += self.mIi @ Y
+        # Y[:, k] = E_k wd + w x (E_k w): regressor of Euler's equation in theta; -I^-1 Y
+        mIiY = (np.concatenate((wd, mono), axis=-1) @ self.y_map).reshape(w.shape[:-1] + (3, 6))
+        Zd = Jw @ Z
+        Zd += self.forcing
+        Zd[..., self.theta] += mIiY
         return wd, Zd
 
     def rate(self, w: np.ndarray, Iiu: np.ndarray) -> np.ndarray:

@@ -109,7 +109,7 @@ from .options import (
 )
 from .result import InertiaEstimate
 from .selection import SelectionPolicy
-from .statistics import sufficient_stats
+from .statistics import sufficient_stats, window_raw
 from .uncertainty import principal_with_std
 
 __all__ = ['BATCH_HOLDS', 'METHODS', 'ML_AUTO_MAX_SAMPLES', 'MODELS', 'TORQUE_BIAS', 'estimate',
@@ -472,9 +472,9 @@ def _window_adequacy(eq: Equations, segment: float | None, ts: np.ndarray,
     for a, b in zip(bounds[:-1], bounds[1:], strict=True):
         if b - a < MIN_EQUATIONS:
             continue
-        sub = eq.rows(a, b)
-        j0 = max(int(np.searchsorted(ts, sub.t[0], side='right')) - 1, 0)
-        tsk = ts[j0:int(np.searchsorted(ts, sub.t[-1], side='right'))]
+        # the window's statistics from the whole fit's (its Gram and torque sums)
+        sub, (j0, j1) = window_raw(eq, a, b, ts, torque_var)
+        tsk = ts[j0:j1]
         if len(tsk) < 2:
             continue
         st = sufficient_stats(sub, segment, tsk, float(sub.t[-1]), torque_var)

@@ -55,6 +55,9 @@ class Equations:
     white_y_cov : ndarray, shape (3, 3), optional
         White noise in ``y`` besides the gyro's [N^2 m^2 s^2] (a momentum input's wheel-speed
         noise, :mod:`.momentum`).
+    centred : bool
+        ``V`` has had a constant removed (:func:`.statistics.shared_raw` does it once, in
+        place, for conditioning; statistics are invariant to the constant).
     """
 
     V: np.ndarray
@@ -68,17 +71,25 @@ class Equations:
     raw: dict[str, Any] | None = None
     motion: tuple[np.ndarray, float] | None = None
     white_y_cov: np.ndarray | None = None
+    centred: bool = False
 
     def head(self, n: int) -> Equations:
         """The first ``n`` equations (without the cached statistics)."""
         return self.rows(0, n, dict(self.info))
 
-    def rows(self, a: int, b: int, info: dict[str, Any] | None = None) -> Equations:
-        """Equations ``a:b`` as their own set (a copy, without the cached statistics)."""
-        return Equations(self.V[a:b].copy(), self.t[a:b], self.breaks[a:max(b - 1, a)],
-                         self.kind, self.hac_lag, self.eiv_var, self.weighted,
-                         {} if info is None else info, motion=self.motion,
-                         white_y_cov=self.white_y_cov)
+    def rows(self, a: int, b: int, info: dict[str, Any] | None = None,
+             view: bool = False) -> Equations:
+        """Equations ``a:b`` as their own set, without the cached statistics.
+
+        A copy of ``V``, or with ``view`` a view of this set's already centred ``V`` (read
+        only: its statistics need no second centring and no 13-column copy).
+        """
+        if view and not self.centred:
+            raise ValueError('rows(view=True): V is not centred yet (see shared_raw)')
+        return Equations(self.V[a:b] if view else self.V[a:b].copy(), self.t[a:b],
+                         self.breaks[a:max(b - 1, a)], self.kind, self.hac_lag, self.eiv_var,
+                         self.weighted, {} if info is None else info, motion=self.motion,
+                         white_y_cov=self.white_y_cov, centred=view)
 
     @property
     def A(self) -> np.ndarray:

@@ -147,33 +147,25 @@ def _shoot(dyn: Dynamics, r0: np.ndarray, h: np.ndarray, H: np.ndarray, iiu: np.
            ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Integrate every interval from its reference (RK4 over the whole interval at once).
 
-    Returns the states and :func:`_columns` at the slots, ``(M, K, 3)`` and ``(M, K, 3, c)`` (cubic
-    Hermite interpolation between the interval ends, whose error ``h^4 x''''/384`` is many
-    orders below the gyro noise), and at the interval ends, ``(M, 3)`` and ``(M, 3, c)``.
+    ``dyn`` integrates ``Z = [Phi | Psi | S_theta (| S_d)]`` in that order (the columns of
+    ``delta_j``, ``nu_j`` and ``dp``; see :func:`_dynamics`), so the interval ends are written
+    once into one ``(M, 4, 3, q)`` array and interpolated from it.  Returns the states and
+    sensitivities ``[Phi | Psi | S_theta basis (| S_d)]`` at the slots, ``(M, K, 3)`` and
+    ``(M, K, 3, c)`` (cubic Hermite interpolation between the interval ends, whose error
+    ``h^4 x''''/384`` is many orders below the gyro noise), and at the interval ends,
+    ``(M, 3)`` and ``(M, 3, c)``.
     """
     M, q = len(h), n_par + 6
-    Z0 = np.zeros((M, 3, q))
-    Z0[:, :, q - 6:q - 3] = np.eye(3)
+    ends = np.zeros((M, 4, 3, q))               # Z and Z' at both ends of every interval
+    ends[:, 0, :, :3] = np.eye(3)
     nsub = _substeps(r0, iiu, h)
-    d0w, d0Z = dyn(r0, Z0, iiu)
-    w1, Z1 = dyn.rk4(r0, Z0, iiu, h / nsub, nsub, first=(d0w, d0Z))
-    d1w, d1Z = dyn(w1, Z1, iiu)
-    Zt = _columns(np.stack([Z0, d0Z, Z1, d1Z], axis=1), basis, q - 6)   # (M, 4, 3, c)
-    return _interp(H, r0, d0w, w1, d1w), _interp(H, *Zt.transpose(1, 0, 2, 3)), w1, Zt[:, 2]
-
-
-def _columns(Z: np.ndarray, basis: np.ndarray, n_par: int) -> np.ndarray:
-    """Sensitivities ``Z = [S | Phi | Psi]`` rearranged as ``[Phi | Psi | S_theta basis (| S_d)]``.
-
-    The columns of ``delta_j``, ``nu_j`` and ``dp`` (``S = [S_theta (6) (, S_d (3))]``: every
-    interval starts from its own reference, so there is no ``w0`` column).
-    """
-    parts = [Z[..., n_par:], Z[..., :6]]
+    d0w, ends[:, 1] = dyn(r0, ends[:, 0], iiu)
+    w1, ends[:, 2] = dyn.rk4(r0, ends[:, 0], iiu, h / nsub, nsub, first=(d0w, ends[:, 1]))
+    d1w, ends[:, 3] = dyn(w1, ends[:, 2], iiu)
     if basis.shape[1] < 6 or not np.array_equal(basis, np.eye(6)):
-        parts[1] = Z[..., :6] @ basis
-    if n_par == 9:
-        parts.append(Z[..., 6:9])
-    return np.concatenate(parts, axis=-1)
+        ends = np.concatenate([ends[..., :6], ends[..., 6:12] @ basis, ends[..., 12:]], axis=-1)
+    Zk = (H @ ends.reshape(M, 4, -1)).reshape(M, H.shape[1], 3, -1)
+    return _interp(H, r0, d0w, w1, d1w), Zk, w1, ends[:, 2]
 
 
 def _shoot_states(dyn: Dynamics, r0: np.ndarray, h: np.ndarray, H: np.ndarray,
@@ -401,7 +393,8 @@ def _dynamics(pb: _Problem, beta: np.ndarray, d: np.ndarray) -> tuple[Dynamics, 
     Im = theta_to_matrix(pb.basis @ beta)
     if not np.all(np.isfinite(Im)) or np.linalg.eigvalsh(Im)[0] <= 0:
         raise _PassError('the tensor left the positive-definite set')
-    dyn = Dynamics(Im, pb.n_par, pb.bias, bias_at=6)
+    # columns [Phi | Psi | S_theta (| S_d)]: delta_j, nu_j, dp (no copies to rearrange)
+    dyn = Dynamics(Im, pb.n_par, pb.bias, bias_at=12, theta_at=6, psi_at=3)
     return dyn, (pb.u + d) @ dyn.Ii.T
 
 
@@ -428,11 +421,16 @@ def _full_pass(pb: _Problem, beta: np.ndarray, d: np.ndarray, r: np.ndarray
     R = Pinv @ B
     # gyro rows: the slot's own sensitivities, with nu_j eliminated through the prior row
     K = pb.H.shape[1]
-    Zpsi = Zk[..., 3:6]
-    rows = Zpsi.reshape(M, 3 * K, 3) @ R
-    rows += Zk.reshape(M, 3 * K, -1)
-    rows[..., 3:6] -= Zpsi.reshape(M, 3 * K, 3)
-    Xc = np.concatenate([R * pb.swt[:, None], rows * pb.swg.reshape(M, 3 * K, 1)], axis=1)
+    Zk2 = Zk.reshape(M, 3 * K, -1)
+    Zpsi = np.ascontiguousarray(Zk2[..., 3:6])               # (M, 3 K, 3)
+    Xc = np.empty((M, 3 + 3 * K, 6 + npar))                 # written in place, no copies
+    np.multiply(R, pb.swt[:, None], out=Xc[:, :3])
+    rows = Xc[:, 3:]
+    np.matmul(Zpsi, R, out=rows)
+    rows += Zk2
+    rows[..., 3:6] -= Zpsi
+    rows *= pb.swg.reshape(M, 3 * K, 1)
+    Zpsi = Zpsi.reshape(M, K, 3, 3)
     Gm = Xc[..., :6].transpose(0, 2, 1) @ Xc                   # (M, 6, 6 + npar)
     Xf = Xc[..., 6:].reshape(-1, npar)
     D = np.zeros((M + 1, 3, 3))

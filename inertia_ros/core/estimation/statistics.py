@@ -16,7 +16,8 @@ import numpy as np
 from .equations import Equations, segment_starts
 from .regressors import N_REGRESSOR_VARIABLES, gram, lift
 
-__all__ = ['SufficientStats', 'range_sums', 'shared_raw', 'sufficient_stats', 'torque_stats']
+__all__ = ['SufficientStats', 'range_sums', 'shared_raw', 'sufficient_stats', 'torque_stats',
+           'window_raw']
 
 _NREG = N_REGRESSOR_VARIABLES
 
@@ -89,22 +90,17 @@ def range_sums(V: np.ndarray, bounds: np.ndarray) -> np.ndarray:
     return ind @ V
 
 
-def torque_stats(V: np.ndarray, t: np.ndarray, t_tau: np.ndarray,
-                  tau_end: float) -> np.ndarray:
-    """``P_j = sum_b o_j(b) V_b`` for every torque interval ``j``, shape (M, q).
+def _interval_sums(V: np.ndarray, t: np.ndarray, t_tau: np.ndarray
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per torque interval ``j``: ``sum V_b`` and ``sum (t_b - s_j) V_b`` over its rows.
 
-    Torque sample ``j`` carries white noise ``nu_j`` held over ``[s_j, s_{j+1})``; anchored
-    equation ``b`` contains ``-sum_j o_j(b) nu_j`` with ``o_j(b) = clip(t_b - s_j, 0, h_j)``.
-    With segment-demeaned variables the constant part of every segment cancels, so one global
-    sum serves all segments.
+    Interval ``j`` holds the rows ``first[j]:first[j + 1]`` (``s_j <= t_b < s_{j+1}``; rows
+    before ``s_0`` count in interval 0).  Returns ``(S (M, q), St (M, q), first (M + 1,))``.
     """
     from scipy import sparse  # lazily: the online estimator never needs it
 
-    n, q = V.shape
+    n = V.shape[0]
     m = len(t_tau)
-    ends = np.append(t_tau[1:], max(tau_end, t_tau[-1]))
-    h = ends - t_tau
-    # samples of interval j (s_j <= t_b < s_{j+1}) form the contiguous range from first[j]
     first = np.searchsorted(t, t_tau, side='left')
     first[0] = 0                                      # (no sample precedes t_tau[0])
     indptr = np.append(first, n)
@@ -116,10 +112,28 @@ def torque_stats(V: np.ndarray, t: np.ndarray, t_tau: np.ndarray,
                               np.concatenate([np.arange(n), np.arange(n)]),
                               np.concatenate([indptr, n + indptr[1:]])), shape=(2 * m, n))
     SS = both @ V
-    S, St = SS[:m], SS[m:]
-    after = np.zeros((m, q))
+    return SS[:m], SS[m:], indptr
+
+
+def _torque_sums(S: np.ndarray, St: np.ndarray, h: np.ndarray) -> np.ndarray:
+    """``P_j = h_j sum_{j' > j} S_j' + St_j`` from the interval sums (see :func:`torque_stats`)."""
+    after = np.zeros_like(S)
     after[:-1] = np.cumsum(S[::-1], axis=0)[::-1][1:]
     return h[:, None] * after + St
+
+
+def torque_stats(V: np.ndarray, t: np.ndarray, t_tau: np.ndarray,
+                  tau_end: float) -> np.ndarray:
+    """``P_j = sum_b o_j(b) V_b`` for every torque interval ``j``, shape (M, q).
+
+    Torque sample ``j`` carries white noise ``nu_j`` held over ``[s_j, s_{j+1})``; anchored
+    equation ``b`` contains ``-sum_j o_j(b) nu_j`` with ``o_j(b) = clip(t_b - s_j, 0, h_j)``.
+    With segment-demeaned variables the constant part of every segment cancels, so one global
+    sum serves all segments.
+    """
+    ends = np.append(t_tau[1:], max(tau_end, t_tau[-1]))
+    S, St, _ = _interval_sums(V, t, t_tau)
+    return _torque_sums(S, St, ends - t_tau)
 
 
 def shared_raw(eq: Equations, t_tau: np.ndarray, tau_end: float,
@@ -127,20 +141,75 @@ def shared_raw(eq: Equations, t_tau: np.ndarray, tau_end: float,
     """Statistics of the (globally centred) variables that every segmentation shares."""
     if eq.raw is not None:
         return eq.raw
-    # a constant shift cancels in segment demeaning (the mean as a BLAS product: 2x np.mean)
-    eq.V -= (np.ones(len(eq.V)) @ eq.V / len(eq.V))[None]
+    # a constant shift cancels in segment demeaning (the mean as a BLAS product: 2x np.mean);
+    # a view of an already centred set (the adequacy windows) keeps its parent's
+    if not eq.centred:
+        eq.V -= (np.ones(len(eq.V)) @ eq.V / len(eq.V))[None]
+        eq.centred = True
     walk = np.any(torque_var > 0) and len(t_tau) > 1
     # (two threads overlapping the Gram and the torque sums no longer pay: with the sparse
     # interval sums a 1M-sample record is faster on one thread, measured 0.51 s against 0.65 s)
-    G = gram(eq.V)
-    P = torque_stats(eq.V[:, :_NREG], eq.t, t_tau, tau_end) if walk else None
-    raw: dict[str, Any] = {'G': G, 'CT': np.concatenate([[0.0], np.cumsum(eq.t)])}
-    if P is not None:
+    raw: dict[str, Any] = {'G': gram(eq.V)}
+    if walk:
         ends = np.append(t_tau[1:], max(tau_end, t_tau[-1]))
-        raw.update(P=P, s=t_tau, h=ends - t_tau, k0=np.searchsorted(eq.t, t_tau, side='right'),
-                   k1=np.searchsorted(eq.t, ends, side='left'))
+        S, St, first = _interval_sums(eq.V[:, :_NREG], eq.t, t_tau)
+        # the interval sums stay for the windows of the same rows (:func:`window_raw`)
+        raw.update(P=_torque_sums(S, St, ends - t_tau), interval_sums=(S, St, first))
+    _finish_raw(raw, eq.t, t_tau, tau_end)
     eq.raw = raw
     return raw
+
+
+def _finish_raw(raw: dict[str, Any], t: np.ndarray, t_tau: np.ndarray, tau_end: float) -> None:
+    """The time prefix sums and, with torque sums, the interval bounds in equation rows."""
+    raw['CT'] = np.concatenate([[0.0], np.cumsum(t)])
+    if 'P' in raw:
+        ends = np.append(t_tau[1:], max(tau_end, t_tau[-1]))
+        raw.update(s=t_tau, h=ends - t_tau, k0=np.searchsorted(t, t_tau, side='right'),
+                   k1=np.searchsorted(t, ends, side='left'))
+
+
+def window_raw(eq: Equations, a: int, b: int, t_tau: np.ndarray,
+               torque_var: np.ndarray) -> tuple[Equations, np.ndarray]:
+    """The equations ``a:b`` of ``eq`` with their shared statistics, from ``eq``'s own.
+
+    ``eq``'s statistics (:func:`shared_raw`) are made first when it has none.  The window
+    is its own record: the torque samples from the last one at or before its first equation
+    to the last one at or before its last, the final interval ending at its last equation
+    (as :func:`shared_raw` would treat the rows alone).  Its Gram is one BLAS product on a
+    view of the centred rows; its torque-noise sums reuse ``eq``'s per-interval sums, only
+    the (at most two) intervals the window's ends cut are summed again from their rows.
+
+    Returns
+    -------
+    (Equations, numpy.ndarray)
+        The window (a view, statistics cached) and its torque samples' index range
+        ``[j0, j1)`` into ``t_tau`` as a 2-array.
+    """
+    raw = eq.raw if eq.raw is not None else shared_raw(eq, t_tau, float(eq.t[-1]), torque_var)
+    if 'interval_sums' in raw and not (raw['s'] is t_tau or np.array_equal(raw['s'], t_tau)):
+        raise ValueError('window_raw: the parent statistics were built on other torque samples')
+    sub = eq.rows(a, b, view=True)
+    j0 = max(int(np.searchsorted(t_tau, sub.t[0], side='right')) - 1, 0)
+    j1 = int(np.searchsorted(t_tau, sub.t[-1], side='right'))
+    tsk = t_tau[j0:j1]
+    wr: dict[str, Any] = {'G': gram(sub.V)}
+    if 'interval_sums' in raw and j1 - j0 >= 2:
+        S, St, first = raw['interval_sums']
+        S, St = S[j0:j1].copy(), St[j0:j1].copy()
+        for k in {0, j1 - j0 - 1}:                  # the intervals the window's ends may cut
+            j = j0 + k
+            lo, hi = max(int(first[j]), a), min(int(first[j + 1]), b)
+            if (lo, hi) == (int(first[j]), int(first[j + 1])) and k > 0:
+                continue
+            rows = eq.V[lo:hi, :_NREG]
+            S[k] = rows.sum(axis=0)
+            St[k] = (eq.t[lo:hi] - t_tau[j]) @ rows
+        ends = np.append(tsk[1:], max(float(sub.t[-1]), tsk[-1]))
+        wr['P'] = _torque_sums(S, St, ends - tsk)
+    _finish_raw(wr, sub.t, tsk, float(sub.t[-1]))
+    sub.raw = wr
+    return sub, np.array([j0, j1])
 
 
 def sufficient_stats(eq: Equations, segment: float | None, t_tau: np.ndarray, tau_end: float,
