@@ -22,6 +22,7 @@ import numpy as np
 from .fit import Fit
 from .model import describe_direction, model_basis
 from .options import ALPHA, IDENTIFIABILITY_TOL
+from .tails import chi2_sf
 
 __all__ = ['FitFunction', 'SelectionPolicy', 'complement', 'conditioning', 'held_leak',
            'identifiable', 'select_bias', 'select_model', 'undetermined', 'wald']
@@ -157,8 +158,6 @@ def held_leak(f: Fit, free: np.ndarray, scale: float) -> np.ndarray:
 
 def wald(theta: np.ndarray, cov: np.ndarray, R: np.ndarray) -> tuple[float, int, float]:
     """Wald statistic, degrees of freedom and p-value of ``R theta = 0``."""
-    from scipy.special import chdtrc  # lazily: scipy.special costs start-up time
-
     r = R @ theta
     V = R @ cov @ R.T
     try:
@@ -166,7 +165,7 @@ def wald(theta: np.ndarray, cov: np.ndarray, R: np.ndarray) -> tuple[float, int,
     except np.linalg.LinAlgError:
         stat = float(r @ np.linalg.pinv(V) @ r)
     dof = R.shape[0]
-    return stat, dof, float(chdtrc(dof, stat))      # chi-square upper tail
+    return stat, dof, chi2_sf(stat, dof)            # chi-square upper tail
 
 
 def complement(basis: np.ndarray) -> np.ndarray:
