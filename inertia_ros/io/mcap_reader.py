@@ -26,6 +26,7 @@ MCAP format specification, https://mcap.dev/spec (records, opcodes and field lay
 from __future__ import annotations
 
 import struct
+import sys
 import zlib
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
@@ -415,55 +416,116 @@ def decompress(compression: str, data: bytes | memoryview, size: int, *,
     CodecMissingError
         The codec package (``zstandard`` or ``lz4``) is not installed.
     """
+    check_chunk_size(compression, len(data), size, limit)
+    if compression == '':
+        return bytes(data)
+    buf = bytearray(size + 1)
+    view = memoryview(buf)
+    try:
+        decompress_into(compression, data, view, size)
+    finally:
+        view.release()
+    del buf[size:]
+    return buf
+
+
+def check_chunk_size(compression: str, stored: int, size: int, limit: int) -> None:
+    """Check a chunk's declared sizes before anything is allocated or read.
+
+    Parameters
+    ----------
+    compression : str
+        The chunk's compression (``''`` for none).
+    stored : int
+        Length of its (compressed) records field [bytes].
+    size : int
+        The uncompressed size the chunk declares [bytes].
+    limit : int
+        Largest uncompressed chunk accepted [bytes].
+
+    Raises
+    ------
+    McapError
+        A declared size over ``limit``, or an uncompressed chunk whose records field is not
+        ``size`` bytes long.
+    """
     if size > limit:
         raise McapError(f'chunk declares {size} uncompressed bytes, over the limit of '
                         f'{limit} (a decompression bomb or a damaged chunk header)')
+    if compression == '' and stored != size:
+        raise McapError(f'uncompressed chunk holds {stored} bytes, declared {size}')
+
+
+def decompress_into(compression: str, data: bytes | memoryview, out: memoryview, size: int,
+                    dctx: Any = None) -> None:
+    """Decompress a chunk's records into ``out[:size]``, never writing past ``out[size]``.
+
+    The bounded core of :func:`decompress` (which checks the declared size first, with
+    :func:`check_chunk_size`): the output goes straight into the caller's buffer, e.g. a
+    slot of a buffer holding several chunks back to back.
+
+    Parameters
+    ----------
+    compression : str
+        ``''``, ``'zstd'`` or ``'lz4'``.
+    data : bytes
+        The compressed records.
+    out : memoryview
+        Writable bytes, at least ``size + 1`` long (the extra byte detects output longer than
+        declared) unless ``compression`` is ``''`` (then ``size``).
+    size : int
+        The uncompressed size the chunk declares [bytes].
+    dctx : zstandard.ZstdDecompressor, optional
+        A decompressor to reuse for zstd (a new one otherwise).
+
+    Raises
+    ------
+    McapError
+        Unknown compression, a decompression failure, or output longer or shorter than
+        declared.
+    CodecMissingError
+        The codec package is not installed.
+    """
     if compression == '':
         if len(data) != size:
             raise McapError(f'uncompressed chunk holds {len(data)} bytes, declared {size}')
-        return bytes(data)
+        out[:size] = data
+        return
     if compression not in ('zstd', 'lz4'):
         raise McapError(f'unsupported chunk compression {compression!r}')
+    if len(out) < size + 1:
+        raise ValueError(f'out: {len(out)} bytes, needs size + 1 = {size + 1}')
     codec = _codec(compression)
+    got = 0
     try:
         if compression == 'zstd':
-            buf = bytearray(size + 1)
-            view = memoryview(buf)
-            got = 0
-            with codec.ZstdDecompressor().stream_reader(bytes(data),
-                                                        read_across_frames=True) as r:
+            if dctx is None:
+                dctx = codec.ZstdDecompressor()
+            with dctx.stream_reader(data, read_across_frames=True) as r:
                 while got <= size:
-                    n = r.readinto(view[got:])
+                    n = r.readinto(out[got:size + 1])
                     if not n:
                         break
                     got += n
-            view.release()
-            del buf[got:]
-            out = buf
         else:
-            # in pieces into one buffer: peak memory is the chunk plus one piece
-            buf = bytearray(size + 1)
-            got = 0
+            # in pieces: peak memory is the chunk plus one piece
             dec = codec.LZ4FrameDecompressor()
             piece = dec.decompress(bytes(data), max_length=min(size + 1, _PIECE))
             while True:
-                buf[got:got + len(piece)] = piece
+                out[got:got + len(piece)] = piece
                 got += len(piece)
                 if dec.eof or got > size or dec.needs_input:
                     break
                 piece = dec.decompress(b'', max_length=min(size + 1 - got, _PIECE))
                 if not piece:
                     break
-            del buf[got:]
-            out = buf
     except Exception as exc:  # the codecs raise their own error types
         raise McapError(f'{compression} decompression failed: {exc}') from exc
-    if len(out) > size:
+    if got > size:
         raise McapError(f'{compression} data decompresses to more than the {size} bytes the '
                         'chunk declares (a decompression bomb or a damaged chunk)')
-    if len(out) != size:
-        raise McapError(f'chunk decompressed to {len(out)} bytes, declared {size}')
-    return out
+    if got != size:
+        raise McapError(f'chunk decompressed to {got} bytes, declared {size}')
 
 
 def _codec(compression: str) -> Any:
@@ -763,15 +825,100 @@ class MessageBatch:
 
 def _gather_u64(arr: np.ndarray, offs: np.ndarray) -> np.ndarray:
     """Little-endian uint64 at (unaligned) byte offsets ``offs`` of uint8 array ``arr``."""
-    return sliding_window_view(arr, 8)[offs].view('<u8').ravel()
-
-
-def _gather_u16(arr: np.ndarray, offs: np.ndarray) -> np.ndarray:
-    """Little-endian uint16 at byte offsets ``offs`` of uint8 array ``arr``."""
-    return arr[offs].astype(np.uint16) | (arr[offs + 1].astype(np.uint16) << 8)
+    if arr.shape[0] < 8 or not arr.flags.c_contiguous:
+        return sliding_window_view(arr, 8)[offs].view('<u8').ravel()
+    return np.ndarray(shape=(arr.shape[0] - 7,), dtype='<u8', buffer=arr, strides=(1,))[offs]
 
 
 ChannelFilter = Callable[[Channel, Schema | None], bool]
+
+_CHUNK_HEAD = struct.Struct('<QQQI')
+
+#: A Message record's head as it lies in the buffer (unaligned): opcode, record length,
+#: channel id, sequence, log time [ns].
+_HEAD_DT = np.dtype({'names': ['op', 'len', 'chan', 'seq', 'log_time'],
+                     'formats': ['u1', '<u8', '<u2', '<u4', '<u8'],
+                     'offsets': [0, 1, 9, 11, 15], 'itemsize': 23})
+
+
+@dataclass(frozen=True)
+class _Extent:
+    """Where a record body lies in the file: ``length`` bytes from offset ``start``."""
+
+    start: int
+    length: int
+
+
+@dataclass(frozen=True)
+class _PendingChunk:
+    """A chunk loaded into its group slot (or the error that stopped it), not yet checked."""
+
+    off: int
+    chunk: Chunk
+    stored: int
+    error: McapError | None
+
+
+class _Group:
+    """Consecutive chunks' records, back to back in one buffer, and their messages.
+
+    The buffers come from ``pool`` (the reader's) and go back to it: a buffer is reused
+    only when nothing outside the pool refers to it any more (no batch, view or decoded
+    array of an earlier group), so reuse never changes what a caller holds, and fresh
+    memory (and its page faults) is paid for once rather than once per group.
+    """
+
+    def __init__(self, pool: list[np.ndarray]) -> None:
+        self.pool = pool
+        self.buf: np.ndarray = _EMPTY
+        self.used = 0
+        self.offs: list[np.ndarray] = []
+        self.heads: list[np.ndarray] = []
+        self.bases: list[int] = []
+
+    def fits(self, need: int) -> bool:
+        """Whether ``need`` more bytes fit the current buffer (True for an empty group)."""
+        return self.used == 0 or self.used + need <= self.buf.shape[0]
+
+    def slot(self, need: int) -> memoryview:
+        """Writable view of the ``need`` bytes after the group's chunks (allocating if needed)."""
+        if self.used + need > self.buf.shape[0]:
+            assert self.used == 0, 'flush the group before it overflows'
+            self.buf = self._take(need)
+        return memoryview(self.buf)[self.used:self.used + need]
+
+    def _take(self, need: int) -> np.ndarray:
+        """A free pooled buffer of at least ``need`` bytes, or a new one."""
+        for k in range(len(self.pool)):
+            # free when only the pool list (and getrefcount's argument) refers to it
+            if self.pool[k].shape[0] >= need and sys.getrefcount(self.pool[k]) <= 2:
+                return self.pool.pop(k)
+        cap = max(need, McapReader.GROUP_BYTES + (2 << 20))
+        return np.empty(cap, dtype=np.uint8)
+
+    def pending(self, size: int) -> np.ndarray:
+        """The ``size`` bytes of the slot last filled, as a uint8 array."""
+        return self.buf[self.used:self.used + size]
+
+    def commit(self, size: int, offs: np.ndarray, heads: np.ndarray, base: int) -> None:
+        """Keep the slot last filled (``size`` bytes) and its messages (chunk offsets, heads)."""
+        if offs.shape[0]:
+            self.offs.append(offs + self.used)
+            self.heads.append(heads)
+            self.bases.append(base)
+            self.used += size
+
+    def reset(self) -> None:
+        """Start a new group; the buffer goes back to the pool."""
+        if self.buf is not _EMPTY:
+            self.pool.append(self.buf)
+            del self.pool[:-2]          # two buffers: one a caller still reads, one to fill
+        self.buf = _EMPTY
+        self.used = 0
+        self.offs, self.heads, self.bases = [], [], []
+
+
+_EMPTY = np.zeros(0, dtype=np.uint8)
 
 
 class McapReader:
@@ -798,8 +945,9 @@ class McapReader:
 
     #: Unchunked messages are grouped into batches of at most this many messages.
     UNCHUNKED_BATCH = 4096
-    #: Consecutive chunks are joined into one batch per channel up to about this many
-    #: uncompressed bytes (bounded memory; one decode per run of chunks, not per chunk).
+    #: Consecutive chunks are decompressed back to back into one buffer, and given out as one
+    #: batch per channel, up to about this many uncompressed bytes (bounded memory; one
+    #: decode per run of chunks, not per chunk).
     GROUP_BYTES = 32 << 20
     #: Top-level records are read in blocks of at least this many bytes.
     BLOCK = 1 << 20
@@ -833,6 +981,8 @@ class McapReader:
         self.messages_read = 0
         self._bytes_per_message = 0.0
         self._summary_ok = False
+        self._buffers: list[np.ndarray] = []
+        self._dctx: Any = None
         self._read_summary()
 
     # context manager ----------------------------------------------------------------------
@@ -892,8 +1042,14 @@ class McapReader:
             self.chunk_indexes = []
 
     # top-level record stream ----------------------------------------------------------------
-    def _top_level(self) -> Iterator[tuple[int, int, bytes]]:
-        """Yield (opcode, file_offset, body) for data-section records; stops at damage."""
+    def _top_level(self, lazy_chunks: bool = False
+                   ) -> Iterator[tuple[int, int, bytes | _Extent]]:
+        """Yield (opcode, file_offset, body) for data-section records; stops at damage.
+
+        With ``lazy_chunks`` a Chunk record's body is not read: an :class:`_Extent` (where it
+        is in the file) is yielded instead, and the caller reads what it needs of it before
+        asking for the next record.
+        """
         fh = self._fh
         pos = 8
         fh.seek(pos)
@@ -944,9 +1100,14 @@ class McapReader:
                 pos += 9 + ln
                 fh.seek(pos)
                 continue
-            body = fh.read(ln)
-            yield op, pos, body
-            pos += 9 + ln
+            if lazy_chunks and op == OP_CHUNK:
+                yield op, pos, _Extent(pos + 9, ln)
+                pos += 9 + ln
+                fh.seek(pos)
+            else:
+                body = fh.read(ln)
+                yield op, pos, body
+                pos += 9 + ln
             if self._progress is not None:
                 self._progress(pos, self.size)
             if op == OP_DATA_END:
@@ -1002,9 +1163,10 @@ class McapReader:
 
         pending: list[tuple[int, bytes]] = []
         pend_ord: list[int] = []
-        pending_chunk: tuple[int, Chunk] | None = None
+        pending_chunk: _PendingChunk | None = None
         indexes: dict[int, np.ndarray] = {}
         bytes_seen = 0
+        group = _Group(self._buffers)
 
         def flush_unchunked() -> Iterator[MessageBatch]:
             if pending:
@@ -1012,33 +1174,25 @@ class McapReader:
                 pending.clear()
                 pend_ord.clear()
 
-        group: list[tuple[np.ndarray, np.ndarray, np.ndarray, int]] = []
-        group_bytes = 0
-
         def flush_group() -> Iterator[MessageBatch]:
-            nonlocal group_bytes
-            if group:
+            if group.offs:
                 yield from self._group_batches(group, wanted)
-                group.clear()
-                group_bytes = 0
+            group.reset()
 
         def finish_chunk() -> Iterator[MessageBatch]:
-            nonlocal pending_chunk, group_bytes
+            nonlocal pending_chunk
             if pending_chunk is not None:
-                off, chunk = pending_chunk
-                pending_chunk = None
-                got = self._chunk_messages(off, chunk, indexes)
+                done, pending_chunk = pending_chunk, None
+                self._chunk_messages(done, indexes, group)
                 indexes.clear()
                 if self.messages_read:
                     self._bytes_per_message = bytes_seen / self.messages_read
-                if got is not None:
-                    group.append(got)
-                    group_bytes += got[0].shape[0]
-                if group_bytes >= self.GROUP_BYTES:
+                if group.used >= self.GROUP_BYTES:
                     yield from flush_group()
 
-        for op, off, body in self._top_level():
+        for op, off, body in self._top_level(lazy_chunks=True):
             if op == OP_MESSAGE_INDEX:
+                assert isinstance(body, bytes)
                 try:
                     rec = parse_record(op, body)
                     assert isinstance(rec, MessageIndex)
@@ -1050,6 +1204,7 @@ class McapReader:
             if op != OP_CHUNK:
                 yield from flush_group()     # batches stay in file order
             if op == OP_MESSAGE:
+                assert isinstance(body, bytes)
                 if len(body) < _MSG.size:
                     self.damage.notes.append(
                         f'message record at byte {off} is {len(body)} bytes, shorter than '
@@ -1071,19 +1226,90 @@ class McapReader:
                 continue
             yield from flush_unchunked()
             if op == OP_CHUNK:
+                assert isinstance(body, _Extent)
                 try:
-                    chunk = parse_record(op, body)
-                    assert isinstance(chunk, Chunk)
+                    chunk, at, stored = self._chunk_header(body)
                 except (McapError, UnicodeDecodeError) as exc:
-                    self._bad_chunk(off, None, len(body), f'unreadable chunk header ({exc})')
+                    self._bad_chunk(off, None, body.length, f'unreadable chunk header ({exc})')
                     continue
-                pending_chunk = (off, chunk)
-                bytes_seen += 9 + len(body)
+                bytes_seen += 9 + body.length
+                need = chunk.uncompressed_size + (chunk.compression != '')
+                if chunk.uncompressed_size <= self.max_chunk_bytes and \
+                        not group.fits(need):
+                    yield from flush_group()
+                pending_chunk = self._load_chunk(off, chunk, at, stored, group)
             else:
+                assert isinstance(body, bytes)
                 self._other_record(op, body)
         yield from finish_chunk()
         yield from flush_group()
         yield from flush_unchunked()
+
+    def _chunk_header(self, ext: _Extent) -> tuple[Chunk, int | bytes, int]:
+        """Read a Chunk record's fields, not its records.
+
+        Returns ``(chunk, at, stored)``: the Chunk with empty ``records``, the file offset of
+        its records (or the records themselves, when the header had to be read whole) and
+        their length [bytes].  A header that does not parse at a glance is read and parsed
+        whole, so damage gives the same error as :func:`parse_record`.
+
+        Raises
+        ------
+        McapError, UnicodeDecodeError
+            An unreadable chunk header.
+        """
+        fh = self._fh
+        fh.seek(ext.start)
+        head = fh.read(min(ext.length, 256))
+        if len(head) >= 40:
+            c_len = _U32.unpack_from(head, 28)[0]
+            if 40 + c_len <= len(head):
+                t0, t1, usize, crc = _CHUNK_HEAD.unpack_from(head, 0)
+                stored = _U64.unpack_from(head, 32 + c_len)[0]
+                if 40 + c_len + stored <= ext.length:
+                    comp = head[32:32 + c_len].decode('utf-8')
+                    return (Chunk(t0, t1, usize, crc, comp, b''), ext.start + 40 + c_len,
+                            stored)
+        fh.seek(ext.start)
+        rec = parse_record(OP_CHUNK, fh.read(ext.length))
+        assert isinstance(rec, Chunk)
+        return rec, rec.records, len(rec.records)
+
+    def _load_chunk(self, off: int, chunk: Chunk, at: int | bytes, stored: int,
+                    group: _Group) -> _PendingChunk:
+        """Read (and decompress) a chunk's records into the next slot of ``group``.
+
+        Failures are kept in the result, to be counted once the chunk's message indexes
+        (which say how many messages were lost) have been read.
+        """
+        size = chunk.uncompressed_size
+        try:
+            check_chunk_size(chunk.compression, stored, size, self.max_chunk_bytes)
+            if chunk.compression not in ('', 'zstd', 'lz4'):
+                raise McapError(f'unsupported chunk compression {chunk.compression!r}')
+            slot = group.slot(size + (chunk.compression != ''))
+            try:
+                if chunk.compression == '' and isinstance(at, int):
+                    self._fh.seek(at)
+                    got = self._fh.readinto(slot)
+                    if got != size:
+                        raise McapError(f'uncompressed chunk holds {got} bytes, declared '
+                                        f'{size}')
+                else:
+                    data = self._fh_read(at, stored) if isinstance(at, int) else at
+                    if chunk.compression == 'zstd' and self._dctx is None:
+                        self._dctx = _codec('zstd').ZstdDecompressor()
+                    decompress_into(chunk.compression, data, slot, size, self._dctx)
+            finally:
+                slot.release()
+        except (McapError, CodecMissingError) as exc:
+            return _PendingChunk(off, chunk, stored, exc)
+        return _PendingChunk(off, chunk, stored, None)
+
+    def _fh_read(self, at: int, n: int) -> bytes:
+        """``n`` bytes of the file from offset ``at``."""
+        self._fh.seek(at)
+        return self._fh.read(n)
 
     def _other_record(self, op: int, body: bytes) -> None:
         """Register a top-level Schema/Channel/Header/Metadata record."""
@@ -1136,103 +1362,108 @@ class McapReader:
             yield MessageBatch(ch, self.schemas.get(ch.schema_id), buf, starts, lens, log_time,
                                np.asarray([ords[k] for k in ks], dtype=np.int64), seq)
 
-    def _chunk_messages(self, off: int, chunk: Chunk, indexes: dict[int, np.ndarray]
-                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray, int] | None:
-        """Decompress and check one chunk; locate its messages.
+    def _chunk_messages(self, done: _PendingChunk, indexes: dict[int, np.ndarray],
+                        group: _Group) -> None:
+        """Check one loaded chunk and locate its messages; add them to ``group``.
 
-        Returns ``(records, offsets, channel ids, ordinal base)``: the uncompressed records as
-        a uint8 array, each Message record's offset in it and channel id (int64 arrays, file
-        order) and the ordinal of its first message; None for a damaged chunk (counted) or
-        one without messages.
+        A damaged chunk (decompression, CRC or records) is counted and left out (its slot is
+        reused); a chunk without messages adds nothing.
         """
+        off, chunk = done.off, done.chunk
         n_idx = sum(len(v) for v in indexes.values()) or None
-        try:
-            raw = decompress(chunk.compression, chunk.records, chunk.uncompressed_size,
-                             limit=self.max_chunk_bytes)
-        except CodecMissingError as exc:
-            raise CodecMissingError(f'{self.path}: {exc}') from None
-        except McapError as exc:
-            self._bad_chunk(off, n_idx, min(chunk.uncompressed_size, len(chunk.records)),
-                            str(exc))
-            return None
-        if chunk.uncompressed_crc and zlib.crc32(raw) != chunk.uncompressed_crc:
+        if isinstance(done.error, CodecMissingError):
+            raise CodecMissingError(f'{self.path}: {done.error}') from None
+        if done.error is not None:
+            self._bad_chunk(off, n_idx, min(chunk.uncompressed_size, done.stored),
+                            str(done.error))
+            return
+        arr = group.pending(chunk.uncompressed_size)
+        if chunk.uncompressed_crc and zlib.crc32(arr) != chunk.uncompressed_crc:
             self._bad_chunk(off, n_idx, chunk.uncompressed_size,
                             'CRC mismatch')
-            return None
-        arr = np.frombuffer(raw, dtype=np.uint8)
+            return
         try:
-            offs, chans = self._locate_messages(raw, arr, indexes)
+            offs, heads = self._locate_messages(arr, indexes)
         except (McapError, struct.error, UnicodeDecodeError) as exc:
             self._bad_chunk(off, n_idx, chunk.uncompressed_size,
                             f'bad records ({exc})')
-            return None
+            return
         base = self.messages_read
         self.messages_read += offs.shape[0]
-        if offs.shape[0] == 0:
-            return None
-        return arr, offs, chans, base
+        group.commit(chunk.uncompressed_size, offs, heads, base)
 
-    def _group_batches(self, group: list[tuple[np.ndarray, np.ndarray, np.ndarray, int]],
+    def _group_batches(self, group: _Group,
                        wanted: Callable[[int], bool]) -> Iterator[MessageBatch]:
         """One batch per wanted channel over a run of consecutive chunks.
 
-        The chunks' records are joined into one buffer (one copy), so the per-batch work of
+        The chunks' records lie back to back in the group's buffer, so the per-batch work of
         the caller (decoding) runs once per run of chunks rather than once per chunk.
         """
-        if len(group) == 1:
-            arr, offs, chans, base = group[0]
-            ords = base + np.arange(offs.shape[0], dtype=np.int64)
+        arr = group.buf[:group.used]
+        if len(group.offs) == 1:
+            offs, heads = group.offs[0], group.heads[0]
+            ords = group.bases[0] + np.arange(offs.shape[0], dtype=np.int64)
         else:
-            arr = np.concatenate([g[0] for g in group])
-            shift = np.cumsum([0] + [g[0].shape[0] for g in group[:-1]])
-            offs = np.concatenate([g[1] + int(sh) for g, sh in zip(group, shift, strict=True)])
-            chans = np.concatenate([g[2] for g in group])
-            ords = np.concatenate([g[3] + np.arange(g[1].shape[0], dtype=np.int64)
-                                   for g in group])
+            offs = np.concatenate(group.offs)
+            heads = np.concatenate(group.heads)
+            ords = np.concatenate([b + np.arange(o.shape[0], dtype=np.int64)
+                                   for o, b in zip(group.offs, group.bases, strict=True)])
+        chans = heads['chan']
         # channel ids are uint16: a count per id is cheaper than np.unique's hashing
         for ch_id in np.flatnonzero(np.bincount(chans)).tolist():
             if not wanted(ch_id):
                 continue
             sel = np.flatnonzero(chans == ch_id)
-            o = offs[sel]
-            head = np.ndarray(shape=(arr.shape[0] - _MSG_HEAD + 1,), buffer=arr,
-                              dtype=np.dtype(f'V{_MSG_HEAD}'), strides=(1,))[o]
-            head = head.view(np.uint8).reshape(-1, _MSG_HEAD)   # (n, 31) record heads
-            rec_len = head[:, 1:9].copy().view('<u8').ravel().astype(np.int64)
-            seq = head[:, 11:15].copy().view('<u4').ravel()
-            log_time = head[:, 15:23].copy().view('<u8').ravel()
+            h = heads[sel]
             ch = self.channels[ch_id]
-            yield MessageBatch(ch, self.schemas.get(ch.schema_id), arr, o + _MSG_HEAD,
-                               rec_len - _MSG.size, log_time, ords[sel], seq)
+            yield MessageBatch(ch, self.schemas.get(ch.schema_id), arr, offs[sel] + _MSG_HEAD,
+                               h['len'].astype(np.int64) - _MSG.size,
+                               h['log_time'].astype(np.uint64), ords[sel],
+                               h['seq'].astype(np.uint32))
 
-    def _locate_messages(self, raw: bytes, arr: np.ndarray,
+    def _locate_messages(self, arr: np.ndarray,
                          indexes: dict[int, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
-        """Return (offsets, channel ids) of every Message record in a chunk, in file order.
+        """Return (offsets, heads) of every Message record in a chunk, in file order.
 
-        Also registers the Schema and Channel records the chunk holds.  Message indexes
-        locate the messages; the byte ranges they do not cover are scanned record by record,
-        so a chunk with missing or partial indexes is still read completely.
+        ``heads`` is a :data:`_HEAD_DT` array: each record's opcode, length, channel id,
+        sequence and log time, gathered while the chunk is fresh in the cache.  Also
+        registers the Schema and Channel records the chunk holds.  Message indexes locate
+        the messages; the byte ranges they do not cover are scanned record by record, so a
+        chunk with missing or partial indexes is still read completely.
         """
-        size = len(raw)
+        size = arr.shape[0]
+        if size < _MSG_HEAD:
+            heads_at = None
+        else:
+            heads_at = np.ndarray(shape=(size - _HEAD_DT.itemsize + 1,), dtype=_HEAD_DT,
+                                  buffer=arr, strides=(1,))
         offs_list: list[np.ndarray] = []
+        heads_list: list[np.ndarray] = []
         if indexes:
-            offs = np.concatenate([v[:, 1] for v in indexes.values()]).astype(np.int64)
-            offs.sort()
+            parts = [v[:, 1] for v in indexes.values()]
+            offs = (np.concatenate(parts) if len(parts) > 1 else parts[0]).astype(np.int64)
+            offs.sort(kind='stable')         # merges the channels' sorted runs
             good = offs.size > 0 and offs[0] >= 0 and offs[-1] + _MSG_HEAD <= size
             if good:
-                good = bool(np.all(arr[offs] == OP_MESSAGE)) and bool(np.all(np.diff(offs) > 0))
+                assert heads_at is not None
+                heads = heads_at[offs]
+                good = bool(np.all(heads['op'] == OP_MESSAGE)) and bool(np.all(offs[1:] >
+                                                                              offs[:-1]))
             if good:
-                lens = _gather_u64(arr, offs + 1)
+                lens = heads['len']
                 good = bool(np.all((lens >= _MSG.size) & (lens <= size)))
             if good:
                 ends = offs + 9 + lens.astype(np.int64)
                 good = bool(np.all(ends[:-1] <= offs[1:])) and int(ends[-1]) <= size
             if good:
                 offs_list.append(offs)
-                gap_starts = np.concatenate(([0], ends))
-                gap_ends = np.concatenate((offs, [size]))
-                gaps = np.flatnonzero(gap_ends > gap_starts)
-                spans = [(int(gap_starts[g]), int(gap_ends[g])) for g in gaps]
+                heads_list.append(heads)
+                gaps = np.flatnonzero(offs[1:] > ends[:-1])
+                spans = [(int(ends[g]), int(offs[g + 1])) for g in gaps.tolist()]
+                if offs[0] > 0:
+                    spans.insert(0, (0, int(offs[0])))
+                if ends[-1] < size:
+                    spans.append((int(ends[-1]), size))
             else:
                 spans = [(0, size)]
         else:
@@ -1242,19 +1473,23 @@ class McapReader:
             ops = arr[recs]
             for o in recs[(ops == OP_SCHEMA) | (ops == OP_CHANNEL)].tolist():
                 ln = _u64_at(arr, o + 1)
-                self._other_record(int(arr[o]), raw[o + 9:o + 9 + ln])
+                self._other_record(int(arr[o]), arr[o + 9:o + 9 + ln].tobytes())
             msgs = recs[ops == OP_MESSAGE]
             if msgs.size:
+                short = _gather_u64(arr, msgs + 1) < _MSG.size
+                if short.any():
+                    raise McapError(f'{int(short.sum())} message record(s) shorter than the '
+                                    f'{_MSG.size}-byte message header')
+                assert heads_at is not None
                 offs_list.append(msgs)
+                heads_list.append(heads_at[msgs])
         if not offs_list:
-            return np.zeros(0, np.int64), np.zeros(0, np.int64)
-        offs = np.sort(np.concatenate(offs_list)) if len(offs_list) > 1 else offs_list[0]
-        short = _gather_u64(arr, offs + 1) < _MSG.size
-        if short.any():
-            raise McapError(f'{int(short.sum())} message record(s) shorter than the '
-                            f'{_MSG.size}-byte message header')
-        chans = _gather_u16(arr, offs + 9).astype(np.int64)
-        return offs, chans
+            return np.zeros(0, np.int64), np.zeros(0, _HEAD_DT)
+        if len(offs_list) == 1:
+            return offs_list[0], heads_list[0]
+        offs = np.concatenate(offs_list)
+        order = np.argsort(offs, kind='stable')
+        return offs[order], np.concatenate(heads_list)[order]
 
     # convenience ----------------------------------------------------------------------------
     def iter_messages(self, select: ChannelFilter | None = None
