@@ -1100,6 +1100,31 @@ _DENSE_RUN = 20
 _DENSE_MIN = 8
 
 
+def _window_counts(flags: np.ndarray, width: int) -> np.ndarray:
+    """Number of True values in every run of ``width`` consecutive ``flags``.
+
+    The same integers as ``np.convolve(flags, np.ones(width), 'valid')``, from one cumulative
+    sum (O(n), not O(n * width)).
+
+    Parameters
+    ----------
+    flags : numpy.ndarray
+        bool (n,).
+    width : int
+        Window length (>= 1).
+
+    Returns
+    -------
+    numpy.ndarray
+        int64 (max(n - width + 1, 0),) counts.
+    """
+    if flags.size < width:
+        return np.zeros(0, np.int64)
+    cs = np.zeros(flags.size + 1, np.int64)
+    np.cumsum(flags, out=cs[1:])
+    return cs[width:] - cs[:-width]
+
+
 def _overlap(idx: np.ndarray, s: np.ndarray, counts: StreamCounts | None, name: str,
              warnings: list[str] | None) -> np.ndarray:
     """Drop a stream from where two runs of its stamps interleave (a hidden clock fault).
@@ -1124,7 +1149,7 @@ def _overlap(idx: np.ndarray, s: np.ndarray, counts: StreamCounts | None, name: 
         return idx
     d = np.diff(s)
     dense = d < 0.5 * np.median(d)
-    run = np.convolve(dense.astype(np.int32), np.ones(_DENSE_RUN, np.int32), 'valid')
+    run = _window_counts(dense, _DENSE_RUN)
     hit = np.flatnonzero(run >= _DENSE_MIN)
     if hit.size == 0:
         # the whole stream interleaved (the median is halved too): consecutive intervals
@@ -1132,7 +1157,7 @@ def _overlap(idx: np.ndarray, s: np.ndarray, counts: StreamCounts | None, name: 
         lo, hi = np.minimum(d[1:], d[:-1]), np.maximum(d[1:], d[:-1])
         alt = np.zeros(d.size, bool)
         alt[1:] = lo < 0.7 * hi
-        run = np.convolve(alt.astype(np.int32), np.ones(_DENSE_RUN, np.int32), 'valid')
+        run = _window_counts(alt, _DENSE_RUN)
         hit = np.flatnonzero(run >= _DENSE_RUN - 2)
         dense = alt
     if hit.size == 0:
