@@ -949,7 +949,7 @@ class McapReader:
     #: Consecutive chunks are decompressed back to back into one buffer, and given out as one
     #: batch per channel, up to about this many uncompressed bytes (bounded memory; one
     #: decode per run of chunks, not per chunk).
-    GROUP_BYTES = 32 << 20
+    GROUP_BYTES = 8 << 20
     #: Top-level records are read in blocks of at least this many bytes.
     BLOCK = 1 << 20
 
