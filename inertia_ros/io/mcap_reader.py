@@ -25,6 +25,7 @@ MCAP format specification, https://mcap.dev/spec (records, opcodes and field lay
 """
 from __future__ import annotations
 
+import os
 import struct
 import sys
 import zlib
@@ -850,28 +851,48 @@ class _Extent:
     length: int
 
 
-@dataclass(frozen=True)
+@dataclass
 class _PendingChunk:
-    """A chunk loaded into its group slot (or the error that stopped it), not yet checked."""
+    """A chunk whose records are being loaded into a group slot (or the error that stopped it).
+
+    ``result`` is ``(error, crc)`` once loaded: a :class:`McapError` (or None) and the
+    CRC-32 of the uncompressed records (0 when the chunk declares none); while the chunk is
+    loaded on the reader's worker thread it is a future of that pair.
+    """
 
     off: int
     chunk: Chunk
     stored: int
-    error: McapError | None
+    group: _Group | None
+    at: int
+    result: Any
+
+    def outcome(self) -> tuple[McapError | None, int]:
+        """``(error, crc)``, waiting for the worker thread if it is still loading the chunk."""
+        if not isinstance(self.result, tuple):      # a concurrent.futures.Future
+            self.result = self.result.result()
+        return self.result
 
 
 class _Group:
     """Consecutive chunks' records, back to back in one buffer, and their messages.
 
-    The buffers come from ``pool`` (the reader's) and go back to it: a buffer is reused
-    only when nothing outside the pool refers to it any more (no batch, view or decoded
-    array of an earlier group), so reuse never changes what a caller holds, and fresh
-    memory (and its page faults) is paid for once rather than once per group.
+    Slots are reserved in file order (``reserved`` is where the next one starts) and a
+    chunk's messages are committed once it is checked; a damaged chunk leaves an unused
+    slot.  The buffers come from ``pool`` (the reader's) and go back to it: a buffer is
+    reused only when nothing outside the pool refers to it any more (no batch, view or
+    decoded array of an earlier group), so reuse never changes what a caller holds, and
+    fresh memory (and its page faults) is paid for once rather than once per group.
     """
 
-    def __init__(self, pool: list[np.ndarray]) -> None:
+    #: Buffers kept for reuse: one a caller may still read, one being finished, one filling.
+    POOL = 3
+
+    def __init__(self, pool: list[np.ndarray], capacity: int) -> None:
         self.pool = pool
+        self.capacity = capacity
         self.buf: np.ndarray = _EMPTY
+        self.reserved = 0
         self.used = 0
         self.offs: list[np.ndarray] = []
         self.heads: list[np.ndarray] = []
@@ -879,14 +900,18 @@ class _Group:
 
     def fits(self, need: int) -> bool:
         """Whether ``need`` more bytes fit the current buffer (True for an empty group)."""
-        return self.used == 0 or self.used + need <= self.buf.shape[0]
+        return self.reserved == 0 or self.reserved + need <= self.buf.shape[0]
 
-    def slot(self, need: int) -> memoryview:
-        """Writable view of the ``need`` bytes after the group's chunks (allocating if needed)."""
-        if self.used + need > self.buf.shape[0]:
-            assert self.used == 0, 'flush the group before it overflows'
+    def slot(self, need: int) -> tuple[int, memoryview]:
+        """Reserve the ``need`` bytes after the group's slots: (offset, writable view)."""
+        if self.reserved + need > self.buf.shape[0]:
+            assert self.reserved == 0, 'start a new group before this one overflows'
+            if self.buf is not _EMPTY:
+                self.pool.append(self.buf)
             self.buf = self._take(need)
-        return memoryview(self.buf)[self.used:self.used + need]
+        at = self.reserved
+        self.reserved += need
+        return at, memoryview(self.buf)[at:at + need]
 
     def _take(self, need: int) -> np.ndarray:
         """A free pooled buffer of at least ``need`` bytes, or a new one."""
@@ -894,29 +919,49 @@ class _Group:
             # free when only the pool list (and getrefcount's argument) refers to it
             if self.pool[k].shape[0] >= need and sys.getrefcount(self.pool[k]) <= 2:
                 return self.pool.pop(k)
-        cap = max(need, McapReader.GROUP_BYTES + (2 << 20))
-        return np.empty(cap, dtype=np.uint8)
+        return np.empty(max(need, self.capacity), dtype=np.uint8)
 
-    def pending(self, size: int) -> np.ndarray:
-        """The ``size`` bytes of the slot last filled, as a uint8 array."""
-        return self.buf[self.used:self.used + size]
+    def records(self, at: int, size: int) -> np.ndarray:
+        """The ``size`` bytes of the slot at ``at``, as a uint8 array."""
+        return self.buf[at:at + size]
 
-    def commit(self, size: int, offs: np.ndarray, heads: np.ndarray, base: int) -> None:
-        """Keep the slot last filled (``size`` bytes) and its messages (chunk offsets, heads)."""
+    def commit(self, at: int, size: int, offs: np.ndarray, heads: np.ndarray,
+               base: int) -> None:
+        """Keep the messages (chunk offsets, heads) of the ``size``-byte slot at ``at``."""
         if offs.shape[0]:
-            self.offs.append(offs + self.used)
+            self.offs.append(offs + at)
             self.heads.append(heads)
             self.bases.append(base)
-            self.used += size
+            self.used = max(self.used, at + size)
 
     def reset(self) -> None:
-        """Start a new group; the buffer goes back to the pool."""
+        """Empty the group; its buffer goes back to the pool."""
         if self.buf is not _EMPTY:
             self.pool.append(self.buf)
-            del self.pool[:-2]          # two buffers: one a caller still reads, one to fill
+            del self.pool[:-self.POOL]
         self.buf = _EMPTY
-        self.used = 0
+        self.reserved = self.used = 0
         self.offs, self.heads, self.bases = [], [], []
+
+
+def _pread_into(fd: int, out: memoryview, at: int) -> int:
+    """Read ``len(out)`` bytes of file ``fd`` from offset ``at`` into ``out``; bytes read.
+
+    Positional reads (no shared file position), so a worker thread can read while the
+    reader goes on through the file.
+    """
+    got = 0
+    while got < len(out):
+        if hasattr(os, 'preadv'):
+            n = os.preadv(fd, [out[got:]], at + got)
+        else:                                       # pragma: no cover (not Linux/BSD)
+            data = os.pread(fd, len(out) - got, at + got)
+            out[got:got + len(data)] = data
+            n = len(data)
+        if n <= 0:
+            break
+        got += n
+    return got
 
 
 _EMPTY = np.zeros(0, dtype=np.uint8)
@@ -952,6 +997,10 @@ class McapReader:
     GROUP_BYTES = 8 << 20
     #: Top-level records are read in blocks of at least this many bytes.
     BLOCK = 1 << 20
+    #: Load chunks (file read, decompression, CRC: all release the GIL) on a worker thread,
+    #: overlapped with locating and decoding the previous chunk's messages (when the
+    #: machine has more than one CPU).
+    THREADS = True
 
     def __init__(self, path: str | Path, *,
                  progress: Callable[[int, int], None] | None = None,
@@ -1167,7 +1216,14 @@ class McapReader:
         pending_chunk: _PendingChunk | None = None
         indexes: dict[int, np.ndarray] = {}
         bytes_seen = 0
-        group = _Group(self._buffers)
+        cap = self.GROUP_BYTES + (2 << 20)
+        group = _Group(self._buffers, cap)
+        closing: _Group | None = None      # full, waiting for its last chunk to be checked
+        worker = None
+        if self.THREADS and (os.cpu_count() or 1) > 1:
+            from concurrent.futures import ThreadPoolExecutor  # only when a log is read
+
+            worker = ThreadPoolExecutor(1, thread_name_prefix='mcap-chunks')
 
         def flush_unchunked() -> Iterator[MessageBatch]:
             if pending:
@@ -1175,76 +1231,113 @@ class McapReader:
                 pending.clear()
                 pend_ord.clear()
 
-        def flush_group() -> Iterator[MessageBatch]:
-            if group.offs:
-                yield from self._group_batches(group, wanted)
-            group.reset()
+        def flush(g: _Group) -> Iterator[MessageBatch]:
+            if g.offs:
+                yield from self._group_batches(g, wanted)
+            g.reset()
+
+        def flush_groups() -> Iterator[MessageBatch]:
+            nonlocal closing
+            if closing is not None:
+                yield from flush(closing)
+                closing = None
+            yield from flush(group)
 
         def finish_chunk() -> Iterator[MessageBatch]:
-            nonlocal pending_chunk
+            nonlocal pending_chunk, closing
             if pending_chunk is not None:
                 done, pending_chunk = pending_chunk, None
-                self._chunk_messages(done, indexes, group)
+                self._chunk_messages(done, indexes)
                 indexes.clear()
                 if self.messages_read:
                     self._bytes_per_message = bytes_seen / self.messages_read
-                if group.used >= self.GROUP_BYTES:
-                    yield from flush_group()
+                if closing is not None:
+                    yield from flush(closing)
+                    closing = None
 
-        for op, off, body in self._top_level(lazy_chunks=True):
-            if op == OP_MESSAGE_INDEX:
-                assert isinstance(body, bytes)
-                try:
-                    rec = parse_record(op, body)
-                    assert isinstance(rec, MessageIndex)
-                    indexes[rec.channel_id] = rec.records
-                except McapError:
-                    pass  # the chunk is then scanned record by record
-                continue
-            yield from finish_chunk()
-            if op != OP_CHUNK:
-                yield from flush_group()     # batches stay in file order
-            if op == OP_MESSAGE:
-                assert isinstance(body, bytes)
-                if len(body) < _MSG.size:
-                    self.damage.notes.append(
-                        f'message record at byte {off} is {len(body)} bytes, shorter than '
-                        f'its {_MSG.size}-byte header: skipped')
-                    self.damage.messages_lost += 1
-                    self.damage.bytes_lost += 9 + len(body)
+        def start_chunk(off: int, chunk: Chunk, at: int | bytes, stored: int
+                        ) -> _PendingChunk:
+            """Reserve the chunk's slot (in a new group when the current one is full) and
+            load it, on the worker thread when there is one."""
+            nonlocal group, closing
+            size = chunk.uncompressed_size
+            try:
+                check_chunk_size(chunk.compression, stored, size, self.max_chunk_bytes)
+                if chunk.compression not in ('', 'zstd', 'lz4'):
+                    raise McapError(f'unsupported chunk compression {chunk.compression!r}')
+            except McapError as exc:
+                return _PendingChunk(off, chunk, stored, None, 0, (exc, 0))
+            need = size + (chunk.compression != '')
+            if group.reserved and (group.reserved >= self.GROUP_BYTES
+                                   or not group.fits(need)):
+                assert closing is None
+                closing, group = group, _Group(self._buffers, cap)
+            slot_at, slot = group.slot(need)
+            job = (chunk.compression, at, stored, slot, size, bool(chunk.uncompressed_crc))
+            result = (worker.submit(self._fill, *job) if worker is not None
+                      else self._fill(*job))
+            return _PendingChunk(off, chunk, stored, group, slot_at, result)
+
+        try:
+            for op, off, body in self._top_level(lazy_chunks=True):
+                if op == OP_MESSAGE_INDEX:
+                    assert isinstance(body, bytes)
+                    try:
+                        rec = parse_record(op, body)
+                        assert isinstance(rec, MessageIndex)
+                        indexes[rec.channel_id] = rec.records
+                    except McapError:
+                        pass  # the chunk is then scanned record by record
                     continue
-                ch_id = _U16.unpack_from(body, 0)[0]
-                pend_ord.append(self.messages_read)
-                self.messages_read += 1
-                bytes_seen += 9 + len(body)
-                self._bytes_per_message = bytes_seen / self.messages_read
-                if wanted(ch_id):
-                    pending.append((ch_id, body))
-                else:
-                    pend_ord.pop()
-                if len(pending) >= self.UNCHUNKED_BATCH:
+                if op == OP_CHUNK:
+                    assert isinstance(body, _Extent)
+                    try:
+                        chunk, at, stored = self._chunk_header(body)
+                    except (McapError, UnicodeDecodeError) as exc:
+                        yield from finish_chunk()
+                        yield from flush_unchunked()
+                        self._bad_chunk(off, None, body.length,
+                                        f'unreadable chunk header ({exc})')
+                        continue
+                    # the next chunk loads (on the worker) while the last one is checked
+                    nxt = start_chunk(off, chunk, at, stored)
+                    yield from finish_chunk()
                     yield from flush_unchunked()
-                continue
-            yield from flush_unchunked()
-            if op == OP_CHUNK:
-                assert isinstance(body, _Extent)
-                try:
-                    chunk, at, stored = self._chunk_header(body)
-                except (McapError, UnicodeDecodeError) as exc:
-                    self._bad_chunk(off, None, body.length, f'unreadable chunk header ({exc})')
+                    bytes_seen += 9 + body.length
+                    pending_chunk = nxt
                     continue
-                bytes_seen += 9 + body.length
-                need = chunk.uncompressed_size + (chunk.compression != '')
-                if chunk.uncompressed_size <= self.max_chunk_bytes and \
-                        not group.fits(need):
-                    yield from flush_group()
-                pending_chunk = self._load_chunk(off, chunk, at, stored, group)
-            else:
+                yield from finish_chunk()
+                yield from flush_groups()     # batches stay in file order
+                if op == OP_MESSAGE:
+                    assert isinstance(body, bytes)
+                    if len(body) < _MSG.size:
+                        self.damage.notes.append(
+                            f'message record at byte {off} is {len(body)} bytes, shorter than '
+                            f'its {_MSG.size}-byte header: skipped')
+                        self.damage.messages_lost += 1
+                        self.damage.bytes_lost += 9 + len(body)
+                        continue
+                    ch_id = _U16.unpack_from(body, 0)[0]
+                    pend_ord.append(self.messages_read)
+                    self.messages_read += 1
+                    bytes_seen += 9 + len(body)
+                    self._bytes_per_message = bytes_seen / self.messages_read
+                    if wanted(ch_id):
+                        pending.append((ch_id, body))
+                    else:
+                        pend_ord.pop()
+                    if len(pending) >= self.UNCHUNKED_BATCH:
+                        yield from flush_unchunked()
+                    continue
+                yield from flush_unchunked()
                 assert isinstance(body, bytes)
                 self._other_record(op, body)
-        yield from finish_chunk()
-        yield from flush_group()
-        yield from flush_unchunked()
+            yield from finish_chunk()
+            yield from flush_groups()
+            yield from flush_unchunked()
+        finally:
+            if worker is not None:
+                worker.shutdown(wait=True)
 
     def _chunk_header(self, ext: _Extent) -> tuple[Chunk, int | bytes, int]:
         """Read a Chunk record's fields, not its records.
@@ -1276,41 +1369,31 @@ class McapReader:
         assert isinstance(rec, Chunk)
         return rec, rec.records, len(rec.records)
 
-    def _load_chunk(self, off: int, chunk: Chunk, at: int | bytes, stored: int,
-                    group: _Group) -> _PendingChunk:
-        """Read (and decompress) a chunk's records into the next slot of ``group``.
+    def _fill(self, compression: str, at: int | bytes, stored: int, slot: memoryview,
+              size: int, want_crc: bool) -> tuple[McapError | None, int]:
+        """Load a chunk's records into ``slot`` and compute their CRC: ``(error, crc)``.
 
-        Failures are kept in the result, to be counted once the chunk's message indexes
-        (which say how many messages were lost) have been read.
+        Reads with positional reads and touches no reader state but the zstd decompressor,
+        so it can run on the worker thread (one chunk at a time, in file order); the file
+        reads, zstd decompression and CRC all release the GIL.  Failures are returned, to
+        be counted once the chunk's message indexes (which say how many messages were lost)
+        have been read.
         """
-        size = chunk.uncompressed_size
         try:
-            check_chunk_size(chunk.compression, stored, size, self.max_chunk_bytes)
-            if chunk.compression not in ('', 'zstd', 'lz4'):
-                raise McapError(f'unsupported chunk compression {chunk.compression!r}')
-            slot = group.slot(size + (chunk.compression != ''))
-            try:
-                if chunk.compression == '' and isinstance(at, int):
-                    self._fh.seek(at)
-                    got = self._fh.readinto(slot)
-                    if got != size:
-                        raise McapError(f'uncompressed chunk holds {got} bytes, declared '
-                                        f'{size}')
-                else:
-                    data = self._fh_read(at, stored) if isinstance(at, int) else at
-                    if chunk.compression == 'zstd' and self._dctx is None:
-                        self._dctx = _codec('zstd').ZstdDecompressor()
-                    decompress_into(chunk.compression, data, slot, size, self._dctx)
-            finally:
-                slot.release()
-        except (McapError, CodecMissingError) as exc:
-            return _PendingChunk(off, chunk, stored, exc)
-        return _PendingChunk(off, chunk, stored, None)
-
-    def _fh_read(self, at: int, n: int) -> bytes:
-        """``n`` bytes of the file from offset ``at``."""
-        self._fh.seek(at)
-        return self._fh.read(n)
+            if compression == '' and isinstance(at, int):
+                got = _pread_into(self._fh.fileno(), slot[:size], at)
+                if got != size:
+                    raise McapError(f'uncompressed chunk holds {got} bytes, declared {size}')
+            else:
+                data = os.pread(self._fh.fileno(), stored, at) if isinstance(at, int) else at
+                if compression == 'zstd' and self._dctx is None:
+                    self._dctx = _codec('zstd').ZstdDecompressor()
+                decompress_into(compression, data, slot, size, self._dctx)
+            return None, (zlib.crc32(slot[:size]) if want_crc else 0)
+        except McapError as exc:          # CodecMissingError included
+            return exc, 0
+        finally:
+            slot.release()
 
     def _other_record(self, op: int, body: bytes) -> None:
         """Register a top-level Schema/Channel/Header/Metadata record."""
@@ -1363,23 +1446,23 @@ class McapReader:
             yield MessageBatch(ch, self.schemas.get(ch.schema_id), buf, starts, lens, log_time,
                                np.asarray([ords[k] for k in ks], dtype=np.int64), seq)
 
-    def _chunk_messages(self, done: _PendingChunk, indexes: dict[int, np.ndarray],
-                        group: _Group) -> None:
-        """Check one loaded chunk and locate its messages; add them to ``group``.
+    def _chunk_messages(self, done: _PendingChunk, indexes: dict[int, np.ndarray]) -> None:
+        """Check one loaded chunk and locate its messages; add them to its group.
 
-        A damaged chunk (decompression, CRC or records) is counted and left out (its slot is
-        reused); a chunk without messages adds nothing.
+        A damaged chunk (decompression, CRC or records) is counted and left out (its slot
+        stays unused); a chunk without messages adds nothing.
         """
         off, chunk = done.off, done.chunk
         n_idx = sum(len(v) for v in indexes.values()) or None
-        if isinstance(done.error, CodecMissingError):
-            raise CodecMissingError(f'{self.path}: {done.error}') from None
-        if done.error is not None:
-            self._bad_chunk(off, n_idx, min(chunk.uncompressed_size, done.stored),
-                            str(done.error))
+        error, crc = done.outcome()
+        if isinstance(error, CodecMissingError):
+            raise CodecMissingError(f'{self.path}: {error}') from None
+        if error is not None:
+            self._bad_chunk(off, n_idx, min(chunk.uncompressed_size, done.stored), str(error))
             return
-        arr = group.pending(chunk.uncompressed_size)
-        if chunk.uncompressed_crc and zlib.crc32(arr) != chunk.uncompressed_crc:
+        assert done.group is not None
+        arr = done.group.records(done.at, chunk.uncompressed_size)
+        if chunk.uncompressed_crc and crc != chunk.uncompressed_crc:
             self._bad_chunk(off, n_idx, chunk.uncompressed_size,
                             'CRC mismatch')
             return
@@ -1391,7 +1474,7 @@ class McapReader:
             return
         base = self.messages_read
         self.messages_read += offs.shape[0]
-        group.commit(chunk.uncompressed_size, offs, heads, base)
+        done.group.commit(done.at, chunk.uncompressed_size, offs, heads, base)
 
     def _group_batches(self, group: _Group,
                        wanted: Callable[[int], bool]) -> Iterator[MessageBatch]:
