@@ -665,10 +665,30 @@ def _rows(values: np.ndarray, idx: np.ndarray) -> np.ndarray:
     return values[idx]
 
 
+def _median(d: np.ndarray) -> float:
+    """``float(np.median(d))`` of a non-empty 1-D array, by counting for integer steps.
+
+    Sample intervals [ns] of a log span a narrow range of integers, so the middle values
+    are found from a histogram in two passes instead of a partition; the result is the
+    same number (the mean of the two middle values for an even count, as np.median).
+    """
+    if d.dtype.kind in 'iu' and d.size > 64:
+        lo, hi = int(d.min()), int(d.max())
+        if hi - lo < 1 << 16:
+            cum = np.cumsum(np.bincount((d - lo).astype(np.intp)))
+            n = d.size
+            v1 = lo + int(np.searchsorted(cum, (n - 1) // 2, side='right'))
+            if n % 2:
+                return float(v1)
+            v2 = lo + int(np.searchsorted(cum, n // 2, side='right'))
+            return float((np.float64(v1) + np.float64(v2)) / 2.0)
+    return float(np.median(d))
+
+
 def _median_step(s: np.ndarray) -> float:
     d = np.diff(s)
     d = d[d > 0]
-    return float(np.median(d)) if d.size else float('nan')
+    return _median(d) if d.size else float('nan')
 
 
 def _rate(t: np.ndarray) -> float:
@@ -1173,7 +1193,7 @@ def _overlap(idx: np.ndarray, s: np.ndarray, counts: StreamCounts | None, name: 
     if s.size < 4 * _DENSE_RUN:
         return idx
     d = np.diff(s)
-    dense = d < 0.5 * np.median(d)
+    dense = d < 0.5 * _median(d)
     run = _window_counts(dense, _DENSE_RUN)
     hit = np.flatnonzero(run >= _DENSE_MIN)
     if hit.size == 0:
