@@ -52,6 +52,7 @@ _COMPONENTS = {
 }
 
 _HEAD = 16  # encapsulation + sec + nanosec + string length
+_TEXT = 16  # frame_id bytes gathered with the fixed head (longer ones are gathered apart)
 
 
 def _layout(msg_type: str) -> tuple[tuple[str, int], ...]:
@@ -253,8 +254,11 @@ def decode_batch(msg_type: str, buf: np.ndarray, starts: np.ndarray, lengths: np
     cand = np.flatnonzero(ok)
     pre = np.zeros((0, _HEAD), dtype=np.uint8)
     if cand.size:
-        # one gather of the 16 fixed bytes: encapsulation, stamp and frame_id length
-        pre = _gather(buf, starts[cand], 0, _HEAD)
+        # one gather of the 16 fixed bytes (encapsulation, stamp, frame_id length) and, when
+        # the buffer allows, the next 16 too: a frame_id that fits is then read from it
+        wide = _HEAD + _TEXT if int(starts[cand].max()) + _HEAD + _TEXT <= buf.shape[0] \
+            else _HEAD
+        pre = _gather(buf, starts[cand], 0, wide)
         kind = pre[:, 1]
         good = (pre[:, 0] == 0) & (kind <= 1)
         raw_len = pre[:, 12:16].copy()
@@ -283,7 +287,10 @@ def decode_batch(msg_type: str, buf: np.ndarray, starts: np.ndarray, lengths: np
             nsec = head[:, 8:12].copy().view(e + 'u4').ravel().astype(np.int64)
             stamp[rows] = sec * 1_000_000_000 + nsec
             # frame ids: usually one per group, so compare rows before paying for np.unique
-            text = _gather(buf, s, 16, max(L - 1, 0))
+            if L - 1 <= head.shape[1] - _HEAD:
+                text = head[:, _HEAD:_HEAD + max(L - 1, 0)]   # in the prefix already
+            else:
+                text = _gather(buf, s, 16, max(L - 1, 0))
             if text.shape[1] == 0 or bool(np.all(text == text[0])):
                 uniq_rows, uinv = text[:1], np.zeros(len(rows), dtype=np.int64)
             else:
