@@ -277,7 +277,8 @@ def decode_batch(msg_type: str, buf: np.ndarray, starts: np.ndarray, lengths: np
         else:
             ukeys, inv = np.unique(key, return_inverse=True)
             groups = [(k, cand[inv == g], pre[inv == g]) for g, k in enumerate(ukeys.tolist())]
-        whole = cand.size == n       # every row decodable: results go in without a scatter
+        # every row decodable as one layout: results go in whole, without a scatter
+        single = cand.size == n and len(groups) == 1
         for k, rows, head in groups:
             little = (k >> 40) == 1
             L = k & ((1 << 40) - 1)
@@ -285,7 +286,10 @@ def decode_batch(msg_type: str, buf: np.ndarray, starts: np.ndarray, lengths: np
             s = starts[rows]
             sec = head[:, 4:8].copy().view(e + 'i4').ravel().astype(np.int64)
             nsec = head[:, 8:12].copy().view(e + 'u4').ravel().astype(np.int64)
-            stamp[rows] = sec * 1_000_000_000 + nsec
+            if single:
+                stamp = sec * 1_000_000_000 + nsec
+            else:
+                stamp[rows] = sec * 1_000_000_000 + nsec
             # frame ids: usually one per group, so compare rows before paying for np.unique
             if L - 1 <= head.shape[1] - _HEAD:
                 text = head[:, _HEAD:_HEAD + max(L - 1, 0)]   # in the prefix already
@@ -305,13 +309,16 @@ def decode_batch(msg_type: str, buf: np.ndarray, starts: np.ndarray, lengths: np
                 except UnicodeDecodeError:
                     bad_code[j] = True
                 codes[j] = frame_table.setdefault(raw, len(frame_table))
-            frame_index[rows] = codes[uinv]
+            if single and codes.shape[0] == 1:
+                frame_index = np.full(n, codes[0], dtype=np.int32)
+            else:
+                frame_index[rows] = codes[uinv]
             body = body_offset(L)
             for f in names:
                 first, count = offs[f]
                 cols = _gather(buf, s, body + 8 * first, 8 * count)
                 vals = cols.view(e + 'f8').astype(np.float64, copy=False)
-                if whole and len(groups) == 1:
+                if single:
                     out[f] = vals
                 else:
                     if f not in out:
