@@ -991,26 +991,12 @@ class _Group:
         self.offs, self.heads, self.bases = [], [], []
 
 
-def spare_cpu() -> bool:
-    """Whether this process can count on a second CPU now.
-
-    True when it may run on more than one CPU and the one-minute load average (this
-    process included) leaves at least half a CPU idle; True where the load is unknown.
-
-    Returns
-    -------
-    bool
-    """
+def _cpus() -> int:
+    """CPUs this process may run on."""
     try:
-        n = len(os.sched_getaffinity(0))
+        return len(os.sched_getaffinity(0))
     except (AttributeError, OSError):              # pragma: no cover (not Linux)
-        n = os.cpu_count() or 1
-    if n < 2:
-        return False
-    try:
-        return os.getloadavg()[0] < n - 0.5
-    except (AttributeError, OSError):              # pragma: no cover (no load average)
-        return True
+        return os.cpu_count() or 1
 
 
 def _pread_into(fd: int, out: memoryview, at: int) -> int:
@@ -1067,10 +1053,12 @@ class McapReader:
     #: Top-level records are read in blocks of at least this many bytes.
     BLOCK = 1 << 20
     #: Load chunks (file read, decompression, CRC: all release the GIL) on a worker thread,
-    #: overlapped with locating and decoding the previous chunk's messages: True always,
-    #: False never, None (default) when a CPU is to spare (:func:`spare_cpu`; on a busy
-    #: machine the worker only adds thread switches and cross-core cache traffic).
-    THREADS: bool | None = None
+    #: overlapped with locating and decoding the previous chunk's messages (on a machine
+    #: with more than one CPU).  Off by default: on the 2-CPU benchmark machine it measured
+    #: no faster in wall time and ~0.05 s more CPU per one-hour log (a thread handoff and a
+    #: GIL re-acquisition per 768 KiB chunk, and the chunk crossing cores), even with most
+    #: of a CPU idle.
+    THREADS = False
 
     def __init__(self, path: str | Path, *,
                  progress: Callable[[int, int], None] | None = None,
@@ -1290,7 +1278,7 @@ class McapReader:
         group = _Group(self._buffers, cap)
         closing: _Group | None = None      # full, waiting for its last chunk to be checked
         worker = None
-        if self.THREADS or (self.THREADS is None and spare_cpu()):
+        if self.THREADS and _cpus() > 1:
             from concurrent.futures import ThreadPoolExecutor  # only when a log is read
 
             worker = ThreadPoolExecutor(1, thread_name_prefix='mcap-chunks')
