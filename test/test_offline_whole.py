@@ -68,6 +68,46 @@ def test_read_log_is_the_same_with_and_without_groups(small_log: Path,
     assert a.omega.counts.received == 12000 and a.torque.counts.received == 3000
 
 
+@pytest.mark.parametrize('layout', ['zstd', 'none'])
+def test_worker_thread_reads_the_same_messages_and_damage(
+        small_log: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, layout: str) -> None:
+    """Chunks loaded on the worker thread or inline: identical batches, and on a file with
+    damaged chunks (CRC, decompression) the same damage notes in the same order."""
+    path = small_log
+    if layout == 'none':
+        path = tmp_path / 'plain' / 'bag_0.mcap'
+        path.parent.mkdir()
+        build_log(path, 0.25, 'none', chunk_size=64 << 10)
+    monkeypatch.setattr(McapReader, 'GROUP_BYTES', 256 << 10)   # several groups
+    monkeypatch.setattr(McapReader, 'THREADS', True)
+    threaded = _batches(path)
+    monkeypatch.setattr(McapReader, 'THREADS', False)
+    inline = _batches(path)
+    for topic in inline:
+        for a, b in zip(threaded[topic], inline[topic], strict=True):
+            if isinstance(a, bytes):
+                assert a == b
+            else:
+                np.testing.assert_array_equal(a, b)
+    # damage three chunks' records: the readers must skip and count the same chunks
+    data = bytearray(path.read_bytes())
+    with McapReader(path) as r:
+        starts = sorted(ci.chunk_start_offset + ci.chunk_length // 2 for ci in r.chunk_indexes)
+    for k in (1, 5, 6):
+        data[starts[k]] ^= 0xFF
+    bad = tmp_path / 'damaged.mcap'
+    bad.write_bytes(bytes(data))
+    notes = {}
+    for threads in (True, False):
+        monkeypatch.setattr(McapReader, 'THREADS', threads)
+        with McapReader(bad) as r:
+            n = sum(len(b) for b in r.iter_batches())
+            notes[threads] = (n, r.damage.corrupt_chunks, r.damage.messages_lost,
+                              list(r.damage.notes))
+    assert notes[True] == notes[False]
+    assert notes[True][1] == 3
+
+
 def test_build_log_writes_a_rosbag2_bag(small_log: Path) -> None:
     """The benchmark log's directory is a bag: metadata.yaml names the file and counts."""
     import yaml

@@ -261,13 +261,16 @@ from inertia_ros.core.estimation import estimate
 from inertia_ros.io.logs import read_log
 t1 = time.perf_counter()
 with numerical_warnings() as found:
+    c1 = time.process_time()
     log = read_log({path!r})
     t2 = time.perf_counter()
+    c2 = time.process_time()
     est = estimate(log.omega.t, log.omega.values, log.torque.t, log.torque.values)
     t3 = time.perf_counter()
 text = json.dumps(build_report(est, log, 0.0, 'auto', list(found)), indent=2, allow_nan=False)
 t4 = time.perf_counter()
 print(json.dumps(dict(imports=t1 - t0, read=t2 - t1, estimate=t3 - t2, report=t4 - t3,
+                      read_cpu=c2 - c1,
                       messages=int(log.omega.counts.received + log.torque.counts.received))))
 '''
 
@@ -371,6 +374,7 @@ def whole_layout(path: Path, repeat: int = 5, peers: bool = True, peer_repeat: i
     dict
         ``whole_s`` (list of wall times [s]), ``whole_median_s``, ``msg_per_s`` (median),
         ``phases`` (median seconds per phase: interpreter, imports, read, estimate, report),
+        ``read_cpu_s`` (median CPU time of the read phase [s], all threads),
         ``peers`` (per peer: list of seconds, median, msg/s) and ``notes``.
     """
     if pycache is None:
@@ -398,6 +402,7 @@ def whole_layout(path: Path, repeat: int = 5, peers: bool = True, peer_repeat: i
         'whole_median_s': med, 'msg_per_s': n / med,
         'phases': {k: float(np.median([p[k] for p in phases]))
                    for k in ('interpreter', 'imports', 'read', 'estimate', 'report')},
+        'read_cpu_s': float(np.median([p['read_cpu'] for p in phases])),
         'status': json.loads(report)['status'], 'peers': {}, 'notes': []}
     for peer in (('mcap_ros2', 'rosbags') if peers else ()):
         note = _peer_available(peer)
@@ -480,6 +485,9 @@ def run_whole(minutes: float = 60.0, repeat: int = 5, peers: bool = True,
             print(f'{name:13s} whole process {r["whole_median_s"]:.2f} s = '
                   f'{r["msg_per_s"]:,.0f} msg/s (median of {repeat}; {ph}){peer_txt}',
                   flush=True)
+            print(f'{"":13s} read phase CPU time {r["read_cpu_s"]:.2f} s (median; all threads '
+                  'of the process: on a loaded machine the wall time of the read waits for a '
+                  'CPU)', flush=True)
             for note in r['notes']:
                 print(f'  note: {note}', flush=True)
     command = (f'python -m inertia_ros bench offline --whole --minutes {minutes:g} '

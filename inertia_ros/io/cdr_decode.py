@@ -52,6 +52,7 @@ _COMPONENTS = {
 }
 
 _HEAD = 16  # encapsulation + sec + nanosec + string length
+_TEXT = 16  # frame_id bytes gathered with the fixed head (longer ones are gathered apart)
 
 
 def _layout(msg_type: str) -> tuple[tuple[str, int], ...]:
@@ -248,40 +249,52 @@ def decode_batch(msg_type: str, buf: np.ndarray, starts: np.ndarray, lengths: np
     total = sum(c for _, c in _layout(msg_type))
     stamp = np.zeros(n, dtype=np.int64)
     frame_index = np.full(n, -1, dtype=np.int32)
-    out = {f: np.full((n, offs[f][1]), np.nan) for f in names}
+    out: dict[str, np.ndarray] = {}
     ok = lengths >= _HEAD
     cand = np.flatnonzero(ok)
+    pre = np.zeros((0, _HEAD), dtype=np.uint8)
     if cand.size:
-        s = starts[cand]
-        enc0 = buf[s]
-        kind = buf[s + 1]
-        good = (enc0 == 0) & (kind <= 1)
-        raw_len = _gather(buf, s, 12, 4)
+        # one gather of the 16 fixed bytes (encapsulation, stamp, frame_id length) and, when
+        # the buffer allows, the next 16 too: a frame_id that fits is then read from it
+        wide = _HEAD + _TEXT if int(starts[cand].max()) + _HEAD + _TEXT <= buf.shape[0] \
+            else _HEAD
+        pre = _gather(buf, starts[cand], 0, wide)
+        kind = pre[:, 1]
+        good = (pre[:, 0] == 0) & (kind <= 1)
+        raw_len = pre[:, 12:16].copy()
         flen = np.where(kind == 1, raw_len.view('<u4').ravel(),
                         raw_len.view('>u4').ravel()).astype(np.int64)
         need = 4 + ((12 + flen + 7) // 8) * 8 + 8 * total
         good &= lengths[cand] >= need
-        ok[cand[~good]] = False
-        cand, kind, flen = cand[good], kind[good], flen[good]
+        if not good.all():
+            ok[cand[~good]] = False
+            cand, kind, flen, pre = cand[good], kind[good], flen[good], pre[good]
     frame_table: dict[bytes, int] = {}
     if cand.size:
         key = kind.astype(np.int64) << 40 | flen
         if key.min() == key.max():  # the usual case: one layout for the whole batch
-            groups = [(int(key[0]), cand)]
+            groups = [(int(key[0]), cand, pre)]
         else:
             ukeys, inv = np.unique(key, return_inverse=True)
-            groups = [(k, cand[inv == g]) for g, k in enumerate(ukeys.tolist())]
-        for k, rows in groups:
+            groups = [(k, cand[inv == g], pre[inv == g]) for g, k in enumerate(ukeys.tolist())]
+        # every row decodable as one layout: results go in whole, without a scatter
+        single = cand.size == n and len(groups) == 1
+        for k, rows, head in groups:
             little = (k >> 40) == 1
             L = k & ((1 << 40) - 1)
             e = '<' if little else '>'
             s = starts[rows]
-            head = _gather(buf, s, 4, 8)
-            sec = head[:, :4].copy().view(e + 'i4').ravel().astype(np.int64)
-            nsec = head[:, 4:].copy().view(e + 'u4').ravel().astype(np.int64)
-            stamp[rows] = sec * 1_000_000_000 + nsec
+            sec = head[:, 4:8].copy().view(e + 'i4').ravel().astype(np.int64)
+            nsec = head[:, 8:12].copy().view(e + 'u4').ravel().astype(np.int64)
+            if single:
+                stamp = sec * 1_000_000_000 + nsec
+            else:
+                stamp[rows] = sec * 1_000_000_000 + nsec
             # frame ids: usually one per group, so compare rows before paying for np.unique
-            text = _gather(buf, s, 16, max(L - 1, 0))
+            if L - 1 <= head.shape[1] - _HEAD:
+                text = head[:, _HEAD:_HEAD + max(L - 1, 0)]   # in the prefix already
+            else:
+                text = _gather(buf, s, 16, max(L - 1, 0))
             if text.shape[1] == 0 or bool(np.all(text == text[0])):
                 uniq_rows, uinv = text[:1], np.zeros(len(rows), dtype=np.int64)
             else:
@@ -296,15 +309,27 @@ def decode_batch(msg_type: str, buf: np.ndarray, starts: np.ndarray, lengths: np
                 except UnicodeDecodeError:
                     bad_code[j] = True
                 codes[j] = frame_table.setdefault(raw, len(frame_table))
-            frame_index[rows] = codes[uinv]
+            if single and codes.shape[0] == 1:
+                frame_index = np.full(n, codes[0], dtype=np.int32)
+            else:
+                frame_index[rows] = codes[uinv]
             body = body_offset(L)
             for f in names:
                 first, count = offs[f]
                 cols = _gather(buf, s, body + 8 * first, 8 * count)
-                out[f][rows] = cols.view(e + 'f8').astype(np.float64, copy=False)
+                vals = cols.view(e + 'f8').astype(np.float64, copy=False)
+                if single:
+                    out[f] = vals
+                else:
+                    if f not in out:
+                        out[f] = np.full((n, count), np.nan)
+                    out[f][rows] = vals
             if bad_code.any():
                 bad_rows = rows[bad_code[uinv]]
                 ok[bad_rows] = False
+    for f in names:
+        if f not in out:
+            out[f] = np.full((n, offs[f][1]), np.nan)
     bad = ~ok
     if bad.any():
         stamp[bad] = 0

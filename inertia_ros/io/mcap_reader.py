@@ -25,7 +25,9 @@ MCAP format specification, https://mcap.dev/spec (records, opcodes and field lay
 """
 from __future__ import annotations
 
+import os
 import struct
+import sys
 import zlib
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
@@ -331,10 +333,16 @@ def parse_record(opcode: int, body: bytes | memoryview) -> Record:
     McapError
         If a field runs past the end of the record.
     """
-    c = _Cursor(body)
     if opcode == OP_MESSAGE:
         ch, seq, lt, pt = _MSG.unpack_from(body, 0)
         return Message(ch, seq, lt, pt, bytes(body[_MSG.size:]))
+    if opcode in (OP_MESSAGE_INDEX, OP_CHUNK_INDEX):
+        # the records read by the hundred per file: struct first, the cursor (and its
+        # errors) only when the record does not parse at a glance
+        fast = _fast_index(opcode, body)
+        if fast is not None:
+            return fast
+    c = _Cursor(body)
     if opcode == OP_HEADER:
         return Header(c.string(), c.string())
     if opcode == OP_FOOTER:
@@ -372,6 +380,47 @@ def parse_record(opcode: int, body: bytes | memoryview) -> Record:
     if opcode == OP_DATA_END:
         return DataEnd(c.u32())
     return UnknownRecord(opcode, bytes(body))
+
+
+_CHUNK_INDEX_HEAD = struct.Struct('<QQQQI')
+_CHUNK_INDEX_TAIL = struct.Struct('<QQ')
+
+
+def _fast_index(opcode: int, body: bytes | memoryview) -> MessageIndex | ChunkIndex | None:
+    """A MessageIndex or ChunkIndex record parsed with struct, or None to use the cursor.
+
+    Gives what the cursor path of :func:`parse_record` gives for every well-formed record;
+    None (never an error) for anything else, so errors keep the cursor's messages.
+    """
+    n = len(body)
+    if opcode == OP_MESSAGE_INDEX:
+        if n < 6:
+            return None
+        ch, ln = struct.unpack_from('<HI', body, 0)
+        if 6 + ln > n or ln % 16:
+            return None
+        return MessageIndex(ch, np.frombuffer(bytes(body[6:6 + ln]), dtype='<u8').reshape(-1, 2))
+    if n < _CHUNK_INDEX_HEAD.size:
+        return None
+    t0, t1, start, length, map_len = _CHUNK_INDEX_HEAD.unpack_from(body, 0)
+    pos = _CHUNK_INDEX_HEAD.size
+    if map_len % 10 or pos + map_len + 12 > n:
+        return None
+    offsets: dict[int, int] = {}
+    for k, v in struct.iter_unpack('<HQ', bytes(body[pos:pos + map_len])):
+        offsets[k] = v
+    pos += map_len
+    mi_len = _U64.unpack_from(body, pos)[0]
+    c_len = _U32.unpack_from(body, pos + 8)[0]
+    pos += 12
+    if pos + c_len + 16 > n:
+        return None
+    try:
+        comp = bytes(body[pos:pos + c_len]).decode('utf-8')
+    except UnicodeDecodeError:
+        return None
+    csize, usize = _CHUNK_INDEX_TAIL.unpack_from(body, pos + c_len)
+    return ChunkIndex(t0, t1, start, length, offsets, mi_len, comp, csize, usize)
 
 
 #: Largest piece an LZ4 frame is decompressed in [bytes].
@@ -415,55 +464,116 @@ def decompress(compression: str, data: bytes | memoryview, size: int, *,
     CodecMissingError
         The codec package (``zstandard`` or ``lz4``) is not installed.
     """
+    check_chunk_size(compression, len(data), size, limit)
+    if compression == '':
+        return bytes(data)
+    buf = bytearray(size + 1)
+    view = memoryview(buf)
+    try:
+        decompress_into(compression, data, view, size)
+    finally:
+        view.release()
+    del buf[size:]
+    return buf
+
+
+def check_chunk_size(compression: str, stored: int, size: int, limit: int) -> None:
+    """Check a chunk's declared sizes before anything is allocated or read.
+
+    Parameters
+    ----------
+    compression : str
+        The chunk's compression (``''`` for none).
+    stored : int
+        Length of its (compressed) records field [bytes].
+    size : int
+        The uncompressed size the chunk declares [bytes].
+    limit : int
+        Largest uncompressed chunk accepted [bytes].
+
+    Raises
+    ------
+    McapError
+        A declared size over ``limit``, or an uncompressed chunk whose records field is not
+        ``size`` bytes long.
+    """
     if size > limit:
         raise McapError(f'chunk declares {size} uncompressed bytes, over the limit of '
                         f'{limit} (a decompression bomb or a damaged chunk header)')
+    if compression == '' and stored != size:
+        raise McapError(f'uncompressed chunk holds {stored} bytes, declared {size}')
+
+
+def decompress_into(compression: str, data: bytes | memoryview, out: memoryview, size: int,
+                    dctx: Any = None) -> None:
+    """Decompress a chunk's records into ``out[:size]``, never writing past ``out[size]``.
+
+    The bounded core of :func:`decompress` (which checks the declared size first, with
+    :func:`check_chunk_size`): the output goes straight into the caller's buffer, e.g. a
+    slot of a buffer holding several chunks back to back.
+
+    Parameters
+    ----------
+    compression : str
+        ``''``, ``'zstd'`` or ``'lz4'``.
+    data : bytes
+        The compressed records.
+    out : memoryview
+        Writable bytes, at least ``size + 1`` long (the extra byte detects output longer than
+        declared) unless ``compression`` is ``''`` (then ``size``).
+    size : int
+        The uncompressed size the chunk declares [bytes].
+    dctx : zstandard.ZstdDecompressor, optional
+        A decompressor to reuse for zstd (a new one otherwise).
+
+    Raises
+    ------
+    McapError
+        Unknown compression, a decompression failure, or output longer or shorter than
+        declared.
+    CodecMissingError
+        The codec package is not installed.
+    """
     if compression == '':
         if len(data) != size:
             raise McapError(f'uncompressed chunk holds {len(data)} bytes, declared {size}')
-        return bytes(data)
+        out[:size] = data
+        return
     if compression not in ('zstd', 'lz4'):
         raise McapError(f'unsupported chunk compression {compression!r}')
+    if len(out) < size + 1:
+        raise ValueError(f'out: {len(out)} bytes, needs size + 1 = {size + 1}')
     codec = _codec(compression)
+    got = 0
     try:
         if compression == 'zstd':
-            buf = bytearray(size + 1)
-            view = memoryview(buf)
-            got = 0
-            with codec.ZstdDecompressor().stream_reader(bytes(data),
-                                                        read_across_frames=True) as r:
+            if dctx is None:
+                dctx = codec.ZstdDecompressor()
+            with dctx.stream_reader(data, read_across_frames=True) as r:
                 while got <= size:
-                    n = r.readinto(view[got:])
+                    n = r.readinto(out[got:size + 1])
                     if not n:
                         break
                     got += n
-            view.release()
-            del buf[got:]
-            out = buf
         else:
-            # in pieces into one buffer: peak memory is the chunk plus one piece
-            buf = bytearray(size + 1)
-            got = 0
+            # in pieces: peak memory is the chunk plus one piece
             dec = codec.LZ4FrameDecompressor()
             piece = dec.decompress(bytes(data), max_length=min(size + 1, _PIECE))
             while True:
-                buf[got:got + len(piece)] = piece
+                out[got:got + len(piece)] = piece
                 got += len(piece)
                 if dec.eof or got > size or dec.needs_input:
                     break
                 piece = dec.decompress(b'', max_length=min(size + 1 - got, _PIECE))
                 if not piece:
                     break
-            del buf[got:]
-            out = buf
     except Exception as exc:  # the codecs raise their own error types
         raise McapError(f'{compression} decompression failed: {exc}') from exc
-    if len(out) > size:
+    if got > size:
         raise McapError(f'{compression} data decompresses to more than the {size} bytes the '
                         'chunk declares (a decompression bomb or a damaged chunk)')
-    if len(out) != size:
-        raise McapError(f'chunk decompressed to {len(out)} bytes, declared {size}')
-    return out
+    if got != size:
+        raise McapError(f'chunk decompressed to {got} bytes, declared {size}')
 
 
 def _codec(compression: str) -> Any:
@@ -763,15 +873,153 @@ class MessageBatch:
 
 def _gather_u64(arr: np.ndarray, offs: np.ndarray) -> np.ndarray:
     """Little-endian uint64 at (unaligned) byte offsets ``offs`` of uint8 array ``arr``."""
-    return sliding_window_view(arr, 8)[offs].view('<u8').ravel()
-
-
-def _gather_u16(arr: np.ndarray, offs: np.ndarray) -> np.ndarray:
-    """Little-endian uint16 at byte offsets ``offs`` of uint8 array ``arr``."""
-    return arr[offs].astype(np.uint16) | (arr[offs + 1].astype(np.uint16) << 8)
+    if arr.shape[0] < 8 or not arr.flags.c_contiguous:
+        return sliding_window_view(arr, 8)[offs].view('<u8').ravel()
+    return np.ndarray(shape=(arr.shape[0] - 7,), dtype='<u8', buffer=arr, strides=(1,))[offs]
 
 
 ChannelFilter = Callable[[Channel, Schema | None], bool]
+
+_CHUNK_HEAD = struct.Struct('<QQQI')
+
+#: A Message record's head as it lies in the buffer (unaligned): opcode, record length,
+#: channel id, sequence, log time [ns].
+_HEAD_DT = np.dtype({'names': ['op', 'len', 'chan', 'seq', 'log_time'],
+                     'formats': ['u1', '<u8', '<u2', '<u4', '<u8'],
+                     'offsets': [0, 1, 9, 11, 15], 'itemsize': 23})
+_HEAD_V = np.dtype(f'V{_HEAD_DT.itemsize}')
+
+
+@dataclass(frozen=True)
+class _Extent:
+    """Where a record body lies in the file: ``length`` bytes from offset ``start``."""
+
+    start: int
+    length: int
+
+
+@dataclass
+class _PendingChunk:
+    """A chunk whose records are being loaded into a group slot (or the error that stopped it).
+
+    ``result`` is ``(error, crc)`` once loaded: a :class:`McapError` (or None) and the
+    CRC-32 of the uncompressed records (0 when the chunk declares none); while the chunk is
+    loaded on the reader's worker thread it is a future of that pair.
+    """
+
+    off: int
+    chunk: Chunk
+    stored: int
+    group: _Group | None
+    at: int
+    result: Any
+
+    def outcome(self) -> tuple[McapError | None, int]:
+        """``(error, crc)``, waiting for the worker thread if it is still loading the chunk."""
+        if not isinstance(self.result, tuple):      # a concurrent.futures.Future
+            self.result = self.result.result()
+        return self.result
+
+
+class _Group:
+    """Consecutive chunks' records, back to back in one buffer, and their messages.
+
+    Slots are reserved in file order (``reserved`` is where the next one starts) and a
+    chunk's messages are committed once it is checked; a damaged chunk leaves an unused
+    slot.  The buffers come from ``pool`` (the reader's) and go back to it: a buffer is
+    reused only when nothing outside the pool refers to it any more (no batch, view or
+    decoded array of an earlier group), so reuse never changes what a caller holds, and
+    fresh memory (and its page faults) is paid for once rather than once per group.
+    """
+
+    #: Buffers kept for reuse: one a caller may still read, one being finished, one filling.
+    POOL = 3
+
+    def __init__(self, pool: list[np.ndarray], capacity: int) -> None:
+        self.pool = pool
+        self.capacity = capacity
+        self.buf: np.ndarray = _EMPTY
+        self.reserved = 0
+        self.used = 0
+        self.offs: list[np.ndarray] = []
+        self.heads: list[np.ndarray] = []
+        self.bases: list[int] = []
+
+    def fits(self, need: int) -> bool:
+        """Whether ``need`` more bytes fit the current buffer (True for an empty group)."""
+        return self.reserved == 0 or self.reserved + need <= self.buf.shape[0]
+
+    def slot(self, need: int) -> tuple[int, memoryview]:
+        """Reserve the ``need`` bytes after the group's slots: (offset, writable view)."""
+        if self.reserved + need > self.buf.shape[0]:
+            assert self.reserved == 0, 'start a new group before this one overflows'
+            if self.buf is not _EMPTY:
+                self.pool.append(self.buf)
+            self.buf = self._take(need)
+        at = self.reserved
+        self.reserved += need
+        return at, memoryview(self.buf)[at:at + need]
+
+    def _take(self, need: int) -> np.ndarray:
+        """A free pooled buffer of at least ``need`` bytes, or a new one."""
+        for k in range(len(self.pool)):
+            # free when only the pool list (and getrefcount's argument) refers to it
+            if self.pool[k].shape[0] >= need and sys.getrefcount(self.pool[k]) <= 2:
+                return self.pool.pop(k)
+        return np.empty(max(need, self.capacity), dtype=np.uint8)
+
+    def records(self, at: int, size: int) -> np.ndarray:
+        """The ``size`` bytes of the slot at ``at``, as a uint8 array."""
+        return self.buf[at:at + size]
+
+    def commit(self, at: int, size: int, offs: np.ndarray, heads: np.ndarray,
+               base: int) -> None:
+        """Keep the messages (chunk offsets, heads) of the ``size``-byte slot at ``at``."""
+        if offs.shape[0]:
+            self.offs.append(offs + at)
+            self.heads.append(heads)
+            self.bases.append(base)
+            self.used = max(self.used, at + size)
+
+    def reset(self) -> None:
+        """Empty the group; its buffer goes back to the pool."""
+        if self.buf is not _EMPTY:
+            self.pool.append(self.buf)
+            del self.pool[:-self.POOL]
+        self.buf = _EMPTY
+        self.reserved = self.used = 0
+        self.offs, self.heads, self.bases = [], [], []
+
+
+def _cpus() -> int:
+    """CPUs this process may run on."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):              # pragma: no cover (not Linux)
+        return os.cpu_count() or 1
+
+
+def _pread_into(fd: int, out: memoryview, at: int) -> int:
+    """Read ``len(out)`` bytes of file ``fd`` from offset ``at`` into ``out``; bytes read.
+
+    Positional reads (no shared file position), so a worker thread can read while the
+    reader goes on through the file.
+    """
+    got = 0
+    while got < len(out):
+        if hasattr(os, 'preadv'):
+            n = os.preadv(fd, [out[got:]], at + got)
+        else:                                       # pragma: no cover (not Linux/BSD)
+            data = os.pread(fd, len(out) - got, at + got)
+            out[got:got + len(data)] = data
+            n = len(data)
+        if n <= 0:
+            break
+        got += n
+    return got
+
+
+_EMPTY = np.zeros(0, dtype=np.uint8)
 
 
 class McapReader:
@@ -798,11 +1046,19 @@ class McapReader:
 
     #: Unchunked messages are grouped into batches of at most this many messages.
     UNCHUNKED_BATCH = 4096
-    #: Consecutive chunks are joined into one batch per channel up to about this many
-    #: uncompressed bytes (bounded memory; one decode per run of chunks, not per chunk).
-    GROUP_BYTES = 32 << 20
+    #: Consecutive chunks are decompressed back to back into one buffer, and given out as one
+    #: batch per channel, up to about this many uncompressed bytes (bounded memory; one
+    #: decode per run of chunks, not per chunk).
+    GROUP_BYTES = 8 << 20
     #: Top-level records are read in blocks of at least this many bytes.
     BLOCK = 1 << 20
+    #: Load chunks (file read, decompression, CRC: all release the GIL) on a worker thread,
+    #: overlapped with locating and decoding the previous chunk's messages (on a machine
+    #: with more than one CPU).  Off by default: on the 2-CPU benchmark machine it measured
+    #: no faster in wall time and ~0.05 s more CPU per one-hour log (a thread handoff and a
+    #: GIL re-acquisition per 768 KiB chunk, and the chunk crossing cores), even with most
+    #: of a CPU idle.
+    THREADS = False
 
     def __init__(self, path: str | Path, *,
                  progress: Callable[[int, int], None] | None = None,
@@ -833,6 +1089,8 @@ class McapReader:
         self.messages_read = 0
         self._bytes_per_message = 0.0
         self._summary_ok = False
+        self._buffers: list[np.ndarray] = []
+        self._dctx: Any = None
         self._read_summary()
 
     # context manager ----------------------------------------------------------------------
@@ -892,8 +1150,14 @@ class McapReader:
             self.chunk_indexes = []
 
     # top-level record stream ----------------------------------------------------------------
-    def _top_level(self) -> Iterator[tuple[int, int, bytes]]:
-        """Yield (opcode, file_offset, body) for data-section records; stops at damage."""
+    def _top_level(self, lazy_chunks: bool = False
+                   ) -> Iterator[tuple[int, int, bytes | _Extent]]:
+        """Yield (opcode, file_offset, body) for data-section records; stops at damage.
+
+        With ``lazy_chunks`` a Chunk record's body is not read: an :class:`_Extent` (where it
+        is in the file) is yielded instead, and the caller reads what it needs of it before
+        asking for the next record.
+        """
         fh = self._fh
         pos = 8
         fh.seek(pos)
@@ -944,9 +1208,14 @@ class McapReader:
                 pos += 9 + ln
                 fh.seek(pos)
                 continue
-            body = fh.read(ln)
-            yield op, pos, body
-            pos += 9 + ln
+            if lazy_chunks and op == OP_CHUNK:
+                yield op, pos, _Extent(pos + 9, ln)
+                pos += 9 + ln
+                fh.seek(pos)
+            else:
+                body = fh.read(ln)
+                yield op, pos, body
+                pos += 9 + ln
             if self._progress is not None:
                 self._progress(pos, self.size)
             if op == OP_DATA_END:
@@ -1002,9 +1271,17 @@ class McapReader:
 
         pending: list[tuple[int, bytes]] = []
         pend_ord: list[int] = []
-        pending_chunk: tuple[int, Chunk] | None = None
+        pending_chunk: _PendingChunk | None = None
         indexes: dict[int, np.ndarray] = {}
         bytes_seen = 0
+        cap = self.GROUP_BYTES + (2 << 20)
+        group = _Group(self._buffers, cap)
+        closing: _Group | None = None      # full, waiting for its last chunk to be checked
+        worker = None
+        if self.THREADS and _cpus() > 1:
+            from concurrent.futures import ThreadPoolExecutor  # only when a log is read
+
+            worker = ThreadPoolExecutor(1, thread_name_prefix='mcap-chunks')
 
         def flush_unchunked() -> Iterator[MessageBatch]:
             if pending:
@@ -1012,78 +1289,169 @@ class McapReader:
                 pending.clear()
                 pend_ord.clear()
 
-        group: list[tuple[np.ndarray, np.ndarray, np.ndarray, int]] = []
-        group_bytes = 0
+        def flush(g: _Group) -> Iterator[MessageBatch]:
+            if g.offs:
+                yield from self._group_batches(g, wanted)
+            g.reset()
 
-        def flush_group() -> Iterator[MessageBatch]:
-            nonlocal group_bytes
-            if group:
-                yield from self._group_batches(group, wanted)
-                group.clear()
-                group_bytes = 0
+        def flush_groups() -> Iterator[MessageBatch]:
+            nonlocal closing
+            if closing is not None:
+                yield from flush(closing)
+                closing = None
+            yield from flush(group)
 
         def finish_chunk() -> Iterator[MessageBatch]:
-            nonlocal pending_chunk, group_bytes
+            nonlocal pending_chunk, closing
             if pending_chunk is not None:
-                off, chunk = pending_chunk
-                pending_chunk = None
-                got = self._chunk_messages(off, chunk, indexes)
+                done, pending_chunk = pending_chunk, None
+                self._chunk_messages(done, indexes)
                 indexes.clear()
                 if self.messages_read:
                     self._bytes_per_message = bytes_seen / self.messages_read
-                if got is not None:
-                    group.append(got)
-                    group_bytes += got[0].shape[0]
-                if group_bytes >= self.GROUP_BYTES:
-                    yield from flush_group()
+                if closing is not None:
+                    yield from flush(closing)
+                    closing = None
 
-        for op, off, body in self._top_level():
-            if op == OP_MESSAGE_INDEX:
-                try:
-                    rec = parse_record(op, body)
-                    assert isinstance(rec, MessageIndex)
-                    indexes[rec.channel_id] = rec.records
-                except McapError:
-                    pass  # the chunk is then scanned record by record
-                continue
-            yield from finish_chunk()
-            if op != OP_CHUNK:
-                yield from flush_group()     # batches stay in file order
-            if op == OP_MESSAGE:
-                if len(body) < _MSG.size:
-                    self.damage.notes.append(
-                        f'message record at byte {off} is {len(body)} bytes, shorter than '
-                        f'its {_MSG.size}-byte header: skipped')
-                    self.damage.messages_lost += 1
-                    self.damage.bytes_lost += 9 + len(body)
+        def start_chunk(off: int, chunk: Chunk, at: int | bytes, stored: int
+                        ) -> _PendingChunk:
+            """Reserve the chunk's slot (in a new group when the current one is full) and
+            load it, on the worker thread when there is one."""
+            nonlocal group, closing
+            size = chunk.uncompressed_size
+            try:
+                check_chunk_size(chunk.compression, stored, size, self.max_chunk_bytes)
+                if chunk.compression not in ('', 'zstd', 'lz4'):
+                    raise McapError(f'unsupported chunk compression {chunk.compression!r}')
+            except McapError as exc:
+                return _PendingChunk(off, chunk, stored, None, 0, (exc, 0))
+            need = size + (chunk.compression != '')
+            if group.reserved and (group.reserved >= self.GROUP_BYTES
+                                   or not group.fits(need)):
+                assert closing is None
+                closing, group = group, _Group(self._buffers, cap)
+            slot_at, slot = group.slot(need)
+            job = (chunk.compression, at, stored, slot, size, bool(chunk.uncompressed_crc))
+            result = (worker.submit(self._fill, *job) if worker is not None
+                      else self._fill(*job))
+            return _PendingChunk(off, chunk, stored, group, slot_at, result)
+
+        try:
+            for op, off, body in self._top_level(lazy_chunks=True):
+                if op == OP_MESSAGE_INDEX:
+                    assert isinstance(body, bytes)
+                    try:
+                        rec = parse_record(op, body)
+                        assert isinstance(rec, MessageIndex)
+                        indexes[rec.channel_id] = rec.records
+                    except McapError:
+                        pass  # the chunk is then scanned record by record
                     continue
-                ch_id = _U16.unpack_from(body, 0)[0]
-                pend_ord.append(self.messages_read)
-                self.messages_read += 1
-                bytes_seen += 9 + len(body)
-                self._bytes_per_message = bytes_seen / self.messages_read
-                if wanted(ch_id):
-                    pending.append((ch_id, body))
-                else:
-                    pend_ord.pop()
-                if len(pending) >= self.UNCHUNKED_BATCH:
+                if op == OP_CHUNK:
+                    assert isinstance(body, _Extent)
+                    try:
+                        chunk, at, stored = self._chunk_header(body)
+                    except (McapError, UnicodeDecodeError) as exc:
+                        yield from finish_chunk()
+                        yield from flush_unchunked()
+                        self._bad_chunk(off, None, body.length,
+                                        f'unreadable chunk header ({exc})')
+                        continue
+                    # the next chunk loads (on the worker) while the last one is checked
+                    nxt = start_chunk(off, chunk, at, stored)
+                    yield from finish_chunk()
                     yield from flush_unchunked()
-                continue
-            yield from flush_unchunked()
-            if op == OP_CHUNK:
-                try:
-                    chunk = parse_record(op, body)
-                    assert isinstance(chunk, Chunk)
-                except (McapError, UnicodeDecodeError) as exc:
-                    self._bad_chunk(off, None, len(body), f'unreadable chunk header ({exc})')
+                    bytes_seen += 9 + body.length
+                    pending_chunk = nxt
                     continue
-                pending_chunk = (off, chunk)
-                bytes_seen += 9 + len(body)
-            else:
+                yield from finish_chunk()
+                yield from flush_groups()     # batches stay in file order
+                if op == OP_MESSAGE:
+                    assert isinstance(body, bytes)
+                    if len(body) < _MSG.size:
+                        self.damage.notes.append(
+                            f'message record at byte {off} is {len(body)} bytes, shorter than '
+                            f'its {_MSG.size}-byte header: skipped')
+                        self.damage.messages_lost += 1
+                        self.damage.bytes_lost += 9 + len(body)
+                        continue
+                    ch_id = _U16.unpack_from(body, 0)[0]
+                    pend_ord.append(self.messages_read)
+                    self.messages_read += 1
+                    bytes_seen += 9 + len(body)
+                    self._bytes_per_message = bytes_seen / self.messages_read
+                    if wanted(ch_id):
+                        pending.append((ch_id, body))
+                    else:
+                        pend_ord.pop()
+                    if len(pending) >= self.UNCHUNKED_BATCH:
+                        yield from flush_unchunked()
+                    continue
+                yield from flush_unchunked()
+                assert isinstance(body, bytes)
                 self._other_record(op, body)
-        yield from finish_chunk()
-        yield from flush_group()
-        yield from flush_unchunked()
+            yield from finish_chunk()
+            yield from flush_groups()
+            yield from flush_unchunked()
+        finally:
+            if worker is not None:
+                worker.shutdown(wait=True)
+
+    def _chunk_header(self, ext: _Extent) -> tuple[Chunk, int | bytes, int]:
+        """Read a Chunk record's fields, not its records.
+
+        Returns ``(chunk, at, stored)``: the Chunk with empty ``records``, the file offset of
+        its records (or the records themselves, when the header had to be read whole) and
+        their length [bytes].  A header that does not parse at a glance is read and parsed
+        whole, so damage gives the same error as :func:`parse_record`.
+
+        Raises
+        ------
+        McapError, UnicodeDecodeError
+            An unreadable chunk header.
+        """
+        fh = self._fh
+        fh.seek(ext.start)
+        head = fh.read(min(ext.length, 256))
+        if len(head) >= 40:
+            c_len = _U32.unpack_from(head, 28)[0]
+            if 40 + c_len <= len(head):
+                t0, t1, usize, crc = _CHUNK_HEAD.unpack_from(head, 0)
+                stored = _U64.unpack_from(head, 32 + c_len)[0]
+                if 40 + c_len + stored <= ext.length:
+                    comp = head[32:32 + c_len].decode('utf-8')
+                    return (Chunk(t0, t1, usize, crc, comp, b''), ext.start + 40 + c_len,
+                            stored)
+        fh.seek(ext.start)
+        rec = parse_record(OP_CHUNK, fh.read(ext.length))
+        assert isinstance(rec, Chunk)
+        return rec, rec.records, len(rec.records)
+
+    def _fill(self, compression: str, at: int | bytes, stored: int, slot: memoryview,
+              size: int, want_crc: bool) -> tuple[McapError | None, int]:
+        """Load a chunk's records into ``slot`` and compute their CRC: ``(error, crc)``.
+
+        Reads with positional reads and touches no reader state but the zstd decompressor,
+        so it can run on the worker thread (one chunk at a time, in file order); the file
+        reads, zstd decompression and CRC all release the GIL.  Failures are returned, to
+        be counted once the chunk's message indexes (which say how many messages were lost)
+        have been read.
+        """
+        try:
+            if compression == '' and isinstance(at, int):
+                got = _pread_into(self._fh.fileno(), slot[:size], at)
+                if got != size:
+                    raise McapError(f'uncompressed chunk holds {got} bytes, declared {size}')
+            else:
+                data = os.pread(self._fh.fileno(), stored, at) if isinstance(at, int) else at
+                if compression == 'zstd' and self._dctx is None:
+                    self._dctx = _codec('zstd').ZstdDecompressor()
+                decompress_into(compression, data, slot, size, self._dctx)
+            return None, (zlib.crc32(slot[:size]) if want_crc else 0)
+        except McapError as exc:          # CodecMissingError included
+            return exc, 0
+        finally:
+            slot.release()
 
     def _other_record(self, op: int, body: bytes) -> None:
         """Register a top-level Schema/Channel/Header/Metadata record."""
@@ -1136,103 +1504,112 @@ class McapReader:
             yield MessageBatch(ch, self.schemas.get(ch.schema_id), buf, starts, lens, log_time,
                                np.asarray([ords[k] for k in ks], dtype=np.int64), seq)
 
-    def _chunk_messages(self, off: int, chunk: Chunk, indexes: dict[int, np.ndarray]
-                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray, int] | None:
-        """Decompress and check one chunk; locate its messages.
+    def _chunk_messages(self, done: _PendingChunk, indexes: dict[int, np.ndarray]) -> None:
+        """Check one loaded chunk and locate its messages; add them to its group.
 
-        Returns ``(records, offsets, channel ids, ordinal base)``: the uncompressed records as
-        a uint8 array, each Message record's offset in it and channel id (int64 arrays, file
-        order) and the ordinal of its first message; None for a damaged chunk (counted) or
-        one without messages.
+        A damaged chunk (decompression, CRC or records) is counted and left out (its slot
+        stays unused); a chunk without messages adds nothing.
         """
+        off, chunk = done.off, done.chunk
         n_idx = sum(len(v) for v in indexes.values()) or None
-        try:
-            raw = decompress(chunk.compression, chunk.records, chunk.uncompressed_size,
-                             limit=self.max_chunk_bytes)
-        except CodecMissingError as exc:
-            raise CodecMissingError(f'{self.path}: {exc}') from None
-        except McapError as exc:
-            self._bad_chunk(off, n_idx, min(chunk.uncompressed_size, len(chunk.records)),
-                            str(exc))
-            return None
-        if chunk.uncompressed_crc and zlib.crc32(raw) != chunk.uncompressed_crc:
+        error, crc = done.outcome()
+        if isinstance(error, CodecMissingError):
+            raise CodecMissingError(f'{self.path}: {error}') from None
+        if error is not None:
+            self._bad_chunk(off, n_idx, min(chunk.uncompressed_size, done.stored), str(error))
+            return
+        assert done.group is not None
+        arr = done.group.records(done.at, chunk.uncompressed_size)
+        if chunk.uncompressed_crc and crc != chunk.uncompressed_crc:
             self._bad_chunk(off, n_idx, chunk.uncompressed_size,
                             'CRC mismatch')
-            return None
-        arr = np.frombuffer(raw, dtype=np.uint8)
+            return
         try:
-            offs, chans = self._locate_messages(raw, arr, indexes)
+            offs, heads = self._locate_messages(arr, indexes)
         except (McapError, struct.error, UnicodeDecodeError) as exc:
             self._bad_chunk(off, n_idx, chunk.uncompressed_size,
                             f'bad records ({exc})')
-            return None
+            return
         base = self.messages_read
         self.messages_read += offs.shape[0]
-        if offs.shape[0] == 0:
-            return None
-        return arr, offs, chans, base
+        done.group.commit(done.at, chunk.uncompressed_size, offs, heads, base)
 
-    def _group_batches(self, group: list[tuple[np.ndarray, np.ndarray, np.ndarray, int]],
+    def _group_batches(self, group: _Group,
                        wanted: Callable[[int], bool]) -> Iterator[MessageBatch]:
         """One batch per wanted channel over a run of consecutive chunks.
 
-        The chunks' records are joined into one buffer (one copy), so the per-batch work of
+        The chunks' records lie back to back in the group's buffer, so the per-batch work of
         the caller (decoding) runs once per run of chunks rather than once per chunk.
         """
-        if len(group) == 1:
-            arr, offs, chans, base = group[0]
-            ords = base + np.arange(offs.shape[0], dtype=np.int64)
+        arr = group.buf[:group.used]
+        if len(group.offs) == 1:
+            offs, heads = group.offs[0], group.heads[0]
+            ords = group.bases[0] + np.arange(offs.shape[0], dtype=np.int64)
         else:
-            arr = np.concatenate([g[0] for g in group])
-            shift = np.cumsum([0] + [g[0].shape[0] for g in group[:-1]])
-            offs = np.concatenate([g[1] + int(sh) for g, sh in zip(group, shift, strict=True)])
-            chans = np.concatenate([g[2] for g in group])
-            ords = np.concatenate([g[3] + np.arange(g[1].shape[0], dtype=np.int64)
-                                   for g in group])
+            offs = np.concatenate(group.offs)
+            heads = np.concatenate(group.heads)
+            ords = np.concatenate([b + np.arange(o.shape[0], dtype=np.int64)
+                                   for o, b in zip(group.offs, group.bases, strict=True)])
+        chans = heads.view(_HEAD_DT)['chan']
         # channel ids are uint16: a count per id is cheaper than np.unique's hashing
         for ch_id in np.flatnonzero(np.bincount(chans)).tolist():
             if not wanted(ch_id):
                 continue
             sel = np.flatnonzero(chans == ch_id)
-            o = offs[sel]
-            head = np.ndarray(shape=(arr.shape[0] - _MSG_HEAD + 1,), buffer=arr,
-                              dtype=np.dtype(f'V{_MSG_HEAD}'), strides=(1,))[o]
-            head = head.view(np.uint8).reshape(-1, _MSG_HEAD)   # (n, 31) record heads
-            rec_len = head[:, 1:9].copy().view('<u8').ravel().astype(np.int64)
-            seq = head[:, 11:15].copy().view('<u4').ravel()
-            log_time = head[:, 15:23].copy().view('<u8').ravel()
+            h = heads[sel].view(_HEAD_DT)
             ch = self.channels[ch_id]
-            yield MessageBatch(ch, self.schemas.get(ch.schema_id), arr, o + _MSG_HEAD,
-                               rec_len - _MSG.size, log_time, ords[sel], seq)
+            yield MessageBatch(ch, self.schemas.get(ch.schema_id), arr, offs[sel] + _MSG_HEAD,
+                               h['len'].astype(np.int64) - _MSG.size,
+                               h['log_time'].astype(np.uint64), ords[sel],
+                               h['seq'].astype(np.uint32))
 
-    def _locate_messages(self, raw: bytes, arr: np.ndarray,
+    def _locate_messages(self, arr: np.ndarray,
                          indexes: dict[int, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
-        """Return (offsets, channel ids) of every Message record in a chunk, in file order.
+        """Return (offsets, heads) of every Message record in a chunk, in file order.
 
-        Also registers the Schema and Channel records the chunk holds.  Message indexes
-        locate the messages; the byte ranges they do not cover are scanned record by record,
-        so a chunk with missing or partial indexes is still read completely.
+        ``heads`` is a :data:`_HEAD_V` array (:data:`_HEAD_DT` once viewed): each record's
+        opcode, length, channel id, sequence and log time, gathered while the chunk is fresh
+        in the cache.  Also registers the Schema and Channel records the chunk holds.
+        Message indexes locate the messages; the byte ranges they do not cover are scanned
+        record by record, so a chunk with missing or partial indexes is still read
+        completely.
         """
-        size = len(raw)
+        size = arr.shape[0]
+        if size < _MSG_HEAD:
+            heads_at = None
+        else:
+            # plain void items: gathering and joining them is several times faster than
+            # with the structured dtype, which only views the result
+            heads_at = np.ndarray(shape=(size - _HEAD_DT.itemsize + 1,), dtype=_HEAD_V,
+                                  buffer=arr, strides=(1,))
         offs_list: list[np.ndarray] = []
+        heads_list: list[np.ndarray] = []
         if indexes:
-            offs = np.concatenate([v[:, 1] for v in indexes.values()]).astype(np.int64)
-            offs.sort()
+            parts = [v[:, 1] for v in indexes.values()]
+            offs = (np.concatenate(parts) if len(parts) > 1 else parts[0]).astype(np.int64)
+            offs.sort(kind='stable')         # merges the channels' sorted runs
             good = offs.size > 0 and offs[0] >= 0 and offs[-1] + _MSG_HEAD <= size
             if good:
-                good = bool(np.all(arr[offs] == OP_MESSAGE)) and bool(np.all(np.diff(offs) > 0))
+                assert heads_at is not None
+                heads = heads_at[offs]
+                fields = heads.view(_HEAD_DT)
+                good = bool(np.all(fields['op'] == OP_MESSAGE)) and bool(np.all(offs[1:] >
+                                                                              offs[:-1]))
             if good:
-                lens = _gather_u64(arr, offs + 1)
+                lens = fields['len']
                 good = bool(np.all((lens >= _MSG.size) & (lens <= size)))
             if good:
                 ends = offs + 9 + lens.astype(np.int64)
                 good = bool(np.all(ends[:-1] <= offs[1:])) and int(ends[-1]) <= size
             if good:
                 offs_list.append(offs)
-                gap_starts = np.concatenate(([0], ends))
-                gap_ends = np.concatenate((offs, [size]))
-                gaps = np.flatnonzero(gap_ends > gap_starts)
-                spans = [(int(gap_starts[g]), int(gap_ends[g])) for g in gaps]
+                heads_list.append(heads)
+                gaps = np.flatnonzero(offs[1:] > ends[:-1])
+                spans = [(int(ends[g]), int(offs[g + 1])) for g in gaps.tolist()]
+                if offs[0] > 0:
+                    spans.insert(0, (0, int(offs[0])))
+                if ends[-1] < size:
+                    spans.append((int(ends[-1]), size))
             else:
                 spans = [(0, size)]
         else:
@@ -1242,19 +1619,23 @@ class McapReader:
             ops = arr[recs]
             for o in recs[(ops == OP_SCHEMA) | (ops == OP_CHANNEL)].tolist():
                 ln = _u64_at(arr, o + 1)
-                self._other_record(int(arr[o]), raw[o + 9:o + 9 + ln])
+                self._other_record(int(arr[o]), arr[o + 9:o + 9 + ln].tobytes())
             msgs = recs[ops == OP_MESSAGE]
             if msgs.size:
+                short = _gather_u64(arr, msgs + 1) < _MSG.size
+                if short.any():
+                    raise McapError(f'{int(short.sum())} message record(s) shorter than the '
+                                    f'{_MSG.size}-byte message header')
+                assert heads_at is not None
                 offs_list.append(msgs)
+                heads_list.append(heads_at[msgs])
         if not offs_list:
-            return np.zeros(0, np.int64), np.zeros(0, np.int64)
-        offs = np.sort(np.concatenate(offs_list)) if len(offs_list) > 1 else offs_list[0]
-        short = _gather_u64(arr, offs + 1) < _MSG.size
-        if short.any():
-            raise McapError(f'{int(short.sum())} message record(s) shorter than the '
-                            f'{_MSG.size}-byte message header')
-        chans = _gather_u16(arr, offs + 9).astype(np.int64)
-        return offs, chans
+            return np.zeros(0, np.int64), np.zeros(0, _HEAD_V)
+        if len(offs_list) == 1:
+            return offs_list[0], heads_list[0]
+        offs = np.concatenate(offs_list)
+        order = np.argsort(offs, kind='stable')
+        return offs[order], np.concatenate(heads_list)[order]
 
     # convenience ----------------------------------------------------------------------------
     def iter_messages(self, select: ChannelFilter | None = None
