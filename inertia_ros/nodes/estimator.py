@@ -155,7 +155,10 @@ def make_estimator(cfg: dict[str, Any], actuators: Any = None
                       window=float(cfg['window']) or None, hold=cfg['hold'],
                       symmetry_axis=axis, reselect_every=_reselect_every(cfg),
                       torque_scale_std=float(cfg['torque_scale_std']),
-                      gyro_scale_std=float(cfg['gyro_scale_std']))
+                      gyro_scale_std=float(cfg['gyro_scale_std']),
+                      # the once-a-second adequacy test runs after publishing (refresh()),
+                      # not between the newest input and the estimate
+                      defer_adequacy=True)
         RecursiveEstimator(**kwargs)  # validates
         if actuators is not None:
             names = actuators.names
@@ -266,6 +269,7 @@ class InertiaEstimatorNode(Node):
         self._frame_problem: tuple[float, str] | None = None
         self._reset_reason: str | None = None
         self._update_ms = 0.0
+        self._fed = False                     # samples handed to the estimator since an update
         self._core_error: str | None = None
         self._status: str | None = None       # last published status (logged on change)
         #: torque-free estimator fed while no torque message has arrived (zero torque)
@@ -406,7 +410,21 @@ class InertiaEstimatorNode(Node):
             payloads = take_raw(self._joints.sub)
             if payloads:
                 self._accept_joints(payloads)
+        if self._incremental() and any(s.t_ns for s in self._streams()):
+            with self._lock:
+                if self._epoch_ns is not None:
+                    self._flush_inputs()
+                    self._fed = True
         self._maybe_update()
+
+    def _incremental(self) -> bool:
+        """Whether samples go to the estimator at every poll (merged between updates).
+
+        Only the plain recursive estimator: its statistics do not depend on how the samples
+        were cut into blocks (the tracking and momentum estimators get them once per update,
+        as before).
+        """
+        return type(self._estimator) is RecursiveEstimator
 
     def _accept_joints(self, payloads: list[bytes]) -> None:
         """Decode JointState messages and queue the speeds of the file's joints, in order.
@@ -656,6 +674,7 @@ class InertiaEstimatorNode(Node):
                 self._actuators.reset()           # the motor-lag state
             self._shadow = None
             self._epoch_ns = None
+            self._fed = False
             self._last_estimate = None
             self._resets += 1
             self._reset_reason = reason
@@ -702,17 +721,27 @@ class InertiaEstimatorNode(Node):
 
     # ------------------------------------------------------------------ output
     def _maybe_update(self) -> None:
-        """Update when samples are pending and the publish period has elapsed."""
-        if not any(s.t_ns for s in self._streams()):
+        """Update when samples are pending and the publish period has elapsed.
+
+        At the last poll before an update is due, the samples handed over so far are merged
+        (:meth:`RecursiveEstimator.merge`), so that the update itself merges only the newest
+        poll's samples: less work between the newest input and the estimate.
+        """
+        if not (self._fed or any(s.t_ns for s in self._streams())):
             return
         now = time.monotonic()
-        if now - self._last_update >= 1.0 / self._cfg['publish_rate']:
+        due = self._last_update + 1.0 / self._cfg['publish_rate']
+        if now >= due:
             self._update(now)
+        elif self._fed and now + 1.5 * self._cfg['poll_period'] >= due:
+            with self._lock:
+                self._core_call('merge')
 
     def _update(self, now: float) -> None:
         """Hand buffered samples to the core, estimate, publish everything."""
         with self._lock:
             self._last_update = now
+            self._fed = False
             if self._epoch_ns is None:
                 return
             self._flush_inputs()
@@ -720,6 +749,26 @@ class InertiaEstimatorNode(Node):
             self._update_ms = (time.monotonic() - now) * 1e3
             stamp = max(x for x in (self._gyro.last_ns, self._torque.last_ns) if x is not None)
             self._publish(est, stamp)
+            # after publishing: the adequacy test the estimate deferred, for the next ones
+            self._core_call('refresh')
+
+    def _core_call(self, name: str) -> None:
+        """Call the estimator's ``merge`` or ``refresh`` if it has one (off the latency path:
+        :meth:`RecursiveEstimator.merge`, :meth:`RecursiveEstimator.refresh`).
+
+        A ValueError is left to the next estimate to report; anything else is a core bug,
+        reported as by :meth:`_estimate`, never a reason to stop the node.
+        """
+        call = getattr(self._estimator, name, None)
+        if call is None:
+            return
+        try:
+            call()
+        except ValueError:
+            pass
+        except Exception as exc:  # a core bug must not take the node down
+            self._core_error = f'estimator error: {type(exc).__name__}: {exc}'
+            self.get_logger().error(self._core_error, throttle_duration_sec=5.0)
 
     def _estimate(self) -> InertiaEstimate:
         """The core's estimate; a core error becomes ``insufficient_data`` with its reason.

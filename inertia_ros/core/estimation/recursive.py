@@ -102,6 +102,15 @@ class RecursiveEstimator:
     torque_scale_std, gyro_scale_std : float
         Relative one-sigma scale uncertainty of the torque and the gyro (0.01 = 1 %),
         propagated into the standard errors as by :func:`~.batch.estimate`.
+    defer_adequacy : bool
+        Run the adequacy test of a test estimate (every ``reselect_every``-th) in
+        :meth:`refresh` instead of inside :meth:`estimate`: that estimate reports the previous
+        test's verdict and :meth:`refresh`, called once the estimate has been used (the node
+        calls it after publishing), tests the same statistics and fit for the estimates that
+        follow.  The verdicts are those of the default, each reported from one estimate later
+        (at most ``reselect_every`` estimates old instead of ``reselect_every - 1``); the
+        tensor is unchanged.  The first test, and a test :meth:`refresh` was not called for,
+        run inside :meth:`estimate`.  Default False.
     """
 
     #: White noise in the equations' right-hand side besides the gyro's (a momentum input's,
@@ -113,7 +122,7 @@ class RecursiveEstimator:
                  symmetry_axis: Any = None, gyro_noise: Any = None, alpha: float = ALPHA,
                  block: int = 256, segment: float | None = None,
                  reselect_every: int = 1, torque_scale_std: float = 0.0,
-                 gyro_scale_std: float = 0.0) -> None:
+                 gyro_scale_std: float = 0.0, defer_adequacy: bool = False) -> None:
         check_choice('model', model, MODELS)
         if isinstance(torque_bias, bool):
             torque_bias = 'on' if torque_bias else 'off'
@@ -136,6 +145,7 @@ class RecursiveEstimator:
                 or reselect_every < 1:
             raise ValueError(f'reselect_every: must be an integer >= 1, got {reselect_every!r}')
         self.reselect_every = int(reselect_every)
+        self.defer_adequacy = bool(defer_adequacy)
         self.model = model
         self.torque_bias = torque_bias
         self.forgetting = float(forgetting)
@@ -184,6 +194,10 @@ class RecursiveEstimator:
         self._clock = 0.0                 # decay clock: sum of log(decay factors)
         self._adequacy: Adequacy | None = None   # last adequacy result, reused between tests
         self._adequacy_left = 0
+        #: the adequacy test a test estimate deferred: (its serial, final fit, gyro and torque
+        #: noise variances)
+        self._adequacy_due: tuple[int, Fit, np.ndarray, np.ndarray] | None = None
+        self._estimates = 0               # estimate() calls (serial of the last one)
         self._tq_ss = np.zeros(3)        # (decayed) sum of squared torque [N^2 m^2]
         self._tq_n = 0.0                 # and its (decayed) count
         self._tau_dt = 0.0
@@ -284,6 +298,16 @@ class RecursiveEstimator:
         self._new_torque = True
         self._pt.append(ta)
         self._ptau.append(xa)
+
+    def merge(self) -> None:
+        """Merge the buffered gyro samples the torque now covers, as :meth:`estimate` does first.
+
+        For a caller with time to spare between estimates (the node, between two publishes):
+        the merge then costs nothing at the next :meth:`estimate`.  The statistics do not
+        depend on how the samples were cut into merges (up to rounding), so neither does the
+        estimate.
+        """
+        self._process()
 
     # -----------------------------------------------------------------------------------------
     def _process(self) -> None:
@@ -598,11 +622,26 @@ class RecursiveEstimator:
 
         Up to :data:`ADEQUACY_WINDOWS` consecutive groups of the kept segments (the open one
         included), each fitted with the weights of ``f``'s tensor, as the batch estimator does
-        on time windows.  Run every ``reselect_every`` estimates; reused in between.
+        on time windows.  Run every ``reselect_every`` estimates; reused in between.  With
+        ``defer_adequacy`` a test estimate after the first reuses the previous verdict and
+        leaves the test to :meth:`refresh` (a test still owed when the next estimate comes
+        runs here, on that estimate's statistics).
         """
-        if self._adequacy is not None and self._adequacy_left > 0:
+        if self._adequacy_due is not None and self._adequacy_due[0] != self._estimates:
+            self._adequacy_due = None         # owed by an earlier estimate: test these data
+        elif self._adequacy is not None and self._adequacy_left > 0:
             self._adequacy_left -= 1
             return self._adequacy
+        elif self.defer_adequacy and self._adequacy is not None:
+            self._adequacy_due = (self._estimates, f, nv, tv)   # the last call's fit wins
+            return self._adequacy
+        self._adequacy = self._test_adequacy(f, nv, tv)
+        self._adequacy_left = self.reselect_every - 1
+        return self._adequacy
+
+    def _test_adequacy(self, f: Fit, nv: np.ndarray, tv: np.ndarray) -> Adequacy:
+        """Run the window tests of ``f`` on the current statistics (see
+        :meth:`_window_adequacy`)."""
         p, k = len(f.beta), f.basis.shape[1]
         gp, walk = self._segment_walk()
         groups = [g for g in self._history.groups(ADEQUACY_WINDOWS,
@@ -625,9 +664,27 @@ class RecursiveEstimator:
             thetas = np.array([x[0] for x in fits])
             covs = np.array([x[1] for x in fits])
             mids = np.array([x[2] for x in fits])
-        self._adequacy = check_adequacy(thetas, covs, mids, f.excess)
+        return check_adequacy(thetas, covs, mids, f.excess)
+
+    def refresh(self) -> bool:
+        """Run the adequacy test the last estimate deferred (``defer_adequacy``), if any.
+
+        Call it after :meth:`estimate`, before new samples are merged (:meth:`merge`, or an
+        ``add_*`` call that fills a block), so that the test sees the statistics and the fit
+        of that estimate: its verdict serves the estimates that follow.
+
+        Returns
+        -------
+        bool
+            True when a test ran.
+        """
+        if self._adequacy_due is None:
+            return False
+        _, f, nv, tv = self._adequacy_due
+        self._adequacy_due = None
+        self._adequacy = self._test_adequacy(f, nv, tv)
         self._adequacy_left = self.reselect_every - 1
-        return self._adequacy
+        return True
 
     def _omega_m2(self) -> np.ndarray:
         """``mean(w w')`` of the merged gyro samples [rad^2/s^2] (decayed as the weights)."""
@@ -682,6 +739,7 @@ class RecursiveEstimator:
             residual variance when that is larger.
         """
         self._process()
+        self._estimates += 1
         base = dict(method='recursive', samples_used=self.samples_used,
                     samples_dropped=self.samples_dropped)
         nv = self._gyro_var()
