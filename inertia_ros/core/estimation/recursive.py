@@ -44,7 +44,7 @@ from .fit import Fit, fit_two_pass
 from .history import SegmentHistory, SegmentStats
 from .homogeneous import homogeneous_estimate, is_torque_free
 from .model import symmetry_axis as unit_axis
-from .noise import StreamingNoise
+from .noise import StreamingNoise, median_rows
 from .options import (
     ADEQUACY_WINDOWS,
     ALPHA,
@@ -65,6 +65,12 @@ __all__ = ['RecursiveEstimator']
 
 _MAX_BUFFER = 400_000                      # gyro samples kept waiting for torque
 _DT_HISTORY = 64        # recent sample intervals kept per stream for the nominal interval
+
+
+def _median(x: np.ndarray) -> float:
+    """``float(np.median(x))`` of a non-empty 1-D array, bit for bit, by one partition
+    (:func:`.noise.median_rows`): it runs at every merge."""
+    return float(median_rows(x[:, None])[0])
 
 
 class RecursiveEstimator:
@@ -203,6 +209,7 @@ class RecursiveEstimator:
         self._tau_dt = 0.0
         self._tq_dts = np.empty(0)       # recent torque / gyro sample intervals [s]
         self._g_dts = np.empty(0)
+        self._g_dt = 0.0                 # their median (0 before two samples)
         self._tq_last: float | None = None
         self.gaps = 0                    # gaps that ended a segment holding data
         self._t_last: float | None = None
@@ -366,7 +373,7 @@ class RecursiveEstimator:
         # (the variance itself is taken in estimate())
         self._tau_nv.add(new_tau)
         if len(self._tq_dts):
-            self._tau_dt = float(np.median(self._tq_dts))
+            self._tau_dt = _median(self._tq_dts)
 
     def _ready_gyro(self) -> tuple[np.ndarray, np.ndarray, list[int]]:
         """Buffered gyro samples now covered by torque (the rest stays buffered), with gaps.
@@ -438,16 +445,17 @@ class RecursiveEstimator:
         starts: list[float] = []
         keep = np.ones(len(t), dtype=bool)
         if len(self._tq_dts) >= 2 and len(self._ts) >= 2:
-            nominal = float(np.median(self._tq_dts))
+            nominal = self._tau_dt           # the median of self._tq_dts (_take_torque)
             dq = np.diff(self._ts)
             for i in np.flatnonzero(dq > GAP_FACTOR * nominal):
                 keep &= ~((t > self._ts[i] + nominal) & (t < self._ts[i + 1]))
                 starts.append(float(self._ts[i + 1]))
         edges = t if self._prev is None else np.concatenate([[self._prev[0]], t])
-        self._g_dts = np.concatenate([self._g_dts, np.diff(edges)])[-_DT_HISTORY:]
+        dg = np.diff(edges)
+        self._g_dts = np.concatenate([self._g_dts, dg])[-_DT_HISTORY:]
+        self._g_dt = _median(self._g_dts) if len(self._g_dts) else 0.0
         if len(self._g_dts) >= 2:
-            dg = np.diff(edges)
-            big = np.flatnonzero(dg > GAP_FACTOR * float(np.median(self._g_dts)))
+            big = np.flatnonzero(dg > GAP_FACTOR * self._g_dt)
             starts.extend(float(edges[i + 1]) for i in big)
         if not starts:
             return t, w, []
@@ -692,7 +700,7 @@ class RecursiveEstimator:
 
     def _gyro_dt(self) -> float:
         """Median recent gyro sample interval [s] (0 before two samples)."""
-        return float(np.median(self._g_dts)) if len(self._g_dts) else 0.0
+        return self._g_dt            # kept by _gaps
 
     # -----------------------------------------------------------------------------------------
     def _gyro_var(self) -> np.ndarray:
