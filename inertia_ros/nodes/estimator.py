@@ -3,9 +3,10 @@
 Subscribes the gyro stream (``imu``: sensor_msgs/Imu, or ``omega``: geometry_msgs/
 Vector3Stamped by parameter) and the torque stream (``torque``: geometry_msgs/WrenchStamped,
 or Vector3Stamped by parameter) with sensor-data QoS (best effort, volatile; history depth
-``qos_depth`` so that a short stall of the executor drops nothing at 1 kHz).  Samples are
-aligned by their header stamps inside the core (:mod:`inertia_ros.core.estimation`); this node
-only converts messages, keeps counts and publishes:
+``qos_depth``, default 10000: a stall of the node or a burst of the publisher of up to 1.25 s
+drops nothing at 8 kHz).  Samples are aligned by their header stamps inside the core
+(:mod:`inertia_ros.core.estimation`); this node only converts messages, keeps counts and
+publishes:
 
 ``~/inertia``            geometry_msgs/InertiaStamped, latched (reliable, transient local,
                          depth 1: a late subscriber gets the last estimate), only while the
