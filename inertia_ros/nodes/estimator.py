@@ -271,6 +271,7 @@ class InertiaEstimatorNode(Node):
         self._reset_reason: str | None = None
         self._update_ms = 0.0
         self._fed = False                     # samples handed to the estimator since an update
+        self._merged = False                  # and merged ahead of it (_maybe_update)
         self._core_error: str | None = None
         self._status: str | None = None       # last published status (logged on change)
         #: torque-free estimator fed while no torque message has arrived (zero torque)
@@ -734,15 +735,16 @@ class InertiaEstimatorNode(Node):
         due = self._last_update + 1.0 / self._cfg['publish_rate']
         if now >= due:
             self._update(now)
-        elif self._fed and now + 1.5 * self._cfg['poll_period'] >= due:
+        elif self._fed and not self._merged and now + 1.5 * self._cfg['poll_period'] >= due:
             with self._lock:
                 self._core_call('merge')
+                self._merged = True               # once per update
 
     def _update(self, now: float) -> None:
         """Hand buffered samples to the core, estimate, publish everything."""
         with self._lock:
             self._last_update = now
-            self._fed = False
+            self._fed = self._merged = False
             if self._epoch_ns is None:
                 return
             self._flush_inputs()
