@@ -270,8 +270,8 @@ class InertiaEstimatorNode(Node):
         self._frame_problem: tuple[float, str] | None = None
         self._reset_reason: str | None = None
         self._update_ms = 0.0
-        self._fed = False                     # samples handed to the estimator since an update
-        self._merged = False                  # and merged ahead of it (_maybe_update)
+        self._fed = False                     # samples handed over ahead of the next update
+        self._merged = False                  # (and merged: once per update, _maybe_update)
         self._core_error: str | None = None
         self._status: str | None = None       # last published status (logged on change)
         #: torque-free estimator fed while no torque message has arrived (zero torque)
@@ -412,18 +412,14 @@ class InertiaEstimatorNode(Node):
             payloads = take_raw(self._joints.sub)
             if payloads:
                 self._accept_joints(payloads)
-        if self._incremental() and any(s.t_ns for s in self._streams()):
-            with self._lock:
-                if self._epoch_ns is not None:
-                    self._flush_inputs()
-                    self._fed = True
         self._maybe_update()
 
     def _incremental(self) -> bool:
-        """Whether samples go to the estimator at every poll (merged between updates).
+        """Whether samples are handed over and merged ahead of the update (see
+        :meth:`_maybe_update`).
 
         Only the plain recursive estimator: its statistics do not depend on how the samples
-        were cut into blocks (the tracking and momentum estimators get them once per update,
+        were cut into blocks (the tracking and momentum estimators get them at the update,
         as before).
         """
         return type(self._estimator) is RecursiveEstimator
@@ -725,9 +721,10 @@ class InertiaEstimatorNode(Node):
     def _maybe_update(self) -> None:
         """Update when samples are pending and the publish period has elapsed.
 
-        At the last poll before an update is due, the samples handed over so far are merged
-        (:meth:`RecursiveEstimator.merge`), so that the update itself merges only the newest
-        poll's samples: less work between the newest input and the estimate.
+        At the last poll before an update is due, the samples queued so far are handed to the
+        recursive estimator and merged (:meth:`RecursiveEstimator.merge`), so that the update
+        itself merges only the newest poll's samples: less work between the newest input and
+        the estimate, at the cost of one more hand-over per update.
         """
         if not (self._fed or any(s.t_ns for s in self._streams())):
             return
@@ -735,10 +732,14 @@ class InertiaEstimatorNode(Node):
         due = self._last_update + 1.0 / self._cfg['publish_rate']
         if now >= due:
             self._update(now)
-        elif self._fed and not self._merged and now + 1.5 * self._cfg['poll_period'] >= due:
+        elif not self._merged and now + 1.5 * self._cfg['poll_period'] >= due \
+                and self._incremental():
             with self._lock:
-                self._core_call('merge')
                 self._merged = True               # once per update
+                if self._epoch_ns is not None and any(s.t_ns for s in self._streams()):
+                    self._flush_inputs()
+                    self._fed = True
+                    self._core_call('merge')
 
     def _update(self, now: float) -> None:
         """Hand buffered samples to the core, estimate, publish everything."""

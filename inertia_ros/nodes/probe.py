@@ -7,7 +7,7 @@ and the estimator's ``/diagnostics`` key-values.  The measurement itself (schedu
 latency) is in :mod:`inertia_ros.bench.node`, which imports this module only when it runs.
 
 ``python -m inertia_ros.nodes.probe`` is the benchmark's witness: a process of its own that
-subscribes to ``imu`` and ``torque`` as the estimator does (sensor-data QoS, depth 1000,
+subscribes to ``imu`` and ``torque`` as the estimator does (sensor-data QoS, depth 100000,
 polled every 5 ms) and, on SIGINT, prints how many messages of each it received as one JSON
 line.  What the witness got is what the publisher put on the wire; a message the witness has
 and the estimator lacks was lost on the estimator's side.
@@ -97,13 +97,14 @@ class EstimatorProbe:
         rclpy.try_shutdown()
 
 
-def count_inputs(depth: int = 1000, period: float = 0.005) -> dict[str, int]:
+def count_inputs(depth: int = 100000, period: float = 0.005) -> dict[str, int]:
     """Count the ``imu`` and ``torque`` messages received until SIGINT (the witness).
 
     Parameters
     ----------
     depth : int
-        History depth of both subscriptions [messages] (the estimator's default).
+        History depth of both subscriptions [messages]: deep enough for any burst of the
+        publisher (the witness must not lose what the estimator might).
     period : float
         Poll period [s]: at 8 kHz, 40 messages per poll.
 
