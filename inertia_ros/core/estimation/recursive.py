@@ -67,12 +67,6 @@ _MAX_BUFFER = 400_000                      # gyro samples kept waiting for torqu
 _DT_HISTORY = 64        # recent sample intervals kept per stream for the nominal interval
 
 
-def _median(x: np.ndarray) -> float:
-    """``float(np.median(x))`` of a non-empty 1-D array, bit for bit, by one partition
-    (:func:`.noise.median_rows`): it runs at every merge."""
-    return float(median_rows(x[:, None])[0])
-
-
 class RecursiveEstimator:
     """Online inertia estimator with forgetting, fed sample by sample or in blocks.
 
@@ -109,14 +103,10 @@ class RecursiveEstimator:
         Relative one-sigma scale uncertainty of the torque and the gyro (0.01 = 1 %),
         propagated into the standard errors as by :func:`~.batch.estimate`.
     defer_adequacy : bool
-        Run the adequacy test of a test estimate (every ``reselect_every``-th) in
-        :meth:`refresh` instead of inside :meth:`estimate`: that estimate reports the previous
-        test's verdict and :meth:`refresh`, called once the estimate has been used (the node
-        calls it after publishing), tests the same statistics and fit for the estimates that
-        follow.  The verdicts are those of the default, each reported from one estimate later
-        (at most ``reselect_every`` estimates old instead of ``reselect_every - 1``); the
-        tensor is unchanged.  The first test, and a test :meth:`refresh` was not called for,
-        run inside :meth:`estimate`.  Default False.
+        A test estimate (every ``reselect_every``-th) reports the previous adequacy verdict and
+        leaves its own test to :meth:`refresh` (the node: after publishing), for the estimates
+        that follow: each verdict one estimate later, the tensor unchanged.  The first test, and
+        one not refreshed, run inside :meth:`estimate`.  Default False.
     """
 
     #: White noise in the equations' right-hand side besides the gyro's (a momentum input's,
@@ -200,8 +190,7 @@ class RecursiveEstimator:
         self._clock = 0.0                 # decay clock: sum of log(decay factors)
         self._adequacy: Adequacy | None = None   # last adequacy result, reused between tests
         self._adequacy_left = 0
-        #: the adequacy test a test estimate deferred: (its serial, final fit, gyro and torque
-        #: noise variances)
+        #: deferred adequacy test: (estimate serial, final fit, gyro and torque noise variances)
         self._adequacy_due: tuple[int, Fit, np.ndarray, np.ndarray] | None = None
         self._estimates = 0               # estimate() calls (serial of the last one)
         self._tq_ss = np.zeros(3)        # (decayed) sum of squared torque [N^2 m^2]
@@ -307,13 +296,8 @@ class RecursiveEstimator:
         self._ptau.append(xa)
 
     def merge(self) -> None:
-        """Merge the buffered gyro samples the torque now covers, as :meth:`estimate` does first.
-
-        For a caller with time to spare between estimates (the node, between two publishes):
-        the merge then costs nothing at the next :meth:`estimate`.  The statistics do not
-        depend on how the samples were cut into merges (up to rounding), so neither does the
-        estimate.
-        """
+        """Merge the buffered samples the torque covers now (:meth:`estimate` then has less to
+        do); the statistics, so the estimate, do not depend on the cut (up to rounding)."""
         self._process()
 
     # -----------------------------------------------------------------------------------------
@@ -373,7 +357,7 @@ class RecursiveEstimator:
         # (the variance itself is taken in estimate())
         self._tau_nv.add(new_tau)
         if len(self._tq_dts):
-            self._tau_dt = _median(self._tq_dts)
+            self._tau_dt = float(median_rows(self._tq_dts[:, None])[0])   # np.median, faster
 
     def _ready_gyro(self) -> tuple[np.ndarray, np.ndarray, list[int]]:
         """Buffered gyro samples now covered by torque (the rest stays buffered), with gaps.
@@ -453,7 +437,7 @@ class RecursiveEstimator:
         edges = t if self._prev is None else np.concatenate([[self._prev[0]], t])
         dg = np.diff(edges)
         self._g_dts = np.concatenate([self._g_dts, dg])[-_DT_HISTORY:]
-        self._g_dt = _median(self._g_dts) if len(self._g_dts) else 0.0
+        self._g_dt = float(median_rows(self._g_dts[:, None])[0]) if len(self._g_dts) else 0.0
         if len(self._g_dts) >= 2:
             big = np.flatnonzero(dg > GAP_FACTOR * self._g_dt)
             starts.extend(float(edges[i + 1]) for i in big)
@@ -630,10 +614,8 @@ class RecursiveEstimator:
 
         Up to :data:`ADEQUACY_WINDOWS` consecutive groups of the kept segments (the open one
         included), each fitted with the weights of ``f``'s tensor, as the batch estimator does
-        on time windows.  Run every ``reselect_every`` estimates; reused in between.  With
-        ``defer_adequacy`` a test estimate after the first reuses the previous verdict and
-        leaves the test to :meth:`refresh` (a test still owed when the next estimate comes
-        runs here, on that estimate's statistics).
+        on time windows.  Run every ``reselect_every`` estimates; reused in between (with
+        ``defer_adequacy`` also at a test estimate, the test left to :meth:`refresh`).
         """
         if self._adequacy_due is not None and self._adequacy_due[0] != self._estimates:
             self._adequacy_due = None         # owed by an earlier estimate: test these data
@@ -648,8 +630,7 @@ class RecursiveEstimator:
         return self._adequacy
 
     def _test_adequacy(self, f: Fit, nv: np.ndarray, tv: np.ndarray) -> Adequacy:
-        """Run the window tests of ``f`` on the current statistics (see
-        :meth:`_window_adequacy`)."""
+        """The window tests of ``f`` on the current statistics (:meth:`_window_adequacy`)."""
         p, k = len(f.beta), f.basis.shape[1]
         gp, walk = self._segment_walk()
         groups = [g for g in self._history.groups(ADEQUACY_WINDOWS,
@@ -675,11 +656,8 @@ class RecursiveEstimator:
         return check_adequacy(thetas, covs, mids, f.excess)
 
     def refresh(self) -> bool:
-        """Run the adequacy test the last estimate deferred (``defer_adequacy``), if any.
-
-        Call it after :meth:`estimate`, before new samples are merged (:meth:`merge`, or an
-        ``add_*`` call that fills a block), so that the test sees the statistics and the fit
-        of that estimate: its verdict serves the estimates that follow.
+        """Run the adequacy test the last estimate deferred (``defer_adequacy``), if any: call
+        it before new samples are merged, so that it tests that estimate's statistics and fit.
 
         Returns
         -------
@@ -688,8 +666,7 @@ class RecursiveEstimator:
         """
         if self._adequacy_due is None:
             return False
-        _, f, nv, tv = self._adequacy_due
-        self._adequacy_due = None
+        (_, f, nv, tv), self._adequacy_due = self._adequacy_due, None
         self._adequacy = self._test_adequacy(f, nv, tv)
         self._adequacy_left = self.reselect_every - 1
         return True
