@@ -183,3 +183,21 @@ def test_node_bench_schedule_and_latency_at_unequal_rates():
     lat = latencies_ms(stamps, np.full(3, 9_000_000, np.int64), epoch, due, send)
     i_t = int(np.flatnonzero((stream == 1) & (index == 3))[0])
     assert np.allclose(lat, [(9_000_000 - send[7]) * 1e-6, (9_000_000 - send[i_t]) * 1e-6])
+
+
+def test_node_bench_publisher_lateness():
+    """The publisher's timing in bench node: lateness quantiles [ms] and the longest run of
+    consecutive sends more than one period late (a catch-up burst)."""
+    import numpy as np
+
+    from inertia_ros.bench.node import lateness_summary
+
+    period = 125_000
+    late = np.array([0, 10_000, 200_000, 300_000, 0, 130_000, 126_000, 125_001, 5, 0],
+                    dtype=np.int64)
+    s = lateness_summary(late, period)
+    assert s['longest_late_run'] == 3                   # 130 000, 126 000, 125 001
+    assert s['max_ms'] == 0.3
+    assert s['median_ms'] == round(float(np.median(late)) * 1e-6, 3)
+    assert lateness_summary(np.zeros(4, np.int64), period)['longest_late_run'] == 0
+    assert lateness_summary(np.full(3, period + 1), period)['longest_late_run'] == 3

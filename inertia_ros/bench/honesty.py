@@ -189,7 +189,8 @@ def feed_online(est: Any, rec: TruthRecord, publish_rate: float = 10.0,
 
     Every ``1 / publish_rate`` seconds of record time, the gyro and torque samples stamped in
     that period are handed over as one block each (``add_gyro``, ``add_torque``) and
-    ``estimate()`` is called, as the node's update timer does.
+    ``estimate()`` is called, as the node's update timer does; then ``refresh()`` when the
+    estimator has one (the adequacy test the node runs after publishing).
 
     Parameters
     ----------
@@ -217,6 +218,8 @@ def feed_online(est: Any, rec: TruthRecord, publish_rate: float = 10.0,
             continue
         if on_estimate is not None:
             on_estimate(float(edges[k]), last)
+        if hasattr(est, 'refresh'):
+            est.refresh()
     return last
 
 
@@ -228,6 +231,7 @@ def _node(rec: TruthRecord, opts: dict[str, Any]) -> tuple[str, Any, Any]:
     opts = dict(_NODE_DEFAULTS, **opts)
     rate = float(opts.pop('publish_rate', 10.0))
     opts.setdefault('reselect_every', max(1, round(rate)))
+    opts.setdefault('defer_adequacy', True)           # as the node (make_estimator)
     e = feed_online(RecursiveEstimator(**opts), rec, rate)
     if e is None:
         return 'insufficient_data', None, None

@@ -10,7 +10,12 @@ its own send schedule, so an input stamp identifies its message and send instant
 Measured:
 
 - dropped messages: messages sent minus those the estimator counted as received (its
-  /diagnostics ``gyro_received`` / ``torque_received``);
+  /diagnostics ``gyro_received`` / ``torque_received``), split by a witness process
+  (``python -m inertia_ros.nodes.probe``, subscribed to both inputs as the estimator is) into
+  those the witness did not get either (lost between the publisher and the subscribers: the
+  benchmark's share) and those only the estimator lacks (the estimator's share);
+- the publisher's own timing: sends more than one gyro period late, the lateness median /
+  p99 / max and the longest run of consecutive late sends (a catch-up burst);
 - CPU of the estimator process while streaming [% of one core] from /proc/PID/stat;
 - latency from the newest input to the published estimate: the estimate's header stamp is
   the newest input stamp it has seen; latency = receive time of the estimate here minus the
@@ -38,7 +43,8 @@ import numpy as np
 
 from .common import nominal_scene
 
-__all__ = ['TARGETS', 'cpu_seconds', 'latencies_ms', 'rss_mib', 'run', 'schedule']
+__all__ = ['TARGETS', 'cpu_seconds', 'latencies_ms', 'lateness_summary', 'rss_mib', 'run',
+           'schedule']
 
 #: The pass criteria: dropped messages, CPU [% of one core], median latency [ms].
 TARGETS = {'dropped': 0, 'cpu_percent': 30.0, 'median_latency_ms': 5.0}
@@ -108,10 +114,31 @@ def _start_estimator(publish_rate: float, method: str) -> tuple[subprocess.Popen
     return subprocess.Popen(cmd, env=env, stdout=log, stderr=subprocess.STDOUT), log
 
 
-def _wait_matched(probe: Any, proc: subprocess.Popen, timeout: float = 20.0) -> bool:
-    """Wait until both inputs have a subscriber (False when the node died or timed out)."""
+def _start_witness() -> tuple[subprocess.Popen, Any]:
+    """The witness (:func:`inertia_ros.nodes.probe.count_inputs`) as a child process."""
+    cmd = [sys.executable, '-m', 'inertia_ros.nodes.probe']
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    log = open(Path(os.environ.get('TMPDIR', '/tmp')) / f'bench_witness_{os.getpid()}.log',
+               'w+')
+    return subprocess.Popen(cmd, env=env, stdout=log, stderr=subprocess.STDOUT), log
+
+
+def _witness_counts(proc: subprocess.Popen, log: Any) -> dict[str, int] | None:
+    """Stop the witness and read its counts (None if it printed none)."""
+    _stop(proc)
+    log.seek(0)
+    for line in reversed(log.read().splitlines()):
+        if line.startswith('{'):
+            return {k: int(v) for k, v in json.loads(line).items()}
+    return None
+
+
+def _wait_matched(probe: Any, proc: subprocess.Popen, timeout: float = 20.0,
+                  subscribers: int = 1) -> bool:
+    """Wait until both inputs have ``subscribers`` subscribers (False when the node died or
+    timed out)."""
     deadline = time.monotonic() + timeout
-    while not probe.matched():
+    while not probe.matched(subscribers):
         if time.monotonic() > deadline or proc.poll() is not None:
             return False
         time.sleep(0.05)
@@ -120,11 +147,11 @@ def _wait_matched(probe: Any, proc: subprocess.Popen, timeout: float = 20.0) -> 
 
 
 def _stream(probe: Any, msgs: list[list[Any]], due_ns: np.ndarray, stream: np.ndarray,
-            index: np.ndarray, period_ns: int) -> tuple[np.ndarray, int]:
+            index: np.ndarray, period_ns: int) -> tuple[np.ndarray, int, np.ndarray]:
     """Publish every message at its due time (:func:`schedule`).
 
-    Returns the monotonic send times in send order [ns] and the number of sends more than
-    one gyro period late.
+    Returns the monotonic send times in send order [ns], the number of sends more than one
+    gyro period late and every send's lateness (send time minus due time) [ns].
     """
     send_mono = np.zeros(due_ns.size, dtype=np.int64)
     t0 = time.monotonic_ns()
@@ -139,7 +166,30 @@ def _stream(probe: Any, msgs: list[list[Any]], due_ns: np.ndarray, stream: np.nd
             late += 1
         send_mono[m] = time.monotonic_ns()
         probe.publish(j, msgs[j][k])
-    return send_mono, late
+    return send_mono, late, send_mono - (t0 + due_ns)
+
+
+def lateness_summary(lateness_ns: np.ndarray, period_ns: int) -> dict[str, float | int]:
+    """The publisher's timing: lateness median / p99 / max [ms] and the longest run of
+    consecutive sends more than ``period_ns`` late (a catch-up burst) [messages].
+
+    Parameters
+    ----------
+    lateness_ns : numpy.ndarray of int64
+        Send time minus due time of every send [ns].
+    period_ns : int
+        The gyro period [ns].
+    """
+    if lateness_ns.size == 0:
+        return {'median_ms': 0.0, 'p99_ms': 0.0, 'max_ms': 0.0, 'longest_late_run': 0}
+    late = np.r_[False, lateness_ns > period_ns, False].astype(np.int8)
+    edges = np.flatnonzero(np.diff(late))
+    runs = edges[1::2] - edges[::2]
+    ms = lateness_ns * 1e-6
+    return {'median_ms': round(float(np.median(ms)), 3),
+            'p99_ms': round(float(np.percentile(ms, 99)), 3),
+            'max_ms': round(float(ms.max()), 3),
+            'longest_late_run': int(runs.max()) if runs.size else 0}
 
 
 def _stop(proc: subprocess.Popen) -> None:
@@ -152,8 +202,10 @@ def _stop(proc: subprocess.Popen) -> None:
 
 
 def _summary(n: tuple[int, int], late: int, wall: float, cpu_pct: float, lat: np.ndarray,
-             listener: Any, config: dict[str, Any]) -> dict[str, Any]:
-    """The JSON result; ``n`` is (gyro, torque) messages sent."""
+             listener: Any, config: dict[str, Any],
+             witness: dict[str, int] | None = None) -> dict[str, Any]:
+    """The JSON result; ``n`` is (gyro, torque) messages sent, ``witness`` what the witness
+    received."""
     last = listener.diags[-1] if listener.diags else {}
     upd = np.array([float(d['update_ms']) for d in listener.diags if 'update_ms' in d])
     got_g, got_q = int(last.get('gyro_received', -1)), int(last.get('torque_received', -1))
@@ -164,6 +216,11 @@ def _summary(n: tuple[int, int], late: int, wall: float, cpu_pct: float, lat: np
     result = dict(config, sent={'gyro': n[0], 'torque': n[1]},
                   received={'gyro': got_g, 'torque': got_q},
                   dropped=(n[0] - got_g) + (n[1] - got_q), publisher_late_sends=late,
+                  witness_received=witness,
+                  lost_before_subscribers=None if witness is None else
+                  {'gyro': n[0] - witness['gyro'], 'torque': n[1] - witness['torque']},
+                  lost_by_estimator=None if witness is None else
+                  {'gyro': witness['gyro'] - got_g, 'torque': witness['torque'] - got_q},
                   stream_wall_s=round(wall, 3),
                   estimator_cpu_percent_of_core=round(cpu_pct, 1),
                   estimates_received=len(listener.received),
@@ -181,8 +238,17 @@ def _print(r: dict[str, Any]) -> None:
     print(f"sent {r['sent']['gyro']} + {r['sent']['torque']} messages in "
           f"{r['stream_wall_s']} s "
           f"({r['publisher_late_sends']} sends more than one period late)")
+    pl = r.get('publisher_lateness')
+    if pl:
+        print(f"publisher lateness: median {pl['median_ms']} ms, p99 {pl['p99_ms']} ms, max "
+              f"{pl['max_ms']} ms; longest run of late sends {pl['longest_late_run']}")
     print(f"received by the estimator: gyro {r['received']['gyro']}, torque "
           f"{r['received']['torque']}; dropped {r['dropped']} (target 0)")
+    if r.get('witness_received'):
+        w, lb, le = r['witness_received'], r['lost_before_subscribers'], r['lost_by_estimator']
+        print(f"witness subscriber received gyro {w['gyro']}, torque {w['torque']}: lost "
+              f"before the subscribers gyro {lb['gyro']}, torque {lb['torque']}; lost by the "
+              f"estimator alone gyro {le['gyro']}, torque {le['torque']}")
     print(f"estimator CPU: {r['estimator_cpu_percent_of_core']:.1f} % of one core "
           f"(target < {TARGETS['cpu_percent']:g} %)")
     lat = r['latency_ms']
@@ -232,10 +298,13 @@ def run(rate: float = 1000.0, duration: float = 60.0, publish_rate: float = 10.0
     from inertia_ros.nodes.probe import EstimatorProbe
 
     proc, log = _start_estimator(publish_rate, method)
+    wproc, wlog = _start_witness()
     listener = EstimatorProbe()
+    witness = None
     try:
-        if not _wait_matched(listener, proc):
-            print(f'estimator did not subscribe; see {log.name}', file=sys.stderr)
+        if not _wait_matched(listener, proc, subscribers=2):
+            print(f'estimator (or the witness) did not subscribe; see {log.name} and '
+                  f'{wlog.name}', file=sys.stderr)
             return 2
         pg, pt = int(round(1e9 / rate)), int(round(1e9 / torque_rate))
         epoch = time.time_ns()
@@ -245,19 +314,24 @@ def run(rate: float = 1000.0, duration: float = 60.0, publish_rate: float = 10.0
                 [listener.torque_message(epoch + j * pt + pg // 2, torque[j], sim.frame_id)
                  for j in range(nt)]]
         cpu0, wall0, rss0 = cpu_seconds(proc.pid), time.monotonic(), rss_mib(proc.pid)
-        send_mono, late = _stream(listener, msgs, due, stream, index, pg)
+        send_mono, late, lateness = _stream(listener, msgs, due, stream, index, pg)
         wall, cpu = time.monotonic() - wall0, cpu_seconds(proc.pid) - cpu0
         rss1 = rss_mib(proc.pid)
         time.sleep(2.5)      # let the last estimate and a watchdog diagnostic arrive
+        witness = _witness_counts(wproc, wlog)
     finally:
         listener.close()
         _stop(proc)
+        if wproc.poll() is None:
+            _stop(wproc)
         log.close()
+        wlog.close()
     rec = np.array(listener.received, dtype=np.int64).reshape(-1, 2)
     lat = latencies_ms(rec[:, 0], rec[:, 1], epoch, due, send_mono)
     result = _summary((ng, nt), late, wall, 100.0 * cpu / wall, lat, listener,
                       {'rate_hz': rate, 'torque_rate_hz': torque_rate, 'duration_s': duration,
-                       'method': method, 'publish_rate_hz': publish_rate})
+                       'method': method, 'publish_rate_hz': publish_rate}, witness)
+    result['publisher_lateness'] = lateness_summary(lateness, pg)
     result['estimator_rss_mib'] = {'start': round(rss0, 1), 'end': round(rss1, 1)}
     _print(result)
     return 0 if result['targets_met'] else 1

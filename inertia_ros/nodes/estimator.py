@@ -3,9 +3,10 @@
 Subscribes the gyro stream (``imu``: sensor_msgs/Imu, or ``omega``: geometry_msgs/
 Vector3Stamped by parameter) and the torque stream (``torque``: geometry_msgs/WrenchStamped,
 or Vector3Stamped by parameter) with sensor-data QoS (best effort, volatile; history depth
-``qos_depth`` so that a short stall of the executor drops nothing at 1 kHz).  Samples are
-aligned by their header stamps inside the core (:mod:`inertia_ros.core.estimation`); this node
-only converts messages, keeps counts and publishes:
+``qos_depth``, default 10000: a stall of the node or a burst of the publisher of up to 1.25 s
+drops nothing at 8 kHz).  Samples are aligned by their header stamps inside the core
+(:mod:`inertia_ros.core.estimation`); this node only converts messages, keeps counts and
+publishes:
 
 ``~/inertia``            geometry_msgs/InertiaStamped, latched (reliable, transient local,
                          depth 1: a late subscriber gets the last estimate), only while the
@@ -155,7 +156,10 @@ def make_estimator(cfg: dict[str, Any], actuators: Any = None
                       window=float(cfg['window']) or None, hold=cfg['hold'],
                       symmetry_axis=axis, reselect_every=_reselect_every(cfg),
                       torque_scale_std=float(cfg['torque_scale_std']),
-                      gyro_scale_std=float(cfg['gyro_scale_std']))
+                      gyro_scale_std=float(cfg['gyro_scale_std']),
+                      # the once-a-second adequacy test runs after publishing (refresh()),
+                      # not between the newest input and the estimate
+                      defer_adequacy=True)
         RecursiveEstimator(**kwargs)  # validates
         if actuators is not None:
             names = actuators.names
@@ -266,6 +270,8 @@ class InertiaEstimatorNode(Node):
         self._frame_problem: tuple[float, str] | None = None
         self._reset_reason: str | None = None
         self._update_ms = 0.0
+        self._fed = False                     # samples handed over ahead of the next update
+        self._merged = False                  # (and merged: once per update, _maybe_update)
         self._core_error: str | None = None
         self._status: str | None = None       # last published status (logged on change)
         #: torque-free estimator fed while no torque message has arrived (zero torque)
@@ -407,6 +413,16 @@ class InertiaEstimatorNode(Node):
             if payloads:
                 self._accept_joints(payloads)
         self._maybe_update()
+
+    def _incremental(self) -> bool:
+        """Whether samples are handed over and merged ahead of the update (see
+        :meth:`_maybe_update`).
+
+        Only the plain recursive estimator: its statistics do not depend on how the samples
+        were cut into blocks (the tracking and momentum estimators get them at the update,
+        as before).
+        """
+        return type(self._estimator) is RecursiveEstimator
 
     def _accept_joints(self, payloads: list[bytes]) -> None:
         """Decode JointState messages and queue the speeds of the file's joints, in order.
@@ -656,6 +672,7 @@ class InertiaEstimatorNode(Node):
                 self._actuators.reset()           # the motor-lag state
             self._shadow = None
             self._epoch_ns = None
+            self._fed = False
             self._last_estimate = None
             self._resets += 1
             self._reset_reason = reason
@@ -702,17 +719,33 @@ class InertiaEstimatorNode(Node):
 
     # ------------------------------------------------------------------ output
     def _maybe_update(self) -> None:
-        """Update when samples are pending and the publish period has elapsed."""
-        if not any(s.t_ns for s in self._streams()):
+        """Update when samples are pending and the publish period has elapsed.
+
+        At the last poll before an update is due, the samples queued so far are handed to the
+        recursive estimator and merged (:meth:`RecursiveEstimator.merge`), so that the update
+        itself merges only the newest poll's samples: less work between the newest input and
+        the estimate, at the cost of one more hand-over per update.
+        """
+        if not (self._fed or any(s.t_ns for s in self._streams())):
             return
         now = time.monotonic()
-        if now - self._last_update >= 1.0 / self._cfg['publish_rate']:
+        due = self._last_update + 1.0 / self._cfg['publish_rate']
+        if now >= due:
             self._update(now)
+        elif not self._merged and now + 1.5 * self._cfg['poll_period'] >= due \
+                and self._incremental():
+            with self._lock:
+                self._merged = True               # once per update
+                if self._epoch_ns is not None and any(s.t_ns for s in self._streams()):
+                    self._flush_inputs()
+                    self._fed = True
+                    self._core_call('merge')
 
     def _update(self, now: float) -> None:
         """Hand buffered samples to the core, estimate, publish everything."""
         with self._lock:
             self._last_update = now
+            self._fed = self._merged = False
             if self._epoch_ns is None:
                 return
             self._flush_inputs()
@@ -720,6 +753,26 @@ class InertiaEstimatorNode(Node):
             self._update_ms = (time.monotonic() - now) * 1e3
             stamp = max(x for x in (self._gyro.last_ns, self._torque.last_ns) if x is not None)
             self._publish(est, stamp)
+            # after publishing: the adequacy test the estimate deferred, for the next ones
+            self._core_call('refresh')
+
+    def _core_call(self, name: str) -> None:
+        """Call the estimator's ``merge`` or ``refresh`` if it has one (off the latency path:
+        :meth:`RecursiveEstimator.merge`, :meth:`RecursiveEstimator.refresh`).
+
+        A ValueError is left to the next estimate to report; anything else is a core bug,
+        reported as by :meth:`_estimate`, never a reason to stop the node.
+        """
+        call = getattr(self._estimator, name, None)
+        if call is None:
+            return
+        try:
+            call()
+        except ValueError:
+            pass
+        except Exception as exc:  # a core bug must not take the node down
+            self._core_error = f'estimator error: {type(exc).__name__}: {exc}'
+            self.get_logger().error(self._core_error, throttle_duration_sec=5.0)
 
     def _estimate(self) -> InertiaEstimate:
         """The core's estimate; a core error becomes ``insufficient_data`` with its reason.

@@ -327,7 +327,7 @@ ESTIMATOR: dict[str, ParamSpec] = {
                              "time_constant, inertia, *_std] per rotor): the rotor torques "
                              "(and momentum) from the speeds on 'joint_states' are the known "
                              "torque; '' = none", read_only=True),
-    'qos_depth': ParamSpec(1000, 'history depth of the sensor-data subscriptions [messages]',
+    'qos_depth': ParamSpec(10000, 'history depth of the sensor-data subscriptions [messages]',
                            1, 100000, read_only=True),
     'poll_period': ParamSpec(0.01, 'period at which queued input messages are taken and '
                              'decoded in one batch [s]', 0.0005, 1.0, read_only=True),

@@ -5,6 +5,12 @@
 a thread, records every ``/inertia_estimator/inertia`` stamp with its monotonic receive time
 and the estimator's ``/diagnostics`` key-values.  The measurement itself (schedule, CPU,
 latency) is in :mod:`inertia_ros.bench.node`, which imports this module only when it runs.
+
+``python -m inertia_ros.nodes.probe`` is the benchmark's witness: a process of its own that
+subscribes to ``imu`` and ``torque`` as the estimator does (sensor-data QoS, depth 100000,
+polled every 5 ms) and, on SIGINT, prints how many messages of each it received as one JSON
+line.  What the witness got is what the publisher put on the wire; a message the witness has
+and the estimator lacks was lost on the estimator's side.
 """
 from __future__ import annotations
 
@@ -20,9 +26,9 @@ from rclpy.node import Node
 from sensor_msgs.msg import Imu
 
 from . import messages
-from ._ros import sensor_qos
+from ._ros import PolledGroup, polled_subscription, sensor_qos, take_raw
 
-__all__ = ['EstimatorProbe']
+__all__ = ['EstimatorProbe', 'count_inputs']
 
 
 class EstimatorProbe:
@@ -66,9 +72,9 @@ class EstimatorProbe:
         while not self._stop.is_set():
             self._exe.spin_once(timeout_sec=0.05)
 
-    def matched(self) -> bool:
-        """Whether both input topics have a subscriber."""
-        return all(p.get_subscription_count() >= 1 for p in self._pubs)
+    def matched(self, subscribers: int = 1) -> bool:
+        """Whether both input topics have at least ``subscribers`` subscribers."""
+        return all(p.get_subscription_count() >= subscribers for p in self._pubs)
 
     @staticmethod
     def gyro_message(t_ns: int, omega: Any, frame_id: str) -> Imu:
@@ -89,3 +95,47 @@ class EstimatorProbe:
         self._stop.set()
         self._thread.join()
         rclpy.try_shutdown()
+
+
+def count_inputs(depth: int = 100000, period: float = 0.005) -> dict[str, int]:
+    """Count the ``imu`` and ``torque`` messages received until SIGINT (the witness).
+
+    Parameters
+    ----------
+    depth : int
+        History depth of both subscriptions [messages]: deep enough for any burst of the
+        publisher (the witness must not lose what the estimator might).
+    period : float
+        Poll period [s]: at 8 kHz, 40 messages per poll.
+
+    Returns
+    -------
+    dict
+        ``{'gyro': n, 'torque': n}`` messages received.
+    """
+    import json
+    import signal
+
+    counts = {'gyro': 0, 'torque': 0}
+    rclpy.init()
+    node = Node('bench_witness')
+    group = PolledGroup()
+    subs = {'gyro': polled_subscription(node, Imu, 'imu', sensor_qos(depth), group),
+            'torque': polled_subscription(node, WrenchStamped, 'torque', sensor_qos(depth),
+                                          group)}
+    stop = threading.Event()
+    signal.signal(signal.SIGINT, lambda *_: stop.set())
+    print('witness ready', flush=True)
+    while not stop.wait(period):
+        for name, sub in subs.items():
+            counts[name] += len(take_raw(sub))
+    for name, sub in subs.items():
+        counts[name] += len(take_raw(sub))
+    node.destroy_node()
+    rclpy.try_shutdown()
+    print(json.dumps(counts), flush=True)
+    return counts
+
+
+if __name__ == '__main__':
+    count_inputs()

@@ -44,7 +44,7 @@ from .fit import Fit, fit_two_pass
 from .history import SegmentHistory, SegmentStats
 from .homogeneous import homogeneous_estimate, is_torque_free
 from .model import symmetry_axis as unit_axis
-from .noise import StreamingNoise
+from .noise import StreamingNoise, median_rows
 from .options import (
     ADEQUACY_WINDOWS,
     ALPHA,
@@ -102,6 +102,11 @@ class RecursiveEstimator:
     torque_scale_std, gyro_scale_std : float
         Relative one-sigma scale uncertainty of the torque and the gyro (0.01 = 1 %),
         propagated into the standard errors as by :func:`~.batch.estimate`.
+    defer_adequacy : bool
+        A test estimate (every ``reselect_every``-th) reports the previous adequacy verdict and
+        leaves its own test to :meth:`refresh` (the node: after publishing), for the estimates
+        that follow: each verdict one estimate later, the tensor unchanged.  The first test, and
+        one not refreshed, run inside :meth:`estimate`.  Default False.
     """
 
     #: White noise in the equations' right-hand side besides the gyro's (a momentum input's,
@@ -113,7 +118,7 @@ class RecursiveEstimator:
                  symmetry_axis: Any = None, gyro_noise: Any = None, alpha: float = ALPHA,
                  block: int = 256, segment: float | None = None,
                  reselect_every: int = 1, torque_scale_std: float = 0.0,
-                 gyro_scale_std: float = 0.0) -> None:
+                 gyro_scale_std: float = 0.0, defer_adequacy: bool = False) -> None:
         check_choice('model', model, MODELS)
         if isinstance(torque_bias, bool):
             torque_bias = 'on' if torque_bias else 'off'
@@ -136,6 +141,7 @@ class RecursiveEstimator:
                 or reselect_every < 1:
             raise ValueError(f'reselect_every: must be an integer >= 1, got {reselect_every!r}')
         self.reselect_every = int(reselect_every)
+        self.defer_adequacy = bool(defer_adequacy)
         self.model = model
         self.torque_bias = torque_bias
         self.forgetting = float(forgetting)
@@ -184,11 +190,15 @@ class RecursiveEstimator:
         self._clock = 0.0                 # decay clock: sum of log(decay factors)
         self._adequacy: Adequacy | None = None   # last adequacy result, reused between tests
         self._adequacy_left = 0
+        #: deferred adequacy test: (estimate serial, final fit, gyro and torque noise variances)
+        self._adequacy_due: tuple[int, Fit, np.ndarray, np.ndarray] | None = None
+        self._estimates = 0               # estimate() calls (serial of the last one)
         self._tq_ss = np.zeros(3)        # (decayed) sum of squared torque [N^2 m^2]
         self._tq_n = 0.0                 # and its (decayed) count
         self._tau_dt = 0.0
         self._tq_dts = np.empty(0)       # recent torque / gyro sample intervals [s]
         self._g_dts = np.empty(0)
+        self._g_dt = 0.0                 # their median (0 before two samples)
         self._tq_last: float | None = None
         self.gaps = 0                    # gaps that ended a segment holding data
         self._t_last: float | None = None
@@ -285,6 +295,11 @@ class RecursiveEstimator:
         self._pt.append(ta)
         self._ptau.append(xa)
 
+    def merge(self) -> None:
+        """Merge the buffered samples the torque covers now (:meth:`estimate` then has less to
+        do); the statistics, so the estimate, do not depend on the cut (up to rounding)."""
+        self._process()
+
     # -----------------------------------------------------------------------------------------
     def _process(self) -> None:
         """Turn buffered gyro samples covered by torque into equations and merge them."""
@@ -342,7 +357,7 @@ class RecursiveEstimator:
         # (the variance itself is taken in estimate())
         self._tau_nv.add(new_tau)
         if len(self._tq_dts):
-            self._tau_dt = float(np.median(self._tq_dts))
+            self._tau_dt = float(median_rows(self._tq_dts[:, None])[0])   # np.median, faster
 
     def _ready_gyro(self) -> tuple[np.ndarray, np.ndarray, list[int]]:
         """Buffered gyro samples now covered by torque (the rest stays buffered), with gaps.
@@ -414,16 +429,17 @@ class RecursiveEstimator:
         starts: list[float] = []
         keep = np.ones(len(t), dtype=bool)
         if len(self._tq_dts) >= 2 and len(self._ts) >= 2:
-            nominal = float(np.median(self._tq_dts))
+            nominal = self._tau_dt           # the median of self._tq_dts (_take_torque)
             dq = np.diff(self._ts)
             for i in np.flatnonzero(dq > GAP_FACTOR * nominal):
                 keep &= ~((t > self._ts[i] + nominal) & (t < self._ts[i + 1]))
                 starts.append(float(self._ts[i + 1]))
         edges = t if self._prev is None else np.concatenate([[self._prev[0]], t])
-        self._g_dts = np.concatenate([self._g_dts, np.diff(edges)])[-_DT_HISTORY:]
+        dg = np.diff(edges)
+        self._g_dts = np.concatenate([self._g_dts, dg])[-_DT_HISTORY:]
+        self._g_dt = float(median_rows(self._g_dts[:, None])[0]) if len(self._g_dts) else 0.0
         if len(self._g_dts) >= 2:
-            dg = np.diff(edges)
-            big = np.flatnonzero(dg > GAP_FACTOR * float(np.median(self._g_dts)))
+            big = np.flatnonzero(dg > GAP_FACTOR * self._g_dt)
             starts.extend(float(edges[i + 1]) for i in big)
         if not starts:
             return t, w, []
@@ -598,11 +614,23 @@ class RecursiveEstimator:
 
         Up to :data:`ADEQUACY_WINDOWS` consecutive groups of the kept segments (the open one
         included), each fitted with the weights of ``f``'s tensor, as the batch estimator does
-        on time windows.  Run every ``reselect_every`` estimates; reused in between.
+        on time windows.  Run every ``reselect_every`` estimates; reused in between (with
+        ``defer_adequacy`` also at a test estimate, the test left to :meth:`refresh`).
         """
-        if self._adequacy is not None and self._adequacy_left > 0:
+        if self._adequacy_due is not None and self._adequacy_due[0] != self._estimates:
+            self._adequacy_due = None         # owed by an earlier estimate: test these data
+        elif self._adequacy is not None and self._adequacy_left > 0:
             self._adequacy_left -= 1
             return self._adequacy
+        elif self.defer_adequacy and self._adequacy is not None:
+            self._adequacy_due = (self._estimates, f, nv, tv)   # the last call's fit wins
+            return self._adequacy
+        self._adequacy = self._test_adequacy(f, nv, tv)
+        self._adequacy_left = self.reselect_every - 1
+        return self._adequacy
+
+    def _test_adequacy(self, f: Fit, nv: np.ndarray, tv: np.ndarray) -> Adequacy:
+        """The window tests of ``f`` on the current statistics (:meth:`_window_adequacy`)."""
         p, k = len(f.beta), f.basis.shape[1]
         gp, walk = self._segment_walk()
         groups = [g for g in self._history.groups(ADEQUACY_WINDOWS,
@@ -625,9 +653,23 @@ class RecursiveEstimator:
             thetas = np.array([x[0] for x in fits])
             covs = np.array([x[1] for x in fits])
             mids = np.array([x[2] for x in fits])
-        self._adequacy = check_adequacy(thetas, covs, mids, f.excess)
+        return check_adequacy(thetas, covs, mids, f.excess)
+
+    def refresh(self) -> bool:
+        """Run the adequacy test the last estimate deferred (``defer_adequacy``), if any: call
+        it before new samples are merged, so that it tests that estimate's statistics and fit.
+
+        Returns
+        -------
+        bool
+            True when a test ran.
+        """
+        if self._adequacy_due is None:
+            return False
+        (_, f, nv, tv), self._adequacy_due = self._adequacy_due, None
+        self._adequacy = self._test_adequacy(f, nv, tv)
         self._adequacy_left = self.reselect_every - 1
-        return self._adequacy
+        return True
 
     def _omega_m2(self) -> np.ndarray:
         """``mean(w w')`` of the merged gyro samples [rad^2/s^2] (decayed as the weights)."""
@@ -635,7 +677,7 @@ class RecursiveEstimator:
 
     def _gyro_dt(self) -> float:
         """Median recent gyro sample interval [s] (0 before two samples)."""
-        return float(np.median(self._g_dts)) if len(self._g_dts) else 0.0
+        return self._g_dt            # kept by _gaps
 
     # -----------------------------------------------------------------------------------------
     def _gyro_var(self) -> np.ndarray:
@@ -682,6 +724,7 @@ class RecursiveEstimator:
             residual variance when that is larger.
         """
         self._process()
+        self._estimates += 1
         base = dict(method='recursive', samples_used=self.samples_used,
                     samples_dropped=self.samples_dropped)
         nv = self._gyro_var()
