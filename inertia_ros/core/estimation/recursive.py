@@ -46,6 +46,7 @@ from .homogeneous import homogeneous_estimate, is_torque_free
 from .model import symmetry_axis as unit_axis
 from .noise import StreamingNoise, median_rows
 from .options import (
+    ADEQUACY_MIN_WINDOW_S,
     ADEQUACY_WINDOWS,
     ALPHA,
     GAP_FACTOR,
@@ -633,9 +634,10 @@ class RecursiveEstimator:
         """The window tests of ``f`` on the current statistics (:meth:`_window_adequacy`)."""
         p, k = len(f.beta), f.basis.shape[1]
         gp, walk = self._segment_walk()
+        # as the batch's windows, >= ADEQUACY_MIN_WINDOW_S (a 1 s open segment: chi2 ~2000)
         groups = [g for g in self._history.groups(ADEQUACY_WINDOWS,
                                                   self._open_segment(gp, walk), self._clock)
-                  if g.neff >= MIN_EQUATIONS]
+                  if g.neff >= MIN_EQUATIONS and g.t1 - g.t0 >= ADEQUACY_MIN_WINDOW_S]
         thetas, covs, mids = np.zeros((0, p)), np.zeros((0, p, p)), np.zeros(0)
         if len(groups) >= 2:
             K = np.eye(13)
