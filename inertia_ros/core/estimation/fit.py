@@ -132,22 +132,8 @@ def fit_weighted(st: SufficientStats, basis: np.ndarray, bias: bool, W: np.ndarr
     Fit
     """
     k = basis.shape[1]
-    T = selector(basis, bias, offset)
-    p = T.shape[1] - 1
-    G = T.T @ metric(st.C, W) @ T
-    H0 = G[:p, :p]
-    g = G[:p, p]
-    H = H0.copy()
-    compensate = bias_comp and st.eiv_var is not None
-    if compensate:
-        B6 = np.einsum('c,crk,rs,csl->kl', st.eiv_var, MOMENTUM_BASIS, W, MOMENTUM_BASIS)
-        H[:k, :k] -= st.n_eff * (basis.T @ B6 @ basis)
-        if offset is not None:
-            # the held part's regressor carries the same gyro noise: g = -B' X6'X6 offset
-            # is compensated like H (B' (X6'X6 - n B6) offset)
-            g = g.copy()
-            g[:k] += st.n_eff * (basis.T @ B6 @ offset)
-    beta = solve_symmetric(H, g)
+    T, p, G, H0, H, beta, B6 = _normal_solution(st, basis, bias, W, bias_comp, offset)
+    compensate = B6 is not None
     Hinv = solve_symmetric(H, np.eye(p))
     c = np.append(-beta, 1.0)
     rss = np.array([c @ (T.T @ st.C[r, r] @ T) @ c for r in range(3)])
@@ -171,6 +157,35 @@ def fit_weighted(st: SufficientStats, basis: np.ndarray, bias: bool, W: np.ndarr
     return Fit(beta=beta, cov=cov, H=H, H0=H0, basis=basis, bias=bias, offset=offset,
                resid_rms=np.sqrt(np.maximum(rss, 0.0) / dof), n_eq=st.n, excess=excess,
                H_full=H_full)
+
+
+def _normal_solution(st: SufficientStats, basis: np.ndarray, bias: bool, W: np.ndarray,
+                     bias_comp: bool, offset: np.ndarray | None
+                     ) -> tuple[np.ndarray, int, np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+                                np.ndarray | None]:
+    """The (bias-compensated) normal equations of :func:`fit_weighted` and their solution.
+
+    Returns ``(T, p, G, H0, H, beta, B6)``: the selector, parameter count, the weighted Gram
+    ``T' C_W T``, the information before and after compensation, the estimate and the
+    gyro-noise term ``B6`` (6, 6) (``None`` without compensation).
+    """
+    k = basis.shape[1]
+    T = selector(basis, bias, offset)
+    p = T.shape[1] - 1
+    G = T.T @ metric(st.C, W) @ T
+    H0 = G[:p, :p]
+    g = G[:p, p]
+    H = H0.copy()
+    B6 = None
+    if bias_comp and st.eiv_var is not None:
+        B6 = np.einsum('c,crk,rs,csl->kl', st.eiv_var, MOMENTUM_BASIS, W, MOMENTUM_BASIS)
+        H[:k, :k] -= st.n_eff * (basis.T @ B6 @ basis)
+        if offset is not None:
+            # the held part's regressor carries the same gyro noise: g = -B' X6'X6 offset
+            # is compensated like H (B' (X6'X6 - n B6) offset)
+            g = g.copy()
+            g[:k] += st.n_eff * (basis.T @ B6 @ offset)
+    return T, p, G, H0, H, solve_symmetric(H, g), B6
 
 
 def equation_weight(theta: np.ndarray, gyro_var: np.ndarray,
@@ -201,11 +216,12 @@ def fit_two_pass(st: SufficientStats, basis: np.ndarray, bias: bool, gyro_var: n
         return fit_weighted(st, basis, bias,
                             equation_weight(theta0, gyro_var, st.white_y_cov), gyro_var,
                             torque_var, st.weighted, offset)
-    f = fit_weighted(st, basis, bias, np.eye(3), gyro_var, torque_var, st.weighted, offset)
     if st.weighted and np.all(gyro_var > 0):
-        theta = basis @ f.beta[:basis.shape[1]] + (0.0 if offset is None else offset)
+        # the unweighted pass gives the weights only: its estimate, not its covariance
+        beta = _normal_solution(st, basis, bias, np.eye(3), st.weighted, offset)[5]
+        theta = basis @ beta[:basis.shape[1]] + (0.0 if offset is None else offset)
         if np.all(np.isfinite(theta)) and np.any(theta[:3] != 0):
-            f = fit_weighted(st, basis, bias,
-                             equation_weight(theta, gyro_var, st.white_y_cov), gyro_var,
-                             torque_var, st.weighted, offset)
-    return f
+            return fit_weighted(st, basis, bias,
+                                equation_weight(theta, gyro_var, st.white_y_cov), gyro_var,
+                                torque_var, st.weighted, offset)
+    return fit_weighted(st, basis, bias, np.eye(3), gyro_var, torque_var, st.weighted, offset)
