@@ -152,9 +152,12 @@ def integral_equations(tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.nd
         Gyro white-noise variance [rad^2/s^2].
     """
     t = tg[idx]
-    M = cumulative_monomials(tg, w, gyro_var)[idx]
-    T = cumulative_torque(ts, tau, t, hold)
-    V = variables(w[idx], M, t - t[0], T)
+    # the 13 variables written into one array (as :func:`.regressors.variables` stacks them)
+    V = np.empty((len(t), 13))
+    V[:, :3] = w[idx]
+    V[:, 3:9] = cumulative_monomials(tg, w, gyro_var)[idx]
+    np.subtract(t, t[0], out=V[:, 9])
+    V[:, 10:] = cumulative_torque(ts, tau, t, hold)
     starts = np.flatnonzero(np.r_[True, breaks])
     if len(starts) > 1:
         # re-anchor the integrals at every forced segment start: nothing integrates across a
@@ -273,8 +276,11 @@ def build_equations(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray,
     -------
     Equations
     """
-    # every sample used (the common case): views instead of fancy-indexed copies
-    idx: slice | np.ndarray = slice(None) if mask.all() else np.flatnonzero(mask)
+    # one contiguous run of samples (the common case: all, or all but the ends outside the
+    # torque's coverage): views instead of fancy-indexed copies
+    idx: slice | np.ndarray = np.flatnonzero(mask)
+    if len(idx) and idx[-1] - idx[0] + 1 == len(idx):
+        idx = slice(int(idx[0]), int(idx[-1]) + 1)
     if method in ('integral', 'integral_ls'):
         return integral_equations(tg, w, ts, tau, idx, breaks, hold,
                                   gyro_var if method == 'integral' else None)

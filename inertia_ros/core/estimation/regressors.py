@@ -186,7 +186,9 @@ def cumulative_monomials(t: np.ndarray, omega: np.ndarray,
             out -= dp
             out -= out[0].copy()
     if noise_var is not None:
-        out[:, :3] -= (t - t[0])[:, None] * np.asarray(noise_var, dtype=float)[None, :]
+        span = t - t[0]
+        for c, v in enumerate(np.asarray(noise_var, dtype=float)):   # no (N, 3) temporary
+            out[:, c] -= span * v
     return out
 
 
@@ -232,8 +234,10 @@ def cumulative_torque(t_tau: np.ndarray, tau: np.ndarray, t: np.ndarray,
         if len(dts):
             np.cumsum(tau[:-1] * dts[:, None], axis=0, out=cum[1:])
         j = _interval_index(t_tau, t)
-        u = (t - t_tau[j])[:, None]
-        return cum[j] + tau[j] * u
+        out = tau[j]
+        out *= (t - t_tau[j])[:, None]
+        out += cum[j]
+        return out
     if hold != 'linear':
         raise ValueError(f"hold: must be 'zoh' or 'linear', got {hold!r}")
     if len(dts):
