@@ -39,6 +39,16 @@ def _batches(path: Path) -> dict[str, tuple[np.ndarray, ...]]:
     return {t: (b''.join(p[0]), *(np.concatenate(x) for x in p[1:])) for t, p in out.items()}
 
 
+def _assert_same_batches(a: dict, b: dict) -> None:
+    """Two readings (:func:`_batches`) hold the same fields per topic, exactly."""
+    for topic in b:
+        for x, y in zip(a[topic], b[topic], strict=True):
+            if isinstance(x, bytes):
+                assert x == y
+            else:
+                np.testing.assert_array_equal(x, y)
+
+
 def test_chunk_groups_read_the_same_messages(small_log: Path,
                                              monkeypatch: pytest.MonkeyPatch) -> None:
     """Chunk by chunk (GROUP_BYTES 0) and in groups: identical payloads, times, ordinals."""
@@ -46,12 +56,7 @@ def test_chunk_groups_read_the_same_messages(small_log: Path,
     monkeypatch.setattr(McapReader, 'GROUP_BYTES', 0)
     single = _batches(small_log)
     assert set(grouped) == set(single) == {'/imu', '/torque'}
-    for topic in grouped:
-        for a, b in zip(grouped[topic], single[topic], strict=True):
-            if isinstance(a, bytes):
-                assert a == b
-            else:
-                np.testing.assert_array_equal(a, b)
+    _assert_same_batches(grouped, single)
     assert grouped['/imu'][2].size == 12000 and grouped['/torque'][2].size == 3000
     assert np.all(np.diff(grouped['/imu'][2]) > 0)           # ordinals in file order
 
@@ -83,12 +88,7 @@ def test_worker_thread_reads_the_same_messages_and_damage(
     threaded = _batches(path)
     monkeypatch.setattr(McapReader, 'THREADS', False)
     inline = _batches(path)
-    for topic in inline:
-        for a, b in zip(threaded[topic], inline[topic], strict=True):
-            if isinstance(a, bytes):
-                assert a == b
-            else:
-                np.testing.assert_array_equal(a, b)
+    _assert_same_batches(threaded, inline)
     # damage three chunks' records: the readers must skip and count the same chunks
     data = bytearray(path.read_bytes())
     with McapReader(path) as r:

@@ -172,9 +172,8 @@ class Dynamics:
             self.forcing[:, bias_at:bias_at + 3] = self.Ii     # d(w_dot)/dd
         self.forcing[:, psi:psi + 3] = self.Ii         # Psi' = Jw Psi + I^-1
         self.theta = slice(theta_at, theta_at + 6)
-        self.mIi = -self.Ii
         # -I^-1 Y(wd, mono) as one product with the (9, 18) map: no batched 3 x 3 products
-        self.y_map = np.einsum('Rr,irk->iRk', self.mIi, _Y_MAP.reshape(9, 3, 6)).reshape(9, 18)
+        self.y_map = np.einsum('Rr,irk->iRk', -self.Ii, _Y_MAP.reshape(9, 3, 6)).reshape(9, 18)
 
     def __call__(self, w: np.ndarray, Z: np.ndarray, Iiu: np.ndarray
                  ) -> tuple[np.ndarray, np.ndarray]:
