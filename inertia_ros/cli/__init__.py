@@ -17,6 +17,8 @@ import math
 import sys
 from collections.abc import Callable
 
+from inertia_ros.runtime import keep_freed_memory
+
 #: Command modules, in the order ``--help`` lists them.  A module is listed here only once
 #: the command it implements is real.
 COMMANDS: tuple[str, ...] = ('simulate', 'estimate', 'fleet', 'bench', 'demo')
@@ -142,6 +144,7 @@ def main(argv: list[str] | None = None) -> int:
     if getattr(args, 'func', None) is None:
         parser.print_help(sys.stderr)
         return 2
+    keep_freed_memory()               # the estimates' arrays reuse freed heap, no page faults
     try:
         return int(args.func(args) or 0)
     except UserError as exc:

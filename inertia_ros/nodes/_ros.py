@@ -52,9 +52,11 @@ def run_node(make_node: Callable[[], Node], name: str, args: list[str] | None = 
     ROS.
     """
     from inertia_ros.nodes.params import NODE_TABLES, help_text, print_help_if_asked
+    from inertia_ros.runtime import keep_freed_memory
 
     if name in NODE_TABLES and print_help_if_asked(args, lambda: help_text(name)):
         return
+    keep_freed_memory()               # the estimates' arrays reuse freed heap, no page faults
     try:
         rclpy.init(args=args)
     except Exception as exc:  # rcl's RCLError for arguments it cannot parse
