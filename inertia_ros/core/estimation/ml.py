@@ -410,10 +410,7 @@ def _full_pass(pb: _Problem, beta: np.ndarray, d: np.ndarray, r: np.ndarray
     dyn, iiu = _dynamics(pb, beta, d)
     # sensitivities as [Phi | Psi | S_p]: on delta_j, nu_j and dp
     wk, Zk, w1, Z1 = _shoot(dyn, r[:-1], pb.h, pb.H, iiu, pb.basis, pb.n_par)
-    try:
-        Pinv = np.linalg.inv(Z1[..., 3:6])
-    except np.linalg.LinAlgError:
-        raise _PassError('singular torque-noise input matrix') from None
+    Pinv = _inverse3(Z1[..., 3:6])
     # prior rows of nu_j = Pinv (delta_{j+1} - Phi delta_j - S dp - g_j): on delta_j,
     # delta_{j+1}, dp
     B = -Z1
@@ -423,12 +420,12 @@ def _full_pass(pb: _Problem, beta: np.ndarray, d: np.ndarray, r: np.ndarray
     K = pb.H.shape[1]
     Zk2 = Zk.reshape(M, 3 * K, -1)
     Zpsi = np.ascontiguousarray(Zk2[..., 3:6])               # (M, 3 K, 3)
+    Zk2[..., 3:6] = 0.0          # the slot's nu_j columns are all in Zpsi R (eliminated nu_j)
     Xc = np.empty((M, 3 + 3 * K, 6 + npar))                 # written in place, no copies
     np.multiply(R, pb.swt[:, None], out=Xc[:, :3])
     rows = Xc[:, 3:]
     np.matmul(Zpsi, R, out=rows)
     rows += Zk2
-    rows[..., 3:6] -= Zpsi
     rows *= pb.swg.reshape(M, 3 * K, 1)
     Zpsi = Zpsi.reshape(M, K, 3, 3)
     Gm = Xc[..., :6].transpose(0, 2, 1) @ Xc                   # (M, 6, 6 + npar)
@@ -470,9 +467,11 @@ def _step(pb: _Problem, lin: _Linear, wk: np.ndarray, w1: np.ndarray, r: np.ndar
     from scipy import linalg  # lazily: 0.14 s of start-up the integral path never needs
     M = pb.M
     pz = (lin.Pinv @ (w1 - r[1:])[..., None])[..., 0]           # prior targets (M, 3)
-    gz = pb.Y - wk + (lin.Zpsi @ pz[:, None, :, None])[..., 0]   # gyro targets (M, K, 3)
+    gz = np.einsum('mkij,mj->mki', lin.Zpsi, pz)                 # gyro targets (M, K, 3)
+    gz += pb.Y
+    gz -= wk
     Xz = np.concatenate([pz * pb.swt, (gz * pb.swg).reshape(M, -1)], axis=1)
-    Gz = (Xz[:, None, :] @ lin.Xc[..., :6])[:, 0]                 # (M, 6)
+    Gz = np.einsum('mr,mrc->mc', Xz, lin.Xc[..., :6])             # (M, 6)
     bd = np.zeros((M + 1, 3))
     bd[:-1] += Gz[:, :3]
     bd[1:] += Gz[:, 3:6]
@@ -483,6 +482,29 @@ def _step(pb: _Problem, lin: _Linear, wk: np.ndarray, w1: np.ndarray, r: np.ndar
     delta = X0 - lin.X1 @ dp
     rss = float(np.sum(Xz * Xz)) - float(bd @ delta) - float(bp @ dp)
     return dp, delta, rss / max(3 * pb.n_gyro - 3 - pb.npar, 1)
+
+
+def _inverse3(A: np.ndarray) -> np.ndarray:
+    """Inverses of a stack of 3 x 3 matrices ``(M, 3, 3)`` by their adjugates (a tenth of
+    ``np.linalg.inv``'s time on small matrices); :class:`_PassError` when one is singular."""
+    a, b, c = A[..., 0, 0], A[..., 0, 1], A[..., 0, 2]
+    d, e, f = A[..., 1, 0], A[..., 1, 1], A[..., 1, 2]
+    g, h, i = A[..., 2, 0], A[..., 2, 1], A[..., 2, 2]
+    adj = np.empty(A.shape)
+    adj[..., 0, 0] = e * i - f * h
+    adj[..., 1, 0] = f * g - d * i
+    adj[..., 2, 0] = d * h - e * g
+    adj[..., 0, 1] = c * h - b * i
+    adj[..., 1, 1] = a * i - c * g
+    adj[..., 2, 1] = b * g - a * h
+    adj[..., 0, 2] = b * f - c * e
+    adj[..., 1, 2] = c * d - a * f
+    adj[..., 2, 2] = a * e - b * d
+    det = a * adj[..., 0, 0] + b * adj[..., 1, 0] + c * adj[..., 2, 0]
+    scale = np.max(np.abs(A), axis=(-2, -1)) ** 3
+    if not np.all(np.abs(det) > 1e-13 * scale):
+        raise _PassError('singular torque-noise input matrix')
+    return adj / det[..., None, None]
 
 
 def _inverse_information(F: np.ndarray) -> np.ndarray:
