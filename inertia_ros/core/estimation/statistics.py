@@ -77,17 +77,53 @@ class SufficientStats:
     white_y_cov: np.ndarray | None = None
 
 
+#: Mean rows per range from which :func:`range_sums` sums range by range (BLAS row sums);
+#: below it, one ``reduceat`` pass over all ranges.
+_ROWS_PER_BLAS_SUM = 256
+
+
 def range_sums(V: np.ndarray, bounds: np.ndarray) -> np.ndarray:
     """Sums of the row ranges ``V[bounds[k]:bounds[k+1]]``, shape (len(bounds) - 1, q).
 
-    A sparse indicator product: a compiled loop over contiguous rows, several times faster
-    than ``np.add.reduceat`` on a thin matrix.
+    ``bounds`` is non-decreasing (an empty range sums to 0).  Long ranges (segments, windows)
+    are one BLAS product ``ones @ V[a:b]`` each, at memory speed; many short ones one
+    ``np.add.reduceat`` over the transposed rows.  numpy only: the ``integral`` path imports
+    no scipy (whose base costs an hour-long log's command about 0.1 s of start-up).
     """
-    from scipy import sparse  # lazily: the online estimator never needs it
+    V = np.asarray(V)
+    bounds = np.asarray(bounds, dtype=np.intp)
+    m = len(bounds) - 1
+    out = np.zeros((m,) + V.shape[1:], dtype=np.result_type(V.dtype, float))
+    if m <= 0 or len(V) == 0:
+        return out
+    lengths = np.diff(bounds)
+    if len(V) >= _ROWS_PER_BLAS_SUM * m:
+        ones = np.ones(int(lengths.max()))
+        for k in np.flatnonzero(lengths > 0).tolist():
+            a, b = int(bounds[k]), int(bounds[k + 1])
+            np.matmul(ones[:b - a], V[a:b], out=out[k])
+        return out
+    return _reduceat_rows(V, bounds, lengths, out)
 
-    n = V.shape[0]
-    ind = sparse.csr_matrix((np.ones(n), np.arange(n), bounds), shape=(len(bounds) - 1, n))
-    return ind @ V
+
+def _reduceat_rows(V: np.ndarray, bounds: np.ndarray, lengths: np.ndarray,
+                   out: np.ndarray) -> np.ndarray:
+    """:func:`range_sums` of many short ranges: ``np.add.reduceat`` along the contiguous rows
+    of ``V.T`` (several times faster than along the columns of the thin ``V``)."""
+    nz = lengths > 0
+    if not np.any(nz):
+        return out
+    VT = np.ascontiguousarray(V.reshape(len(V), -1).T)
+    sums = np.add.reduceat(VT, bounds[:-1][nz], axis=1)          # (q, ranges with rows)
+    out.reshape(len(out), -1)[nz] = sums.T
+    return out
+
+
+#: Equal-count torque intervals in a row from which :func:`_interval_sums` sums them as one
+#: reshaped view (no copy); shorter runs are gathered by count.
+_MIN_RUN = 32
+#: Runs summed as views at most (beyond, the intervals are gathered by count).
+_MAX_RUNS = 2000
 
 
 def _interval_sums(V: np.ndarray, t: np.ndarray, t_tau: np.ndarray
@@ -96,23 +132,42 @@ def _interval_sums(V: np.ndarray, t: np.ndarray, t_tau: np.ndarray
 
     Interval ``j`` holds the rows ``first[j]:first[j + 1]`` (``s_j <= t_b < s_{j+1}``; rows
     before ``s_0`` count in interval 0).  Returns ``(S (M, q), St (M, q), first (M + 1,))``.
-    """
-    from scipy import sparse  # lazily: the online estimator never needs it
 
-    n = V.shape[0]
+    Sampled at steady rates, the intervals hold the same number ``c`` of rows in long runs:
+    such a run is the view ``(run, c, q)`` of its rows, summed over its middle axis.  The
+    other intervals are gathered into ``(intervals, c, q)`` per count ``c``.
+    """
+    n, q = V.shape
     m = len(t_tau)
     first = np.searchsorted(t, t_tau, side='left')
     first[0] = 0                                      # (no sample precedes t_tau[0])
     indptr = np.append(first, n)
     counts = np.diff(indptr)
     u = t - np.repeat(t_tau, counts)                  # time since the interval's sample
-    # per-interval sums of V and of u V as one sparse (2M, n) product: a compiled loop over
-    # contiguous row ranges, several times faster than ufunc.reduceat on a thin matrix
-    both = sparse.csr_matrix((np.concatenate([np.ones(n), u]),
-                              np.concatenate([np.arange(n), np.arange(n)]),
-                              np.concatenate([indptr, n + indptr[1:]])), shape=(2 * m, n))
-    SS = both @ V
-    return SS[:m], SS[m:], indptr
+    S = np.zeros((m, q))
+    St = np.zeros((m, q))
+    change = np.flatnonzero(np.diff(counts)) + 1
+    starts = np.concatenate(([0], change))
+    ends = np.append(change, m)
+    long = (ends - starts >= _MIN_RUN) & (counts[starts] > 0)
+    if np.count_nonzero(long) > _MAX_RUNS:
+        long[:] = False
+    rest = np.ones(m, dtype=bool)
+    for j0, j1 in zip(starts[long].tolist(), ends[long].tolist(), strict=True):
+        c = int(counts[j0])
+        a, b = int(indptr[j0]), int(indptr[j1])
+        Vr = V[a:b].reshape(j1 - j0, c, q)
+        np.sum(Vr, axis=1, out=S[j0:j1])
+        np.einsum('mk,mkq->mq', u[a:b].reshape(j1 - j0, c), Vr, out=St[j0:j1])
+        rest[j0:j1] = False
+    rest &= counts > 0
+    for c in np.unique(counts[rest]).tolist():
+        js = np.flatnonzero(rest & (counts == c))
+        rows = indptr[js][:, None] + np.arange(c)                # (intervals, c)
+        Vg = V[rows]
+        S[js] = Vg.sum(axis=1)
+        St[js] = np.einsum('mk,mkq->mq', u[rows], Vg)
+    return S, St, indptr
 
 
 def _torque_sums(S: np.ndarray, St: np.ndarray, h: np.ndarray) -> np.ndarray:
