@@ -159,6 +159,12 @@ class StreamingNoise:
         return self.std() ** 2
 
 
+#: Levi-Civita symbol eps_abc, shape (3, 3, 3).
+_EPS = np.zeros((3, 3, 3))
+_EPS[0, 1, 2] = _EPS[1, 2, 0] = _EPS[2, 0, 1] = 1.0
+_EPS[0, 2, 1] = _EPS[2, 1, 0] = _EPS[1, 0, 2] = -1.0
+
+
 def _skew(v: np.ndarray) -> np.ndarray:
     return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
 
@@ -192,8 +198,9 @@ def gyroscopic_walk_cov(I: np.ndarray, gyro_var: np.ndarray, omega_m2: np.ndarra
     """
     if omega_m2 is None or gyro_dt <= 0 or torque_dt <= 0:
         return np.zeros((3, 3))
-    S = np.diag(gyro_var)
-    A = [_skew(e) @ I - _skew(I @ e) for e in np.eye(3)]
-    M = sum(omega_m2[i, j] * (A[i] @ S @ A[j].T) for i in range(3) for j in range(3))
+    # A_i = [e_i]x I - [I e_i]x, all three at once ([v]x_ab = -eps_abc v_c), then
+    # sum_ij E[w_i w_j] A_i S_g A_j' as one contraction (every fit's meat calls this)
+    A = np.einsum('aki,kb->iab', -_EPS, I) + np.einsum('abc,ci->iab', _EPS, I)
+    M = np.einsum('ij,iab,b,jcb->ac', omega_m2, A, np.asarray(gyro_var, dtype=float), A)
     M = 0.5 * (M + M.T)
     return (gyro_dt / torque_dt) * M
