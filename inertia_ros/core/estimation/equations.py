@@ -155,9 +155,13 @@ def integral_equations(tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.nd
     # the 13 variables written into one array (as :func:`.regressors.variables` stacks them)
     V = np.empty((len(t), 13))
     V[:, :3] = w[idx]
-    V[:, 3:9] = cumulative_monomials(tg, w, gyro_var)[idx]
+    rows = _as_range(idx, len(tg))
+    if rows is not None:          # the usual case: integrated and written in cache-sized blocks
+        cumulative_monomials(tg, w, gyro_var, rows=rows, out=V[:, 3:9])
+    else:
+        V[:, 3:9] = cumulative_monomials(tg, w, gyro_var)[idx]
     np.subtract(t, t[0], out=V[:, 9])
-    V[:, 10:] = cumulative_torque(ts, tau, t, hold)
+    cumulative_torque(ts, tau, t, hold, out=V[:, 10:])
     starts = np.flatnonzero(np.r_[True, breaks])
     if len(starts) > 1:
         # re-anchor the integrals at every forced segment start: nothing integrates across a
@@ -167,6 +171,20 @@ def integral_equations(tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.nd
         V[:, 3:] -= V[first, 3:]
     return Equations(V, t, breaks, 'anchored', eiv_var=gyro_var,
                      weighted=gyro_var is not None)
+
+
+def _as_range(idx: slice | np.ndarray, n: int) -> slice | None:
+    """``idx`` as ``slice(a, b)`` when it selects the contiguous rows ``a:b`` of ``n``, else
+    ``None``."""
+    if isinstance(idx, slice):
+        a, b, step = idx.indices(n)
+        return slice(a, max(a, b)) if step == 1 else None
+    idx = np.asarray(idx)
+    if idx.dtype == bool:
+        return None
+    if len(idx) == 0 or idx[-1] - idx[0] != len(idx) - 1 or not np.all(np.diff(idx) == 1):
+        return None
+    return slice(int(idx[0]), int(idx[-1]) + 1)
 
 
 def sliding_equations(tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.ndarray,

@@ -133,9 +133,17 @@ def gyroscopic_matrix(m: np.ndarray) -> np.ndarray:
     return (m @ GYROSCOPIC_MAP).reshape(m.shape[:-1] + (3, 6))
 
 
+#: Rows per block of :func:`cumulative_monomials` and :func:`cumulative_torque`: a block's
+#: temporaries (a few (rows, 6) arrays) stay in the processor's cache, so an hour-long record
+#: (720k rows) is read and written about twice instead of a dozen times.  The results do not
+#: depend on it (the running sums carry over from block to block in the same order).
+BLOCK_ROWS = 8192
+
+
 def cumulative_monomials(t: np.ndarray, omega: np.ndarray,
                          noise_var: np.ndarray | None = None,
-                         end_correction: bool = True) -> np.ndarray:
+                         end_correction: bool = True, *, rows: slice | None = None,
+                         out: np.ndarray | None = None) -> np.ndarray:
     """Cumulative integral of the quadratic monomials from ``t[0]`` to each ``t[i]``.
 
     Trapezoid rule with the Euler-Maclaurin end correction ``-h^2/12 f'`` (fourth-order for
@@ -154,42 +162,107 @@ def cumulative_monomials(t: np.ndarray, omega: np.ndarray,
         Gyro white-noise variance per axis [rad^2/s^2].
     end_correction : bool
         Apply the ``-h^2/12 f'`` correction.
+    rows : slice, optional
+        Only the rows ``rows.start:rows.stop`` (step 1) of the result are returned (still
+        integrated from ``t[0]``); default all.
+    out : ndarray, shape (rows, 6), optional
+        Written in place and returned (may be a strided view, e.g. columns of a wider array).
 
     Returns
     -------
-    ndarray, shape (N, 6)
+    ndarray, shape (N, 6) (or the rows asked for)
         ``int_{t0}^{t_i} m(w) dt`` [rad^2/s].
     """
-    p = monomials(omega)
-    out = np.empty_like(p)
-    out[0] = 0.0
+    t = np.asarray(t, dtype=float)
+    omega = np.asarray(omega, dtype=float)
     n = len(t)
-    if n > 1:
-        dt = np.diff(t)
-        inc = p[1:] + p[:-1]
-        inc *= (0.5 * dt)[:, None]
-        np.cumsum(inc, axis=0, out=out[1:])
-        if end_correction and n > 2:
-            # -h^2/12 f'(t_i), f' by central differences (ends: extrapolated)
-            dp = np.empty_like(p)
-            np.subtract(p[2:], p[:-2], out=dp[1:-1])
-            dp[1:-1] /= (t[2:] - t[:-2])[:, None]
-            if n > 3:
-                dp[0] = 2.0 * dp[1] - dp[2]          # linear extrapolation: second order
-                dp[-1] = 2.0 * dp[-2] - dp[-3]
-            else:
-                dp[0] = dp[-1] = dp[1]
-            h = np.empty(n)
-            h[1:] = dt
-            h[0] = dt[0]
-            dp *= (h * h / 12.0)[:, None]
-            out -= dp
-            out -= out[0].copy()
-    if noise_var is not None:
-        span = t - t[0]
-        for c, v in enumerate(np.asarray(noise_var, dtype=float)):   # no (N, 3) temporary
-            out[:, c] -= span * v
+    r0, r1 = (0, n) if rows is None else (int(rows.start or 0), int(n if rows.stop is None
+                                                                     else rows.stop))
+    if rows is not None and (rows.step not in (None, 1) or not 0 <= r0 <= r1 <= n):
+        raise ValueError(f'rows: expected a slice of step 1 inside [0, {n}], got {rows!r}')
+    if out is None:
+        out = np.empty((r1 - r0, 6))
+    if r1 == r0:
+        return out
+    correct = end_correction and n > 2
+    shift = np.zeros(6)            # the constant removed so that the first row is 0
+    if correct:
+        shift = 0.0 - _scaled_end_derivative(t, omega)
+    nv = None if noise_var is None else np.asarray(noise_var, dtype=float)
+    carry = np.zeros(6)
+    for a in range(0, r1, BLOCK_ROWS):
+        b = min(a + BLOCK_ROWS, r1)
+        lo, hi = max(a - 1, 0), min(b + 1, n)          # one row of context on either side
+        p = monomials(omega[lo:hi])
+        blk = np.empty((b - a, 6))
+        k = a - lo                                     # row a within p
+        if a == 0:
+            blk[0] = 0.0
+            if b > 1:
+                inc = p[1:b] + p[:b - 1]
+                inc *= (0.5 * (t[1:b] - t[:b - 1]))[:, None]
+                np.cumsum(inc, axis=0, out=blk[1:])
+        else:
+            inc = p[k:k + b - a] + p[k - 1:k - 1 + b - a]
+            inc *= (0.5 * (t[a:b] - t[a - 1:b - 1]))[:, None]
+            inc[0] += carry
+            np.cumsum(inc, axis=0, out=blk)
+        carry = blk[-1].copy()
+        if correct:
+            blk -= _scaled_derivative(t, omega, p, lo, a, b)
+            blk -= shift
+        if nv is not None:
+            span = t[a:b] - t[0]
+            for c, v in enumerate(nv):                 # no (N, 3) temporary
+                blk[:, c] -= span * v
+        if b > r0:
+            s0 = max(a, r0)
+            out[s0 - r0:b - r0] = blk[s0 - a:]
     return out
+
+
+def _raw_derivative(t: np.ndarray, p: np.ndarray, i: int, lo: int) -> np.ndarray:
+    """Central difference of the monomials ``p`` (rows from ``lo``) at row ``i``."""
+    return (p[i + 1 - lo] - p[i - 1 - lo]) / (t[i + 1] - t[i - 1])
+
+
+def _scaled_end_derivative(t: np.ndarray, omega: np.ndarray) -> np.ndarray:
+    """``h_0^2/12 f'(t_0)`` of the end correction (f' extrapolated linearly, n > 2)."""
+    n = len(t)
+    p = monomials(omega[:4])
+    d1 = _raw_derivative(t, p, 1, 0)
+    d0 = 2.0 * d1 - _raw_derivative(t, p, 2, 0) if n > 3 else d1
+    h0 = t[1] - t[0]
+    return d0 * (h0 * h0 / 12.0)
+
+
+def _scaled_derivative(t: np.ndarray, omega: np.ndarray, p: np.ndarray, lo: int, a: int,
+                       b: int) -> np.ndarray:
+    """``h_i^2/12 f'(t_i)`` for the rows ``a:b`` (``p``: monomials of rows ``lo:...``).
+
+    ``f'`` by central differences; at both ends of the record extrapolated linearly from the
+    two neighbouring central differences; ``h_i = t_i - t_(i-1)`` (``h_0 = t_1 - t_0``).
+    """
+    n = len(t)
+    d = np.empty((b - a, 6))
+    i0, i1 = max(a, 1), min(b, n - 1)                  # interior rows of the block
+    if i1 > i0:
+        np.subtract(p[i0 + 1 - lo:i1 + 1 - lo], p[i0 - 1 - lo:i1 - 1 - lo],
+                    out=d[i0 - a:i1 - a])
+        d[i0 - a:i1 - a] /= (t[i0 + 1:i1 + 1] - t[i0 - 1:i1 - 1])[:, None]
+    if a == 0 or b == n:
+        pe = monomials(omega[max(n - 4, 0):])
+        raw = {i: _raw_derivative(t, pe if i > 2 else monomials(omega[:4]), i,
+                                  max(n - 4, 0) if i > 2 else 0)
+               for i in {1, 2, n - 2, n - 3} if 1 <= i <= n - 2}
+        if a == 0:
+            d[0] = 2.0 * raw[1] - raw[2] if n > 3 else raw[1]
+        if b == n:
+            d[-1] = 2.0 * raw[n - 2] - raw[n - 3] if n > 3 else raw[1]
+    h = np.empty(b - a)
+    h[:] = t[a:b] - t[a - 1:b - 1] if a > 0 else np.r_[t[1] - t[0], t[1:b] - t[:b - 1]]
+    d *= (h * h / 12.0)[:, None]
+    return d
 
 
 def _interval_index(t_tau: np.ndarray, t: np.ndarray) -> np.ndarray:
@@ -207,7 +280,7 @@ def _interval_index(t_tau: np.ndarray, t: np.ndarray) -> np.ndarray:
 
 
 def cumulative_torque(t_tau: np.ndarray, tau: np.ndarray, t: np.ndarray,
-                      hold: str = 'zoh') -> np.ndarray:
+                      hold: str = 'zoh', *, out: np.ndarray | None = None) -> np.ndarray:
     """Exact integral of the sampled torque from ``t_tau[0]`` to each query time.
 
     Parameters
@@ -222,33 +295,44 @@ def cumulative_torque(t_tau: np.ndarray, tau: np.ndarray, t: np.ndarray,
     hold : {'zoh', 'linear'}
         Sampling assumption between samples: zero-order hold of each sample until the next
         (torque commands), or linear interpolation.
+    out : ndarray, shape (K, 3), optional
+        Written in place and returned (may be a strided view).
 
     Returns
     -------
     ndarray, shape (K, 3)
         ``int_{t_tau[0]}^{t_k} tau dt`` [N m s].
     """
+    if hold not in ('zoh', 'linear'):
+        raise ValueError(f"hold: must be 'zoh' or 'linear', got {hold!r}")
     dts = np.diff(t_tau)
     cum = np.zeros_like(tau)
+    slope = None
     if hold == 'zoh':
         if len(dts):
             np.cumsum(tau[:-1] * dts[:, None], axis=0, out=cum[1:])
-        j = _interval_index(t_tau, t)
-        out = tau[j]
-        out *= (t - t_tau[j])[:, None]
-        out += cum[j]
-        return out
-    if hold != 'linear':
-        raise ValueError(f"hold: must be 'zoh' or 'linear', got {hold!r}")
-    if len(dts):
-        np.cumsum(0.5 * (tau[:-1] + tau[1:]) * dts[:, None], axis=0, out=cum[1:])
-    j = _interval_index(t_tau, t)
-    u = (t - t_tau[j])[:, None]
-    inside = j < len(t_tau) - 1
-    slope = np.zeros_like(tau)
-    if len(dts):
-        slope[:-1] = (tau[1:] - tau[:-1]) / dts[:, None]
-    return cum[j] + tau[j] * u + np.where(inside[:, None], 0.5 * slope[j] * u * u, 0.0)
+    else:
+        if len(dts):
+            np.cumsum(0.5 * (tau[:-1] + tau[1:]) * dts[:, None], axis=0, out=cum[1:])
+        slope = np.zeros_like(tau)
+        if len(dts):
+            slope[:-1] = (tau[1:] - tau[:-1]) / dts[:, None]
+    j_all = _interval_index(t_tau, t)
+    if out is None:
+        out = np.empty((len(t), 3))
+    for a in range(0, len(t), BLOCK_ROWS):           # cache-sized blocks, as above
+        b = min(a + BLOCK_ROWS, len(t))
+        j = j_all[a:b]
+        if slope is None:
+            blk = tau[j]
+            blk *= (t[a:b] - t_tau[j])[:, None]
+            blk += cum[j]
+        else:
+            u = (t[a:b] - t_tau[j])[:, None]
+            inside = j < len(t_tau) - 1
+            blk = cum[j] + tau[j] * u + np.where(inside[:, None], 0.5 * slope[j] * u * u, 0.0)
+        out[a:b] = blk
+    return out
 
 
 # ---------------------------------------------------------------------------------------------
