@@ -616,3 +616,43 @@ def test_window_statistics_from_the_parent_equal_a_fresh_reduction(cut):
         assert np.allclose(g, x, rtol=1e-9, atol=1e-9 * np.max(np.abs(x)))
     assert (got.n, got.n_eff, got.n_seg) == (want.n, want.n_eff, want.n_seg)
     assert not np.shares_memory(eq.V, fresh.V) and np.shares_memory(eq.V, sub.V)
+
+
+@pytest.mark.parametrize('segment', [None, 7.0, 40.0])
+def test_torque_noise_gram_equals_the_demeaned_definition(segment):
+    """The torque-noise Gram of a segmentation (built from prefix sums of the segment means,
+    in blocks of torque intervals) equals the Gram of ``P`` (:func:`torque_stats`, the
+    definition) of the explicitly segment-demeaned variables, over more torque intervals
+    than one block, with jittered torque times and a forced segment break."""
+    from inertia_ros.core.estimation import statistics
+    from inertia_ros.core.estimation.equations import integral_equations
+    from inertia_ros.core.estimation.regressors import gram, lift
+    from inertia_ros.core.estimation.statistics import (
+        segment_starts,
+        sufficient_stats,
+        torque_stats,
+    )
+
+    rng = np.random.default_rng(11)
+    n = 60_000                                             # 300 s at 200 Hz
+    tg = np.arange(n) / 200.0
+    w = np.cumsum(rng.normal(size=(n, 3)), axis=0) * 1e-2
+    ts = np.sort(np.arange(0.0, 300.0, 0.02) + rng.uniform(0, 0.004, 15_000))
+    ts[0] = 0.0
+    tau = rng.normal(size=(len(ts), 3))
+    assert len(ts) > 1.5 * statistics._GRAM_BLOCK
+    breaks = np.zeros(n - 1, bool)
+    breaks[n // 3] = True
+    gv, tv = np.full(3, 1e-6), np.full(3, 1e-4)
+    tau_end = float(ts[-1]) + 0.02
+    eq = integral_equations(tg, w, ts, tau, slice(None), breaks, 'zoh', gv)
+    st = sufficient_stats(eq, segment, ts, tau_end, tv)    # (centres eq.V in place)
+    starts = segment_starts(eq.t, eq.breaks, segment)
+    bounds = np.append(starts, len(eq.t))
+    Vd = eq.V[:, :10].copy()
+    for a, b in zip(bounds[:-1], bounds[1:], strict=True):
+        Vd[a:b] -= Vd[a:b].mean(axis=0)
+    GP = np.zeros((13, 13))
+    GP[:10, :10] = gram(torque_stats(Vd, eq.t, ts, tau_end))
+    want = lift(GP)
+    assert np.allclose(st.CP, want, rtol=1e-9, atol=1e-9 * np.max(np.abs(want)))

@@ -268,6 +268,46 @@ def window_raw(eq: Equations, a: int, b: int, t_tau: np.ndarray,
     return sub, np.array([j0, j1])
 
 
+#: Torque intervals per block of :func:`_demeaned_torque_gram` (its temporaries stay in cache).
+_GRAM_BLOCK = 8192
+
+
+def _demeaned_torque_gram(raw: dict[str, Any], starts: np.ndarray, m: np.ndarray,
+                          Sp: np.ndarray, MTp: np.ndarray, CT: np.ndarray) -> np.ndarray:
+    """Gram (10, 10) of the torque-noise sums ``P`` of the segment-demeaned variables.
+
+    Demeaning variable ``b`` by its segment's mean ``m_seg(b)`` changes ``P_j`` by
+    ``h_j sum_{b >= k1_j} m + sum_{k0_j <= b < k1_j} (t_b - s_j) m`` (prefix sums over the
+    segments, ``Sp`` of the sums and ``MTp`` of the time-weighted means).  Evaluated in
+    blocks of :data:`_GRAM_BLOCK` intervals whose Grams add up: an hour-long record's 180 000
+    intervals pass through the cache once instead of a dozen times.
+    """
+    P, k0_all, k1_all, h_all, s_all = raw['P'], raw['k0'], raw['k1'], raw['h'], raw['s']
+    total = Sp[-1][None]
+
+    def ZQ(k: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``sum_{b<k} m_seg(b)`` and ``sum_{b<k} t_b m_seg(b)`` (one segment search)."""
+        sk = np.searchsorted(starts, k, side='right') - 1
+        mk = m.take(sk, axis=0)               # take and in-place sums: 30 % less than [sk]
+        st = starts.take(sk)
+        z = (k - st)[:, None] * mk
+        z += Sp.take(sk, axis=0)
+        q = (CT.take(k) - CT.take(st))[:, None] * mk
+        q += MTp.take(sk, axis=0)
+        return z, q
+
+    G = np.zeros((_NREG, _NREG))
+    for a in range(0, len(P), _GRAM_BLOCK):
+        b = a + _GRAM_BLOCK
+        z0, q0 = ZQ(k0_all[a:b])
+        z1, q1 = ZQ(k1_all[a:b])
+        X = P[a:b] - h_all[a:b, None] * (total - z1)
+        X -= q1 - q0
+        X += s_all[a:b, None] * (z1 - z0)
+        G += gram(X)
+    return G
+
+
 def sufficient_stats(eq: Equations, segment: float | None, t_tau: np.ndarray, tau_end: float,
            torque_var: np.ndarray) -> SufficientStats:
     """Reduce the equations of one segmentation to cross Gram matrices.
@@ -294,24 +334,8 @@ def sufficient_stats(eq: Equations, segment: float | None, t_tau: np.ndarray, ta
         Sp = np.vstack([np.zeros(_NREG), np.cumsum(S, axis=0)])
         TS = CT[bounds[1:]] - CT[starts]
         MTp = np.vstack([np.zeros(_NREG), np.cumsum(m * TS[:, None], axis=0)])
-
-        def ZQ(k: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-            """``sum_{b<k} m_seg(b)`` and ``sum_{b<k} t_b m_seg(b)`` (one segment search)."""
-            sk = np.searchsorted(starts, k, side='right') - 1
-            mk = m.take(sk, axis=0)           # take and in-place sums: 30 % less than [sk]
-            st = starts.take(sk)
-            z = (k - st)[:, None] * mk
-            z += Sp.take(sk, axis=0)
-            q = (CT.take(k) - CT.take(st))[:, None] * mk
-            q += MTp.take(sk, axis=0)
-            return z, q
-
-        z0, q0 = ZQ(raw['k0'])
-        z1, q1 = ZQ(raw['k1'])
-        adj = raw['h'][:, None] * (Sp[-1][None] - z1) + (q1 - q0) \
-            - raw['s'][:, None] * (z1 - z0)
         GP = np.zeros((13, 13))
-        GP[:_NREG, :_NREG] = gram(raw['P'] - adj)
+        GP[:_NREG, :_NREG] = _demeaned_torque_gram(raw, starts, m, Sp, MTp, CT)
         CP = lift(GP)
     dur = eq.t[bounds[1:] - 1] - eq.t[starts]
     if 'torque_dt' not in raw:              # the same for every segmentation: once
