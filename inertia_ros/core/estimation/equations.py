@@ -151,11 +151,12 @@ def integral_equations(tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.nd
     gyro_var : ndarray, shape (3,), optional
         Gyro white-noise variance [rad^2/s^2].
     """
-    t = tg[idx]
+    rows = _as_range(idx, len(tg))
+    sel = idx if rows is None else rows      # a contiguous run as a slice: copies, no gathers
+    t = tg[sel]
     # the 13 variables written into one array (as :func:`.regressors.variables` stacks them)
     V = np.empty((len(t), 13))
-    V[:, :3] = w[idx]
-    rows = _as_range(idx, len(tg))
+    V[:, :3] = w[sel]
     if rows is not None:          # the usual case: integrated and written in cache-sized blocks
         cumulative_monomials(tg, w, gyro_var, rows=rows, out=V[:, 3:9])
     else:

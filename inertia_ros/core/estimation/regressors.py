@@ -323,14 +323,16 @@ def cumulative_torque(t_tau: np.ndarray, tau: np.ndarray, t: np.ndarray,
     for a in range(0, len(t), BLOCK_ROWS):           # cache-sized blocks, as above
         b = min(a + BLOCK_ROWS, len(t))
         j = j_all[a:b]
+        # np.take: half the time of fancy indexing on these row gathers
         if slope is None:
-            blk = tau[j]
-            blk *= (t[a:b] - t_tau[j])[:, None]
-            blk += cum[j]
+            blk = np.take(tau, j, axis=0)
+            blk *= (t[a:b] - t_tau.take(j))[:, None]
+            blk += np.take(cum, j, axis=0)
         else:
-            u = (t[a:b] - t_tau[j])[:, None]
+            u = (t[a:b] - t_tau.take(j))[:, None]
             inside = j < len(t_tau) - 1
-            blk = cum[j] + tau[j] * u + np.where(inside[:, None], 0.5 * slope[j] * u * u, 0.0)
+            blk = np.take(cum, j, axis=0) + np.take(tau, j, axis=0) * u + np.where(
+                inside[:, None], 0.5 * np.take(slope, j, axis=0) * u * u, 0.0)
         out[a:b] = blk
     return out
 
