@@ -303,14 +303,14 @@ def cumulative_torque(t_tau: np.ndarray, tau: np.ndarray, t: np.ndarray,
     ndarray, shape (K, 3)
         ``int_{t_tau[0]}^{t_k} tau dt`` [N m s].
     """
-    if hold not in ('zoh', 'linear'):
-        raise ValueError(f"hold: must be 'zoh' or 'linear', got {hold!r}")
     dts = np.diff(t_tau)
     cum = np.zeros_like(tau)
     slope = None
     if hold == 'zoh':
         if len(dts):
             np.cumsum(tau[:-1] * dts[:, None], axis=0, out=cum[1:])
+    elif hold != 'linear':
+        raise ValueError(f"hold: must be 'zoh' or 'linear', got {hold!r}")
     else:
         if len(dts):
             np.cumsum(0.5 * (tau[:-1] + tau[1:]) * dts[:, None], axis=0, out=cum[1:])
