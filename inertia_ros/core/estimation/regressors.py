@@ -187,7 +187,8 @@ def cumulative_monomials(t: np.ndarray, omega: np.ndarray,
     correct = end_correction and n > 2
     shift = np.zeros(6)            # the constant removed so that the first row is 0
     if correct:
-        shift = 0.0 - _scaled_end_derivative(t, omega)
+        ends = _end_derivatives(t, omega)
+        shift = 0.0 - ends[0] * ((t[1] - t[0]) * (t[1] - t[0]) / 12.0)
     nv = None if noise_var is None else np.asarray(noise_var, dtype=float)
     carry = np.zeros(6)
     for a in range(0, r1, BLOCK_ROWS):
@@ -209,7 +210,7 @@ def cumulative_monomials(t: np.ndarray, omega: np.ndarray,
             np.cumsum(inc, axis=0, out=blk)
         carry = blk[-1].copy()
         if correct:
-            blk -= _scaled_derivative(t, omega, p, lo, a, b)
+            blk -= _scaled_derivative(t, p, lo, a, b, ends)
             blk -= shift
         if nv is not None:
             span = t[a:b] - t[0]
@@ -221,27 +222,29 @@ def cumulative_monomials(t: np.ndarray, omega: np.ndarray,
     return out
 
 
-def _raw_derivative(t: np.ndarray, p: np.ndarray, i: int, lo: int) -> np.ndarray:
-    """Central difference of the monomials ``p`` (rows from ``lo``) at row ``i``."""
-    return (p[i + 1 - lo] - p[i - 1 - lo]) / (t[i + 1] - t[i - 1])
-
-
-def _scaled_end_derivative(t: np.ndarray, omega: np.ndarray) -> np.ndarray:
-    """``h_0^2/12 f'(t_0)`` of the end correction (f' extrapolated linearly, n > 2)."""
+def _end_derivatives(t: np.ndarray, omega: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``f'`` of the monomials at the first and the last sample (n > 2, before the ``h^2/12``
+    scale): linear extrapolation of the two neighbouring central differences (with n = 3, the
+    one central difference)."""
     n = len(t)
-    p = monomials(omega[:4])
-    d1 = _raw_derivative(t, p, 1, 0)
-    d0 = 2.0 * d1 - _raw_derivative(t, p, 2, 0) if n > 3 else d1
-    h0 = t[1] - t[0]
-    return d0 * (h0 * h0 / 12.0)
+    tail = max(n - 4, 0)
+    ph, pt = monomials(omega[:4]), monomials(omega[tail:])
+
+    def central(p: np.ndarray, i: int, lo: int) -> np.ndarray:
+        return (p[i + 1 - lo] - p[i - 1 - lo]) / (t[i + 1] - t[i - 1])
+
+    if n == 3:
+        return central(ph, 1, 0), central(ph, 1, 0)
+    return (2.0 * central(ph, 1, 0) - central(ph, 2, 0),
+            2.0 * central(pt, n - 2, tail) - central(pt, n - 3, tail))
 
 
-def _scaled_derivative(t: np.ndarray, omega: np.ndarray, p: np.ndarray, lo: int, a: int,
-                       b: int) -> np.ndarray:
+def _scaled_derivative(t: np.ndarray, p: np.ndarray, lo: int, a: int, b: int,
+                       ends: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
     """``h_i^2/12 f'(t_i)`` for the rows ``a:b`` (``p``: monomials of rows ``lo:...``).
 
-    ``f'`` by central differences; at both ends of the record extrapolated linearly from the
-    two neighbouring central differences; ``h_i = t_i - t_(i-1)`` (``h_0 = t_1 - t_0``).
+    ``f'`` by central differences, at the record's ends ``ends`` (:func:`_end_derivatives`);
+    ``h_i = t_i - t_(i-1)`` (``h_0 = t_1 - t_0``).
     """
     n = len(t)
     d = np.empty((b - a, 6))
@@ -250,15 +253,10 @@ def _scaled_derivative(t: np.ndarray, omega: np.ndarray, p: np.ndarray, lo: int,
         np.subtract(p[i0 + 1 - lo:i1 + 1 - lo], p[i0 - 1 - lo:i1 - 1 - lo],
                     out=d[i0 - a:i1 - a])
         d[i0 - a:i1 - a] /= (t[i0 + 1:i1 + 1] - t[i0 - 1:i1 - 1])[:, None]
-    if a == 0 or b == n:
-        pe = monomials(omega[max(n - 4, 0):])
-        raw = {i: _raw_derivative(t, pe if i > 2 else monomials(omega[:4]), i,
-                                  max(n - 4, 0) if i > 2 else 0)
-               for i in {1, 2, n - 2, n - 3} if 1 <= i <= n - 2}
-        if a == 0:
-            d[0] = 2.0 * raw[1] - raw[2] if n > 3 else raw[1]
-        if b == n:
-            d[-1] = 2.0 * raw[n - 2] - raw[n - 3] if n > 3 else raw[1]
+    if a == 0:
+        d[0] = ends[0]
+    if b == n:
+        d[-1] = ends[1]
     h = np.empty(b - a)
     h[:] = t[a:b] - t[a - 1:b - 1] if a > 0 else np.r_[t[1] - t[0], t[1:b] - t[:b - 1]]
     d *= (h * h / 12.0)[:, None]
