@@ -16,8 +16,8 @@ Damaged files (truncated downloads, killed recorders, flipped bits) are read as 
 are intact: a chunk whose CRC or decompression fails is skipped, a record running past the end
 of the file ends the read, and :attr:`McapReader.damage` says what was lost.
 
-The file is read with ordinary buffered reads (never memory-mapped), so the memory held at any
-time is one chunk, whatever the size of the file.
+The file is read with ordinary buffered and positional reads (never memory-mapped), so the
+memory held at any time is a few groups of chunks, whatever the size of the file.
 
 References
 ----------
@@ -29,6 +29,7 @@ import os
 import struct
 import sys
 import zlib
+from collections import deque
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -904,7 +905,11 @@ class _PendingChunk:
 
     ``result`` is ``(error, crc)`` once loaded: a :class:`McapError` (or None) and the
     CRC-32 of the uncompressed records (0 when the chunk declares none); while the chunk is
-    loaded on the reader's worker thread it is a future of that pair.
+    loaded on the reader's worker thread it is that :class:`_Loader`, which gives the pairs
+    in the order the chunks were handed to it.  ``indexes`` are the
+    chunk's MessageIndex records (channel id -> (k, 2) array of log time and offset), which
+    follow the chunk in the file; ``seen`` is the number of data-section bytes read up to
+    and including the chunk, for the reader's bytes-per-message estimate once it is checked.
     """
 
     off: int
@@ -913,12 +918,68 @@ class _PendingChunk:
     group: _Group | None
     at: int
     result: Any
+    indexes: dict[int, np.ndarray] = field(default_factory=dict)
+    seen: int = 0
+    need: int = 0
 
     def outcome(self) -> tuple[McapError | None, int]:
-        """``(error, crc)``, waiting for the worker thread if it is still loading the chunk."""
-        if not isinstance(self.result, tuple):      # a concurrent.futures.Future
+        """``(error, crc)``, waiting for the worker thread if it is still loading the chunk.
+
+        Chunks loaded on the worker must be asked for in the order they were handed to it.
+        """
+        if not isinstance(self.result, tuple):      # a _Loader
             self.result = self.result.result()
         return self.result
+
+
+class _Loader:
+    """A worker thread that loads chunks one after the other, in the order they are given.
+
+    ``fill(*job)`` (:meth:`McapReader._fill`) runs on the thread; its results are taken
+    with :meth:`result` in the same order.  Whatever it raises is raised again by
+    :meth:`result`, in the caller's thread.  The thread is a daemon and :meth:`close`
+    stops it after the job it is running (the jobs not started are dropped), so an error
+    or Ctrl-C in the caller never waits for the rest of the file.
+    """
+
+    def __init__(self, fill: Callable[..., tuple[McapError | None, int]]) -> None:
+        import queue  # only when a log is read with a worker
+        import threading
+
+        self._fill = fill
+        self._jobs: Any = queue.SimpleQueue()
+        self._done: Any = queue.SimpleQueue()
+        self._stop = False
+        self._thread = threading.Thread(target=self._run, name='mcap-chunks', daemon=True)
+        self._thread.start()
+
+    def submit(self, job: tuple) -> _Loader:
+        """Queue ``fill(*job)``; returns the loader, to ask for the result."""
+        self._jobs.put(job)
+        return self
+
+    def result(self) -> tuple[McapError | None, int]:
+        """The result of the oldest job not yet asked for, waiting for it if need be."""
+        ok, value = self._done.get()
+        if not ok:
+            raise value
+        return value
+
+    def _run(self) -> None:
+        while True:
+            job = self._jobs.get()
+            if job is None or self._stop:
+                return
+            try:
+                self._done.put((True, self._fill(*job)))
+            except BaseException as exc:     # handed to the caller's thread
+                self._done.put((False, exc))
+
+    def close(self) -> None:
+        """Stop the thread once its current job is done, and wait for that."""
+        self._stop = True
+        self._jobs.put(None)
+        self._thread.join()
 
 
 class _Group:
@@ -941,6 +1002,7 @@ class _Group:
         self.buf: np.ndarray = _EMPTY
         self.reserved = 0
         self.used = 0
+        self.loading = 0            # chunks with a slot here not yet checked
         self.offs: list[np.ndarray] = []
         self.heads: list[np.ndarray] = []
         self.bases: list[int] = []
@@ -958,6 +1020,7 @@ class _Group:
             self.buf = self._take(need)
         at = self.reserved
         self.reserved += need
+        self.loading += 1
         return at, memoryview(self.buf)[at:at + need]
 
     def _take(self, need: int) -> np.ndarray:
@@ -987,7 +1050,7 @@ class _Group:
             self.pool.append(self.buf)
             del self.pool[:-self.POOL]
         self.buf = _EMPTY
-        self.reserved = self.used = 0
+        self.reserved = self.used = self.loading = 0
         self.offs, self.heads, self.bases = [], [], []
 
 
@@ -1022,6 +1085,10 @@ def _pread_into(fd: int, out: memoryview, at: int) -> int:
 _EMPTY = np.zeros(0, dtype=np.uint8)
 
 
+def _nothing() -> None:
+    """Do nothing (a default callback)."""
+
+
 class McapReader:
     """Read an MCAP file once, chunk by chunk, tolerating damage.
 
@@ -1052,13 +1119,18 @@ class McapReader:
     GROUP_BYTES = 8 << 20
     #: Top-level records are read in blocks of at least this many bytes.
     BLOCK = 1 << 20
-    #: Load chunks (file read, decompression, CRC: all release the GIL) on a worker thread,
-    #: overlapped with locating and decoding the previous chunk's messages (on a machine
-    #: with more than one CPU).  Off by default: on the 2-CPU benchmark machine it measured
-    #: no faster in wall time and ~0.05 s more CPU per one-hour log (a thread handoff and a
-    #: GIL re-acquisition per 768 KiB chunk, and the chunk crossing cores), even with most
-    #: of a CPU idle.
-    THREADS = False
+    #: Load chunks (file read, decompression, CRC: all release the GIL) on a worker thread
+    #: (on a machine with more than one CPU), up to :attr:`LOOKAHEAD` bytes ahead of the
+    #: chunk being checked, so that the next group of chunks loads while the caller decodes
+    #: the last one.  Results never depend on it: chunks are checked, and damage counted, in
+    #: file order as without it.  Loading only the next chunk ahead (one chunk in flight)
+    #: measured no faster, since the worker then idled while a whole group was decoded; a
+    #: group ahead takes ~0.1 s off the read of the one-hour log when a CPU is free (and
+    #: costs ~0.05-0.1 s more CPU).
+    THREADS = True
+    #: With the worker thread: bytes of chunks loaded ahead of the chunk being checked
+    #: (about one group; memory grows by about this much).
+    LOOKAHEAD = 8 << 20
 
     def __init__(self, path: str | Path, *,
                  progress: Callable[[int, int], None] | None = None,
@@ -1150,14 +1222,16 @@ class McapReader:
             self.chunk_indexes = []
 
     # top-level record stream ----------------------------------------------------------------
-    def _top_level(self, lazy_chunks: bool = False
+    def _top_level(self, lazy_chunks: bool = False, settle: Callable[[], None] | None = None
                    ) -> Iterator[tuple[int, int, bytes | _Extent]]:
         """Yield (opcode, file_offset, body) for data-section records; stops at damage.
 
         With ``lazy_chunks`` a Chunk record's body is not read: an :class:`_Extent` (where it
         is in the file) is yielded instead, and the caller reads what it needs of it before
-        asking for the next record.
+        asking for the next record.  ``settle()``, if given, is called before damage is
+        counted, so that the caller's chunks still being loaded are counted first.
         """
+        settle = settle or _nothing
         fh = self._fh
         pos = 8
         fh.seek(pos)
@@ -1169,16 +1243,19 @@ class McapReader:
         while pos < end:
             head = fh.read(9)
             if len(head) < 9:
+                settle()
                 self._lost(pos, 'file ends inside a record header')
                 return
             op, ln = _REC.unpack(head)
             if pos in chunk_len and (op != OP_CHUNK or 9 + ln != chunk_len[pos]):
                 # a damaged chunk header: the chunk index knows where the chunk ends
+                settle()
                 self.damage.notes.append(f'chunk header at byte {pos} damaged: its extent '
                                          'is taken from the chunk index')
                 op, ln = OP_CHUNK, chunk_len[pos] - 9
             if op == 0 or pos + 9 + ln > self.size:
                 # Garbage or a cut-off record: jump to the next indexed chunk if there is one.
+                settle()
                 nxt = next((s for s in chunk_starts if s > pos), None)
                 reason = (f'invalid record at byte {pos}' if op == 0 else
                           f'record at byte {pos} (opcode 0x{op:02x}) runs past the end of '
@@ -1197,6 +1274,7 @@ class McapReader:
                 # attachments and the like are never needed: skipped unread, whatever their
                 # size; a needed record over the ceiling is damage, not an allocation
                 if op in _READ_OPS:
+                    settle()
                     what = 'chunk' if op == OP_CHUNK else f'record (opcode 0x{op:02x})'
                     if op == OP_CHUNK:
                         self._bad_chunk(pos, None, ln, f'{ln} bytes, over the limit of '
@@ -1271,17 +1349,20 @@ class McapReader:
 
         pending: list[tuple[int, bytes]] = []
         pend_ord: list[int] = []
-        pending_chunk: _PendingChunk | None = None
-        indexes: dict[int, np.ndarray] = {}
+        # chunks in file order whose records are loaded or loading but not yet checked; the
+        # MessageIndex records after a chunk go to the last one (to the next chunk when none
+        # is loading)
+        loading: deque[_PendingChunk] = deque()
+        queued = 0                         # their uncompressed bytes
+        stray: dict[int, np.ndarray] = {}
         bytes_seen = 0
         cap = self.GROUP_BYTES + (2 << 20)
         group = _Group(self._buffers, cap)
-        closing: _Group | None = None      # full, waiting for its last chunk to be checked
-        worker = None
-        if self.THREADS and _cpus() > 1:
-            from concurrent.futures import ThreadPoolExecutor  # only when a log is read
-
-            worker = ThreadPoolExecutor(1, thread_name_prefix='mcap-chunks')
+        full: deque[_Group] = deque()      # given out once their chunks are all checked
+        worker = _Loader(self._fill) if self.THREADS and _cpus() > 1 else None
+        # without a worker each chunk is checked as soon as the next one is met; with one,
+        # up to LOOKAHEAD more bytes load while earlier chunks are checked and decoded
+        ahead = self.LOOKAHEAD if worker is not None else 0
 
         def flush_unchunked() -> Iterator[MessageBatch]:
             if pending:
@@ -1294,30 +1375,38 @@ class McapReader:
                 yield from self._group_batches(g, wanted)
             g.reset()
 
-        def flush_groups() -> Iterator[MessageBatch]:
-            nonlocal closing
-            if closing is not None:
-                yield from flush(closing)
-                closing = None
-            yield from flush(group)
-
-        def finish_chunk() -> Iterator[MessageBatch]:
-            nonlocal pending_chunk, closing
-            if pending_chunk is not None:
-                done, pending_chunk = pending_chunk, None
-                self._chunk_messages(done, indexes)
-                indexes.clear()
+        def check(keep: int, more: int = 0) -> None:
+            """Check the oldest loading chunks, leaving the last ``keep`` of them and at least
+            ``more`` bytes loading."""
+            nonlocal queued
+            while len(loading) > keep and queued - loading[0].need >= more:
+                done = loading.popleft()
+                queued -= done.need
+                self._chunk_messages(done, done.indexes)
+                if done.group is not None:
+                    done.group.loading -= 1
                 if self.messages_read:
-                    self._bytes_per_message = bytes_seen / self.messages_read
-                if closing is not None:
-                    yield from flush(closing)
-                    closing = None
+                    self._bytes_per_message = done.seen / self.messages_read
+
+        def settle() -> None:
+            # damage met by _top_level is counted as if each chunk were checked when the
+            # next one is met, whatever the lookahead
+            check(1)
+
+        def flush_full() -> Iterator[MessageBatch]:
+            while full and full[0].loading == 0:
+                yield from flush(full.popleft())
+
+        def flush_groups() -> Iterator[MessageBatch]:
+            check(0)
+            yield from flush_full()
+            yield from flush(group)
 
         def start_chunk(off: int, chunk: Chunk, at: int | bytes, stored: int
                         ) -> _PendingChunk:
             """Reserve the chunk's slot (in a new group when the current one is full) and
             load it, on the worker thread when there is one."""
-            nonlocal group, closing
+            nonlocal group
             size = chunk.uncompressed_size
             try:
                 check_chunk_size(chunk.compression, stored, size, self.max_chunk_bytes)
@@ -1328,22 +1417,22 @@ class McapReader:
             need = size + (chunk.compression != '')
             if group.reserved and (group.reserved >= self.GROUP_BYTES
                                    or not group.fits(need)):
-                assert closing is None
-                closing, group = group, _Group(self._buffers, cap)
+                full.append(group)
+                group = _Group(self._buffers, cap)
             slot_at, slot = group.slot(need)
             job = (chunk.compression, at, stored, slot, size, bool(chunk.uncompressed_crc))
-            result = (worker.submit(self._fill, *job) if worker is not None
-                      else self._fill(*job))
-            return _PendingChunk(off, chunk, stored, group, slot_at, result)
+            result = worker.submit(job) if worker is not None else self._fill(*job)
+            return _PendingChunk(off, chunk, stored, group, slot_at, result, need=need)
 
         try:
-            for op, off, body in self._top_level(lazy_chunks=True):
+            for op, off, body in self._top_level(lazy_chunks=True, settle=settle):
                 if op == OP_MESSAGE_INDEX:
                     assert isinstance(body, bytes)
                     try:
                         rec = parse_record(op, body)
                         assert isinstance(rec, MessageIndex)
-                        indexes[rec.channel_id] = rec.records
+                        (loading[-1].indexes if loading else stray)[rec.channel_id] = \
+                            rec.records
                     except McapError:
                         pass  # the chunk is then scanned record by record
                     continue
@@ -1352,19 +1441,23 @@ class McapReader:
                     try:
                         chunk, at, stored = self._chunk_header(body)
                     except (McapError, UnicodeDecodeError) as exc:
-                        yield from finish_chunk()
+                        check(0)
+                        yield from flush_full()
                         yield from flush_unchunked()
                         self._bad_chunk(off, None, body.length,
                                         f'unreadable chunk header ({exc})')
                         continue
-                    # the next chunk loads (on the worker) while the last one is checked
+                    # the next chunk loads (on the worker) while earlier ones are checked
                     nxt = start_chunk(off, chunk, at, stored)
-                    yield from finish_chunk()
+                    nxt.indexes, stray = stray, {}
+                    loading.append(nxt)
+                    queued += nxt.need
+                    check(1, ahead)
+                    yield from flush_full()
                     yield from flush_unchunked()
                     bytes_seen += 9 + body.length
-                    pending_chunk = nxt
+                    nxt.seen = bytes_seen
                     continue
-                yield from finish_chunk()
                 yield from flush_groups()     # batches stay in file order
                 if op == OP_MESSAGE:
                     assert isinstance(body, bytes)
@@ -1390,12 +1483,11 @@ class McapReader:
                 yield from flush_unchunked()
                 assert isinstance(body, bytes)
                 self._other_record(op, body)
-            yield from finish_chunk()
             yield from flush_groups()
             yield from flush_unchunked()
         finally:
             if worker is not None:
-                worker.shutdown(wait=True)
+                worker.close()
 
     def _chunk_header(self, ext: _Extent) -> tuple[Chunk, int | bytes, int]:
         """Read a Chunk record's fields, not its records.
