@@ -41,7 +41,8 @@ def test_command_help_imports_no_numerical_stack(command: str) -> None:
 def test_integral_estimate_of_a_log_imports_no_scipy() -> None:
     """The estimate of a long log (the integral method) loads no scipy at all: its p-values
     are closed-form and its range sums numpy (scipy's base alone, which scipy.sparse pulls
-    in, costs ~0.1 s of a whole process that has 0.9 s for an hour-long log)."""
+    in, costs ~0.1 s of a whole process that has 0.9 s for an hour-long log); nor numpy.ma
+    or the ml module."""
     proc = subprocess.run([sys.executable, '-X', 'importtime', '-m', 'inertia_ros', 'estimate',
                            'bags/default.mcap', '--method', 'integral', '--format', 'json',
                            '--no-progress'], capture_output=True, text=True, cwd=ROOT,
@@ -52,6 +53,8 @@ def test_integral_estimate_of_a_log_imports_no_scipy() -> None:
              if line.startswith('import time:') and '|' in line}
     assert 'numpy' in names
     assert not {n for n in names if n.split('.')[0] == 'scipy'}
+    # nor numpy.ma (np.median and np.unique load it: ~7 ms), nor the ml refinement
+    assert not {'numpy.ma', 'inertia_ros.core.estimation.ml'} & names
 
 
 def test_version_imports_no_numerical_stack() -> None:

@@ -11,6 +11,8 @@ from typing import Any
 
 import numpy as np
 
+from ._numeric import median
+
 __all__ = ['MAX_SAMPLE_INTERVAL_S', 'MAX_TIME_S', 'require_after', 'as_float_array', 'as_mass',
            'as_matrix33',
            'as_noise_std', 'as_rotation',
@@ -64,7 +66,7 @@ def refuse_nanoseconds(t: np.ndarray, name: str) -> None:
     """
     if not len(t):
         return
-    dt = float(np.median(np.diff(t))) if len(t) > 1 else 0.0
+    dt = median(np.diff(t)) if len(t) > 1 else 0.0
     if dt > MAX_SAMPLE_INTERVAL_S or float(np.max(np.abs(t))) > MAX_TIME_S:
         raise ValueError(f'{name}: times look like nanoseconds (first {float(t[0]):.6g}, median '
                          f'interval {dt:.3g} s); give seconds, e.g. t_ns * 1e-9')

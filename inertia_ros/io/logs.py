@@ -52,6 +52,7 @@ from pathlib import Path
 
 import numpy as np
 
+from inertia_ros.core._numeric import median
 from inertia_ros.io import cdr_decode
 from inertia_ros.io.mcap_reader import (
     Channel,
@@ -682,7 +683,7 @@ def _median(d: np.ndarray) -> float:
                 return float(v1)
             v2 = lo + int(np.searchsorted(cum, n // 2, side='right'))
             return float((np.float64(v1) + np.float64(v2)) / 2.0)
-    return float(np.median(d))
+    return median(d)
 
 
 def _median_step(s: np.ndarray) -> float:

@@ -86,9 +86,8 @@ from .equations import Equations, build_equations
 from .filtered import equations_for
 from .fit import Fit, fit_two_pass
 from .homogeneous import homogeneous_estimate, is_torque_free, torque_free_stats
-from .ml import refine
 from .model import model_basis, symmetry_axis
-from .noise import isotropy_floor, noise_std_from_differences
+from .noise import isotropy_floor, median, noise_std_from_differences
 from .nuisance import nuisance_hook
 from .options import (
     ADEQUACY_MIN_WINDOW_S,
@@ -341,7 +340,7 @@ def _coverage(tg: np.ndarray, ts: np.ndarray, hold: str,
     if not len(ts):
         return np.ones(len(tg), dtype=bool), float(tg[-1])
     dts = np.diff(ts)
-    med_ts = float(np.median(dts))
+    med_ts = median(dts)
     tau_end = ts[-1] + (med_ts if hold == 'zoh' else 0.0)
     mask = (tg >= ts[0]) & (tg <= tau_end)
     gap = dts > GAP_FACTOR * med_ts
@@ -377,7 +376,7 @@ def _estimate_shifted(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray
                           f'[{ts[0] if len(ts) else tg[0]:.6g}, {tau_end:.6g}] s')
         return status_only('insufficient_data', diag, base)
     idx = np.flatnonzero(mask)
-    med_g = float(np.median(np.diff(tg)))
+    med_g = median(np.diff(tg))
     breaks = (np.diff(idx) > 1) | (np.diff(tg[idx]) > GAP_FACTOR * med_g)
     torque_rms = np.sqrt(np.mean(tau ** 2, axis=0)) if len(ts) else np.zeros(3)
     diag['torque_rms'] = torque_rms
@@ -594,11 +593,13 @@ def _refine(first: InertiaEstimate, tg: np.ndarray, w: np.ndarray, ts: np.ndarra
     t0 = float(min(tg[0], ts[0]))
     tg, ts = tg - t0, ts - t0
     # the gyro samples the integral stage used: inside the held torque's coverage
-    inside = (tg >= ts[0]) & (tg <= ts[-1] + float(np.median(np.diff(ts))))
+    inside = (tg >= ts[0]) & (tg <= ts[-1] + median(np.diff(ts)))
     name = first.model.removesuffix('+bias')
     basis = model_basis(name, axis)
     theta0 = first.theta
     assert theta0 is not None
+    from .ml import refine  # lazily: the integral path (long logs) never needs it
+
     res = refine(tg[inside], w[inside], ts, tau, theta0, basis,
                  None if first.torque_bias is None else np.asarray(first.torque_bias),
                  np.asarray(diag['gyro_noise_std']), np.asarray(diag['torque_noise_std']))

@@ -18,6 +18,7 @@ from typing import Any
 
 import numpy as np
 
+from .noise import median
 from .regressors import blocks, cumulative_monomials, cumulative_torque, monomials, variables
 
 __all__ = ['Equations', 'build_equations', 'differential_equations', 'integral_equations',
@@ -123,7 +124,7 @@ def segment_starts(t: np.ndarray, keep_break: np.ndarray, max_len: float | None)
             edges = np.linspace(t[a], t[b - 1], n_sub + 1)[1:-1]
             out += [a, *(a + np.searchsorted(t[a:b], edges)).tolist()]
         starts = out
-    return np.unique(np.asarray(starts, dtype=int))
+    return np.asarray(sorted(set(starts)), dtype=int)      # (np.unique would load numpy.ma)
 
 
 def integral_equations(tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.ndarray,
@@ -195,7 +196,7 @@ def sliding_equations(tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.nda
     a quarter window apart, never across a break; parameters as :func:`integral_equations`.
     """
     t = tg[idx]
-    dt = float(np.median(np.diff(t)))
+    dt = median(np.diff(t))
     wl = max(2, round((window or 2.0) / dt))
     stride = max(1, wl // 4)
     M = cumulative_monomials(tg, w)[idx]
@@ -220,7 +221,7 @@ def _savitzky_golay(t: np.ndarray, w: np.ndarray, tq: np.ndarray, window: float 
     """
     from scipy import signal  # lazily: scipy.signal costs ~0.8 s to import
 
-    dt = float(np.median(np.diff(t)))
+    dt = median(np.diff(t))
     wl = max(5, round((window or 1.0) / dt))
     wl += 1 - wl % 2
     wl = min(wl, len(t) - (1 - len(t) % 2))

@@ -25,6 +25,7 @@ from ..tensor import THETA_NAMES, check_physical, nearest_physical, principal_ax
 from .equations import Equations, segment_starts
 from .fit import Fit, equation_weight, fit_weighted, solve_symmetric
 from .model import TRACE, TRACE_FREE, describe_direction, selector
+from .noise import median
 from .options import TORQUE_FREE_SIGMAS
 from .regressors import MOMENTUM_BASIS, N_REGRESSOR_VARIABLES, gram, lift, metric
 from .result import InertiaEstimate
@@ -80,7 +81,7 @@ def torque_free_stats(eq: Equations, t_gyro: np.ndarray, omega: np.ndarray,
         :func:`walk_grams` (anchored equations only).
     """
     t = eq.t
-    dt = float(np.median(np.diff(t))) if len(t) > 1 else 0.0
+    dt = median(np.diff(t)) if len(t) > 1 else 0.0
     eq.motion = (omega.T @ omega / max(len(omega), 1), dt)
     if eq.kind != 'anchored' or len(t) < 2:
         return sufficient_stats(eq, segment, t[:1], float(t[-1]) if len(t) else 0.0,

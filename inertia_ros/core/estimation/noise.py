@@ -22,8 +22,10 @@ import math
 
 import numpy as np
 
+from .._numeric import median, median_rows
+
 __all__ = ['ISOTROPY_FLOOR', 'STREAM_NOISE_SAMPLES', 'StreamingNoise', 'gyroscopic_walk_cov',
-           'isotropy_floor',
+           'isotropy_floor', 'median',
            'median_rows', 'noise_std_from_differences']
 
 #: Smallest gyro-noise std of an axis, as a share of the largest axis' std.
@@ -37,16 +39,6 @@ STREAM_NOISE_STRIDE = 1024
 def isotropy_floor(std: np.ndarray) -> np.ndarray:
     """Per-axis noise std raised to at least :data:`ISOTROPY_FLOOR` of the largest, shape (3,)."""
     return np.maximum(std, ISOTROPY_FLOOR * float(np.max(std)))
-
-
-def median_rows(d: np.ndarray) -> np.ndarray:
-    """Column medians of ``d`` (n, c) by one partition: ``np.median(d, axis=0)`` bit for bit
-    on finite input, without its overhead (it runs on every block of the online estimator).
-    """
-    n = len(d)
-    lo, hi = (n - 1) // 2, n // 2
-    p = np.partition(d, [lo, hi] if hi != lo else lo, axis=0)
-    return p[lo] if hi == lo else (p[lo] + p[hi]) / 2.0
 
 
 def noise_std_from_differences(x: np.ndarray, orders: tuple[int, ...] = (2, 3, 4),

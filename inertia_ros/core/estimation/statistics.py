@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from .equations import Equations, segment_starts
+from .noise import median
 from .regressors import N_REGRESSOR_VARIABLES, gram, lift
 
 __all__ = ['SufficientStats', 'range_sums', 'shared_raw', 'sufficient_stats', 'torque_stats',
@@ -161,7 +162,7 @@ def _interval_sums(V: np.ndarray, t: np.ndarray, t_tau: np.ndarray
         np.einsum('mk,mkq->mq', u[a:b].reshape(j1 - j0, c), Vr, out=St[j0:j1])
         rest[j0:j1] = False
     rest &= counts > 0
-    for c in np.unique(counts[rest]).tolist():
+    for c in np.flatnonzero(np.bincount(counts[rest])).tolist():    # the distinct counts
         js = np.flatnonzero(rest & (counts == c))
         rows = indptr[js][:, None] + np.arange(c)                # (intervals, c)
         Vg = V[rows]
@@ -339,7 +340,7 @@ def sufficient_stats(eq: Equations, segment: float | None, t_tau: np.ndarray, ta
         CP = lift(GP)
     dur = eq.t[bounds[1:] - 1] - eq.t[starts]
     if 'torque_dt' not in raw:              # the same for every segmentation: once
-        raw['torque_dt'] = float(np.median(np.diff(t_tau))) if len(t_tau) > 1 else 0.0
+        raw['torque_dt'] = median(np.diff(t_tau)) if len(t_tau) > 1 else 0.0
     tdt = raw['torque_dt']
     m2, gdt = eq.motion if eq.motion is not None else (None, 0.0)
     return SufficientStats(C, CP, n, n - len(starts), len(starts), eq.kind, eq.eiv_var,

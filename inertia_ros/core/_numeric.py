@@ -1,0 +1,23 @@
+"""Small numerical helpers shared across the core (no state, numpy only)."""
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ['median', 'median_rows']
+
+
+def median_rows(d: np.ndarray) -> np.ndarray:
+    """Column medians of ``d`` (n, c) by one partition: ``np.median(d, axis=0)`` bit for bit
+    on finite input, without its overhead (it runs on every block of the online estimator).
+    """
+    n = len(d)
+    lo, hi = (n - 1) // 2, n // 2
+    p = np.partition(d, [lo, hi] if hi != lo else lo, axis=0)
+    return p[lo] if hi == lo else (p[lo] + p[hi]) / 2.0
+
+
+def median(x: np.ndarray) -> float:
+    """``float(np.median(x))`` of a finite 1-D array, bit for bit, by one partition (without
+    ``np.median``'s overhead and its import of ``numpy.ma``, ~7 ms of a command's start-up).
+    """
+    return float(median_rows(np.asarray(x, dtype=float).reshape(-1, 1))[0])
