@@ -259,6 +259,8 @@ from inertia_ros.cli import estimate as cli_estimate
 from inertia_ros.cli.report import build_report, numerical_warnings
 from inertia_ros.core.estimation import estimate
 from inertia_ros.io.logs import read_log
+from inertia_ros.runtime import keep_freed_memory
+keep_freed_memory()                     # as the command's main() does
 t1 = time.perf_counter()
 with numerical_warnings() as found:
     c1 = time.process_time()
