@@ -12,7 +12,10 @@ def median_rows(d: np.ndarray) -> np.ndarray:
     """
     n = len(d)
     lo, hi = (n - 1) // 2, n // 2
-    p = np.partition(d, [lo, hi] if hi != lo else lo, axis=0)
+    # always a kth *list* (as np.median passes): numpy's single-kth selection degrades on
+    # data with many ties (sample intervals, held torque's zero differences): 28 ms against
+    # 0.3 ms for the 180k torque intervals of an hour-long log
+    p = np.partition(d, [lo, hi], axis=0)
     return p[lo] if hi == lo else (p[lo] + p[hi]) / 2.0
 
 
