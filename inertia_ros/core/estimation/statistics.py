@@ -158,7 +158,7 @@ def _interval_sums(V: np.ndarray, t: np.ndarray, t_tau: np.ndarray
         c = int(counts[j0])
         a, b = int(indptr[j0]), int(indptr[j1])
         Vr = V[a:b].reshape(j1 - j0, c, q)
-        np.sum(Vr, axis=1, out=S[j0:j1])
+        np.einsum('mkq->mq', Vr, out=S[j0:j1])            # 4x np.sum over the middle axis
         np.einsum('mk,mkq->mq', u[a:b].reshape(j1 - j0, c), Vr, out=St[j0:j1])
         rest[j0:j1] = False
     rest &= counts > 0
@@ -166,16 +166,40 @@ def _interval_sums(V: np.ndarray, t: np.ndarray, t_tau: np.ndarray
         js = np.flatnonzero(rest & (counts == c))
         rows = indptr[js][:, None] + np.arange(c)                # (intervals, c)
         Vg = V[rows]
-        S[js] = Vg.sum(axis=1)
+        S[js] = np.einsum('mkq->mq', Vg)
         St[js] = np.einsum('mk,mkq->mq', u[rows], Vg)
     return S, St, indptr
 
 
+#: Torque intervals per block of :func:`_torque_sums` and :func:`_demeaned_torque_gram` (their
+#: temporaries stay in cache).
+_GRAM_BLOCK = 8192
+
+
 def _torque_sums(S: np.ndarray, St: np.ndarray, h: np.ndarray) -> np.ndarray:
-    """``P_j = h_j sum_{j' > j} S_j' + St_j`` from the interval sums (see :func:`torque_stats`)."""
-    after = np.zeros_like(S)
-    after[:-1] = np.cumsum(S[::-1], axis=0)[::-1][1:]
-    return h[:, None] * after + St
+    """``P_j = h_j sum_{j' > j} S_j' + St_j`` from the interval sums (see :func:`torque_stats`).
+
+    The sums after each interval are accumulated from the last interval backwards, in blocks
+    of :data:`_GRAM_BLOCK` intervals (the running sum carried from block to block in the same
+    order, so the result is that of one backward cumulative sum), ``P`` written per block.
+    """
+    m = len(S)
+    P = np.empty_like(S)
+    carry = np.zeros(S.shape[1:])                  # sum of the intervals after the block
+    for b in range(m, 0, -_GRAM_BLOCK):
+        a = max(b - _GRAM_BLOCK, 0)
+        after = np.empty((b - a,) + S.shape[1:])
+        after[-1] = carry
+        if b - a > 1:
+            tail = S[a + 1:b][::-1].copy()        # S_(b-1) down to S_(a+1)
+            tail[0] += carry
+            np.cumsum(tail, axis=0, out=after[-2::-1])
+            carry = after[0] + S[a]
+        else:
+            carry = carry + S[a]
+        np.multiply(h[a:b, None], after, out=P[a:b])
+        P[a:b] += St[a:b]
+    return P
 
 
 def torque_stats(V: np.ndarray, t: np.ndarray, t_tau: np.ndarray,
@@ -269,10 +293,6 @@ def window_raw(eq: Equations, a: int, b: int, t_tau: np.ndarray,
     return sub, np.array([j0, j1])
 
 
-#: Torque intervals per block of :func:`_demeaned_torque_gram` (its temporaries stay in cache).
-_GRAM_BLOCK = 8192
-
-
 def _demeaned_torque_gram(raw: dict[str, Any], starts: np.ndarray, m: np.ndarray,
                           Sp: np.ndarray, MTp: np.ndarray, CT: np.ndarray) -> np.ndarray:
     """Gram (10, 10) of the torque-noise sums ``P`` of the segment-demeaned variables.
@@ -299,9 +319,16 @@ def _demeaned_torque_gram(raw: dict[str, Any], starts: np.ndarray, m: np.ndarray
 
     G = np.zeros((_NREG, _NREG))
     for a in range(0, len(P), _GRAM_BLOCK):
-        b = a + _GRAM_BLOCK
-        z0, q0 = ZQ(k0_all[a:b])
-        z1, q1 = ZQ(k1_all[a:b])
+        b = min(a + _GRAM_BLOCK, len(P))
+        k0, k1 = k0_all[a:b], k1_all[a:b]
+        if np.array_equal(k1[:-1], k0_all[a + 1:b]):
+            # an interval ends where the next begins (no gyro sample on a torque stamp): one
+            # evaluation serves both ends
+            z, q = ZQ(np.append(k0, k1[-1]))
+            z0, q0, z1, q1 = z[:-1], q[:-1], z[1:], q[1:]
+        else:
+            z0, q0 = ZQ(k0)
+            z1, q1 = ZQ(k1)
         X = P[a:b] - h_all[a:b, None] * (total - z1)
         X -= q1 - q0
         X += s_all[a:b, None] * (z1 - z0)
