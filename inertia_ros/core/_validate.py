@@ -67,9 +67,10 @@ def refuse_nanoseconds(t: np.ndarray, name: str) -> None:
     if not len(t):
         return
     d = np.diff(t)
-    # the median interval is over the limit only if the largest is (one pass, not a median)
-    dt = median(d) if len(d) and float(np.max(d)) > MAX_SAMPLE_INTERVAL_S else 0.0
-    if dt > MAX_SAMPLE_INTERVAL_S or float(np.max(np.abs(t))) > MAX_TIME_S:
+    # the median interval can be over the limit only if the largest is (a max, not a median)
+    long_steps = len(d) > 0 and float(np.max(d)) > MAX_SAMPLE_INTERVAL_S
+    if (long_steps and median(d) > MAX_SAMPLE_INTERVAL_S) \
+            or float(np.max(np.abs(t))) > MAX_TIME_S:
         dt = median(d) if len(d) else 0.0
         raise ValueError(f'{name}: times look like nanoseconds (first {float(t[0]):.6g}, median '
                          f'interval {dt:.3g} s); give seconds, e.g. t_ns * 1e-9')

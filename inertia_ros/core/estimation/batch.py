@@ -78,6 +78,7 @@ from typing import Any
 
 import numpy as np
 
+from .._numeric import median
 from .._validate import as_noise_std, as_samples, as_times, refuse_nanoseconds
 from ..tensor import check_physical, theta_to_matrix
 from .adequacy import Adequacy, check_adequacy
@@ -87,7 +88,7 @@ from .filtered import equations_for
 from .fit import Fit, fit_two_pass
 from .homogeneous import homogeneous_estimate, is_torque_free, torque_free_stats
 from .model import model_basis, symmetry_axis
-from .noise import isotropy_floor, median, noise_std_from_differences
+from .noise import isotropy_floor, noise_std_from_differences
 from .nuisance import nuisance_hook
 from .options import (
     ADEQUACY_MIN_WINDOW_S,

@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from .noise import median
+from .._numeric import median
 from .regressors import blocks, cumulative_monomials, cumulative_torque, monomials, variables
 
 __all__ = ['Equations', 'build_equations', 'differential_equations', 'integral_equations',

@@ -21,11 +21,11 @@ from typing import Any
 
 import numpy as np
 
+from .._numeric import median
 from ..tensor import THETA_NAMES, check_physical, nearest_physical, principal_axes, theta_to_matrix
 from .equations import Equations, segment_starts
 from .fit import Fit, equation_weight, fit_weighted, solve_symmetric
 from .model import TRACE, TRACE_FREE, describe_direction, selector
-from .noise import median
 from .options import TORQUE_FREE_SIGMAS
 from .regressors import MOMENTUM_BASIS, N_REGRESSOR_VARIABLES, gram, lift, metric
 from .result import InertiaEstimate

@@ -22,10 +22,10 @@ import math
 
 import numpy as np
 
-from .._numeric import median, median_rows
+from .._numeric import median_rows
 
 __all__ = ['ISOTROPY_FLOOR', 'STREAM_NOISE_SAMPLES', 'StreamingNoise', 'gyroscopic_walk_cov',
-           'isotropy_floor', 'median',
+           'isotropy_floor',
            'median_rows', 'noise_std_from_differences']
 
 #: Smallest gyro-noise std of an axis, as a share of the largest axis' std.

@@ -234,7 +234,8 @@ def _end_derivatives(t: np.ndarray, omega: np.ndarray) -> tuple[np.ndarray, np.n
         return (p[i + 1 - lo] - p[i - 1 - lo]) / (t[i + 1] - t[i - 1])
 
     if n == 3:
-        return central(ph, 1, 0), central(ph, 1, 0)
+        only = central(ph, 1, 0)
+        return only, only
     return (2.0 * central(ph, 1, 0) - central(ph, 2, 0),
             2.0 * central(pt, n - 2, tail) - central(pt, n - 3, tail))
 

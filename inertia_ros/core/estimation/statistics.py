@@ -13,8 +13,8 @@ from typing import Any
 
 import numpy as np
 
+from .._numeric import median
 from .equations import Equations, segment_starts
-from .noise import median
 from .regressors import N_REGRESSOR_VARIABLES, gram, lift
 
 __all__ = ['SufficientStats', 'range_sums', 'shared_raw', 'sufficient_stats', 'torque_stats',
