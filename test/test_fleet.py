@@ -158,6 +158,35 @@ def test_estimate_log_rows(fleet: tuple[Path, dict]) -> None:
     assert estimate_log(bag, [], 'metadata:no_such_key')['vehicle'] is None
 
 
+def test_reader_thread_off_inside_a_dask_worker(fleet: tuple[Path, dict],
+                                                monkeypatch: pytest.MonkeyPatch) -> None:
+    """Inside a Dask worker (one core per worker thread) the MCAP reader starts no
+    chunk-loading thread; outside one it does (on a machine with a spare CPU); the setting is
+    restored after the log, and the row is the same either way."""
+    import inertia_ros.io.mcap_reader as mr
+
+    root, manifest = fleet
+    ref = {r.path: r for r in discover([str(root)])}[manifest['logs'][0]]
+    started: list[bool] = []
+    real = mr._Loader
+
+    def counting(*a: object, **k: object) -> object:
+        started.append(True)
+        return real(*a, **k)
+
+    monkeypatch.setattr(mr, '_Loader', counting)
+    monkeypatch.setattr(mr, '_cpus', lambda: 2)
+    monkeypatch.setattr(mr.McapReader, 'THREADS', True)
+    monkeypatch.setattr(fleet_run, '_worker_name', lambda: 'tcp://127.0.0.1:1')
+    in_worker = estimate_log(ref, [], 'dir')
+    assert started == [] and mr.McapReader.THREADS is True
+    monkeypatch.setattr(fleet_run, '_worker_name', lambda: None)
+    alone = estimate_log(ref, [], 'dir')
+    assert started and mr.McapReader.THREADS is True
+    assert in_worker['status'] == alone['status'] == 'ok'
+    assert all(in_worker[n] == alone[n] for n in NUMERIC)
+
+
 def test_fsspec_url(fleet: tuple[Path, dict]) -> None:
     """A fleet on an fsspec filesystem (memory://): found and estimated by the worker."""
     fsspec = pytest.importorskip('fsspec')
