@@ -45,9 +45,9 @@ __all__ = ['PlaybackNode', 'StreamPlayer', 'declare_playback_parameters', 'doubl
 _NS = 1_000_000_000
 #: Wait after the subscriptions are matched before playback starts [s] (see _try_start).
 #: The subscriber's side of a match lags the publisher's: 1-75 ms measured between two
-#: processes on this 2-core machine (idle and loaded), but once over 0.37 s during a full
-#: test run (the first 140 ms of data lost); 1 s covers that tail at the cost of one second
-#: before a simulated scene starts.
+#: processes on this 2-core machine (idle and loaded).  A full test run once lost 140 ms of
+#: data time in both streams with a 0.3 s settle, which fits a lag over 0.37 s; 1 s covers
+#: such a tail at the cost of one second before a simulated scene starts.
 MATCH_SETTLE = 1.0
 
 
