@@ -139,6 +139,31 @@ def test_bench_offline_small_log(tmp_path: Path, capsys: pytest.CaptureFixture) 
     assert 'end-to-end is' in capsys.readouterr().out
 
 
+def test_paired_record_timing_against_a_tree(capsys: pytest.CaptureFixture) -> None:
+    """``bench.estimators --vs TREE`` times the nominal record in both trees, alternating
+    (here the tree against itself: every call timed, both sides alike within 3x)."""
+    from inertia_ros.bench.estimators import PAIRED_CALLS, bench_paired
+
+    res = bench_paired(str(ROOT), runs=3, rounds=1)
+    assert len(res['this']) == len(res['other']) == 1
+    for label in PAIRED_CALLS:
+        a, b = res['other'][0][label], res['this'][0][label]
+        assert a > 0 and b > 0 and 1 / 3 < a / b < 3, (label, a, b)
+    assert 'x' in capsys.readouterr().out.splitlines()[-1]
+
+
+def test_paired_timing_refuses_a_non_tree_in_one_line(tmp_path: Path,
+                                                      capsys: pytest.CaptureFixture) -> None:
+    """``--vs`` on a directory that is no source tree: a one-line error, exit 2."""
+    from inertia_ros.bench.estimators import main as est_main
+
+    with pytest.raises(SystemExit) as exc:
+        est_main(['--vs', str(tmp_path)])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err.strip().splitlines()[-1]
+    assert f'--vs {tmp_path}: not a source tree of inertia_ros' in err
+
+
 def test_no_benchmark_scripts_left_and_no_old_issue_numbers() -> None:
     """The benchmarks live in inertia_ros/bench only; their docstrings cite no issue."""
     assert not list((ROOT / 'scripts').glob('bench_*.py'))

@@ -31,8 +31,8 @@ from inertia_ros.runtime import keep_freed_memory
 
 from .common import best_of, nominal_scene, relative_error
 
-__all__ = ['bench_accuracy', 'bench_batch', 'bench_default_record', 'bench_recursive_cost',
-           'main', 'run']
+__all__ = ['PAIRED_CALLS', 'bench_accuracy', 'bench_batch', 'bench_default_record',
+           'bench_paired', 'bench_recursive_cost', 'main', 'run']
 
 
 def bench_batch(sim: Any) -> None:
@@ -212,10 +212,104 @@ def bench_default_record(runs: int = 25, seeds: int = 30, hour: bool = False
     return out
 
 
-def main(argv: list[str] | None = None) -> int:
-    """``python -m inertia_ros.bench.estimators [--runs N] [--seeds N] [--hour]``.
+#: Timer run in a fresh interpreter on one source tree (older trees too: it imports only
+#: ``estimate``, and the heap setting where the tree has it, "as it ran" otherwise).
+_PAIRED_TIMER = """
+import json, sys, time
+import numpy as np
+try:
+    from inertia_ros.runtime import keep_freed_memory
+    keep_freed_memory()
+except ImportError:
+    pass
+from inertia_ros.core.estimation import estimate
+z = np.load(sys.argv[1])
+args = (z['tg'], z['w'], z['ts'], z['tau'])
+runs = int(sys.argv[2])
+out = {}
+for label, kw in json.loads(sys.argv[3]).items():
+    try:
+        estimate(*args, **kw)
+    except (TypeError, ValueError):           # an option the tree does not have
+        out[label] = None
+        continue
+    t = []
+    for _ in range(runs):
+        t0 = time.perf_counter()
+        estimate(*args, **kw)
+        t.append(time.perf_counter() - t0)
+    out[label] = 1e3 * float(np.median(t))
+print(json.dumps(out))
+"""
 
-    The default method's per-record time and efficiency alone (:func:`bench_default_record`).
+#: The calls the paired comparison times (label: ``estimate`` options).
+PAIRED_CALLS = {'default': {}, 'ml, hold zoh': {'hold': 'zoh'},
+                'integral': {'method': 'integral'},
+                'integral, hold zoh': {'method': 'integral', 'hold': 'zoh'}}
+
+
+def bench_paired(other: str, runs: int = 25, rounds: int = 3) -> dict[str, list]:
+    """Time :data:`PAIRED_CALLS` on the nominal 60 s record in this tree and ``other``.
+
+    Each round runs ``other`` and then this tree, each in a fresh interpreter with its own
+    bytecode cache (median of ``runs`` calls after a warm-up), so both meet the same machine
+    load; the record is simulated here once and given to both.
+
+    Parameters
+    ----------
+    other : str
+        Root of another source tree of the package (e.g. a ``git worktree`` of an old commit).
+    runs, rounds : int
+        Timed calls per median; alternating rounds.
+
+    Returns
+    -------
+    dict
+        ``{'other': [...], 'this': [...]}``: per round, ``{label: median ms or None}``.
+    """
+    import json
+    import os
+    import subprocess
+    import sys
+    import tempfile
+    from pathlib import Path
+
+    this = str(Path(__file__).resolve().parents[2])
+    sim = simulate(nominal_scene(60.0), seed=1)
+    res: dict[str, list] = {'other': [], 'this': []}
+    with tempfile.TemporaryDirectory(prefix='inertia_paired_') as tmp:
+        rec = os.path.join(tmp, 'record.npz')
+        np.savez(rec, tg=sim.t_gyro, w=sim.omega, ts=sim.t_torque, tau=sim.torque)
+        for r in range(rounds):
+            for name, root in (('other', other), ('this', this)):
+                env = dict(os.environ, PYTHONPATH=root,
+                           PYTHONPYCACHEPREFIX=os.path.join(tmp, 'pyc_' + name))
+                env.pop('PYTHONDONTWRITEBYTECODE', None)
+                done = subprocess.run(
+                    [sys.executable, '-c', _PAIRED_TIMER, rec, str(runs),
+                     json.dumps(PAIRED_CALLS)], cwd=tmp, env=env, capture_output=True,
+                    text=True)
+                if done.returncode != 0:
+                    last = (done.stderr.strip().splitlines() or ['no output'])[-1]
+                    raise RuntimeError(f'{root}: the timer failed: {last}')
+                res[name].append(json.loads(done.stdout))
+                row = ', '.join(f'{k} {v:.1f} ms' if v is not None else f'{k} -'
+                                for k, v in res[name][-1].items())
+                print(f'  round {r + 1} {name:5s} {row}')
+    for label in PAIRED_CALLS:
+        a = [d[label] for d in res['other'] if d[label] is not None]
+        b = [d[label] for d in res['this'] if d[label] is not None]
+        if a and b:
+            print(f'  {label:20s} other {min(a):6.1f}-{max(a):6.1f} ms, this '
+                  f'{min(b):6.1f}-{max(b):6.1f} ms: {np.median(a) / np.median(b):.2f}x')
+    return res
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m inertia_ros.bench.estimators [--runs N] [--seeds N] [--hour] [--vs TREE]``.
+
+    The default method's per-record time and efficiency alone (:func:`bench_default_record`);
+    with ``--vs``, its time paired with another source tree's (:func:`bench_paired`).
     """
     import argparse
 
@@ -225,10 +319,25 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument('--runs', type=int, default=25, help='timed calls (25)')
     p.add_argument('--seeds', type=int, default=30, help='records for the efficiency (30)')
     p.add_argument('--hour', action='store_true', help='also time the one-hour record')
+    p.add_argument('--vs', metavar='TREE', help='instead: time the nominal record in this '
+                   'source tree and in TREE (e.g. a git worktree of an older commit), '
+                   'alternating')
+    p.add_argument('--rounds', type=int, default=3, help='alternating rounds with --vs (3)')
     a = p.parse_args(argv)
     keep_freed_memory()               # as the CLI and the nodes run
-    if a.runs < 20 or a.seeds < 2:
-        p.error('--runs must be >= 20 and --seeds >= 2')
+    if a.runs < 20 or a.seeds < 2 or a.rounds < 1:
+        p.error('--runs must be >= 20, --seeds >= 2 and --rounds >= 1')
+    if a.vs is not None:
+        from pathlib import Path
+
+        if not (Path(a.vs) / 'inertia_ros' / 'core' / 'estimation').is_dir():
+            p.error(f'--vs {a.vs}: not a source tree of inertia_ros (no '
+                    'inertia_ros/core/estimation there); make one with git worktree add')
+        try:
+            bench_paired(a.vs, a.runs, a.rounds)
+        except RuntimeError as exc:
+            p.exit(1, f'{p.prog}: error: {exc}\n')
+        return 0
     bench_default_record(a.runs, a.seeds, a.hour)
     return 0
 
