@@ -1,16 +1,22 @@
 """Helpers shared by the benchmark subcommands: the nominal scene at another size, timing."""
 from __future__ import annotations
 
+import os
+import subprocess
+import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-__all__ = ['SCENE_DIR', 'best_of', 'nominal_scene', 'relative_error']
+__all__ = ['ROOT', 'SCENE_DIR', 'best_of', 'nominal_scene', 'process_env', 'relative_error',
+           'timed_process']
 
+#: This source tree (the directory holding the ``inertia_ros`` package).
+ROOT = Path(__file__).resolve().parents[2]
 #: The standard scenes of the source tree.
-SCENE_DIR = Path(__file__).resolve().parents[2] / 'config' / 'scenes'
+SCENE_DIR = ROOT / 'config' / 'scenes'
 
 
 def nominal_scene(duration: float, rate: float | None = None) -> Any:
@@ -58,3 +64,36 @@ def relative_error(estimate: np.ndarray | None, truth: np.ndarray) -> float:
     if estimate is None:
         return float('nan')
     return float(np.linalg.norm(np.asarray(estimate) - truth) / np.linalg.norm(truth))
+
+
+def process_env(blas_threads: int | None = None, pycache: str | None = None,
+                tree: Path | str = ROOT) -> dict[str, str]:
+    """The environment of a measured process: the source tree ``tree`` first on the path.
+
+    With ``pycache`` (a directory) the process keeps its bytecode there, as an installed
+    package has it (``PYTHONDONTWRITEBYTECODE`` would make every run compile the package's
+    sources again, ~0.2 s; the source tree is never written).  ``blas_threads`` sets
+    ``OPENBLAS/OMP/MKL_NUM_THREADS`` (default: inherited).
+    """
+    env = dict(os.environ)
+    if pycache is not None:
+        env.pop('PYTHONDONTWRITEBYTECODE', None)
+        env['PYTHONPYCACHEPREFIX'] = pycache
+    env['PYTHONPATH'] = os.pathsep.join(p for p in (str(tree), env.get('PYTHONPATH')) if p)
+    if blas_threads is not None:
+        for var in ('OPENBLAS_NUM_THREADS', 'OMP_NUM_THREADS', 'MKL_NUM_THREADS'):
+            env[var] = str(blas_threads)
+    return env
+
+
+def timed_process(cmd: list[str], env: dict[str, str], cwd: str | None = None
+                  ) -> tuple[float, str]:
+    """Wall time [s] of one process from exec to exit, and its stdout; raises RuntimeError
+    (with the last line of its stderr) when it fails."""
+    t = time.perf_counter()
+    proc = subprocess.run(cmd, capture_output=True, text=True, check=False, env=env, cwd=cwd)
+    dt = time.perf_counter() - t
+    if proc.returncode != 0:
+        raise RuntimeError(f'{" ".join(cmd[:4])}...: exit {proc.returncode}: '
+                           f'{(proc.stderr.strip().splitlines() or [""])[-1]}')
+    return dt, proc.stdout

@@ -29,7 +29,7 @@ from inertia_ros.core.estimation.options import METHODS
 from inertia_ros.core.simulation import simulate
 from inertia_ros.runtime import keep_freed_memory
 
-from .common import best_of, nominal_scene, relative_error
+from .common import ROOT, best_of, nominal_scene, process_env, relative_error, timed_process
 
 __all__ = ['PAIRED_CALLS', 'bench_accuracy', 'bench_batch', 'bench_default_record',
            'bench_paired', 'bench_recursive_cost', 'main', 'run']
@@ -269,30 +269,23 @@ def bench_paired(other: str, runs: int = 25, rounds: int = 3) -> dict[str, list]
     """
     import json
     import os
-    import subprocess
     import sys
     import tempfile
-    from pathlib import Path
 
-    this = str(Path(__file__).resolve().parents[2])
     sim = simulate(nominal_scene(60.0), seed=1)
     res: dict[str, list] = {'other': [], 'this': []}
     with tempfile.TemporaryDirectory(prefix='inertia_paired_') as tmp:
         rec = os.path.join(tmp, 'record.npz')
         np.savez(rec, tg=sim.t_gyro, w=sim.omega, ts=sim.t_torque, tau=sim.torque)
+        cmd = [sys.executable, '-c', _PAIRED_TIMER, rec, str(runs), json.dumps(PAIRED_CALLS)]
         for r in range(rounds):
-            for name, root in (('other', other), ('this', this)):
-                env = dict(os.environ, PYTHONPATH=root,
-                           PYTHONPYCACHEPREFIX=os.path.join(tmp, 'pyc_' + name))
-                env.pop('PYTHONDONTWRITEBYTECODE', None)
-                done = subprocess.run(
-                    [sys.executable, '-c', _PAIRED_TIMER, rec, str(runs),
-                     json.dumps(PAIRED_CALLS)], cwd=tmp, env=env, capture_output=True,
-                    text=True)
-                if done.returncode != 0:
-                    last = (done.stderr.strip().splitlines() or ['no output'])[-1]
-                    raise RuntimeError(f'{root}: the timer failed: {last}')
-                res[name].append(json.loads(done.stdout))
+            for name, tree in (('other', other), ('this', ROOT)):
+                env = process_env(pycache=os.path.join(tmp, 'pyc_' + name), tree=tree)
+                try:
+                    out = timed_process(cmd, env, cwd=tmp)[1]
+                except RuntimeError as exc:
+                    raise RuntimeError(f'{tree}: the timer failed: {exc}') from None
+                res[name].append(json.loads(out))
                 row = ', '.join(f'{k} {v:.1f} ms' if v is not None else f'{k} -'
                                 for k, v in res[name][-1].items())
                 print(f'  round {r + 1} {name:5s} {row}')

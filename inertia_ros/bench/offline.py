@@ -25,7 +25,6 @@ can make the estimator's Gram products tens of times slower.
 from __future__ import annotations
 
 import json
-import os
 import subprocess
 import sys
 import tempfile
@@ -35,13 +34,13 @@ from typing import Any
 
 import numpy as np
 
+from .common import ROOT, process_env, timed_process
+
 __all__ = ['LAYOUTS', 'STAGES', 'build_log', 'markdown', 'run', 'run_stage', 'run_whole',
            'whole_layout']
 
 #: Measured stages, in order.
 STAGES = ('ours_read', 'ours_end_to_end', 'mcap_raw', 'mcap_ros2')
-#: The source tree the stages import (the code under test, not an installed copy).
-ROOT = Path(__file__).resolve().parents[2]
 #: Tensor of the synthetic log [kg m^2].
 INERTIA = np.array([[0.8, 0.02, -0.01], [0.02, 1.1, 0.03], [-0.01, 0.03, 1.5]])
 #: Uncompressed chunk size [bytes] of rosbag2's default MCAP storage preset.
@@ -152,12 +151,8 @@ print(json.dumps(dict(stage=stage, messages=n, seconds=dt, msg_per_s=n / dt,
 def run_stage(path: Path, stage: str, blas_threads: int | None = None) -> dict[str, Any]:
     """Run one stage in a fresh interpreter; return its JSON result (or ``{'error': ...}``)."""
     code = _STAGE_CODE.format(root=str(ROOT), path=str(path), stage=stage)
-    env = dict(os.environ)
-    if blas_threads is not None:
-        for var in ('OPENBLAS_NUM_THREADS', 'OMP_NUM_THREADS', 'MKL_NUM_THREADS'):
-            env[var] = str(blas_threads)
     proc = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
-                          check=False, env=env)
+                          check=False, env=process_env(blas_threads))
     if proc.returncode != 0:
         return {'stage': stage, 'error': proc.stderr.strip().splitlines()[-1:]}
     return json.loads(proc.stdout.strip().splitlines()[-1])
@@ -311,35 +306,6 @@ print(json.dumps(dict(messages=n, decode=time.perf_counter() - t0)))
 '''
 
 
-def _env(blas_threads: int | None, pycache: str | None = None) -> dict[str, str]:
-    """The environment of the measured processes: this source tree first on the path.
-
-    With ``pycache`` (a directory) the processes keep their bytecode there, as an installed
-    package has it (``PYTHONDONTWRITEBYTECODE`` would make every run compile the package's
-    sources again, ~0.2 s; the source tree is never written).
-    """
-    env = dict(os.environ)
-    if pycache is not None:
-        env.pop('PYTHONDONTWRITEBYTECODE', None)
-        env['PYTHONPYCACHEPREFIX'] = pycache
-    env['PYTHONPATH'] = os.pathsep.join(p for p in (str(ROOT), env.get('PYTHONPATH')) if p)
-    if blas_threads is not None:
-        for var in ('OPENBLAS_NUM_THREADS', 'OMP_NUM_THREADS', 'MKL_NUM_THREADS'):
-            env[var] = str(blas_threads)
-    return env
-
-
-def _timed(cmd: list[str], env: dict[str, str]) -> tuple[float, str]:
-    """Wall time [s] of one process from exec to exit, and its stdout; raises on failure."""
-    t = time.perf_counter()
-    proc = subprocess.run(cmd, capture_output=True, text=True, check=False, env=env)
-    dt = time.perf_counter() - t
-    if proc.returncode != 0:
-        raise RuntimeError(f'{" ".join(cmd[:4])}...: exit {proc.returncode}: '
-                           f'{(proc.stderr.strip().splitlines() or [""])[-1]}')
-    return dt, proc.stdout
-
-
 def _peer_available(peer: str) -> str | None:
     """None when the peer reader is importable, else the note saying how to install it."""
     import importlib.util
@@ -382,18 +348,18 @@ def whole_layout(path: Path, repeat: int = 5, peers: bool = True, peer_repeat: i
     if pycache is None:
         with tempfile.TemporaryDirectory() as tmp:
             return whole_layout(path, repeat, peers, peer_repeat, blas_threads, Path(tmp))
-    env = _env(blas_threads, str(pycache))
+    env = process_env(blas_threads, str(pycache))
     cmd = [sys.executable, '-m', 'inertia_ros', 'estimate', str(path), '--format', 'json',
            '--no-progress']
-    _timed(cmd, env)                                   # warm-up: page cache, .pyc files
+    timed_process(cmd, env)                                   # warm-up: page cache, .pyc files
     whole: list[float] = []
     phases: list[dict[str, float]] = []
     report = ''
     for _ in range(repeat):
-        dt, report = _timed(cmd, env)
+        dt, report = timed_process(cmd, env)
         whole.append(dt)
         ph_cmd = [sys.executable, '-c', _PHASE_CODE.format(root=str(ROOT), path=str(path))]
-        ph_dt, out = _timed(ph_cmd, env)
+        ph_dt, out = timed_process(ph_cmd, env)
         ph = json.loads(out.strip().splitlines()[-1])
         ph['interpreter'] = ph_dt - sum(ph[k] for k in ('imports', 'read', 'estimate', 'report'))
         phases.append(ph)
@@ -414,7 +380,7 @@ def whole_layout(path: Path, repeat: int = 5, peers: bool = True, peer_repeat: i
         code = _PEER_CODE.format(peer=peer, path=str(path))
         times = []
         for _ in range(peer_repeat):
-            dt, out = _timed([sys.executable, '-c', code], env)
+            dt, out = timed_process([sys.executable, '-c', code], env)
             got = json.loads(out.strip().splitlines()[-1])
             if got['messages'] != n:
                 raise RuntimeError(f'{peer}: decoded {got["messages"]} messages, expected {n}')
