@@ -259,8 +259,16 @@ def test_checker_catches_mistakes(tmp_path):
 
 def estimator_publications() -> dict[str, str]:
     """Topic -> message class (``pkg.msg.Type``) of every ``create_publisher`` call of the
-    estimator node with a literal topic, ``~/`` expanded with the default node name."""
-    path = ROOT / 'inertia_ros' / 'nodes' / 'estimator.py'
+    estimator node (its module and its outputs module) with a literal topic, ``~/`` expanded
+    with the default node name."""
+    out = {}
+    for name in ('estimator.py', 'outputs.py'):
+        out.update(_publications(ROOT / 'inertia_ros' / 'nodes' / name))
+    return out
+
+
+def _publications(path) -> dict[str, str]:
+    """Topic -> message class of the ``create_publisher`` calls of one module."""
     tree = ast.parse(path.read_text())
     modules = {a.asname or a.name: n.module for n in ast.walk(tree)
                if isinstance(n, ast.ImportFrom) and n.module for a in n.names}

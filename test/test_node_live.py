@@ -303,7 +303,7 @@ def test_clean_streams_stay_on_the_fast_path(node, monkeypatch):
     """Ordinary stamps never reach the per-sample stamp check (the node's speed)."""
     n = node()
     calls = []
-    monkeypatch.setattr(n, '_check_stamps', lambda *a: calls.append(a))
+    monkeypatch.setattr(n._admission, '_check_stamps', lambda *a: calls.append(a))
     sim = simulate(scene('default.yaml', 3.0), seed=6)
     feed(n, sim)
     assert calls == []

@@ -416,7 +416,7 @@ def test_node_graph_shows_the_estimator_with_its_subscriptions(harness):
     assert {'/inertia_estimator/inertia', '/diagnostics'} <= set(pubs)
     info = h.node.get_publishers_info_by_topic('/inertia_estimator/inertia')
     assert [i.qos_profile.durability for i in info] == [DurabilityPolicy.TRANSIENT_LOCAL]
-    assert h.est._pub_inertia.qos_profile.depth == 1  # (discovery does not carry the depth)
+    assert h.est._outputs.inertia.qos_profile.depth == 1  # (discovery does not carry the depth)
 
 
 def test_diagnostics_follow_diagnostic_updater_convention(harness):
