@@ -47,21 +47,33 @@ def run_node(make_node: Callable[[], Node], name: str, args: list[str] | None = 
 
     Bad parameters, scenes or logs raise ``ValueError`` in the node; they are printed as one
     line on stderr and the process exits with status 2, never with a traceback.  So are
-    command-line arguments rcl cannot parse.  ``--help`` (before ``--ros-args``) prints the
+    command-line arguments rcl cannot parse, and a ``--params-file`` that is missing or not a
+    parameters file (named, before rcl reads it).  ``--help`` (before ``--ros-args``) prints the
     node's usage (:func:`inertia_ros.nodes.params.help_text`) and returns without starting
     ROS.
     """
     from inertia_ros.nodes.params import NODE_TABLES, help_text, print_help_if_asked
+    from inertia_ros.nodes.params_file import params_file_problem
     from inertia_ros.runtime import keep_freed_memory
 
     if name in NODE_TABLES and print_help_if_asked(args, lambda: help_text(name)):
         return
     keep_freed_memory()               # the estimates' arrays reuse freed heap, no page faults
+    problem = params_file_problem(args)   # named here: rcl only says it could not parse one
+    if problem:
+        print(f'{name}: error: {problem}', file=sys.stderr)
+        sys.exit(2)
     try:
         rclpy.init(args=args)
     except Exception as exc:  # rcl's RCLError for arguments it cannot parse
         text = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-        text = text.removeprefix('failed to initialize rcl: ').split('. Error:')[0]
+        text = text.removeprefix('failed to initialize rcl: ')
+        if text.startswith("Couldn't parse params file"):   # what params_file_problem missed
+            file, _, detail = text.partition("'. Error: ")
+            path = file.split('--params-file ', 1)[-1].rstrip("'")
+            why = detail.split(' at /', 1)[0].split(', at /')[0].rstrip(', ')
+            text = f'--params-file {path}: not a valid ROS 2 parameters file ({why})'
+        text = text.split('. Error:')[0]
         print(f'{name}: error: bad command-line arguments: {text}', file=sys.stderr)
         sys.exit(2)
     node = None

@@ -151,6 +151,9 @@ class InertiaEstimatorNode(Node):
         if self._joints is not None:
             torque += (f' and {self._joints.topic} (JointState: {self._actuators.kind} of '
                        f'{self._actuators.file})')
+            if self._torque_free:
+                torque = torque.replace('torque-free estimation', f'the {self._actuators.kind}'
+                                        ' speeds are the only known torque')
         return (f'listening on {self._gyro.topic} '
                 f'({OMEGA_TYPES[cfg["omega_msg_type"]][0].__name__}) and {torque}; '
                 f'method={cfg["method"]}, model={cfg["model"]}, '

@@ -7,6 +7,7 @@ node-level reasons of an ``insufficient_data`` estimate (which input is still mi
 """
 from __future__ import annotations
 
+import re
 from typing import Any
 
 import numpy as np
@@ -23,6 +24,9 @@ from inertia_ros.nodes.selection import (
 )
 
 __all__ = ['EstimatorFeed']
+
+#: The core's reason while too few gyro samples are covered by the known torque.
+_TOO_FEW = re.compile(r'only (\d+) gyro samples covered by torque so far')
 
 
 class EstimatorFeed:
@@ -171,7 +175,9 @@ class EstimatorFeed:
         """An ``insufficient_data`` estimate with the input it waits for as its reason, or
         the shadow's torque-free estimate while no torque message has arrived."""
         adm = self.admission
-        if adm.joints is not None and not self.torque_free and not adm.torque.received:
+        if adm.joints is not None and self.torque_free:
+            est.diagnostics['reason'] = self._joints_reason(est.diagnostics.get('reason', ''))
+        elif adm.joints is not None and not adm.torque.received:
             kind = self.actuators.kind
             est.diagnostics['reason'] = (
                 f'no torque message on {adm.torque.topic} yet: the {kind} input waits for it '
@@ -184,3 +190,22 @@ class EstimatorFeed:
                     '(ratios and principal axes only)')
                 return free
         return est
+
+    def _joints_reason(self, reason: str) -> str:
+        """What an estimate from the wheels or rotors alone (``torque_topic: none``) waits
+        for: the core's "covered by torque" wording names the JointState stream instead."""
+        adm, act = self.admission, self.actuators
+        joints = f'every joint of {act.file} ({", ".join(act.joints)})'
+        if adm.gyro.last_ns is None:
+            return f'waiting for gyro messages on {adm.gyro.topic}'
+        if not adm.joints.received:
+            return (f'waiting for JointState messages on {adm.joints.topic} (the '
+                    f"{act.kind}' speeds are the only known torque: torque_topic none)")
+        if adm.joints.last_ns is None:
+            return (f'waiting for JointState messages on {adm.joints.topic} with a velocity '
+                    f'for {joints}')
+        m = _TOO_FEW.fullmatch(reason)
+        if m is None:
+            return reason
+        return (f"only {m.group(1)} gyro samples covered by the {act.kind}' speeds on "
+                f'{adm.joints.topic} so far: waiting for more gyro and JointState messages')
