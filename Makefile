@@ -22,6 +22,7 @@ help:
 venv: $(STAMP)
 
 $(STAMP): $(REQS)
+	$(if $(shell command -v '$(PYTHON)' 2>/dev/null),,$(error python '$(PYTHON)' not found; install python3.11 or run make PYTHON=/path/to/python3.11))
 	@$(PYTHON) -c 'import sys; sys.exit(0 if sys.version_info[:2] == (3, 11) else 1)' 2>/dev/null || { \
 	  echo "inertia_ros needs Python 3.11 (the ROS 2 Jazzy wheels are built for it): '$(PYTHON)' is $$($(PYTHON) --version 2>&1 | head -n1 || echo missing); install python3.11 or run make PYTHON=/path/to/python3.11" >&2; exit 2; }
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV)

@@ -7,16 +7,18 @@ status), then writes into ``--out``:
 - ``demo_<scene>_<time>.mcap``: the run's topics as received (rosbag2-compatible MCAP; the
   topics whose message types the MCAP writer has schemas for),
 - ``demo_<scene>_<time>.png``: the six tensor elements converging to the truth, each with
-  its 2-sigma band, and each element's error relative to I3 with its 2-sigma band (zoomed
-  onto the converged part, where a band at full scale would be invisible),
+  its 2-sigma band, and each element's error in % of trace/3 of the truth with its 2-sigma
+  band (zoomed onto the converged part, where a band at full scale would be invisible),
 - ``demo_<scene>_<time>.log``: the two nodes' console output.
 
-Existing files are never overwritten: a numeric suffix is added.  The final error is
-``max_ij |I_est - I_true| / I3_true`` (I3 the largest true principal moment) and the relative
-principal-moment errors; the live table and the final line give every estimated principal
-moment with its 1-sigma standard error (``~/principal_moments_std``) and the element sigmas
-come from ``~/inertia_covariance``.  Exit status 0 when the run produced an estimate, 1 when
-it did not.
+Existing files are never overwritten: a numeric suffix is added.  Errors are normalised as
+in ``estimate --plot``: by trace/3 of the true tensor (the mean principal moment).  The live
+table shows what the PNG plots, the six tensor elements (a ``truth`` row whenever the truth
+changes), with ``max_ij |I_est - I_true| / (trace(I_true)/3)`` and the largest element error
+in sigmas (element sigmas from ``~/inertia_covariance``); a row is printed only when it
+differs from the previous one.  The final line gives the same error and every estimated
+principal moment with its 1-sigma standard error (``~/principal_moments_std``).  Exit status
+0 when the run produced an estimate, 1 when it did not.
 """
 from __future__ import annotations
 
@@ -176,9 +178,21 @@ TOPICS = {
 ESTIMATOR_STATUS = 'inertia_estimator: '
 
 
+#: Elements of the tensor in the table and the PNG: (row, column) and name.
+ELEMENTS = (((0, 0), 'ixx'), ((1, 1), 'iyy'), ((2, 2), 'izz'), ((0, 1), 'ixy'),
+            ((0, 2), 'ixz'), ((1, 2), 'iyz'))
+#: What errors are divided by (the ``estimate --plot`` convention), as labelled.
+ERROR_SCALE = 'trace/3'
+
+
+def _scale(truth: np.ndarray) -> float:
+    """trace(truth) / 3 [kg m^2]: the mean principal moment, the error normaliser."""
+    return float(np.trace(truth)) / 3.0
+
+
 def _error(est: np.ndarray, truth: np.ndarray) -> float:
-    """max_ij |est - truth| / (largest true principal moment) [dimensionless]."""
-    return float(np.max(np.abs(est - truth)) / np.linalg.eigvalsh(truth)[-1])
+    """max_ij |est - truth| / (trace(truth) / 3) [dimensionless]."""
+    return float(np.max(np.abs(est - truth)) / _scale(truth))
 
 
 def _truth_at(run: _Run, t_ns: int) -> np.ndarray | None:
@@ -311,9 +325,9 @@ def _follow(args: argparse.Namespace, scene: Any, run_data: _Run, recorder: Any,
     if not args.quiet:
         print(f'inertia_ros demo: scene {scene.name!r} ({scene.duration:g} s) at rate '
               f'{args.rate:g}; simulator and estimator started (logs: {log_path})')
-        print(f'{"t [s]":>7} {"status":<24} {"I1 +- 1 sigma":>16} {"I2":>16} {"I3":>16}  '
-              f'{"true I1":>8} {"I2":>8} {"I3":>8}  {"error":>7}')
+        print(_table_header())
     next_print = time.monotonic() + 1.0
+    table = _Table()
     sim_done_at = None
     while True:
         recorder.spin_once(0.05)
@@ -331,23 +345,51 @@ def _follow(args: argparse.Namespace, scene: Any, run_data: _Run, recorder: Any,
             break
         if now >= next_print and not args.quiet:
             next_print = now + 1.0
-            _print_row(run_data)
+            for line in table.rows(run_data):
+                print(line, flush=True)
 
 
-def _print_row(run: _Run) -> None:
-    t = run.gyro_span()
-    cells = ['-'] * 3
-    err = '-'
-    truth = _truth_at(run, run.est[-1][0]) if run.est else (run.truth[-1][1] if run.truth
-                                                             else None)
-    if run.est:
-        mom = np.linalg.eigvalsh(run.est[-1][1])
-        cells = _pm_cells(mom, _std_at(run.moments_std, run.est[-1][0]))
-        if truth is not None:
-            err = f'{100 * _error(run.est[-1][1], truth):6.2f}%'
-    tcells = ['-'] * 3 if truth is None else [f'{m:8.4f}' for m in np.linalg.eigvalsh(truth)]
-    print(f'{t:7.1f} {run.status:<24} {cells[0]:>16} {cells[1]:>16} {cells[2]:>16}  '
-          f'{tcells[0]:>8} {tcells[1]:>8} {tcells[2]:>8}  {err:>7}', flush=True)
+def _table_header() -> str:
+    """The live table's header: data time, status, the six elements, error, worst z."""
+    names = ' '.join(f'{n:>10}' for _, n in ELEMENTS)
+    return (f'{"t [s]":>7} {"status":<24} {names} [kg m^2]  {"error":>7} {"max|z|":>6}'
+            f'  (error: max |I_est - I_true| in % of {ERROR_SCALE} of the truth)')
+
+
+@dataclass
+class _Table:
+    """The live table: one row per change (a ``truth`` row when the truth changes)."""
+
+    last: str = ''
+    truth: np.ndarray | None = None
+
+    def rows(self, run: _Run) -> list[str]:
+        """The lines to print now for ``run`` (none when nothing changed)."""
+        out: list[str] = []
+        est = run.est[-1] if run.est else None
+        truth = _truth_at(run, est[0]) if est else (run.truth[-1][1] if run.truth else None)
+        if truth is not None and (self.truth is None or not np.array_equal(truth, self.truth)):
+            self.truth = truth
+            out.append(f'{"":>7} {"truth":<24} {_elements(truth)}')
+        cells, err, zmax = ' '.join(f'{"-":>10}' for _ in ELEMENTS), '-', '-'
+        if est is not None:
+            cells = _elements(est[1])
+            if truth is not None:
+                err = f'{100 * _error(est[1], truth):6.2f}%'
+                std = _std_at(run.est_std, est[0])
+                if std is not None and np.all(std > 0):
+                    dev = [est[1][i, j] - truth[i, j] for (i, j), _ in ELEMENTS]
+                    zmax = f'{np.max(np.abs(np.array(dev) / std)):6.1f}'
+        row = f'{run.gyro_span():7.1f} {run.status:<24} {cells}           {err:>7} {zmax:>6}'
+        if row != self.last:
+            self.last = row
+            out.append(row)
+        return out
+
+
+def _elements(mat: np.ndarray) -> str:
+    """The six elements of ``mat`` [kg m^2], table cells."""
+    return ' '.join(f'{mat[i, j]:10.5g}' for (i, j), _ in ELEMENTS)
 
 
 def _std_at(rows: list[tuple[int, np.ndarray]], t_ns: int) -> np.ndarray | None:
@@ -381,7 +423,8 @@ def _final(run: _Run) -> str | None:
     zs = ([f', z {(a - b) / s:+.1f}' if s > 0 else '' for a, b, s in
            zip(m_est, m_true, std, strict=True)] if std is not None else [''] * 3)
     counts = run.counts
-    return (f'final status {run.status}; final error max|I_est - I_true| / I3 = '
+    return (f'final status {run.status}; final error max|I_est - I_true| / '
+            f'({ERROR_SCALE} of the truth) = '
             f'{100 * _error(est, truth):.3f}%; principal moments [kg m^2] (+- 1 sigma) '
             + ', '.join(f'{c} (true {b:.4f}, {100 * r:+.2f}%{z})'
                         for c, b, r, z in zip(cells, m_true, rel, zs, strict=True))
@@ -419,8 +462,8 @@ def _plot(path: Path, run: _Run, name: str) -> None:
 
     fig, (ax_d, ax_p, ax2) = plt.subplots(3, 1, figsize=(9, 10), sharex=True)
     t0 = run.truth[0][0] if run.truth else (run.est[0][0] if run.est else 0)
-    idx = [(0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)]
-    names = ['ixx', 'iyy', 'izz', 'ixy', 'ixz', 'iyz']
+    idx = [e[0] for e in ELEMENTS]
+    names = [e[1] for e in ELEMENTS]
     colors = plt.rcParams['axes.prop_cycle'].by_key()['color']
     axes = [ax_d] * 3 + [ax_p] * 3
     zoom = 0.0
@@ -435,7 +478,7 @@ def _plot(path: Path, run: _Run, name: str) -> None:
                                  color=colors[k], alpha=0.25, linewidth=0)
         truths = [_truth_at(run, e[0]) for e in run.est]
         if all(x is not None for x in truths):
-            scale = np.array([np.linalg.eigvalsh(tr)[-1] for tr in truths])
+            scale = np.array([_scale(tr) for tr in truths])
             late = t >= t[0] + 0.5 * (t[-1] - t[0])
             for k, (i, j) in enumerate(idx):
                 err = 100 * (mats[:, i, j] - np.array([tr[i, j] for tr in truths])) / scale
@@ -463,7 +506,7 @@ def _plot(path: Path, run: _Run, name: str) -> None:
     else:
         ax_d.text(0.5, 0.5, 'no estimate was published', transform=ax_d.transAxes,
                   ha='center', va='center')
-    ax2.set_ylabel('(I_est - I_true) / I3 [%]')
+    ax2.set_ylabel(f'(I_est - I_true) / ({ERROR_SCALE} of the truth) [%]')
     ax2.set_title('element errors with their 2-sigma bands (zoomed on the second half)',
                   fontsize='medium')
     if zoom > 0:
