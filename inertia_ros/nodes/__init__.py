@@ -9,9 +9,14 @@ executables call them):
 - :mod:`~inertia_ros.nodes.bag_player`: ``bag_player``, a recorded log played back.
 
 Their parts: :mod:`~inertia_ros.nodes._ros` (``main()``, QoS, polled input, share dir),
-:mod:`~inertia_ros.nodes.messages` (messages <-> arrays),
+:mod:`~inertia_ros.nodes.params` and :mod:`~inertia_ros.nodes.params_file` (parameters,
+``--params-file``), :mod:`~inertia_ros.nodes.messages` (messages <-> arrays),
 :mod:`~inertia_ros.nodes.diagnostics`, :mod:`~inertia_ros.nodes.markers` and
-:mod:`~inertia_ros.nodes.playback` (the players' common base).  The numerics are in
+:mod:`~inertia_ros.nodes.playback` (the players' common base); the estimator's
+:mod:`~inertia_ros.nodes.selection` (which online estimator),
+:mod:`~inertia_ros.nodes.admission` (input checks and counts),
+:mod:`~inertia_ros.nodes.feed` (feeding and asking the estimator) and
+:mod:`~inertia_ros.nodes.outputs` (result topics).  The numerics are in
 :mod:`inertia_ros.core`, files and payload codecs in :mod:`inertia_ros.io` (neither imports
 ROS).
 """
