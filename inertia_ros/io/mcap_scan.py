@@ -62,6 +62,7 @@ def scan_records(buf: bytes | memoryview, start: int = 0,
 
 
 def u64_at(arr: np.ndarray, pos: int) -> int:
+    """The little-endian uint64 at byte ``pos`` of uint8 array ``arr``; -1 past its end."""
     return int(arr[pos:pos + 8].view('<u8')[0]) if pos + 8 <= arr.size else -1
 
 
