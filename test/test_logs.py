@@ -449,7 +449,8 @@ def test_short_unchunked_message_record_is_counted(tmp_path: Path) -> None:
     recs = records(data)
     chunk_op = next(i for i, (op, _, _) in enumerate(recs) if op == 0x06)
     _, c0, c1 = recs[chunk_op]
-    from inertia_ros.io.mcap_reader import decompress, parse_record
+    from inertia_ros.io.mcap_codecs import decompress
+    from inertia_ros.io.mcap_records import parse_record
     ch = parse_record(0x06, data[c0 + 9:c1])
     inner = bytes(decompress(ch.compression, ch.records, ch.uncompressed_size))
     bad = struct.pack('<BQ', 0x05, 5) + b'\x01\x00\x00\x00\x00'
@@ -546,7 +547,8 @@ def test_vectorised_record_scan_equals_the_record_walk() -> None:
     """Periodic runs, pattern breaks and odd records: the same offsets as a plain walk."""
     import struct
 
-    from inertia_ros.io.mcap_reader import McapError, _record_offsets
+    from inertia_ros.io.mcap_records import McapError
+    from inertia_ros.io.mcap_scan import record_offsets
 
     rng = np.random.default_rng(12)
     recs = []
@@ -562,10 +564,10 @@ def test_vectorised_record_scan_equals_the_record_walk() -> None:
         want.append(pos)
         pos += len(r)
     arr = np.frombuffer(buf, np.uint8)
-    np.testing.assert_array_equal(_record_offsets(arr), want)
-    only = _record_offsets(arr, keep=(5,))
+    np.testing.assert_array_equal(record_offsets(arr), want)
+    only = record_offsets(arr, keep=(5,))
     np.testing.assert_array_equal(only, [o for o in want if buf[o] == 5])
     with pytest.raises(McapError, match='opcode 0x00'):
-        _record_offsets(np.zeros(1 << 20, np.uint8))
+        record_offsets(np.zeros(1 << 20, np.uint8))
     with pytest.raises(McapError, match='runs past the end'):
-        _record_offsets(arr[:-3])
+        record_offsets(arr[:-3])

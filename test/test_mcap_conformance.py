@@ -12,7 +12,9 @@ import numpy as np
 import pytest
 
 from conftest import ROOT
-from inertia_ros.io import mcap_reader as mr
+from inertia_ros.io import mcap_records as mr
+from inertia_ros.io.mcap_reader import McapReader
+from inertia_ros.io.mcap_scan import iter_records
 
 # A copy of the MCAP project's conformance data (MIT, see its LICENSE) travels with the tests,
 # so a clean clone anywhere runs them; the copy is the shared one, byte for byte.
@@ -261,7 +263,7 @@ def _expected(path: Path) -> list[dict]:
 def test_streaming_reader_yields_every_record(path: Path, genuine: Path) -> None:
     """iter_records yields exactly the conformance JSON's records, in order, every field equal."""
     expected = _expected(path)
-    got = [_as_json(r) for r in mr.iter_records(genuine)]
+    got = [_as_json(r) for r in iter_records(genuine)]
     assert [g['type'] for g in got] == [e['type'] for e in expected]
     for g, e in zip(got, expected, strict=True):
         want = dict(e['fields'])
@@ -274,7 +276,7 @@ def test_streaming_reader_yields_every_record(path: Path, genuine: Path) -> None
 def test_bulk_reader_yields_every_message(path: Path, genuine: Path) -> None:
     """McapReader's batch path yields the JSON's Message records (file order, all fields)."""
     expected = [dict(e['fields']) for e in _expected(path) if e['type'] == 'Message']
-    with mr.McapReader(genuine) as reader:
+    with McapReader(genuine) as reader:
         batches = list(reader.iter_batches())
         assert not reader.damage.any, reader.damage.notes
     rows = []
@@ -303,13 +305,13 @@ def test_rejects_non_mcap(tmp_path: Path) -> None:
     bad = tmp_path / 'x.mcap'
     bad.write_bytes(b'not an mcap file at all')
     with pytest.raises(mr.McapError, match='not an MCAP file'):
-        mr.McapReader(bad)
+        McapReader(bad)
     empty = tmp_path / 'empty.mcap'
     empty.write_bytes(b'')
     with pytest.raises(mr.McapError, match='empty file'):
-        mr.McapReader(empty)
+        McapReader(empty)
     with pytest.raises(mr.McapError, match='no such file'):
-        mr.McapReader(tmp_path / 'missing.mcap')
+        McapReader(tmp_path / 'missing.mcap')
 
 
 def test_message_index_parse_shape() -> None:

@@ -16,6 +16,7 @@ import pytest
 
 from inertia_ros.bench.offline import build_log
 from inertia_ros.io.logs import LogError, read_log
+from inertia_ros.io.mcap_chunks import ChunkFiller
 from inertia_ros.io.mcap_reader import McapReader
 
 
@@ -136,16 +137,16 @@ def test_an_error_in_the_worker_is_raised_in_the_reader(
     """An unexpected failure while a chunk loads on the worker (here a read error on the
     fifth chunk) is raised by iter_batches as it is without the worker, and the thread
     stops."""
-    fill = McapReader._fill
+    fill = ChunkFiller.__call__
     calls = []
 
-    def failing(self: McapReader, *job: object) -> tuple:
+    def failing(self: ChunkFiller, *job: object) -> tuple:
         calls.append(threading.current_thread().name)
         if len(calls) == 5:
             raise OSError('disk on fire')
         return fill(self, *job)
 
-    monkeypatch.setattr(McapReader, '_fill', failing)
+    monkeypatch.setattr(ChunkFiller, '__call__', failing)
     for threads in (True, False):
         calls.clear()
         monkeypatch.setattr(McapReader, 'THREADS', threads)

@@ -235,43 +235,15 @@ def decode_batch(msg_type: str, buf: np.ndarray, starts: np.ndarray, lengths: np
     for f in names:
         if f not in offs:
             raise ValueError(f'fields: {msg_type} has no field {f!r}; it has {", ".join(offs)}')
-    buf = np.asarray(buf)
-    if buf.dtype != np.uint8 or buf.ndim != 1:
-        raise ValueError(f'buf: expected a 1-D uint8 array, got {buf.dtype} {buf.shape}')
-    starts = np.asarray(starts, dtype=np.int64)
-    lengths = np.asarray(lengths, dtype=np.int64)
-    if starts.shape != lengths.shape or starts.ndim != 1:
-        raise ValueError(f'starts, lengths: expected equal 1-D shapes, got {starts.shape} and '
-                         f'{lengths.shape}')
+    buf, starts, lengths = _checked_arrays(buf, starts, lengths)
     n = starts.shape[0]
-    if n and (starts.min() < 0 or int((starts + lengths).max()) > buf.shape[0]):
-        raise ValueError('starts, lengths: a payload lies outside buf')
     total = sum(c for _, c in _layout(msg_type))
     stamp = np.zeros(n, dtype=np.int64)
     frame_index = np.full(n, -1, dtype=np.int32)
     out: dict[str, np.ndarray] = {}
-    ok = lengths >= _HEAD
-    cand = np.flatnonzero(ok)
-    pre = np.zeros((0, _HEAD), dtype=np.uint8)
-    if cand.size:
-        # one gather of the 16 fixed bytes (encapsulation, stamp, frame_id length) and, when
-        # the buffer allows, the next 16 too: a frame_id that fits is then read from it
-        wide = _HEAD + _TEXT if int(starts[cand].max()) + _HEAD + _TEXT <= buf.shape[0] \
-            else _HEAD
-        pre = _gather(buf, starts[cand], 0, wide)
-        kind = pre[:, 1]
-        good = (pre[:, 0] == 0) & (kind <= 1)
-        raw_len = pre[:, 12:16].copy()
-        flen = np.where(kind == 1, raw_len.view('<u4').ravel(),
-                        raw_len.view('>u4').ravel()).astype(np.int64)
-        need = 4 + ((12 + flen + 7) // 8) * 8 + 8 * total
-        good &= lengths[cand] >= need
-        if not good.all():
-            ok[cand[~good]] = False
-            cand, kind, flen, pre = cand[good], kind[good], flen[good], pre[good]
+    ok, cand, key, pre = _candidates(buf, starts, lengths, total)
     frame_table: dict[bytes, int] = {}
     if cand.size:
-        key = kind.astype(np.int64) << 40 | flen
         if key.min() == key.max():  # the usual case: one layout for the whole batch
             groups = [(int(key[0]), cand, pre)]
         else:
@@ -279,54 +251,21 @@ def decode_batch(msg_type: str, buf: np.ndarray, starts: np.ndarray, lengths: np
             groups = [(k, cand[inv == g], pre[inv == g]) for g, k in enumerate(ukeys.tolist())]
         # every row decodable as one layout: results go in whole, without a scatter
         single = cand.size == n and len(groups) == 1
+        wanted = {f: offs[f] for f in names}
         for k, rows, head in groups:
-            little = (k >> 40) == 1
-            L = k & ((1 << 40) - 1)
-            e = '<' if little else '>'
-            s = starts[rows]
-            sec = head[:, 4:8].copy().view(e + 'i4').ravel().astype(np.int64)
-            nsec = head[:, 8:12].copy().view(e + 'u4').ravel().astype(np.int64)
+            g_stamp, g_frame, g_vals, g_bad = _decode_group(buf, starts[rows], head, k, wanted,
+                                                            frame_table)
             if single:
-                stamp = sec * 1_000_000_000 + nsec
+                stamp, frame_index, out = g_stamp, g_frame, g_vals
             else:
-                stamp[rows] = sec * 1_000_000_000 + nsec
-            # frame ids: usually one per group, so compare rows before paying for np.unique
-            if L - 1 <= head.shape[1] - _HEAD:
-                text = head[:, _HEAD:_HEAD + max(L - 1, 0)]   # in the prefix already
-            else:
-                text = _gather(buf, s, 16, max(L - 1, 0))
-            if text.shape[1] == 0 or bool(np.all(text == text[0])):
-                uniq_rows, uinv = text[:1], np.zeros(len(rows), dtype=np.int64)
-            else:
-                uniq_rows, uinv = np.unique(text, axis=0, return_inverse=True)
-                uinv = uinv.ravel()
-            codes = np.empty(uniq_rows.shape[0], dtype=np.int32)
-            bad_code = np.zeros(uniq_rows.shape[0], dtype=bool)
-            for j, row in enumerate(uniq_rows):
-                raw = row.tobytes()
-                try:
-                    raw.decode('utf-8')
-                except UnicodeDecodeError:
-                    bad_code[j] = True
-                codes[j] = frame_table.setdefault(raw, len(frame_table))
-            if single and codes.shape[0] == 1:
-                frame_index = np.full(n, codes[0], dtype=np.int32)
-            else:
-                frame_index[rows] = codes[uinv]
-            body = body_offset(L)
-            for f in names:
-                first, count = offs[f]
-                cols = _gather(buf, s, body + 8 * first, 8 * count)
-                vals = cols.view(e + 'f8').astype(np.float64, copy=False)
-                if single:
-                    out[f] = vals
-                else:
+                stamp[rows] = g_stamp
+                frame_index[rows] = g_frame
+                for f, vals in g_vals.items():
                     if f not in out:
-                        out[f] = np.full((n, count), np.nan)
+                        out[f] = np.full((n, vals.shape[1]), np.nan)
                     out[f][rows] = vals
-            if bad_code.any():
-                bad_rows = rows[bad_code[uinv]]
-                ok[bad_rows] = False
+            if g_bad is not None:
+                ok[rows[g_bad]] = False
     for f in names:
         if f not in out:
             out[f] = np.full((n, offs[f][1]), np.nan)
@@ -338,6 +277,141 @@ def decode_batch(msg_type: str, buf: np.ndarray, starts: np.ndarray, lengths: np
             out[f][bad] = np.nan
     frame_ids = tuple(b.decode('utf-8', errors='replace') for b in frame_table)
     return DecodedBatch(normalise_type(msg_type), stamp, frame_index, frame_ids, out, ok)
+
+
+def _checked_arrays(buf: np.ndarray, starts: np.ndarray, lengths: np.ndarray
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`decode_batch`'s buffer and payload extents, checked: (buf, starts, lengths).
+
+    Raises
+    ------
+    ValueError
+        ``buf`` not 1-D uint8, ``starts`` and ``lengths`` not equal 1-D shapes, or a
+        payload outside ``buf``.
+    """
+    buf = np.asarray(buf)
+    if buf.dtype != np.uint8 or buf.ndim != 1:
+        raise ValueError(f'buf: expected a 1-D uint8 array, got {buf.dtype} {buf.shape}')
+    starts = np.asarray(starts, dtype=np.int64)
+    lengths = np.asarray(lengths, dtype=np.int64)
+    if starts.shape != lengths.shape or starts.ndim != 1:
+        raise ValueError(f'starts, lengths: expected equal 1-D shapes, got {starts.shape} and '
+                         f'{lengths.shape}')
+    if starts.shape[0] and (starts.min() < 0
+                            or int((starts + lengths).max()) > buf.shape[0]):
+        raise ValueError('starts, lengths: a payload lies outside buf')
+    return buf, starts, lengths
+
+
+def _candidates(buf: np.ndarray, starts: np.ndarray, lengths: np.ndarray, total: int
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The payloads whose fixed head is well formed and which are long enough for the type.
+
+    Parameters
+    ----------
+    buf, starts, lengths : numpy.ndarray
+        As for :func:`decode_batch` (checked).
+    total : int
+        Number of float64 values the type holds after its header.
+
+    Returns
+    -------
+    ok : numpy.ndarray
+        bool (n,), False for the payloads found malformed so far.
+    cand : numpy.ndarray
+        int64 (m,), the rows still decodable.
+    key : numpy.ndarray
+        int64 (m,), their layout: ``kind << 40 | L`` (kind 1 = little-endian, L the CDR
+        length of ``frame_id``).
+    pre : numpy.ndarray
+        uint8 (m, 16 or 32), their first bytes (the fixed head, and when the buffer allows
+        the next 16, so that a short ``frame_id`` is read from it).
+    """
+    ok = lengths >= _HEAD
+    cand = np.flatnonzero(ok)
+    if not cand.size:
+        return ok, cand, np.zeros(0, np.int64), np.zeros((0, _HEAD), dtype=np.uint8)
+    # one gather of the 16 fixed bytes (encapsulation, stamp, frame_id length) and, when
+    # the buffer allows, the next 16 too: a frame_id that fits is then read from it
+    wide = _HEAD + _TEXT if int(starts[cand].max()) + _HEAD + _TEXT <= buf.shape[0] \
+        else _HEAD
+    pre = _gather(buf, starts[cand], 0, wide)
+    kind = pre[:, 1]
+    good = (pre[:, 0] == 0) & (kind <= 1)
+    raw_len = pre[:, 12:16].copy()
+    flen = np.where(kind == 1, raw_len.view('<u4').ravel(),
+                    raw_len.view('>u4').ravel()).astype(np.int64)
+    need = 4 + ((12 + flen + 7) // 8) * 8 + 8 * total
+    good &= lengths[cand] >= need
+    if not good.all():
+        ok[cand[~good]] = False
+        cand, kind, flen, pre = cand[good], kind[good], flen[good], pre[good]
+    return ok, cand, kind.astype(np.int64) << 40 | flen, pre
+
+
+def _decode_group(buf: np.ndarray, s: np.ndarray, head: np.ndarray, key: int,
+                  fields: dict[str, tuple[int, int]], frame_table: dict[bytes, int]
+                  ) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray], np.ndarray | None]:
+    """Decode the payloads of one layout (endianness and ``frame_id`` length).
+
+    Parameters
+    ----------
+    buf : numpy.ndarray
+        uint8 (B,), the buffer.
+    s : numpy.ndarray
+        int64 (m,), byte offsets of the group's payloads in ``buf``.
+    head : numpy.ndarray
+        uint8 (m, w), their first ``w`` >= 16 bytes.
+    key : int
+        The layout, ``kind << 40 | L`` (see :func:`_candidates`).
+    fields : dict
+        Field name -> (first float64, count) to decode.
+    frame_table : dict
+        ``frame_id`` bytes -> code, shared by the batch's groups (extended here).
+
+    Returns
+    -------
+    stamp : numpy.ndarray
+        int64 (m,), header stamps [ns].
+    frame : numpy.ndarray
+        int32 (m,), codes of the ``frame_id``s in ``frame_table``.
+    values : dict
+        Field name -> float64 (m, count).
+    bad : numpy.ndarray or None
+        bool (m,), rows whose ``frame_id`` is not UTF-8 (None when there are none).
+    """
+    L = key & ((1 << 40) - 1)
+    e = '<' if (key >> 40) == 1 else '>'
+    sec = head[:, 4:8].copy().view(e + 'i4').ravel().astype(np.int64)
+    nsec = head[:, 8:12].copy().view(e + 'u4').ravel().astype(np.int64)
+    stamp = sec * 1_000_000_000 + nsec
+    # frame ids: usually one per group, so compare rows before paying for np.unique
+    if L - 1 <= head.shape[1] - _HEAD:
+        text = head[:, _HEAD:_HEAD + max(L - 1, 0)]   # in the prefix already
+    else:
+        text = _gather(buf, s, 16, max(L - 1, 0))
+    if text.shape[1] == 0 or bool(np.all(text == text[0])):
+        uniq_rows, uinv = text[:1], np.zeros(len(s), dtype=np.int64)
+    else:
+        uniq_rows, uinv = np.unique(text, axis=0, return_inverse=True)
+        uinv = uinv.ravel()
+    codes = np.empty(uniq_rows.shape[0], dtype=np.int32)
+    bad_code = np.zeros(uniq_rows.shape[0], dtype=bool)
+    for j, row in enumerate(uniq_rows):
+        raw = row.tobytes()
+        try:
+            raw.decode('utf-8')
+        except UnicodeDecodeError:
+            bad_code[j] = True
+        codes[j] = frame_table.setdefault(raw, len(frame_table))
+    frame = (np.full(len(s), codes[0], dtype=np.int32) if codes.shape[0] == 1
+             else codes[uinv])
+    body = body_offset(L)
+    values = {}
+    for f, (first, count) in fields.items():
+        cols = _gather(buf, s, body + 8 * first, 8 * count)
+        values[f] = cols.view(e + 'f8').astype(np.float64, copy=False)
+    return stamp, frame, values, (bad_code[uinv] if bad_code.any() else None)
 
 
 def decode_payloads(msg_type: str, payloads: list[bytes],

@@ -405,58 +405,20 @@ def write_simulation(path: str | os.PathLike[str], result: SimResult, *,
     dict
         Message counts per topic.
     """
-
     if not isinstance(result, SimResult):
         raise McapWriterError(f'result: expected a SimResult, got {type(result).__name__}')
     if isinstance(start_ns, bool) or not isinstance(start_ns, (int, np.integer)) \
             or start_ns < 0:
         raise McapWriterError(f'start_ns: must be a non-negative integer, got {start_ns!r}')
-    frame = result.frame_id
-    sigma = result.scene.gyro.noise_std
-    t_g = seconds_to_ns(result.t_gyro, start_ns)
-    t_t = seconds_to_ns(result.t_torque, start_ns)
-    scene = result.scene
-    truth_t = [0.0] + [t for t, _ in result.inertia_changes]
-    truth_i = np.stack([result.inertia] + [m for _, m in result.inertia_changes])
-    bodies = [(scene.mass, scene.com)]
-    if scene.inertia_change is not None and result.inertia_changes:
-        bodies.append((scene.inertia_change.mass, scene.inertia_change.com))
-    truth_m = [0.0 if m is None else m for m, _ in bodies]
-    truth_c = [np.zeros(3) if c is None else c for _, c in bodies]
-    t_i = seconds_to_ns(np.array(truth_t), start_ns)
-    meta = {
-        'scene_name': scene.name,
-        'seed': str(result.seed),
-        'scene_json': json.dumps(scene.to_dict(), sort_keys=True, default=_jsonable),
-        'start_ns': str(int(start_ns)),
-        'frame_id': frame,
-        'disturbance_torque': json.dumps([float(x) for x in result.torque_bias_true]),
-    }
-    if extra_metadata:
-        meta.update({str(k): str(v) for k, v in extra_metadata.items()})
+    stamps = _stamps(result, start_ns)
+    meta = _scene_metadata(result, start_ns, extra_metadata)
     out = Path(path)
-    counts_extra: dict[str, int] = {}
     tmp = _bag_dir_begin(out) if rosbag2_dir else None
     try:
         with McapWriter(out if tmp is None else tmp / f'{out.name}_0.mcap',
                         overwrite=overwrite, compression=compression) as w:
-            w.add_topic(imu_topic, cdr_encode.IMU, qos='sensor_data')
-            w.add_topic(torque_topic, cdr_encode.WRENCH_STAMPED, qos='sensor_data')
-            w.add_topic(truth_topic, cdr_encode.INERTIA_STAMPED, qos='latched')
-            w.write_many(imu_topic, t_g, cdr_encode.encode_imu(
-                t_g, result.omega, frame,
-                angular_velocity_covariance=np.diag([sigma ** 2] * 3).ravel()))
-            w.write_many(torque_topic, t_t, cdr_encode.encode_wrench_stamped(
-                t_t, result.torque, frame))
-            w.write_many(truth_topic, t_i, cdr_encode.encode_inertia_stamped(
-                t_i, truth_i, frame, mass=np.array(truth_m), com=np.array(truth_c)))
-            if result.t_wheel is not None and scene.wheels is not None:
-                from .joint_state import JOINT_STATE, encode_joint_state
-                t_w = seconds_to_ns(result.t_wheel, start_ns)
-                w.add_topic(wheel_topic, JOINT_STATE, qos='sensor_data')
-                w.write_many(wheel_topic, t_w, encode_joint_state(
-                    t_w, [wh.joint for wh in scene.wheels.wheels], result.wheel_speed))
-                counts_extra[wheel_topic] = int(t_w.size)
+            counts = _write_streams(w, result, stamps, start_ns, imu_topic, torque_topic,
+                                    truth_topic, wheel_topic)
             w.add_metadata('inertia_ros.scene', meta)
         if tmp is not None:
             assert w.bag_metadata is not None
@@ -465,8 +427,78 @@ def write_simulation(path: str | os.PathLike[str], result: SimResult, *,
         if tmp is not None:
             shutil.rmtree(tmp, ignore_errors=True)
         raise
-    return {imu_topic: int(t_g.size), torque_topic: int(t_t.size), truth_topic: int(t_i.size),
-            **counts_extra}
+    return counts
+
+
+def _stamps(result: SimResult, start_ns: int) -> dict[str, np.ndarray]:
+    """Log times [ns] of the gyro, torque and truth messages of a simulation.
+
+    Returns
+    -------
+    dict
+        ``'gyro'``, ``'torque'``, ``'truth'``: int64 (n,) times ``start_ns + round(t * 1e9)``
+        (the truth at t = 0 and at each inertia change).
+    """
+    truth_t = [0.0] + [t for t, _ in result.inertia_changes]
+    return {'gyro': seconds_to_ns(result.t_gyro, start_ns),
+            'torque': seconds_to_ns(result.t_torque, start_ns),
+            'truth': seconds_to_ns(np.array(truth_t), start_ns)}
+
+
+def _scene_metadata(result: SimResult, start_ns: int,
+                    extra_metadata: Mapping[str, str] | None) -> dict[str, str]:
+    """The ``inertia_ros.scene`` metadata record of a simulation log."""
+    scene = result.scene
+    meta = {
+        'scene_name': scene.name,
+        'seed': str(result.seed),
+        'scene_json': json.dumps(scene.to_dict(), sort_keys=True, default=_jsonable),
+        'start_ns': str(int(start_ns)),
+        'frame_id': result.frame_id,
+        'disturbance_torque': json.dumps([float(x) for x in result.torque_bias_true]),
+    }
+    if extra_metadata:
+        meta.update({str(k): str(v) for k, v in extra_metadata.items()})
+    return meta
+
+
+def _write_streams(w: McapWriter, result: SimResult, stamps: dict[str, np.ndarray],
+                   start_ns: int, imu_topic: str, torque_topic: str, truth_topic: str,
+                   wheel_topic: str) -> dict[str, int]:
+    """Write a simulation's topics (and its wheels' JointState, if any): counts per topic.
+
+    The truth carries the mass and centre of mass of the body (and of the changed body)
+    when the scene builds it from parts, else 0.
+    """
+    scene, frame = result.scene, result.frame_id
+    sigma = scene.gyro.noise_std
+    t_g, t_t, t_i = stamps['gyro'], stamps['torque'], stamps['truth']
+    truth_i = np.stack([result.inertia] + [m for _, m in result.inertia_changes])
+    bodies = [(scene.mass, scene.com)]
+    if scene.inertia_change is not None and result.inertia_changes:
+        bodies.append((scene.inertia_change.mass, scene.inertia_change.com))
+    truth_m = [0.0 if m is None else m for m, _ in bodies]
+    truth_c = [np.zeros(3) if c is None else c for _, c in bodies]
+    w.add_topic(imu_topic, cdr_encode.IMU, qos='sensor_data')
+    w.add_topic(torque_topic, cdr_encode.WRENCH_STAMPED, qos='sensor_data')
+    w.add_topic(truth_topic, cdr_encode.INERTIA_STAMPED, qos='latched')
+    w.write_many(imu_topic, t_g, cdr_encode.encode_imu(
+        t_g, result.omega, frame,
+        angular_velocity_covariance=np.diag([sigma ** 2] * 3).ravel()))
+    w.write_many(torque_topic, t_t, cdr_encode.encode_wrench_stamped(
+        t_t, result.torque, frame))
+    w.write_many(truth_topic, t_i, cdr_encode.encode_inertia_stamped(
+        t_i, truth_i, frame, mass=np.array(truth_m), com=np.array(truth_c)))
+    counts = {imu_topic: int(t_g.size), torque_topic: int(t_t.size),
+              truth_topic: int(t_i.size)}
+    if result.t_wheel is not None and scene.wheels is not None:
+        from .joint_state import JOINT_STATE, encode_joint_state
+        t_w = seconds_to_ns(result.t_wheel, start_ns)
+        w.add_topic(wheel_topic, JOINT_STATE, qos='sensor_data')
+        w.write_many(wheel_topic, t_w, encode_joint_state(
+            t_w, [wh.joint for wh in scene.wheels.wheels], result.wheel_speed))
+        counts[wheel_topic] = int(t_w.size)
+    return counts
 
 
 def _bag_dir_begin(out: Path) -> Path:

@@ -4,7 +4,7 @@ Our own MCAP reader (:mod:`inertia_ros.io.mcap_reader`) is the fast path for pla
 Bags it cannot read — ``.db3`` (sqlite3) storage, and bags whose files or messages are
 zstd-compressed — are read with the `rosbags <https://gitlab.com/ternaris/rosbags>`_ library
 (imported only here, and only when such a bag is read).  :class:`RosbagsSource` hands out the
-same :class:`~inertia_ros.io.mcap_reader.MessageBatch` objects as
+same :class:`~inertia_ros.io.mcap_chunks.MessageBatch` objects as
 :meth:`McapReader.iter_batches <inertia_ros.io.mcap_reader.McapReader.iter_batches>`, so the
 raw CDR payloads go through the same vectorised decoder and cleaning.
 """
@@ -15,16 +15,10 @@ from typing import Any
 
 import numpy as np
 
-from inertia_ros.io.mcap_reader import (
-    MAX_CHUNK_BYTES,
-    Channel,
-    ChannelFilter,
-    Damage,
-    McapError,
-    MessageBatch,
-    Schema,
-    decompress,
-)
+from inertia_ros.io.mcap_chunks import ChannelFilter, MessageBatch
+from inertia_ros.io.mcap_codecs import MAX_CHUNK_BYTES, decompress
+from inertia_ros.io.mcap_reader import Damage
+from inertia_ros.io.mcap_records import Channel, McapError, Schema
 from inertia_ros.io.rosbag2 import BagInfo
 
 #: The rosbags release this code is tested with (requirements.txt pins it).
