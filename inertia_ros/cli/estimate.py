@@ -97,10 +97,15 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument('-o', '--output', metavar='FILE', type=Path,
                    help='write the report to FILE instead of stdout')
     p.add_argument('--plot', metavar='FILE.png', type=Path,
-                   help='also draw torque fit, convergence and principal axes to FILE.png')
+                   help='also draw torque fit, convergence and principal axes to FILE.png '
+                        '(.svg, .pdf: that format)')
     p.add_argument('--urdf', metavar='FILE', type=Path,
                    help='also write the tensor as a URDF <inertial> block (needs --mass); '
-                        'never overwrites')
+                        'not written (a note on stderr, exit 0) when the status gives no '
+                        'complete tensor')
+    p.add_argument('--force', action='store_true',
+                   help='replace existing -o, --plot and --urdf files (default: refuse them, '
+                        'before any work); the input log is never replaced')
     p.add_argument('--mass', type=bounded(1e-9, 1e9, 'kg'), metavar='M',
                    help='body mass for --urdf [kg] (rotation data cannot tell it)')
     p.add_argument('--com', type=bounded(-1e6, 1e6, 'm'), nargs=3, metavar=('X', 'Y', 'Z'),
@@ -147,8 +152,12 @@ class _Progress:
             self.bar = None
 
 
-def _check_outputs(args: argparse.Namespace) -> None:
-    """Refuse outputs that would overwrite the input."""
+#: ``--plot`` file types matplotlib writes (the suffix picks one; none: PNG).
+PLOT_FORMATS = ('png', 'svg', 'svgz', 'pdf', 'eps', 'ps', 'jpg', 'jpeg', 'tif', 'tiff', 'webp')
+
+
+def _inputs(args: argparse.Namespace) -> set[Path]:
+    """Resolved paths of everything the command reads (never an output, even with --force)."""
     from inertia_ros.io.logs import log_files
 
     src = Path(args.path)
@@ -156,20 +165,53 @@ def _check_outputs(args: argparse.Namespace) -> None:
         inputs = {p.resolve() for p in log_files(src)} if src.exists() else set()
     except Exception:            # a damaged log: _read reports it; this check is best effort
         inputs = set()
-    inputs.add(src.resolve())
-    if src.is_dir():
-        inputs.add((src / 'metadata.yaml').resolve())
-    if args.urdf is not None and args.mass is None:
-        raise UserError('--urdf needs --mass M [kg]: rotation data cannot tell the mass')
-    if args.urdf is not None and args.urdf.exists():
-        raise UserError(f'--urdf {args.urdf}: exists; choose another name or remove it first')
+    try:
+        inputs.add(src.resolve())
+        if src.is_dir():
+            inputs.add((src / 'metadata.yaml').resolve())
+        inputs |= {Path(f).resolve() for f in (args.wheels, args.rotors) if f is not None}
+    except (OSError, ValueError, RuntimeError):      # an unusable name: _read says so
+        pass
+    return inputs
+
+
+def _check_outputs(args: argparse.Namespace) -> None:
+    """Refuse, before any work, every output option that cannot or must not be written.
+
+    One rule for ``-o``, ``--plot`` and ``--urdf``: an existing file is refused unless
+    ``--force``; the input, a directory, a missing or unwritable directory, a dangling link
+    and two options naming one file are always refused.  ``--urdf`` also needs ``--mass``
+    and a ``--link`` name of printable characters.
+    """
+    from inertia_ros.io.outputs import OutputError, check_output
+    from inertia_ros.io.urdf import check_name
+
+    if args.urdf is not None:
+        if args.mass is None:
+            raise UserError('--urdf needs --mass M [kg]: rotation data cannot tell the mass')
+        try:
+            check_name('--link', args.link)
+        except ValueError as exc:
+            raise UserError(str(exc)) from None
+    if args.plot is not None:
+        kind = args.plot.suffix.lower().removeprefix('.') or 'png'
+        if kind not in PLOT_FORMATS:
+            raise UserError(f'--plot {args.plot}: cannot draw a {args.plot.suffix!r} file; '
+                            'give a .png (or .svg, .pdf) name')
+    inputs = _inputs(args)
+    named: dict[Path, str] = {}
     for opt, out in (('-o', args.output), ('--plot', args.plot), ('--urdf', args.urdf)):
         if out is None:
             continue
-        if out.resolve() in inputs:
-            raise UserError(f'{opt} {out}: refusing to overwrite the input log')
-        if out.is_dir():
-            raise UserError(f'{opt} {out}: is a directory; give a file name')
+        try:
+            check_output(opt, out, force=args.force, inputs=inputs)
+        except OutputError as exc:
+            raise UserError(str(exc)) from None
+        key = out.resolve()
+        if key in named and (out.is_file() or not out.exists()):
+            raise UserError(f'{opt} {out}: the same file as {named[key]}; give each output its '
+                            'own name')
+        named[key] = opt
 
 
 def _read(args: argparse.Namespace, progress: _Progress) -> Any:
@@ -187,7 +229,9 @@ def _read(args: argparse.Namespace, progress: _Progress) -> Any:
         js = sorted(t for t, ty in log.topics.items() if ty == 'sensor_msgs/msg/JointState')
         if args.wheels is None and args.rotors is None and js:
             log.warnings.append(f'{", ".join(js)}: JointState in the log; if it carries '
-                                'wheel speeds, pass --wheels WHEELS.yaml to use them')
+                                'wheel or rotor speeds, pass --wheels WHEELS.yaml (reaction '
+                                'wheels, flywheels) or --rotors ROTORS.yaml (a multirotor) to '
+                                'use them')
         return log
     except LogError as exc:
         raise UserError(str(exc)) from None
@@ -273,6 +317,7 @@ def _estimate_wheels(args: argparse.Namespace, log: Any) -> Any:
     log.warnings[:] = [w for w in log.warnings if 'torque-free data' not in w]
     args.wheel_info = {'file': str(act.file), 'topic': topic, 'samples': int(len(t_ns)),
                        'joints': act.joints, 'kind': kind}
+    args.momentum = mom                                    # for --plot
     try:
         return estimate_with_momentum(log.omega.t, log.omega.values, log.torque.t,
                                       log.torque.values, mom, **_estimator_options(args))
@@ -289,26 +334,60 @@ def _estimator_options(args: argparse.Namespace) -> dict[str, Any]:
 
 def _write(args: argparse.Namespace, text: str) -> None:
     """The report to ``-o FILE`` or stdout."""
+    from inertia_ros.io.outputs import write_output
+
     if args.output is None:
         sys.stdout.write(text)
         return
     try:
-        args.output.write_text(text)
+        write_output(args.output, text, force=args.force)
     except OSError as exc:
         raise UserError(f'-o {args.output}: {exc.strerror or exc}') from None
 
 
-def _plot(args: argparse.Namespace, est: Any, log: Any) -> list[str]:
-    """Draw ``--plot``; return the numerical warnings raised while computing it."""
-    from inertia_ros.cli.plots import plot_report
-    from inertia_ros.cli.report import convergence, numerical_warnings
+def _momentum_prefix_run(mom: Any) -> Any:
+    """The convergence curve's estimator for a ``--wheels``/``--rotors`` run: the momentum
+    form on the prefix, with the momentum record cut at the prefix's last gyro stamp."""
+    from dataclasses import replace
 
+    from inertia_ros.core.estimation.momentum import estimate_with_momentum
+
+    def run(tg: Any, w: Any, tt: Any, tau: Any, **options: Any) -> Any:
+        keep = mom.t <= tg[-1]
+        cut = replace(mom, t=mom.t[keep], h=mom.h[keep], h_std=mom.h_std[:, keep],
+                      torque=None if mom.torque is None else mom.torque[keep],
+                      torque_std=None if mom.torque_std is None else mom.torque_std[:, keep])
+        return estimate_with_momentum(tg, w, tt, tau, cut, **options)
+
+    return run
+
+
+def _plot(args: argparse.Namespace, est: Any, log: Any) -> list[str]:
+    """Draw ``--plot``; return the numerical warnings raised while computing it.
+
+    With ``--wheels`` / ``--rotors`` the convergence curve refits the momentum form on each
+    prefix, and the torque drawn is the equivalent torque on the body alone, the known
+    torque minus the internal momentum's change (:func:`inertia_ros.cli.report.momentum_view`).
+    """
+    from inertia_ros.cli.plots import plot_report
+    from inertia_ros.cli.report import convergence, momentum_view, numerical_warnings
+    from inertia_ros.io.outputs import write_output
+
+    hold, what = est.diagnostics.get('hold', args.hold), 'torque'
+    mom = getattr(args, 'momentum', None)
     with numerical_warnings() as found:
-        conv = convergence(est, log, **_estimator_options(args))
-        try:
-            plot_report(args.plot, est, log, est.diagnostics.get('hold', args.hold), conv)
-        except OSError as exc:
-            raise UserError(f'--plot {args.plot}: {exc.strerror or exc}') from None
+        if mom is None:
+            conv = convergence(est, log, **_estimator_options(args))
+        else:
+            conv = convergence(est, log, _momentum_prefix_run(mom), **_estimator_options(args))
+            log = momentum_view(log, mom, 'linear' if args.hold == 'linear' else 'zoh')
+            hold, what = 'zoh', 'equivalent torque'
+        kind = args.plot.suffix.lower().removeprefix('.') or 'png'
+        image = plot_report(None, est, log, hold, conv, fmt=kind, torque_what=what)
+    try:
+        write_output(args.plot, image, force=args.force)
+    except OSError as exc:
+        raise UserError(f'--plot {args.plot}: {exc.strerror or exc}') from None
     return list(found)
 
 
@@ -316,12 +395,9 @@ def _run(args: argparse.Namespace) -> int:
     """The command without its last-resort handler."""
     from inertia_ros.cli.report import build_report, format_text, numerical_warnings
 
-    _check_outputs(args)
     if args.wheels is not None and args.rotors is not None:
         raise UserError('--wheels and --rotors: give one of them (one JointState input)')
-    if (args.wheels is not None or args.rotors is not None) and args.plot is not None:
-        raise UserError('--plot: not drawn for --wheels/--rotors logs yet (its convergence '
-                        'curve refits with torque only); drop one of them')
+    _check_outputs(args)
     if args.model == 'axisymmetric' and args.symmetry_axis is None:
         raise UserError('--model axisymmetric needs --symmetry-axis x|y|z')
     progress = _Progress(sys.stderr.isatty() and not args.no_progress)
@@ -364,15 +440,17 @@ def _write_urdf(args: argparse.Namespace, est: Any) -> None:
     from inertia_ros.io.urdf import write_urdf
 
     if est.inertia is None or not np.all(np.isfinite(est.inertia)):
-        raise UserError(f'--urdf {args.urdf}: not written: the status is {est.status!r} and '
-                        'the tensor is not complete (see the report)')
+        print(f'inertia_ros estimate: --urdf {args.urdf}: not written: the status is '
+              f'{est.status!r} and the tensor is not complete (see the report)', file=sys.stderr)
+        return
     comment = (f'inertia_ros estimate of {args.path}: status {est.status}, method '
                f'{est.method}, model {est.model}')
     try:
         write_urdf(args.urdf, est.inertia, args.mass, tuple(args.com), link=args.link,
-                   comment=comment)
+                   comment=comment, force=args.force)
     except (ValueError, OSError) as exc:
-        raise UserError(f'--urdf {args.urdf}: {_first_line(exc)}') from None
+        text = _first_line(exc).removeprefix(f'{args.urdf}: ')
+        raise UserError(f'--urdf {args.urdf}: {text}') from None
 
 
 def run(args: argparse.Namespace) -> int:
