@@ -6,6 +6,11 @@ estimates the tensor (:func:`inertia_ros.core.estimation.estimate`) and prints a
 0 whenever a report was produced, whatever its status; 2 with one line on stderr for unusable
 input, never a traceback.  The input is only ever read.
 
+Every output option (``-o``, ``--plot``, ``--urdf`` with ``--mass`` and ``--link``) is checked
+before the log is read, under one rule: an existing file is refused unless ``--force``
+(:mod:`inertia_ros.io.outputs`).  A status without a complete tensor writes no URDF: a note on
+stderr, exit 0.
+
 This module parses the arguments and runs the command; the numbers of the report are in
 :mod:`inertia_ros.cli.report`, the figure in :mod:`inertia_ros.cli.plots`.  At its top it
 imports only the option vocabularies (:mod:`inertia_ros.core.estimation.options`, which
@@ -95,10 +100,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument('--format', choices=('text', 'json'), default='text',
                    help='report format (default text)')
     p.add_argument('-o', '--output', metavar='FILE', type=Path,
-                   help='write the report to FILE instead of stdout')
+                   help='write the report to FILE instead of stdout (an existing FILE only '
+                        'with --force)')
     p.add_argument('--plot', metavar='FILE.png', type=Path,
                    help='also draw torque fit, convergence and principal axes to FILE.png '
-                        '(.svg, .pdf: that format)')
+                        '(.svg, .pdf: that format; an existing file only with --force)')
     p.add_argument('--urdf', metavar='FILE', type=Path,
                    help='also write the tensor as a URDF <inertial> block (needs --mass); '
                         'not written (a note on stderr, exit 0) when the status gives no '

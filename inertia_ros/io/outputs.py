@@ -61,7 +61,8 @@ def check_output(opt: str, path: Path, *, force: bool = False,
     OutputError
         One line ``'OPT PATH: what is wrong; what to do'``.
     """
-    where = f'{opt} {path}'
+    text = str(path)
+    where = f'{opt} {text if len(text) <= 200 else text[:100] + "..." + text[-40:]}'
     try:
         st = _lstat(path)
         if st is not None and stat.S_ISLNK(st.st_mode) and not path.exists():
