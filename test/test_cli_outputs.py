@@ -316,3 +316,22 @@ def test_usage_names_the_invoked_program() -> None:
         proc = subprocess.run([str(script), 'estimate', '--help'], capture_output=True,
                               text=True, check=False, timeout=60)
         assert proc.returncode == 0 and proc.stdout.startswith('usage: inertia-ros estimate')
+
+
+def test_remedy_never_suggests_an_option_that_would_be_refused() -> None:
+    """A model_mismatch of a --wheels/--rotors run does not suggest --nuisance (refused with
+    them); a torque run that already fitted nuisance terms is not told to fit them."""
+    from inertia_ros.cli.report import remedy
+
+    reason = ('the model does not explain the data: window estimates disagree (chi2 99 on 18 '
+              'dof, p = 1e-12): a drifting tensor, a gyro bias or an unmodelled torque')
+    base = {'status': 'model_mismatch', 'diagnostics': {'reason': reason}}
+    assert '--nuisance auto' in remedy(base)
+    wheels = {'status': 'model_mismatch',
+              'diagnostics': {'reason': reason + '; or wheel inertias / rotor coefficients off',
+                              'wheels': {'file': 'w.yaml'}}}
+    assert '--nuisance auto' not in remedy(wheels) and 'wheel inertias' in remedy(wheels)
+    fitted = {'status': 'model_mismatch',
+              'diagnostics': {'reason': reason, 'nuisance': {'chosen': ['gyro_bias']}}}
+    assert remedy(fitted) is None
+    assert remedy({'status': 'ok', 'diagnostics': {'reason': reason}}) is None

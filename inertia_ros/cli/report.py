@@ -223,6 +223,10 @@ def remedy(report: dict) -> str | None:
     if 'inertia change near' in reason:
         return ('the tensor seems to change during the log (a payload or configuration '
                 'change): estimate the parts before and after it as separate logs')
+    if 'wheels' in diag or 'rotors' in diag:        # --nuisance is not available with them
+        return ('check the wheel inertias / rotor coefficients in the YAML and their stated '
+                '*_std (--nuisance is not available with --wheels/--rotors)'
+                if 'rotor coefficients' in reason else None)
     if any(c in reason for c in _NUISANCE_CAUSES):
         if not fitted:
             return ('try --nuisance auto: a gyro bias, a torque delay, damping or a gyro '
