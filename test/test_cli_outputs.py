@@ -335,3 +335,22 @@ def test_remedy_never_suggests_an_option_that_would_be_refused() -> None:
               'diagnostics': {'reason': reason, 'nuisance': {'chosen': ['gyro_bias']}}}
     assert remedy(fitted) is None
     assert remedy({'status': 'ok', 'diagnostics': {'reason': reason}}) is None
+
+
+def test_no_input_is_an_output_even_with_force(tmp_path: Path,
+                                               capsys: pytest.CaptureFixture) -> None:
+    """The log and the --wheels YAML are inputs: -o, --plot or --urdf naming one of them is
+    refused even with --force, before any work, and the file is unchanged."""
+    if not (BAGS / 'wheels.mcap').exists():
+        pytest.skip('bags/wheels.mcap absent')
+    spec = tmp_path / 'wheels.yaml'
+    spec.write_bytes((BAGS / 'wheels_wheels.yaml').read_bytes())
+    before = spec.read_bytes()
+    for opt in ('-o', '--plot', '--urdf'):
+        target = spec if opt != '--plot' else tmp_path / 'link.png'
+        if opt == '--plot':
+            target.symlink_to(spec)                     # a link to the input is the input
+        extra = ['--mass', '1'] if opt == '--urdf' else []
+        _refused(*_estimate(capsys, BAGS / 'wheels.mcap', '--wheels', spec, opt, target,
+                            *extra, '--force'), opt, 'refusing to overwrite the --wheels file')
+    assert spec.read_bytes() == before

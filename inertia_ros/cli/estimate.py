@@ -162,20 +162,25 @@ class _Progress:
 PLOT_FORMATS = ('png', 'svg', 'svgz', 'pdf', 'eps', 'ps', 'jpg', 'jpeg', 'tif', 'tiff', 'webp')
 
 
-def _inputs(args: argparse.Namespace) -> set[Path]:
-    """Resolved paths of everything the command reads (never an output, even with --force)."""
+def _inputs(args: argparse.Namespace) -> dict[Path, str]:
+    """Resolved paths of everything the command reads, with what each is (never an output,
+    even with --force)."""
     from inertia_ros.io.logs import log_files
 
     src = Path(args.path)
+    inputs: dict[Path, str] = {}
     try:
-        inputs = {p.resolve() for p in log_files(src)} if src.exists() else set()
+        if src.exists():
+            inputs = dict.fromkeys((p.resolve() for p in log_files(src)), 'the input log')
     except Exception:            # a damaged log: _read reports it; this check is best effort
-        inputs = set()
+        pass
     try:
-        inputs.add(src.resolve())
+        inputs[src.resolve()] = 'the input log'
         if src.is_dir():
-            inputs.add((src / 'metadata.yaml').resolve())
-        inputs |= {Path(f).resolve() for f in (args.wheels, args.rotors) if f is not None}
+            inputs[(src / 'metadata.yaml').resolve()] = 'the input log'
+        for opt, f in (('--wheels', args.wheels), ('--rotors', args.rotors)):
+            if f is not None:
+                inputs[Path(f).resolve()] = f'the {opt} file'
     except (OSError, ValueError, RuntimeError):      # an unusable name: _read says so
         pass
     return inputs

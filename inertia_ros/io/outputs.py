@@ -23,7 +23,7 @@ from __future__ import annotations
 import os
 import stat
 import tempfile
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from pathlib import Path
 
 __all__ = ['OutputError', 'check_output', 'write_output']
@@ -42,7 +42,7 @@ def _lstat(path: Path) -> os.stat_result | None:
 
 
 def check_output(opt: str, path: Path, *, force: bool = False,
-                 inputs: Iterable[Path] = ()) -> None:
+                 inputs: Mapping[Path, str] | Iterable[Path] = ()) -> None:
     """Refuse an output file that cannot or must not be written.
 
     Parameters
@@ -53,8 +53,9 @@ def check_output(opt: str, path: Path, *, force: bool = False,
         The output file.
     force : bool
         Replace an existing regular file (default: refuse it).
-    inputs : iterable of Path
-        Resolved paths of the command's inputs, never written even with ``force``.
+    inputs : mapping of Path to str, or iterable of Path
+        Resolved paths of the command's inputs, never written even with ``force`` (with what
+        each is for the message, default ``'the input log'``).
 
     Raises
     ------
@@ -68,8 +69,9 @@ def check_output(opt: str, path: Path, *, force: bool = False,
         if st is not None and stat.S_ISLNK(st.st_mode) and not path.exists():
             raise OutputError(f'{where}: is a dangling symbolic link (to {os.readlink(path)}); '
                               'remove the link or choose another name')
-        if path.resolve() in set(inputs):
-            raise OutputError(f'{where}: refusing to overwrite the input log')
+        named = inputs if isinstance(inputs, Mapping) else dict.fromkeys(inputs, 'the input log')
+        if path.resolve() in named:
+            raise OutputError(f'{where}: refusing to overwrite {named[path.resolve()]}')
         if path.is_dir():
             raise OutputError(f'{where}: is a directory; give a file name')
         if st is not None and not path.is_file():
