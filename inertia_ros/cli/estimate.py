@@ -345,15 +345,10 @@ def _estimator_options(args: argparse.Namespace) -> dict[str, Any]:
 
 def _write(args: argparse.Namespace, text: str) -> None:
     """The report to ``-o FILE`` or stdout."""
-    from inertia_ros.io.outputs import write_output
-
     if args.output is None:
         sys.stdout.write(text)
         return
-    try:
-        write_output(args.output, text, force=args.force)
-    except OSError as exc:
-        raise UserError(f'-o {args.output}: {exc.strerror or exc}') from None
+    _save('-o', args.output, text, args.force)
 
 
 def _momentum_prefix_run(mom: Any) -> Any:
@@ -373,8 +368,8 @@ def _momentum_prefix_run(mom: Any) -> Any:
     return run
 
 
-def _plot(args: argparse.Namespace, est: Any, log: Any) -> list[str]:
-    """Draw ``--plot``; return the numerical warnings raised while computing it.
+def _draw(args: argparse.Namespace, est: Any, log: Any) -> tuple[bytes, list[str]]:
+    """The ``--plot`` image and the numerical warnings raised while computing it.
 
     With ``--wheels`` / ``--rotors`` the convergence curve refits the momentum form on each
     prefix, and the torque drawn is the equivalent torque on the body alone, the known
@@ -382,7 +377,6 @@ def _plot(args: argparse.Namespace, est: Any, log: Any) -> list[str]:
     """
     from inertia_ros.cli.plots import plot_report
     from inertia_ros.cli.report import convergence, momentum_view, numerical_warnings
-    from inertia_ros.io.outputs import write_output
 
     hold, what = est.diagnostics.get('hold', args.hold), 'torque'
     mom = getattr(args, 'momentum', None)
@@ -395,11 +389,17 @@ def _plot(args: argparse.Namespace, est: Any, log: Any) -> list[str]:
             hold, what = 'zoh', 'equivalent torque'
         kind = args.plot.suffix.lower().removeprefix('.') or 'png'
         image = plot_report(None, est, log, hold, conv, fmt=kind, torque_what=what)
+    return image, list(found)
+
+
+def _save(opt: str, path: Path, data: bytes | str, force: bool) -> None:
+    """Write a checked output file; a failure (disk full, ...) is one line."""
+    from inertia_ros.io.outputs import write_output
+
     try:
-        write_output(args.plot, image, force=args.force)
+        write_output(path, data, force=force)
     except OSError as exc:
-        raise UserError(f'--plot {args.plot}: {exc.strerror or exc}') from None
-    return list(found)
+        raise UserError(f'{opt} {path}: {exc.strerror or exc}') from None
 
 
 def _run(args: argparse.Namespace) -> int:
@@ -435,33 +435,42 @@ def _run(args: argparse.Namespace) -> int:
                 else format_text(report))
     except ValueError as exc:      # a non-finite number escaped the contract's nulls
         raise UserError(f'{args.path}: cannot write the report: {exc}') from None
+    # everything is computed before anything is written: a report, when printed, is whole
+    image, notes = _draw(args, est, log) if args.plot is not None else (None, [])
+    urdf = _urdf_text(args, est) if args.urdf is not None else None
     _write(args, text)
-    if args.plot is not None:
-        for w in _plot(args, est, log):
+    if image is not None:
+        _save('--plot', args.plot, image, args.force)
+        for w in notes:
             print(f'inertia_ros estimate: --plot: {w}', file=sys.stderr)
-    if args.urdf is not None:
-        _write_urdf(args, est)
+    if urdf is not None:
+        _save('--urdf', args.urdf, urdf, args.force)
     return 0
 
 
-def _write_urdf(args: argparse.Namespace, est: Any) -> None:
-    """Write ``--urdf``: the tensor about the centre of mass, in the gyro (link) frame."""
+def _urdf_text(args: argparse.Namespace, est: Any) -> str | None:
+    """The ``--urdf`` document: the tensor about the centre of mass, in the gyro (link) frame.
+
+    None, with one note on stderr, when the estimate cannot give one (no complete tensor, or
+    one that is not physical): the report is still the command's answer, exit status 0.
+    """
     import numpy as np
 
-    from inertia_ros.io.urdf import write_urdf
+    from inertia_ros.io.urdf import urdf_document
 
+    why = None
     if est.inertia is None or not np.all(np.isfinite(est.inertia)):
-        print(f'inertia_ros estimate: --urdf {args.urdf}: not written: the status is '
-              f'{est.status!r} and the tensor is not complete (see the report)', file=sys.stderr)
-        return
-    comment = (f'inertia_ros estimate of {args.path}: status {est.status}, method '
-               f'{est.method}, model {est.model}')
-    try:
-        write_urdf(args.urdf, est.inertia, args.mass, tuple(args.com), link=args.link,
-                   comment=comment, force=args.force)
-    except (ValueError, OSError) as exc:
-        text = _first_line(exc).removeprefix(f'{args.urdf}: ')
-        raise UserError(f'--urdf {args.urdf}: {text}') from None
+        why = f'the status is {est.status!r} and the tensor is not complete (see the report)'
+    else:
+        comment = (f'inertia_ros estimate of {args.path}: status {est.status}, method '
+                   f'{est.method}, model {est.model}')
+        try:
+            return urdf_document(est.inertia, args.mass, tuple(args.com), link=args.link,
+                                 comment=comment)
+        except ValueError as exc:
+            why = _first_line(exc)
+    print(f'inertia_ros estimate: --urdf {args.urdf}: not written: {why}', file=sys.stderr)
+    return None
 
 
 def run(args: argparse.Namespace) -> int:
