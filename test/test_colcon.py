@@ -186,6 +186,7 @@ def _installed_env(prefix: Path, domain: int) -> dict[str, str]:
                 ROS_DOMAIN_ID=str(domain))
 
 
+@pytest.mark.ros
 def test_installed_nodes_talk_over_dds(colcon_ws, tmp_path):
     """Installed inertia_estimator (installed params file) + scene_simulator publish an estimate.
 

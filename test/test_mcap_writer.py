@@ -62,6 +62,7 @@ def _vec(v):
 
 
 # --------------------------------------------------------------------------- CDR encoding
+@pytest.mark.ros
 def test_encoding_matches_rclpy_serialization():
     """Our CDR bytes equal rclpy's serialize_message except alignment padding, and decode."""
     from rclpy.serialization import deserialize_message, serialize_message
@@ -85,6 +86,7 @@ def test_encoding_matches_rclpy_serialization():
         assert (msg.header.stamp.sec, msg.header.stamp.nanosec) == divmod(ns, 10**9)
 
 
+@pytest.mark.ros
 @pytest.mark.parametrize('frame', ['', 'a', 'base_link', 'seven77', 'frame_with_utf8_é'])
 def test_alignment_for_every_frame_length(frame):
     """The float64 block is 8-aligned after the header for every frame_id length."""
@@ -99,6 +101,7 @@ def test_alignment_for_every_frame_length(frame):
     assert _vec(msg.wrench.force) == [0.0, 0.0, 0.0]
 
 
+@pytest.mark.ros
 def test_inertia_stamped_field_order():
     """InertiaStamped carries ixx, ixy, ixz, iyy, iyz, izz as matrix elements."""
     from geometry_msgs.msg import InertiaStamped
@@ -230,6 +233,7 @@ def test_rosbag2_conventions(written):
     assert Scene.from_dict(yaml.safe_load(scene['scene_json'])).to_dict() == SCENE
 
 
+@pytest.mark.ros
 def test_type_hashes_are_the_middlewares(written):
     """topic_type_hash / type_description_hash carry the RIHS01 hash rclpy's middleware reports
     for a publisher of each type (the ROS wheels' type support, not our lookup)."""
@@ -459,6 +463,7 @@ def test_truth_carries_mass_and_com_of_composite_bodies(tmp_path):
     assert _vec(msgs[1].com) == [0.0, 0.0, 0.0]
 
 
+@pytest.mark.ros
 def test_explicit_schema_text_for_other_types(tmp_path):
     """A type cdr_encode does not know is written with a caller's schema and decodes back."""
     from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
@@ -506,6 +511,7 @@ def test_split_type_rejects_malformed_names(bad):
         msgtypes.split_type(bad)
 
 
+@pytest.mark.ros
 def test_hand_written_schema_walk_matches_installed_files():
     """The hand-written schema and the installed .msg files give the same dependency order."""
     for name in ('sensor_msgs/msg/Imu', 'geometry_msgs/msg/WrenchStamped',

@@ -9,18 +9,22 @@ import math
 
 import numpy as np
 import pytest
-from builtin_interfaces.msg import Time
-from diagnostic_msgs.msg import DiagnosticStatus
-from geometry_msgs.msg import QuaternionStamped, Vector3Stamped
-from scipy.spatial.transform import Rotation
-from visualization_msgs.msg import Marker
 
-from inertia_ros.core.inertia import THETA_NAMES
-from inertia_ros.io import cdr_decode
-from inertia_ros.io.msgtypes import schema_text_from_share
-from inertia_ros.nodes import diagnostics as dg
-from inertia_ros.nodes import markers as mk
-from inertia_ros.nodes import messages as rm
+pytestmark = pytest.mark.ros
+pytest.importorskip('builtin_interfaces')  # ROS message packages (skipped without ROS)
+
+from builtin_interfaces.msg import Time  # noqa: E402
+from diagnostic_msgs.msg import DiagnosticStatus  # noqa: E402
+from geometry_msgs.msg import QuaternionStamped, Vector3Stamped  # noqa: E402
+from scipy.spatial.transform import Rotation  # noqa: E402
+from visualization_msgs.msg import Marker  # noqa: E402
+
+from inertia_ros.core.inertia import THETA_NAMES  # noqa: E402
+from inertia_ros.io import cdr_decode  # noqa: E402
+from inertia_ros.io.msgtypes import schema_text_from_share  # noqa: E402
+from inertia_ros.nodes import diagnostics as dg  # noqa: E402
+from inertia_ros.nodes import markers as mk  # noqa: E402
+from inertia_ros.nodes import messages as rm  # noqa: E402
 
 I_NOM = np.array([[1.0, 0.05, -0.03], [0.05, 1.2, 0.02], [-0.03, 0.02, 0.9]])
 

@@ -105,6 +105,26 @@ def _command_in(argv: list[str]) -> str | None:
     return None
 
 
+def program_name(argv0: str | None = None) -> str:
+    """The name the command line was invoked by, for ``usage:`` and the errors.
+
+    ``python -m inertia_ros`` runs ``inertia_ros/__main__.py``; an installed console script
+    (``inertia-ros``) runs under its own name, which the usage then shows.
+
+    Parameters
+    ----------
+    argv0 : str, optional
+        The program path (default ``sys.argv[0]``).
+    """
+    import os
+
+    argv0 = sys.argv[0] if argv0 is None else argv0
+    base = os.path.basename(argv0 or '')
+    if not base or base in ('__main__.py', '-c', '-m') or base.startswith('python'):
+        return 'python -m inertia_ros'
+    return base
+
+
 def build_parser(only: str | None = None) -> argparse.ArgumentParser:
     """Return the top-level argument parser.
 
@@ -116,7 +136,7 @@ def build_parser(only: str | None = None) -> argparse.ArgumentParser:
         every command.
     """
     parser = Parser(
-        prog='python -m inertia_ros',
+        prog=program_name(),
         description='Estimate a rigid body\'s inertia tensor from gyro and torque streams.')
     parser.add_argument('--version', action=_VersionAction,
                         help='print the package version and exit')

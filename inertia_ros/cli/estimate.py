@@ -6,6 +6,11 @@ estimates the tensor (:func:`inertia_ros.core.estimation.estimate`) and prints a
 0 whenever a report was produced, whatever its status; 2 with one line on stderr for unusable
 input, never a traceback.  The input is only ever read.
 
+Every output option (``-o``, ``--plot``, ``--urdf`` with ``--mass`` and ``--link``) is checked
+before the log is read, under one rule: an existing file is refused unless ``--force``
+(:mod:`inertia_ros.io.outputs`).  A status without a complete tensor writes no URDF: a note on
+stderr, exit 0.
+
 This module parses the arguments and runs the command; the numbers of the report are in
 :mod:`inertia_ros.cli.report`, the figure in :mod:`inertia_ros.cli.plots`.  At its top it
 imports only the option vocabularies (:mod:`inertia_ros.core.estimation.options`, which
@@ -95,12 +100,18 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument('--format', choices=('text', 'json'), default='text',
                    help='report format (default text)')
     p.add_argument('-o', '--output', metavar='FILE', type=Path,
-                   help='write the report to FILE instead of stdout')
+                   help='write the report to FILE instead of stdout (an existing FILE only '
+                        'with --force)')
     p.add_argument('--plot', metavar='FILE.png', type=Path,
-                   help='also draw torque fit, convergence and principal axes to FILE.png')
+                   help='also draw torque fit, convergence and principal axes to FILE.png '
+                        '(.svg, .pdf: that format; an existing file only with --force)')
     p.add_argument('--urdf', metavar='FILE', type=Path,
                    help='also write the tensor as a URDF <inertial> block (needs --mass); '
-                        'never overwrites')
+                        'not written (a note on stderr, exit 0) when the status gives no '
+                        'complete tensor')
+    p.add_argument('--force', action='store_true',
+                   help='replace existing -o, --plot and --urdf files (default: refuse them, '
+                        'before any work); the input log is never replaced')
     p.add_argument('--mass', type=bounded(1e-9, 1e9, 'kg'), metavar='M',
                    help='body mass for --urdf [kg] (rotation data cannot tell it)')
     p.add_argument('--com', type=bounded(-1e6, 1e6, 'm'), nargs=3, metavar=('X', 'Y', 'Z'),
@@ -147,29 +158,71 @@ class _Progress:
             self.bar = None
 
 
-def _check_outputs(args: argparse.Namespace) -> None:
-    """Refuse outputs that would overwrite the input."""
+#: ``--plot`` file types matplotlib writes (the suffix picks one; none: PNG).
+PLOT_FORMATS = ('png', 'svg', 'svgz', 'pdf', 'eps', 'ps', 'jpg', 'jpeg', 'tif', 'tiff', 'webp')
+
+
+def _inputs(args: argparse.Namespace) -> dict[Path, str]:
+    """Resolved paths of everything the command reads, with what each is (never an output,
+    even with --force)."""
     from inertia_ros.io.logs import log_files
 
     src = Path(args.path)
+    inputs: dict[Path, str] = {}
     try:
-        inputs = {p.resolve() for p in log_files(src)} if src.exists() else set()
+        if src.exists():
+            inputs = dict.fromkeys((p.resolve() for p in log_files(src)), 'the input log')
     except Exception:            # a damaged log: _read reports it; this check is best effort
-        inputs = set()
-    inputs.add(src.resolve())
-    if src.is_dir():
-        inputs.add((src / 'metadata.yaml').resolve())
-    if args.urdf is not None and args.mass is None:
-        raise UserError('--urdf needs --mass M [kg]: rotation data cannot tell the mass')
-    if args.urdf is not None and args.urdf.exists():
-        raise UserError(f'--urdf {args.urdf}: exists; choose another name or remove it first')
+        pass
+    try:
+        inputs[src.resolve()] = 'the input log'
+        if src.is_dir():
+            inputs[(src / 'metadata.yaml').resolve()] = 'the input log'
+        for opt, f in (('--wheels', args.wheels), ('--rotors', args.rotors)):
+            if f is not None:
+                inputs[Path(f).resolve()] = f'the {opt} file'
+    except (OSError, ValueError, RuntimeError):      # an unusable name: _read says so
+        pass
+    return inputs
+
+
+def _check_outputs(args: argparse.Namespace) -> None:
+    """Refuse, before any work, every output option that cannot or must not be written.
+
+    One rule for ``-o``, ``--plot`` and ``--urdf``: an existing file is refused unless
+    ``--force``; the input, a directory, a missing or unwritable directory, a dangling link
+    and two options naming one file are always refused.  ``--urdf`` also needs ``--mass``
+    and a ``--link`` name of printable characters.
+    """
+    from inertia_ros.io.outputs import OutputError, check_output
+    from inertia_ros.io.urdf import check_name
+
+    if args.urdf is not None:
+        if args.mass is None:
+            raise UserError('--urdf needs --mass M [kg]: rotation data cannot tell the mass')
+        try:
+            check_name('--link', args.link)
+        except ValueError as exc:
+            raise UserError(str(exc)) from None
+    if args.plot is not None:
+        kind = args.plot.suffix.lower().removeprefix('.') or 'png'
+        if kind not in PLOT_FORMATS:
+            raise UserError(f'--plot {args.plot}: cannot draw a {args.plot.suffix!r} file; '
+                            'give a .png (or .svg, .pdf) name')
+    inputs = _inputs(args)
+    named: dict[Path, str] = {}
     for opt, out in (('-o', args.output), ('--plot', args.plot), ('--urdf', args.urdf)):
         if out is None:
             continue
-        if out.resolve() in inputs:
-            raise UserError(f'{opt} {out}: refusing to overwrite the input log')
-        if out.is_dir():
-            raise UserError(f'{opt} {out}: is a directory; give a file name')
+        try:
+            check_output(opt, out, force=args.force, inputs=inputs)
+        except OutputError as exc:
+            raise UserError(str(exc)) from None
+        key = out.resolve()
+        if key in named and (out.is_file() or not out.exists()):
+            raise UserError(f'{opt} {out}: the same file as {named[key]}; give each output its '
+                            'own name')
+        named[key] = opt
 
 
 def _read(args: argparse.Namespace, progress: _Progress) -> Any:
@@ -187,7 +240,9 @@ def _read(args: argparse.Namespace, progress: _Progress) -> Any:
         js = sorted(t for t, ty in log.topics.items() if ty == 'sensor_msgs/msg/JointState')
         if args.wheels is None and args.rotors is None and js:
             log.warnings.append(f'{", ".join(js)}: JointState in the log; if it carries '
-                                'wheel speeds, pass --wheels WHEELS.yaml to use them')
+                                'wheel or rotor speeds, pass --wheels WHEELS.yaml (reaction '
+                                'wheels, flywheels) or --rotors ROTORS.yaml (a multirotor) to '
+                                'use them')
         return log
     except LogError as exc:
         raise UserError(str(exc)) from None
@@ -273,6 +328,7 @@ def _estimate_wheels(args: argparse.Namespace, log: Any) -> Any:
     log.warnings[:] = [w for w in log.warnings if 'torque-free data' not in w]
     args.wheel_info = {'file': str(act.file), 'topic': topic, 'samples': int(len(t_ns)),
                        'joints': act.joints, 'kind': kind}
+    args.momentum = mom                                    # for --plot
     try:
         return estimate_with_momentum(log.omega.t, log.omega.values, log.torque.t,
                                       log.torque.values, mom, **_estimator_options(args))
@@ -292,36 +348,67 @@ def _write(args: argparse.Namespace, text: str) -> None:
     if args.output is None:
         sys.stdout.write(text)
         return
-    try:
-        args.output.write_text(text)
-    except OSError as exc:
-        raise UserError(f'-o {args.output}: {exc.strerror or exc}') from None
+    _save('-o', args.output, text, args.force)
 
 
-def _plot(args: argparse.Namespace, est: Any, log: Any) -> list[str]:
-    """Draw ``--plot``; return the numerical warnings raised while computing it."""
+def _momentum_prefix_run(mom: Any) -> Any:
+    """The convergence curve's estimator for a ``--wheels``/``--rotors`` run: the momentum
+    form on the prefix, with the momentum record cut at the prefix's last gyro stamp."""
+    from dataclasses import replace
+
+    from inertia_ros.core.estimation.momentum import estimate_with_momentum
+
+    def run(tg: Any, w: Any, tt: Any, tau: Any, **options: Any) -> Any:
+        keep = mom.t <= tg[-1]
+        cut = replace(mom, t=mom.t[keep], h=mom.h[keep], h_std=mom.h_std[:, keep],
+                      torque=None if mom.torque is None else mom.torque[keep],
+                      torque_std=None if mom.torque_std is None else mom.torque_std[:, keep])
+        return estimate_with_momentum(tg, w, tt, tau, cut, **options)
+
+    return run
+
+
+def _draw(args: argparse.Namespace, est: Any, log: Any) -> tuple[bytes, list[str]]:
+    """The ``--plot`` image and the numerical warnings raised while computing it.
+
+    With ``--wheels`` / ``--rotors`` the convergence curve refits the momentum form on each
+    prefix, and the torque drawn is the equivalent torque on the body alone, the known
+    torque minus the internal momentum's change (:func:`inertia_ros.cli.report.momentum_view`).
+    """
     from inertia_ros.cli.plots import plot_report
-    from inertia_ros.cli.report import convergence, numerical_warnings
+    from inertia_ros.cli.report import convergence, momentum_view, numerical_warnings
 
+    hold, what = est.diagnostics.get('hold', args.hold), 'torque'
+    mom = getattr(args, 'momentum', None)
     with numerical_warnings() as found:
-        conv = convergence(est, log, **_estimator_options(args))
-        try:
-            plot_report(args.plot, est, log, est.diagnostics.get('hold', args.hold), conv)
-        except OSError as exc:
-            raise UserError(f'--plot {args.plot}: {exc.strerror or exc}') from None
-    return list(found)
+        if mom is None:
+            conv = convergence(est, log, **_estimator_options(args))
+        else:
+            conv = convergence(est, log, _momentum_prefix_run(mom), **_estimator_options(args))
+            log = momentum_view(log, mom, 'linear' if args.hold == 'linear' else 'zoh')
+            hold, what = 'zoh', 'equivalent torque'
+        kind = args.plot.suffix.lower().removeprefix('.') or 'png'
+        image = plot_report(None, est, log, hold, conv, fmt=kind, torque_what=what)
+    return image, list(found)
+
+
+def _save(opt: str, path: Path, data: bytes | str, force: bool) -> None:
+    """Write a checked output file; a failure (disk full, ...) is one line."""
+    from inertia_ros.io.outputs import write_output
+
+    try:
+        write_output(path, data, force=force)
+    except OSError as exc:
+        raise UserError(f'{opt} {path}: {exc.strerror or exc}') from None
 
 
 def _run(args: argparse.Namespace) -> int:
     """The command without its last-resort handler."""
     from inertia_ros.cli.report import build_report, format_text, numerical_warnings
 
-    _check_outputs(args)
     if args.wheels is not None and args.rotors is not None:
         raise UserError('--wheels and --rotors: give one of them (one JointState input)')
-    if (args.wheels is not None or args.rotors is not None) and args.plot is not None:
-        raise UserError('--plot: not drawn for --wheels/--rotors logs yet (its convergence '
-                        'curve refits with torque only); drop one of them')
+    _check_outputs(args)
     if args.model == 'axisymmetric' and args.symmetry_axis is None:
         raise UserError('--model axisymmetric needs --symmetry-axis x|y|z')
     progress = _Progress(sys.stderr.isatty() and not args.no_progress)
@@ -348,31 +435,42 @@ def _run(args: argparse.Namespace) -> int:
                 else format_text(report))
     except ValueError as exc:      # a non-finite number escaped the contract's nulls
         raise UserError(f'{args.path}: cannot write the report: {exc}') from None
+    # everything is computed before anything is written: a report, when printed, is whole
+    image, notes = _draw(args, est, log) if args.plot is not None else (None, [])
+    urdf = _urdf_text(args, est) if args.urdf is not None else None
     _write(args, text)
-    if args.plot is not None:
-        for w in _plot(args, est, log):
+    if image is not None:
+        _save('--plot', args.plot, image, args.force)
+        for w in notes:
             print(f'inertia_ros estimate: --plot: {w}', file=sys.stderr)
-    if args.urdf is not None:
-        _write_urdf(args, est)
+    if urdf is not None:
+        _save('--urdf', args.urdf, urdf, args.force)
     return 0
 
 
-def _write_urdf(args: argparse.Namespace, est: Any) -> None:
-    """Write ``--urdf``: the tensor about the centre of mass, in the gyro (link) frame."""
+def _urdf_text(args: argparse.Namespace, est: Any) -> str | None:
+    """The ``--urdf`` document: the tensor about the centre of mass, in the gyro (link) frame.
+
+    None, with one note on stderr, when the estimate cannot give one (no complete tensor, or
+    one that is not physical): the report is still the command's answer, exit status 0.
+    """
     import numpy as np
 
-    from inertia_ros.io.urdf import write_urdf
+    from inertia_ros.io.urdf import urdf_document
 
+    why = None
     if est.inertia is None or not np.all(np.isfinite(est.inertia)):
-        raise UserError(f'--urdf {args.urdf}: not written: the status is {est.status!r} and '
-                        'the tensor is not complete (see the report)')
-    comment = (f'inertia_ros estimate of {args.path}: status {est.status}, method '
-               f'{est.method}, model {est.model}')
-    try:
-        write_urdf(args.urdf, est.inertia, args.mass, tuple(args.com), link=args.link,
-                   comment=comment)
-    except (ValueError, OSError) as exc:
-        raise UserError(f'--urdf {args.urdf}: {_first_line(exc)}') from None
+        why = f'the status is {est.status!r} and the tensor is not complete (see the report)'
+    else:
+        comment = (f'inertia_ros estimate of {args.path}: status {est.status}, method '
+                   f'{est.method}, model {est.model}')
+        try:
+            return urdf_document(est.inertia, args.mass, tuple(args.com), link=args.link,
+                                 comment=comment)
+        except ValueError as exc:
+            why = _first_line(exc)
+    print(f'inertia_ros estimate: --urdf {args.urdf}: not written: {why}', file=sys.stderr)
+    return None
 
 
 def run(args: argparse.Namespace) -> int:

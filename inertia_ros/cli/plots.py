@@ -21,7 +21,7 @@ from inertia_ros.io.logs import LogData
 
 from .report import THETA_NAMES, Convergence, window_torques
 
-__all__ = ['plot_report']
+__all__ = ['epoch_text', 'plot_report']
 
 #: One colour per tensor element, in the order of THETA_NAMES.
 ELEMENT_COLOURS = ('tab:blue', 'tab:orange', 'tab:green', 'tab:red', 'tab:purple', 'tab:brown')
@@ -38,8 +38,10 @@ def _stride(n: int, most: int) -> int:
     return max(1, -(-n // most))
 
 
-def _torque_panels(axes: list[Any], est: InertiaEstimate, log: LogData, hold: str) -> None:
-    """Three torque panels (measured markers under the model line) and the residual panel."""
+def _torque_panels(axes: list[Any], est: InertiaEstimate, log: LogData, hold: str,
+                   what: str = 'torque') -> None:
+    """Three torque panels (measured markers under the model line) and the residual panel;
+    ``what`` names the torque drawn (``'equivalent torque'`` with wheels or rotors)."""
     tg, w = log.omega.t, log.omega.values
     tt, tau = log.torque.t, log.torque.values
     have_model = est.inertia is not None and bool(np.isfinite(est.inertia).all())
@@ -48,7 +50,7 @@ def _torque_panels(axes: list[Any], est: InertiaEstimate, log: LogData, hold: st
         for k, ax in enumerate(axes[:3]):
             ax.plot(tt[::st], tau[::st, k], '.', ms=2, color='0.35', label='measured')
             ax.set_ylabel(f'torque {"xyz"[k]} [N m]')
-        axes[0].set_title(f'measured torque (no model torque: status {est.status})')
+        axes[0].set_title(f'measured {what} (no model torque: status {est.status})')
         axes[3].text(0.5, 0.5, 'no residual without a tensor', ha='center',
                      transform=axes[3].transAxes)
         if len(tt):
@@ -64,7 +66,7 @@ def _torque_panels(axes: list[Any], est: InertiaEstimate, log: LogData, hold: st
         ax.plot(t_mid[::line_st], model[::line_st, k], lw=1.0, color=AXIS_COLOURS[k],
                 label='model', zorder=3)
         ax.set_ylabel(f'torque {"xyz"[k]} [N m]')
-    axes[0].set_title(f'torque, {width:.3g} s window means: measured (circles) and model '
+    axes[0].set_title(f'{what}, {width:.3g} s window means: measured (circles) and model '
                       '(I dw/dt + w x I w' + (' - bias' if est.torque_bias is not None else '')
                       + ', line)')
     axes[0].legend(loc='upper right', fontsize=8)
@@ -80,6 +82,36 @@ def _torque_panels(axes: list[Any], est: InertiaEstimate, log: LogData, hold: st
     axes[3].legend(loc='upper right', fontsize=8, ncol=3)
 
 
+#: Stamps before this [ns] (1971) are a simulation's clock, not a calendar time.
+_CALENDAR_FROM_NS = 365 * 86400 * 10 ** 9
+
+
+def epoch_text(epoch_ns: int) -> str:
+    """The log's time origin, readable: ``'2024-01-01 00:00:00.000 UTC'``.
+
+    Parameters
+    ----------
+    epoch_ns : int
+        Stamp of the log's time zero [ns since the Unix epoch].
+
+    Returns
+    -------
+    str
+        A UTC date and time to the millisecond; ``'stamp 12.500 s'`` for a clock that starts
+        near zero (simulation time) or one out of the calendar's range.
+    """
+    from datetime import UTC, datetime
+
+    if abs(int(epoch_ns)) >= _CALENDAR_FROM_NS:
+        try:
+            when = datetime.fromtimestamp(int(epoch_ns) // 10 ** 9, tz=UTC)
+            ms = int(epoch_ns) % 10 ** 9 // 10 ** 6
+            return f'{when:%Y-%m-%d %H:%M:%S}.{ms:03d} UTC'
+        except (OverflowError, ValueError, OSError):
+            pass
+    return f'stamp {int(epoch_ns) * 1e-9:.3f} s'
+
+
 def _omega_panel(ax: Any, log: LogData) -> None:
     """Angular velocity against time."""
     tg, w = log.omega.t, log.omega.values
@@ -87,7 +119,7 @@ def _omega_panel(ax: Any, log: LogData) -> None:
     for k in range(3):
         ax.plot(tg[::st], w[::st, k], lw=0.8, color=AXIS_COLOURS[k], label=f'w{"xyz"[k]}')
     ax.set_ylabel('omega [rad/s]')
-    ax.set_xlabel(f'time [s] since stamp {log.epoch_ns} ns')
+    ax.set_xlabel(f'time [s] since {epoch_text(log.epoch_ns)}')
     ax.legend(loc='upper right', fontsize=8)
 
 
@@ -142,14 +174,15 @@ def _axes_panel(ax: Any, est: InertiaEstimate, frame_id: str) -> None:
     ax.set_title(f'principal axes in frame {frame_id!r} (length ~ moment)', fontsize=9)
 
 
-def plot_report(path: Path, est: InertiaEstimate, log: LogData, hold: str,
-                conv: Convergence | None) -> None:
-    """Draw the estimate's figure and write it to ``path`` (PNG).
+def plot_report(path: Path | None, est: InertiaEstimate, log: LogData, hold: str,
+                conv: Convergence | None, *, fmt: str = 'png',
+                torque_what: str = 'torque') -> bytes:
+    """Draw the estimate's figure; return its bytes (and write them to ``path`` if given).
 
     Parameters
     ----------
-    path : Path
-        Output file.
+    path : Path or None
+        Output file (replaced), or None to only return the image.
     est : InertiaEstimate
         The estimate on the whole log.
     log : LogData
@@ -158,18 +191,34 @@ def plot_report(path: Path, est: InertiaEstimate, log: LogData, hold: str,
         Torque hold used by the estimate (``zoh`` or ``linear``).
     conv : Convergence or None
         From :func:`inertia_ros.cli.report.convergence`.
+    fmt : str
+        Image format matplotlib writes (``'png'``, ``'svg'``, ``'pdf'``, ...).
+    torque_what : str
+        Name of the torque drawn in the torque panels' titles.
+
+    Returns
+    -------
+    bytes
+        The image file's content.
     """
+    import io
+
     fig = plt.figure(figsize=(14, 10), layout='constrained')
     gs = fig.add_gridspec(5, 2, width_ratios=[1.6, 1])
     left = [fig.add_subplot(gs[0, 0])]
     left += [fig.add_subplot(gs[k, 0], sharex=left[0]) for k in range(1, 5)]
-    _torque_panels(left[:4], est, log, hold)
+    _torque_panels(left[:4], est, log, hold, torque_what)
     _omega_panel(left[4], log)
     _convergence_panel(fig.add_subplot(gs[0:3, 1]), conv, est.status)
     _axes_panel(fig.add_subplot(gs[3:5, 1], projection='3d'), est, log.omega.frame_id)
     fig.suptitle(f'{Path(log.paths[0]).name}: status {est.status}, model {est.model}, '
                  f'method {est.method}')
+    buf = io.BytesIO()
     try:
-        fig.savefig(path, dpi=110)
+        fig.savefig(buf, format=fmt, dpi=110)
     finally:
         plt.close(fig)
+    image = buf.getvalue()
+    if path is not None:
+        Path(path).write_bytes(image)
+    return image

@@ -22,18 +22,19 @@ from inertia_ros.core.inertia import angular_momentum, matrix_to_theta
 from inertia_ros.io.logs import LogData
 
 __all__ = ['STATUS_TEXT', 'Convergence', 'NumericalWarnings', 'build_report', 'convergence',
-           'format_text', 'numerical_warnings', 'window_torques']
+           'format_text', 'momentum_view', 'numerical_warnings', 'remedy',
+           'window_torques']
 
 #: What each status means, for the text report.
 STATUS_TEXT = {
     'ok': 'all six tensor elements identified',
     'model_mismatch': 'the residuals do not fit the noise model: the estimate and its sigma '
-                      'are reported, but the data contain something the model lacks (see the '
-                      'warnings for the likely cause)',
+                      'are reported, but the data contain something the model lacks (the '
+                      'reason below names the likely cause)',
     'scale_unobservable': 'torque-free data: the principal axes and the ratios of the moments '
                           'are known, the scale is not (record with a known torque to get it)',
-    'partially_identifiable': 'some elements could not be identified (shown as n/a); excite '
-                              'rotation about more axes',
+    'partially_identifiable': 'some elements could not be identified (named below, null in '
+                              'the JSON); excite rotation about more axes',
     'insufficient_excitation': 'the motion does not excite the dynamics enough; rotate about '
                                'all three axes with changing rates',
     'insufficient_data': 'too few usable samples to estimate anything',
@@ -143,10 +144,10 @@ def _truth_check(est: InertiaEstimate, log: LogData) -> dict[str, Any]:
 # Text report
 
 
-def _fmt(x: float | None, std: float | None = None) -> str:
-    """A value with its one-sigma error, fixed width (``n/a`` when unknown)."""
+def _fmt(x: float | None, std: float | None = None, missing: str = 'n/a') -> str:
+    """A value with its one-sigma error, fixed width (``missing`` when unknown)."""
     if x is None or (isinstance(x, float) and not math.isfinite(x)):
-        return f'{"n/a":>22s}'
+        return f'{missing:>22s}'
     if std is None:
         return f'{x:>11.6g}' + ' ' * 11
     return f'{x:>11.6g} ± {std:<8.2g}'
@@ -161,9 +162,9 @@ def _short(v: Any) -> str:
     return str(v)
 
 
-def _matrix_lines(m: list, std: list | None) -> list[str]:
-    """Three rows ``[ a ± s  b ± s  c ± s ]``."""
-    return ['  [' + '  '.join(_fmt(m[i][j], None if std is None else std[i][j])
+def _matrix_lines(m: list, std: list | None, missing: str = 'n/a') -> list[str]:
+    """Three rows ``[ a ± s  b ± s  c ± s ]`` (``missing`` where an element is unknown)."""
+    return ['  [' + '  '.join(_fmt(m[i][j], None if std is None else std[i][j], missing)
                               for j in range(3)) + ' ]' for i in range(3)]
 
 
@@ -180,6 +181,9 @@ def _header_lines(report: dict) -> list[str]:
     lines = [f'inertia_ros estimate: {", ".join(s["files"])}']
     for key, label in (('omega', 'gyro  '), ('torque', 'torque')):
         st = s[key]
+        if not st.get('topic'):
+            lines.append(f'  {label} none (torque-free data: no torque stream)')
+            continue
         rate = f'{st["rate_hz"]:.1f} Hz' if st['rate_hz'] else 'rate n/a'
         lines.append(f'  {label} {st["topic"]} ({st["type"]}, frame {st["frame_id"]!r}, '
                      f'{rate}): {st["received"]} received, {st["used"]} used, '
@@ -188,6 +192,64 @@ def _header_lines(report: dict) -> list[str]:
                  f'{report["samples"]["used"]} gyro samples in the equations, '
                  f'{report["samples"]["dropped"]} left out; {s["windows"]} window(s)')
     lines += ['', f'status: {report["status"]} - {STATUS_TEXT.get(report["status"], "")}']
+    return lines + _reason_lines(report)
+
+
+#: Causes in a model_mismatch reason that a sensor nuisance term may explain.
+_NUISANCE_CAUSES = ('gyro bias', 'unmodelled torque', 'correlated sensor noise',
+                    'window estimates disagree')
+
+
+def remedy(report: dict) -> str | None:
+    """The next thing to try for a report that is not ok, or None.
+
+    Parameters
+    ----------
+    report : dict
+        :func:`build_report`'s dictionary.
+
+    Returns
+    -------
+    str or None
+        One sentence naming an option (e.g. ``--nuisance auto`` when the mismatch reads like
+        a sensor nuisance and no nuisance term was fitted).
+    """
+    diag = report.get('diagnostics') or {}
+    reason = str(diag.get('reason') or '')
+    if report.get('status') != 'model_mismatch':
+        return None
+    nuisance = diag.get('nuisance') or {}
+    fitted = bool(nuisance.get('chosen')) or (nuisance and not nuisance.get('skipped'))
+    if 'inertia change near' in reason:
+        return ('the tensor seems to change during the log (a payload or configuration '
+                'change): estimate the parts before and after it as separate logs')
+    if 'wheels' in diag or 'rotors' in diag:        # --nuisance is not available with them
+        return ('check the wheel inertias / rotor coefficients in the YAML and their stated '
+                '*_std (--nuisance is not available with --wheels/--rotors)'
+                if 'rotor coefficients' in reason else None)
+    if any(c in reason for c in _NUISANCE_CAUSES):
+        if not fitted:
+            return ('try --nuisance auto: a gyro bias, a torque delay, damping or a gyro '
+                    'low-pass is kept where the data support it')
+        if 'try hold linear' in reason and diag.get('hold') != 'linear':
+            return 'try --hold linear (torque that varies between its samples)'
+    return None
+
+
+def _reason_lines(report: dict) -> list[str]:
+    """``reason:`` (diagnostics.reason) and a remedy, for every status but ok."""
+    diag = report.get('diagnostics') or {}
+    lines: list[str] = []
+    if report.get('status') == 'ok':
+        return lines
+    if diag.get('reason'):
+        lines.append(f'reason: {diag["reason"]}')
+    und = diag.get('undetermined')
+    if und and not all(name in str(diag.get('reason')) for name in und):
+        lines.append(f'undetermined elements: {", ".join(und)}')
+    hint = remedy(report)
+    if hint:
+        lines.append(f'remedy: {hint}')
     return lines
 
 
@@ -195,13 +257,14 @@ def _tensor_lines(report: dict) -> list[str]:
     """The tensor (or its ratios), principal moments and axes, the bias."""
     diag = report['diagnostics']
     lines: list[str] = []
+    missing = 'undetermined' if diag.get('undetermined') else 'n/a'
     if report['inertia'] is not None:
         lines += ['', f'inertia tensor about the centre of mass, frame '
                       f'{diag.get("frame_id", "")!r} [kg m^2] (± one sigma):']
-        lines += _matrix_lines(report['inertia'], report['inertia_std'])
+        lines += _matrix_lines(report['inertia'], report['inertia_std'], missing)
     elif report['ratios'] is not None:
         lines += ['', 'inertia / trace (ratios; the scale is unobservable) (± one sigma):']
-        lines += _matrix_lines(report['ratios'], report.get('ratios_std'))
+        lines += _matrix_lines(report['ratios'], report.get('ratios_std'), missing)
         if diag.get('principal_ratios') is not None:
             lines.append(_moments_line('principal moments / trace: ', diag['principal_ratios'],
                                        diag.get('principal_ratios_std')))
@@ -318,6 +381,44 @@ def window_torques(est: InertiaEstimate, tg: np.ndarray, w: np.ndarray, tt: np.n
     meas = (T[k:] - T[:-k]) / span
     ok = span[:, 0] < 1.5 * width + 1e-9          # windows spanning a gap are meaningless
     return 0.5 * (tg[k:] + tg[:-k])[ok], meas[ok], model[ok]
+
+
+def momentum_view(log: LogData, momentum: Any, hold: str = 'zoh') -> LogData:
+    """The log as the body alone sees it, for the figure of a ``--wheels``/``--rotors`` run.
+
+    The torque stream becomes the equivalent torque of the momentum form
+    (:func:`inertia_ros.core.estimation.momentum.equivalent_torque`): the other known torque
+    plus the rotor torques, minus the change of the internal momentum ``h`` and ``w x h``,
+    held over each interval of the union of the gyro and momentum stamps; the gyro keeps its
+    samples inside the common coverage.  The body's own Euler equation
+    ``I dw/dt + w x I w = torque`` holds on it, so the figure's model torque, residual and
+    convergence (refitted with ``hold='zoh'``) read as for a torque log.
+
+    Parameters
+    ----------
+    log : LogData
+        The log read for the estimate.
+    momentum : Momentum
+        The internal momentum (and rotor torque) record the estimate used [N m s], [N m].
+    hold : str
+        Hold of the log's own torque stream between its samples (``zoh`` or ``linear``).
+
+    Returns
+    -------
+    LogData
+        A copy whose ``omega`` and ``torque`` streams are replaced.
+    """
+    from dataclasses import replace
+
+    from inertia_ros.core.estimation.momentum import as_momentum, equivalent_torque
+
+    mom = as_momentum(momentum)
+    tg, w = log.omega.t, log.omega.values
+    grid, tq, inside = equivalent_torque(tg, w, mom.t, mom.h, log.torque.t, log.torque.values,
+                                         hold, mom.torque)
+    omega = replace(log.omega, t=tg[inside], values=w[inside])
+    torque = replace(log.torque, t=grid, values=tq)
+    return replace(log, omega=omega, torque=torque)
 
 
 @dataclass(frozen=True)

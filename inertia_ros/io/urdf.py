@@ -19,6 +19,7 @@ Functions
 :func:`urdf_document`  a complete one-link URDF document holding that block
 :func:`sdf_inertial`   the SDFormat ``<inertial>`` block (``<pose>``, ``<mass>``, ``<inertia>``)
 :func:`write_urdf`     write :func:`urdf_document` to a file, never over an existing one
+:func:`check_name`     refuse a blank link/robot name or one holding control characters
 """
 from __future__ import annotations
 
@@ -33,8 +34,9 @@ from xml.sax.saxutils import quoteattr
 import numpy as np
 
 from inertia_ros.core.inertia import as_inertia_matrix, check_physical
+from inertia_ros.io.outputs import OutputError, check_output, write_output
 
-__all__ = ['sdf_inertial', 'urdf_document', 'urdf_inertial', 'write_urdf']
+__all__ = ['check_name', 'sdf_inertial', 'urdf_document', 'urdf_inertial', 'write_urdf']
 
 #: Attribute order of URDF's <inertia> element (as the URDF documentation lists it).
 _URDF_ELEMENTS = (('ixx', 0, 0), ('ixy', 0, 1), ('ixz', 0, 2),
@@ -109,10 +111,47 @@ def urdf_inertial(inertia: Any, mass: float, com: Sequence[float] = (0.0, 0.0, 0
             f'{indent}</inertial>\n')
 
 
+def _not_xml(ch: str) -> bool:
+    """True for a character XML 1.0 cannot hold or a control character (C0, DEL, C1)."""
+    o = ord(ch)
+    return (o < 0x20 or 0x7F <= o <= 0x9F or 0xD800 <= o <= 0xDFFF or o in (0xFFFE, 0xFFFF))
+
+
+def check_name(what: str, name: Any) -> str:
+    """A URDF name (link, robot): non-blank text of printable characters.
+
+    Parameters
+    ----------
+    what : str
+        The field named in the error (``'link'``, ``'robot'``).
+    name : Any
+        The name to check.
+
+    Returns
+    -------
+    str
+        ``name`` unchanged.
+
+    Raises
+    ------
+    ValueError
+        One line: a blank name, or the first control character (``U+0001``, ``U+001F``,
+        ``U+FFFE``, a surrogate, ...) it holds, which well-formed XML cannot carry.
+    """
+    bad = next((ch for ch in name if _not_xml(ch)), None) if isinstance(name, str) else None
+    if bad is not None:
+        raise ValueError(f'{what}: {name[:40]!r} holds the control character U+{ord(bad):04X}; '
+                         'give a name of printable characters')
+    if not isinstance(name, str) or not name.strip():
+        raise ValueError(f'{what}: expected a non-empty name, got {name!r}')
+    return name
+
+
 def _comment(text: str | None, indent: str) -> str:
     if not text:
         return ''
-    # '--' may not appear inside an XML comment.
+    # characters XML cannot hold are written as escapes; '--' may not appear in a comment
+    text = ''.join(f'\\x{ord(ch):02x}' if _not_xml(ch) and ch != '\n' else ch for ch in text)
     safe = re.sub(r'-{2,}', '-', text.strip()).replace('\n', f'\n{indent}     ')
     return f'{indent}<!-- {safe} -->\n'
 
@@ -142,11 +181,11 @@ def urdf_document(inertia: Any, mass: float, com: Sequence[float] = (0.0, 0.0, 0
     Raises
     ------
     ValueError
-        As :func:`urdf_inertial`, or an empty ``link`` / ``robot`` name.
+        As :func:`urdf_inertial`, or a ``link`` / ``robot`` name that is blank or holds a
+        control character (:func:`check_name`).
     """
     for what, name in (('link', link), ('robot', robot)):
-        if not isinstance(name, str) or not name.strip():
-            raise ValueError(f'{what}: expected a non-empty name, got {name!r}')
+        check_name(what, name)
     block = urdf_inertial(inertia, mass, com, indent='    ')
     return ('<?xml version="1.0"?>\n'
             f'<robot name={quoteattr(robot)}>\n'
@@ -212,16 +251,19 @@ def write_urdf(path: str | os.PathLike[str], inertia: Any, mass: float,
     Raises
     ------
     ValueError
-        As :func:`urdf_document`; ``path`` exists (without ``force``), is a directory, or its
-        directory does not exist.
+        As :func:`urdf_document`; ``path`` exists (without ``force``), is a directory, a
+        dangling symbolic link (never followed), or its directory does not exist or cannot be
+        written (:func:`inertia_ros.io.outputs.check_output`).
     """
     out = Path(path)
     if out.is_dir():
         raise ValueError(f'{out}: is a directory; give a file name such as {out / "body.urdf"}')
-    if out.exists() and not force:
-        raise ValueError(f'{out}: exists; choose another name or remove it first')
-    if not out.parent.is_dir():
-        raise ValueError(f'{out}: directory {out.parent} does not exist')
     text = urdf_document(inertia, mass, com, link=link, robot=robot, comment=comment)
-    out.write_text(text)
+    try:
+        check_output('urdf', out, force=force)
+        write_output(out, text, force=force)
+    except OutputError as exc:
+        raise ValueError(f"{out}: {str(exc).removeprefix(f'urdf {out}: ')}") from None
+    except FileExistsError:
+        raise ValueError(f'{out}: exists; choose another name or remove it first') from None
     return out
