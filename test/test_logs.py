@@ -571,3 +571,17 @@ def test_vectorised_record_scan_equals_the_record_walk() -> None:
         record_offsets(np.zeros(1 << 20, np.uint8))
     with pytest.raises(McapError, match='runs past the end'):
         record_offsets(arr[:-3])
+
+
+def test_a_log_cut_in_its_header_does_not_claim_zero_messages_lost(tmp_path) -> None:
+    """A file cut before its first message says the loss is unknown, not "at least ~0"
+    (issue 29 item 11)."""
+    from inertia_ros.io.mcap_reader import McapReader
+    cut = tmp_path / 'cut.mcap'
+    cut.write_bytes((ROOT / 'bags' / 'default.mcap').read_bytes()[:30])
+    reader = McapReader(cut)
+    for _ in reader.iter_batches():
+        pass
+    notes = ' '.join(reader.damage.notes)
+    assert 'an unknown number of messages lost' in notes
+    assert '~0 messages' not in notes

@@ -373,8 +373,11 @@ class McapReader:
                     if self._bytes_per_message > 0 else 0)
             bound = 'at least '
         self.damage.messages_lost += msgs
-        self.damage.notes.append(f'{reason}: {lost} bytes unreadable, {bound}~{msgs} messages '
-                                 'lost')
+        if bound and msgs == 0:
+            count = 'an unknown number of messages'
+        else:
+            count = f'{bound}~{msgs} messages'
+        self.damage.notes.append(f'{reason}: {lost} bytes unreadable, {count} lost')
 
     # bulk batches ---------------------------------------------------------------------------
     def iter_batches(self, select: ChannelFilter | None = None) -> Iterator[MessageBatch]:
