@@ -2,24 +2,31 @@
 
 JointState has variable-length arrays, so it is decoded per message here rather than by the
 fixed-layout vectorised decoder of :mod:`.cdr_decode`.  Wheel speeds are ``velocity`` [rad/s]
-(the ROS convention for joint speeds), matched to the wheels by ``name``.
+(the ROS convention for joint speeds), matched to the wheels by ``name``.  :func:`joint_rows`
+turns messages into rows of the wanted joints' speeds, each with a status saying why a
+message cannot be used; :func:`inertia_ros.io.logs.read_log` cleans those rows as the third
+stream of a log (pauses, NaN, clock repair, gaps), as it does the gyro and torque.
 """
 from __future__ import annotations
 
 import struct
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterable, Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from .cdr_encode import split_stamp
-from .logs import LogError
+from .log_topics import JOINT_STATE
+from .log_types import LogError
 
-__all__ = ['JOINT_STATE', 'decode_joint_state', 'encode_joint_state', 'first_joint_names',
-           'joint_messages', 'joint_state_topics', 'read_wheel_speeds']
+__all__ = ['JOINT_STATE', 'decode_joint_state', 'encode_joint_message', 'encode_joint_state',
+           'first_joint_names', 'joint_messages', 'joint_rows', 'joint_state_topics',
+           'read_wheel_speeds']
 
-JOINT_STATE = 'sensor_msgs/msg/JointState'
+#: :func:`joint_rows` status: usable, undecodable, name/velocity lengths differ, a wanted
+#: joint absent (or no velocity at all), a wanted joint named twice with different speeds.
+ROW_OK, ROW_MALFORMED, ROW_MISMATCHED, ROW_INCOMPLETE, ROW_AMBIGUOUS = range(5)
 
 
 def _align(buf: bytearray, n: int) -> None:
@@ -63,23 +70,45 @@ def encode_joint_state(t_ns: Any, names: Sequence[str], velocity: Any, frame_id:
     -------
     list of bytes, length K
     """
-    sec, nsec = split_stamp(np.asarray(t_ns, dtype=np.int64).reshape(-1))
-    v = np.asarray(velocity, dtype=float).reshape(len(sec), len(names))
+    t = np.asarray(t_ns, dtype=np.int64).reshape(-1)
+    v = np.asarray(velocity, dtype=float).reshape(len(t), len(names))
     p = None if position is None else np.asarray(position, dtype=float).reshape(v.shape)
-    out = []
-    for k in range(len(sec)):
-        buf = bytearray(b'\x00\x01\x00\x00')
-        buf.extend(struct.pack('<iI', int(sec[k]), int(nsec[k])))
-        _put_string(buf, frame_id)
-        _align(buf, 4)
-        buf.extend(struct.pack('<I', len(names)))
-        for nm in names:
-            _put_string(buf, nm)
-        _put_doubles(buf, p[k] if p is not None else np.zeros(0))
-        _put_doubles(buf, v[k])
-        _put_doubles(buf, np.zeros(0))
-        out.append(bytes(buf))
-    return out
+    return [encode_joint_message(int(t[k]), names, v[k], frame_id,
+                                 position=() if p is None else p[k]) for k in range(len(t))]
+
+
+def encode_joint_message(t_ns: int, names: Sequence[str], velocity: Any, frame_id: str = '',
+                         *, position: Any = ()) -> bytes:
+    """Encode one ``sensor_msgs/msg/JointState`` message, arrays of any lengths (also
+    inconsistent ones, as a faulty driver sends them).
+
+    Parameters
+    ----------
+    t_ns : int
+        Header stamp [ns].
+    names : sequence of str, length n
+    velocity : array_like, shape (m,)
+        Joint speeds [rad/s]; ``m`` need not equal ``n``.
+    frame_id : str
+    position : array_like, shape (p,)
+        Joint angles [rad].
+
+    Returns
+    -------
+    bytes
+    """
+    sec, nsec = split_stamp(np.array([t_ns], dtype=np.int64))
+    buf = bytearray(b'\x00\x01\x00\x00')
+    buf.extend(struct.pack('<iI', int(sec[0]), int(nsec[0])))
+    _put_string(buf, frame_id)
+    _align(buf, 4)
+    buf.extend(struct.pack('<I', len(names)))
+    for nm in names:
+        _put_string(buf, nm)
+    _put_doubles(buf, np.asarray(position, dtype=float).reshape(-1))
+    _put_doubles(buf, np.asarray(velocity, dtype=float).reshape(-1))
+    _put_doubles(buf, np.zeros(0))
+    return bytes(buf)
 
 
 def decode_joint_state(data: bytes) -> tuple[int, list[str], np.ndarray, np.ndarray]:
@@ -194,9 +223,86 @@ def first_joint_names(path: str | Path, topic: str) -> list[str] | None:
     return None
 
 
+def _match(names: list[str], velocity: np.ndarray, joints: Sequence[str]
+           ) -> tuple[int, np.ndarray | None]:
+    """The wanted joints' speeds in one message, or why there are none.
+
+    Returns
+    -------
+    (status, speeds)
+        A ``ROW_*`` status and, for ``ROW_OK``, the speeds (len(joints),) [rad/s] in the
+        order of ``joints`` (possibly non-finite: the cleaning counts those).
+    """
+    if len(velocity) == 0:
+        return ROW_INCOMPLETE, None
+    if len(velocity) != len(names):
+        return ROW_MISMATCHED, None
+    where: dict[str, list[int]] = {}
+    for i, nm in enumerate(names):
+        where.setdefault(nm, []).append(i)
+    out = np.empty(len(joints))
+    for c, j in enumerate(joints):
+        at = where.get(j)
+        if at is None:
+            return ROW_INCOMPLETE, None
+        v = velocity[at]
+        if v.size > 1 and not (np.all(v == v[0]) or np.all(np.isnan(v))):
+            return ROW_AMBIGUOUS, None
+        out[c] = v[0]
+    return ROW_OK, out
+
+
+def joint_rows(payloads: Iterable[bytes], joints: Sequence[str]
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, set[str]]:
+    """Decode JointState payloads into rows of the wanted joints' speeds.
+
+    Parameters
+    ----------
+    payloads : iterable of bytes
+        CDR payloads, n of them.
+    joints : sequence of str
+        The joints wanted, k of them (the wheels or rotors file's ``joint`` entries).
+
+    Returns
+    -------
+    stamp_ns : numpy.ndarray
+        int64 (n,) header stamps [ns] (0 where undecodable).
+    speed : numpy.ndarray
+        float64 (n, k) [rad/s], NaN in rows that are not ``ROW_OK``.
+    status : numpy.ndarray
+        int8 (n,) ``ROW_*`` status of each message.
+    names : set of str
+        Every joint name seen.
+    """
+    stamps: list[int] = []
+    rows: list[np.ndarray | None] = []
+    status: list[int] = []
+    seen: set[str] = set()
+    for data in payloads:
+        try:
+            st, names, _pos, vel = decode_joint_state(data)
+        except ValueError:
+            stamps.append(0)
+            rows.append(None)
+            status.append(ROW_MALFORMED)
+            continue
+        seen.update(names)
+        code, row = _match(names, vel, joints)
+        stamps.append(st)
+        rows.append(row)
+        status.append(code)
+    speed = np.full((len(rows), len(joints)), np.nan)
+    for r, row in enumerate(rows):
+        if row is not None:
+            speed[r] = row
+    return (np.array(stamps, dtype=np.int64), speed, np.array(status, dtype=np.int8), seen)
+
+
 def read_wheel_speeds(path: str | Path, joints: Sequence[str], topic: str | None = None,
                       what: str = 'wheels') -> tuple[str, np.ndarray, np.ndarray]:
-    """Wheel speeds of the named joints from the JointState messages of a log.
+    """Wheel speeds of the named joints from the JointState messages of a log, uncleaned
+    (for tools that show or replay the stream; the estimate reads them with
+    :func:`inertia_ros.io.logs.read_log`, which cleans them like the other streams).
 
     Parameters
     ----------
@@ -236,12 +342,10 @@ def read_wheel_speeds(path: str | Path, joints: Sequence[str], topic: str | None
     seen: set[str] = set()
     for st, names, vel in joint_messages(path, topic):
         seen.update(names)
-        if len(vel) != len(names):
-            continue
-        idx = {n: i for i, n in enumerate(names)}
-        if all(j in idx for j in joints):
+        code, row = _match(names, vel, joints)
+        if row is not None:
             stamps.append(st)
-            rows.append(np.array([vel[idx[j]] for j in joints]))
+            rows.append(row)
     missing = [j for j in joints if j not in seen]
     if missing:
         raise LogError(f'{topic}: joint(s) {missing} never appear in JointState.name '
