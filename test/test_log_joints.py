@@ -248,3 +248,67 @@ def test_unusable_joint_streams_refused_with_one_line(sim: SimResult, tmp_path: 
     err = capsys.readouterr().err
     assert code == 2 and 'Traceback' not in err and len(err.strip().splitlines()) == 1
     assert 'fewer than 2 JointState messages' in err
+
+
+# --------------------------------------------------------------------------- clocks
+def stamped_log(path: Path, r: SimResult, stamp_g: np.ndarray, stamp_w: np.ndarray) -> Path:
+    """Gyro and JointState of ``r`` with the header stamps ``stamp_g``, ``stamp_w`` [ns]; the
+    log times are the true times (the order the recorder received them)."""
+    tg = seconds_to_ns(r.t_gyro, START)
+    tw = seconds_to_ns(r.t_wheel, START)
+    with McapWriter(path) as w:
+        w.add_topic('/imu', cdr_encode.IMU)
+        w.add_topic('/joint_states', JOINT_STATE)
+        w.write_many('/imu', tg, cdr_encode.encode_imu(stamp_g, r.omega, 'base_link'))
+        w.write_many('/joint_states', tw, [encode_joint_message(int(t), JOINTS, v)
+                                           for t, v in zip(stamp_w, r.wheel_speed,
+                                                           strict=True)])
+    return path
+
+
+def late_offsets(log, r: SimResult, n_g: int = 600, n_w: int = 300
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """Per stream, the log's time minus the true time [s] of the last ``n`` samples (the
+    last 6 s: after the step, where every sample is kept)."""
+    return (log.omega.t[-n_g:] - r.t_gyro[-n_g:], log.joints.t[-n_w:] - r.t_wheel[-n_w:])
+
+
+def test_restart_in_every_stream_keeps_the_joints_aligned(sim: SimResult,
+                                                          tmp_path: Path) -> None:
+    """A recording whose clock restarts at 8 s (gyro and JointState stamps step back 8 s
+    together): one clock jump, two windows, and after it both streams moved by the same
+    amount (offsets equal to 1 us), so the speeds stay on their gyro samples."""
+    step = 8_000_000_000
+    sg = seconds_to_ns(sim.t_gyro, START)
+    sw = seconds_to_ns(sim.t_wheel, START)
+    sg = np.where(sim.t_gyro > 8.0, sg - step, sg)
+    sw = np.where(sim.t_wheel > 8.0, sw - step, sw)
+    log = read_log(stamped_log(tmp_path / 'restart.mcap', sim, sg, sw), torque_topic='none',
+                   joints=JOINTS)
+    assert log.clock_jumps == 1 and len(log.windows) == 2 and log.clock_faults == 0
+    assert log.omega.counts.dropped <= 1 and log.joints.counts.dropped == 0
+    og, ow = late_offsets(log, sim)
+    assert np.ptp(og) < 1e-6 and np.ptp(ow) < 1e-6
+    assert abs(og[0] - ow[0]) < 1e-6
+    assert log.windows[1][0] - log.windows[0][1] >= 1.0 - 1e-9   # placed 1 s after
+
+
+def test_joint_clock_fault_is_repaired(sim: SimResult, tmp_path: Path,
+                                       capsys: pytest.CaptureFixture) -> None:
+    """The JointState clock alone set back 3 s at 8 s while the gyro runs on: a clock fault
+    of that stream (counted, warned), its later stamps realigned by continuity (offsets
+    equal to the gyro's within one JointState interval, 20 ms) and the log segmented there;
+    the estimate on the command line is ok."""
+    sg = seconds_to_ns(sim.t_gyro, START)
+    sw = seconds_to_ns(sim.t_wheel, START)
+    sw = np.where(sim.t_wheel > 8.0, sw - 3_000_000_000, sw)
+    path = stamped_log(tmp_path / 'fault.mcap', sim, sg, sw)
+    log = read_log(path, torque_topic='none', joints=JOINTS)
+    assert log.joints.counts.clock_faults == 1 and log.clock_faults == 1
+    assert log.omega.counts.clock_faults == 0
+    assert any(w.startswith('/joint_states: clock fault') for w in log.warnings)
+    assert len(log.windows) == 2 and log.joints.counts.dropped == 0
+    og, ow = late_offsets(log, sim)
+    assert abs(np.median(og) - np.median(ow)) < 0.02
+    code, rep, err = run_json(path, capsys)
+    assert code == 0 and rep['status'] == 'ok', err
