@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import struct
 from pathlib import Path
 
 import numpy as np
@@ -19,7 +20,14 @@ from inertia_ros.cli import main
 from inertia_ros.core.scene import Scene
 from inertia_ros.core.simulation import SimResult, simulate
 from inertia_ros.io import cdr_encode
-from inertia_ros.io.joint_state import JOINT_STATE, encode_joint_message
+from inertia_ros.io.joint_state import (
+    JOINT_STATE,
+    ROW_INCOMPLETE,
+    ROW_MALFORMED,
+    ROW_OK,
+    encode_joint_message,
+    joint_rows,
+)
 from inertia_ros.io.logs import LogError, read_log
 from inertia_ros.io.mcap_writer import McapWriter, seconds_to_ns, write_simulation
 
@@ -312,3 +320,71 @@ def test_joint_clock_fault_is_repaired(sim: SimResult, tmp_path: Path,
     assert abs(np.median(og) - np.median(ow)) < 0.02
     code, rep, err = run_json(path, capsys)
     assert code == 0 and rep['status'] == 'ok', err
+
+
+# --------------------------------------------------------------------------- decoding
+def big_endian_joint_state(t_ns: int, names: list[str], velocity: np.ndarray) -> bytes:
+    """A JointState payload in big-endian CDR (written here, independently of our encoder)."""
+    out = bytearray(b'\x00\x00\x00\x00')
+
+    def pad(n: int) -> None:
+        out.extend(b'\0' * ((-(len(out) - 4)) % n))
+
+    def u32(x: int) -> None:
+        pad(4)
+        out.extend(struct.pack('>I', x))
+
+    def string(txt: str) -> None:
+        u32(len(txt) + 1)
+        out.extend(txt.encode() + b'\0')
+
+    out.extend(struct.pack('>iI', t_ns // 10**9, t_ns % 10**9))
+    string('')
+    u32(len(names))
+    for nm in names:
+        string(nm)
+    u32(0)                                  # position
+    u32(len(velocity))
+    pad(8)
+    out.extend(struct.pack(f'>{len(velocity)}d', *velocity))
+    u32(0)                                  # effort
+    return bytes(out)
+
+
+def batch(msgs: list[bytes]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The payloads in one buffer (after 5 bytes of something else): (buf, starts, lengths)."""
+    lengths = np.array([len(m) for m in msgs])
+    starts = 5 + np.concatenate(([0], np.cumsum(lengths)[:-1]))
+    return np.frombuffer(b'\x07' * 5 + b''.join(msgs), np.uint8), starts, lengths
+
+
+def test_joint_rows_batch_read_equals_message_by_message() -> None:
+    """``joint_rows`` reads messages laid out as the first one by their byte offsets and any
+    other one alone; the rows are the written speeds bit for bit, with positions present, a
+    same-length message naming another joint (rw4 for rw3: incomplete), a reordered one, one
+    of another length and a truncated one (malformed), and for big-endian messages."""
+    rng = np.random.default_rng(4)
+    t0 = 1_700_000_000_000_000_000
+    v = rng.normal(0, 100, (40, 3))
+    msgs = [encode_joint_message(t0 + 10_000_000 * k, JOINTS, v[k], position=v[k] * 0.1)
+            for k in range(40)]
+    msgs[7] = encode_joint_message(t0 + 70_000_000, ['rw1', 'rw2', 'rw4'], v[7],
+                                   position=v[7])
+    msgs[9] = encode_joint_message(t0 + 90_000_000, ['rw3', 'rw1', 'rw2'], v[9, [2, 0, 1]],
+                                   position=v[9])
+    msgs[11] = encode_joint_message(t0 + 110_000_000, JOINTS, v[11])   # other length
+    msgs[13] = msgs[13][:30]
+    stamp, speed, status, names = joint_rows(*batch(msgs), JOINTS)
+    want = np.zeros(40, np.int8)
+    want[7], want[13] = ROW_INCOMPLETE, ROW_MALFORMED
+    np.testing.assert_array_equal(status, want)
+    ok = want == ROW_OK
+    np.testing.assert_array_equal(speed[ok], v[ok])
+    assert np.isnan(speed[~ok]).all()
+    np.testing.assert_array_equal(stamp[ok], t0 + 10_000_000 * np.flatnonzero(ok))
+    assert names == {'rw1', 'rw2', 'rw3', 'rw4'}
+    big = [big_endian_joint_state(t0 + 10_000_000 * k, JOINTS, v[k]) for k in range(40)]
+    stamp, speed, status, _ = joint_rows(*batch(big), JOINTS)
+    assert not status.any()
+    np.testing.assert_array_equal(speed, v)
+    np.testing.assert_array_equal(stamp, t0 + 10_000_000 * np.arange(40))

@@ -10,7 +10,7 @@ stream of a log (pauses, NaN, clock repair, gaps), as it does the gyro and torqu
 from __future__ import annotations
 
 import struct
-from collections.abc import Iterable, Iterator, Sequence
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -20,7 +20,8 @@ from .cdr_encode import split_stamp
 from .log_topics import JOINT_STATE
 from .log_types import LogError
 
-__all__ = ['JOINT_STATE', 'decode_joint_state', 'encode_joint_message', 'encode_joint_state',
+__all__ = ['JOINT_STATE', 'ROW_AMBIGUOUS', 'ROW_INCOMPLETE', 'ROW_MALFORMED', 'ROW_MISMATCHED',
+           'ROW_OK', 'decode_joint_state', 'encode_joint_message', 'encode_joint_state',
            'first_joint_names', 'joint_messages', 'joint_rows', 'joint_state_topics',
            'read_wheel_speeds']
 
@@ -127,10 +128,17 @@ def decode_joint_state(data: bytes) -> tuple[int, list[str], np.ndarray, np.ndar
     ValueError
         Not plain CDR, or truncated.
     """
+    return _decode(data)[:4]
+
+
+def _decode(data: bytes) -> tuple[int, list[str], np.ndarray, np.ndarray, list[int]]:
+    """:func:`decode_joint_state`, and the layout: the byte offsets (count end, data start,
+    data end) of the position and then of the velocity array."""
     if len(data) < 12 or data[0] != 0 or data[1] not in (0, 1):
         raise ValueError('JointState payload: not plain CDR or too short')
     e = '<' if data[1] == 1 else '>'
     pos = 4
+    marks: list[int] = []
 
     def align(n: int) -> None:
         nonlocal pos
@@ -153,10 +161,13 @@ def decode_joint_state(data: bytes) -> tuple[int, list[str], np.ndarray, np.ndar
     def doubles() -> np.ndarray:
         nonlocal pos
         n = u32()
+        marks.append(pos)
         if n == 0:
+            marks.extend((pos, pos))
             return np.zeros(0)
         align(8)
         x = np.frombuffer(data, dtype=e + 'f8', count=n, offset=pos).astype(float)
+        marks.extend((pos, pos + 8 * n))
         pos += 8 * n
         return x
 
@@ -169,7 +180,7 @@ def decode_joint_state(data: bytes) -> tuple[int, list[str], np.ndarray, np.ndar
         velocity = doubles()
     except (struct.error, ValueError, UnicodeDecodeError) as exc:
         raise ValueError(f'JointState payload: truncated or malformed ({exc})') from None
-    return int(sec) * 1_000_000_000 + int(nsec), names, position, velocity
+    return int(sec) * 1_000_000_000 + int(nsec), names, position, velocity, marks
 
 
 def joint_state_topics(path: str | Path) -> list[str]:
@@ -252,14 +263,19 @@ def _match(names: list[str], velocity: np.ndarray, joints: Sequence[str]
     return ROW_OK, out
 
 
-def joint_rows(payloads: Iterable[bytes], joints: Sequence[str]
+def joint_rows(buf: Any, starts: np.ndarray, lengths: np.ndarray, joints: Sequence[str]
                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, set[str]]:
-    """Decode JointState payloads into rows of the wanted joints' speeds.
+    """Decode a batch of JointState payloads into rows of the wanted joints' speeds.
+
+    Messages laid out as the first one (the same names, frame and array lengths: the usual
+    stream) are read together by their byte offsets; any other message is decoded alone.
 
     Parameters
     ----------
-    payloads : iterable of bytes
-        CDR payloads, n of them.
+    buf : numpy.ndarray or bytes
+        uint8 (B,) buffer holding the payloads.
+    starts, lengths : numpy.ndarray
+        int (n,) byte offsets and lengths of the payloads in ``buf``.
     joints : sequence of str
         The joints wanted, k of them (the wheels or rotors file's ``joint`` entries).
 
@@ -274,28 +290,72 @@ def joint_rows(payloads: Iterable[bytes], joints: Sequence[str]
     names : set of str
         Every joint name seen.
     """
-    stamps: list[int] = []
-    rows: list[np.ndarray | None] = []
-    status: list[int] = []
+    b = buf if isinstance(buf, np.ndarray) else np.frombuffer(buf, np.uint8)
+    starts = np.asarray(starts, dtype=np.int64)
+    lengths = np.asarray(lengths, dtype=np.int64)
+    n = starts.size
+    stamp = np.zeros(n, np.int64)
+    speed = np.full((n, len(joints)), np.nan)
+    status = np.full(n, ROW_MALFORMED, np.int8)
     seen: set[str] = set()
-    for data in payloads:
+    todo = np.ones(n, bool)
+    if n:
+        todo &= ~_like_first(b, starts, lengths, joints, stamp, speed, status, seen)
+    for r in np.flatnonzero(todo).tolist():
         try:
-            st, names, _pos, vel = decode_joint_state(data)
+            st, names, _pos, vel = decode_joint_state(b[starts[r]:starts[r] + lengths[r]]
+                                                      .tobytes())
         except ValueError:
-            stamps.append(0)
-            rows.append(None)
-            status.append(ROW_MALFORMED)
             continue
         seen.update(names)
         code, row = _match(names, vel, joints)
-        stamps.append(st)
-        rows.append(row)
-        status.append(code)
-    speed = np.full((len(rows), len(joints)), np.nan)
-    for r, row in enumerate(rows):
+        stamp[r], status[r] = st, code
         if row is not None:
             speed[r] = row
-    return (np.array(stamps, dtype=np.int64), speed, np.array(status, dtype=np.int8), seen)
+    return stamp, speed, status, seen
+
+
+def _like_first(b: np.ndarray, starts: np.ndarray, lengths: np.ndarray, joints: Sequence[str],
+                stamp: np.ndarray, speed: np.ndarray, status: np.ndarray, seen: set[str]
+                ) -> np.ndarray:
+    """Fill the rows of the messages laid out byte for byte as the first one (every byte
+    equal but the stamp and the array values); return which they are, bool (n,)."""
+    none = np.zeros(starts.size, bool)
+    first = b[starts[0]:starts[0] + lengths[0]].tobytes()
+    try:
+        _st, names, _pos, vel, marks = _decode(first)
+    except ValueError:
+        return none
+    if any(names.count(j) > 1 for j in joints):
+        return none                   # duplicated joints: value by value, message by message
+    code, _row = _match(names, vel, joints)
+    p_cnt, p_lo, p_hi, v_cnt, v_lo, v_hi = marks
+    size = len(first)
+    fixed = np.r_[0:4, 12:p_cnt, p_hi:v_cnt, v_hi:min(v_hi + 4, size)]
+    cand = np.flatnonzero(lengths == size)
+    s0 = starts[cand]
+    tmpl = np.frombuffer(first, np.uint8)
+    same = np.ones(cand.size, bool)
+    for c in fixed.tolist():
+        same &= b[s0 + c] == tmpl[c]
+    rows, s0 = cand[same], s0[same]
+    e = '<' if first[1] == 1 else '>'
+
+    def field(lo: int, hi: int, dtype: str) -> np.ndarray:
+        raw = np.stack([b[s0 + c] for c in range(lo, hi)], axis=1) if hi > lo \
+            else np.zeros((s0.size, 0), np.uint8)
+        return np.ascontiguousarray(raw).view(e + dtype)
+
+    sec, nsec = field(4, 8, 'i4')[:, 0], field(8, 12, 'u4')[:, 0]
+    stamp[rows] = sec.astype(np.int64) * 1_000_000_000 + nsec.astype(np.int64)
+    status[rows] = code
+    if code == ROW_OK:
+        col = [names.index(j) for j in joints]
+        speed[rows] = field(v_lo, v_hi, 'f8')[:, col].astype(float)
+    seen.update(names)
+    out = none.copy()
+    out[rows] = True
+    return out
 
 
 def read_wheel_speeds(path: str | Path, joints: Sequence[str], topic: str | None = None,

@@ -419,10 +419,7 @@ def _add_batch(raw: RawTopic, typ: str, b: MessageBatch, ordinal: np.ndarray,
     """Decode one batch of ``typ`` messages into ``raw``."""
     if typ == JOINT_STATE:
         assert joints is not None
-        buf = b.buf
-        payloads = (buf[s:s + n].tobytes() for s, n in zip(b.starts.tolist(),
-                                                            b.lengths.tolist(), strict=True))
-        stamp, speed, status, names = joint_rows(payloads, joints)
+        stamp, speed, status, names = joint_rows(b.buf, b.starts, b.lengths, joints)
         raw.add_rows(stamp, speed, status, ordinal, b.sequence, names)
         return
     fname = field_for(typ, b.channel.topic)
