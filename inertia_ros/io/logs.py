@@ -5,10 +5,10 @@ its storage files), finds the angular-velocity and torque topics by message type
 them with the vectorised CDR path, and cleans what real recordings contain.  With ``joints``
 it also reads a ``sensor_msgs/msg/JointState`` stream (wheel or rotor speeds) as a third
 stream, cleaned by the same rules: a pause, a clock repair or a NaN treats it as it treats
-the gyro and the torque.  Plain MCAP is
-read by our own bounded reader (:mod:`inertia_ros.io.mcap_reader`); sqlite3 (``.db3``) and
-compressed bags go through ``rosbags`` (:mod:`inertia_ros.io.rosbags_source`) into the same
-batches; ``metadata.yaml`` is validated once (:mod:`inertia_ros.io.rosbag2`).
+the gyro and the torque.  Plain MCAP is read by our own bounded reader
+(:mod:`inertia_ros.io.mcap_reader`); sqlite3 (``.db3``) and compressed bags go through
+``rosbags`` (:mod:`inertia_ros.io.rosbags_source`) into the same batches; ``metadata.yaml``
+is validated once (:mod:`inertia_ros.io.rosbag2`).
 
 ======================  ===================================================================
 problem                 handling (each counted in :attr:`StreamCounts`)
@@ -17,14 +17,15 @@ malformed payload       dropped (``malformed``)
 NaN / Inf sample        dropped (``nonfinite``)
 unusable JointState     arrays of different lengths (``mismatched``), a wanted joint or the
                         velocity missing (``incomplete``), a joint named twice with
-                        different speeds (``ambiguous``): dropped
+                        different speeds (``ambiguous``): dropped (:class:`JointCounts`)
 wrong ``frame_id``      a few stray messages are dropped (``wrong_frame``); two frames in
-                        earnest, or different frames on the two streams, raise
-                        :class:`LogError` unless ``ignore_frames``
-clock restart           both streams' stamps step back together (a looped or restarted
+                        earnest, or different frames on the gyro and torque streams, raise
+                        :class:`LogError` unless ``ignore_frames`` (JointState's frame is
+                        not checked: it is not the body's)
+clock restart           every stream's stamps step back together (a looped or restarted
                         recording): the later part is placed one second after the earlier
                         and estimated as a separate segment (``clock_jumps``)
-clock fault             one stream's stamps step back while the other runs on, seen in
+clock fault             one stream's stamps step back while the others run on, seen in
                         file order or, for files stored in stamp order, in the messages'
                         sequence numbers: the stream is realigned by continuity and the log
                         segmented there (``clock_faults``); without either order, samples
