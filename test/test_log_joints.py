@@ -465,3 +465,16 @@ def test_joint_stream_of_a_sqlite3_bag_equals_its_mcap_twin(tmp_path: Path) -> N
     np.testing.assert_array_equal(a.joints.values, b.joints.values)
     assert a.joints.counts.as_dict() == b.joints.counts.as_dict()
     assert a.joints.counts.used == a.joints.counts.received > 1000
+
+
+def test_joint_stream_that_never_overlaps_is_one_line(sim: SimResult, tmp_path: Path) -> None:
+    """JointState stamped an hour later than the gyro (another clock): one line naming the
+    two streams, without the torque-delay hint of a log that has no torque stream."""
+    sg = seconds_to_ns(sim.t_gyro, START)
+    sw = seconds_to_ns(sim.t_wheel, START) + 3_600_000_000_000
+    path = stamped_log(tmp_path / 'apart.mcap', sim, sg, sw)
+    with pytest.raises(LogError) as info:
+        read_log(path, torque_topic='none', joints=JOINTS)
+    text = str(info.value)
+    assert 'the angular-velocity and JointState streams never overlap' in text
+    assert '--torque-delay' not in text and '\n' not in text

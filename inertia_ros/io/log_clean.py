@@ -304,8 +304,10 @@ def _no_window(streams: list[PreparedStream], min_window: int) -> LogError:
                         'collide or interleave (a clock that stepped back, in a file stored in '
                         'stamp order); record the receive time as log time, or the sequence '
                         'numbers, so that the runs can be told apart')
-    return LogError(f'the {_and(_kinds(streams))} streams never overlap in time (header '
-                    'stamps); check the clocks, or --torque-delay')
+    kinds = _kinds(streams)
+    hint = ', or --torque-delay' if 'torque' in kinds else ''
+    return LogError(f'the {_and(kinds)} streams never overlap in time (header stamps); check '
+                    f'the clocks{hint}')
 
 
 def _split_pieces(streams: list[PreparedStream], jump_ns: int, warnings: list[str]
