@@ -228,7 +228,8 @@ def test_cli_rotor_errors(tmp_path: Path, capsys: pytest.CaptureFixture) -> None
              (['--rotors', str(ROOT / 'config' / 'wheels' / 'wheels.yaml')],
               'non-empty list "rotors:"'),
              (['--rotors', str(ROTORS_FILE), '--wheels', str(ROTORS_FILE)], 'give one of them'),
-             (['--rotors', str(ROTORS_FILE), '--rotor-topic', '/nope'], 'never appear')]
+             (['--rotors', str(ROTORS_FILE), '--rotor-topic', '/nope'],
+                  '/nope (--rotor-topic) is not in the log')]
     for extra, pat in cases:
         code = main(['estimate', str(BAG), *extra, '--no-progress'])
         err = capsys.readouterr().err

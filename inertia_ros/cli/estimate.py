@@ -229,14 +229,18 @@ def _read(args: argparse.Namespace, progress: _Progress) -> Any:
     """Read the log; every failure is a :class:`UserError` naming the file."""
     from inertia_ros.io.logs import LogError, read_log
 
+    act = _actuators(args)
     try:
         torque_topic = args.torque_topic
         actuated = args.wheels is not None or args.rotors is not None
         if actuated and torque_topic is None and not _has_torque_topic(args.path):
             torque_topic = 'none'       # wheels or rotors only: no other known torque
+        kind = 'wheels' if args.wheels is not None else 'rotors'
         log = read_log(args.path, args.omega_topic, torque_topic,
                        ignore_frames=args.ignore_frames, torque_delay=args.torque_delay,
-                       progress=progress)
+                       progress=progress, joints=None if act is None else act.joints,
+                       joint_topic=args.wheel_topic if kind == 'wheels' else args.rotor_topic,
+                       joint_what=kind)
         js = sorted(t for t, ty in log.topics.items() if ty == 'sensor_msgs/msg/JointState')
         if args.wheels is None and args.rotors is None and js:
             log.warnings.append(f'{", ".join(js)}: JointState in the log; if it carries '
@@ -258,6 +262,18 @@ def _read(args: argparse.Namespace, progress: _Progress) -> Any:
                         f'{_first_line(exc)})') from None
     finally:
         progress.close()
+
+
+def _actuators(args: argparse.Namespace) -> Any:
+    """The wheels or rotors file of ``--wheels`` / ``--rotors`` (None without), kept in
+    ``args.actuators``; an invalid file is a :class:`UserError`."""
+    from inertia_ros.io.rotors import load_actuators
+
+    try:
+        args.actuators = load_actuators(args.wheels, args.rotors)
+    except ValueError as exc:
+        raise UserError(_first_line(exc)) from None
+    return args.actuators
 
 
 def _first_line(exc: BaseException) -> str:
@@ -311,23 +327,16 @@ def _estimate_wheels(args: argparse.Namespace, log: Any) -> Any:
     the JointState topic enter the momentum form
     (:func:`inertia_ros.core.estimation.momentum.estimate_with_momentum`)."""
     from inertia_ros.core.estimation.momentum import estimate_with_momentum
-    from inertia_ros.io.joint_state import read_wheel_speeds
-    from inertia_ros.io.logs import LogError
-    from inertia_ros.io.rotors import load_actuators
 
     kind = 'wheels' if args.wheels is not None else 'rotors'
+    act, js = args.actuators, log.joints      # the JointState stream, cleaned by read_log
     try:
-        act = load_actuators(args.wheels, args.rotors)
-        assert act is not None
-        topic, t_ns, speed = read_wheel_speeds(
-            args.path, act.joints, args.wheel_topic if kind == 'wheels' else args.rotor_topic,
-            what=kind)
-        mom = act.record((t_ns - log.epoch_ns) * 1e-9, speed)
-    except (LogError, ValueError) as exc:
+        mom = act.record(js.t, js.values)
+    except ValueError as exc:
         raise UserError(_first_line(exc)) from None
     log.warnings[:] = [w for w in log.warnings if 'torque-free data' not in w]
-    args.wheel_info = {'file': str(act.file), 'topic': topic, 'samples': int(len(t_ns)),
-                       'joints': act.joints, 'kind': kind}
+    args.wheel_info = {'file': str(act.file), 'topic': js.topic, 'samples': int(js.t.size),
+                       'dropped': int(js.counts.dropped), 'joints': act.joints, 'kind': kind}
     args.momentum = mom                                    # for --plot
     try:
         return estimate_with_momentum(log.omega.t, log.omega.values, log.torque.t,
