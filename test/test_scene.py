@@ -197,7 +197,7 @@ def test_load_scene_prefixes_file_name(tmp_path):
 
 
 @pytest.mark.parametrize(('text', 'pattern'), [
-    ('body: [1, 2\n', r'line \d+: invalid YAML'),
+    ('body: [1, 2\n', r'line \d+: not valid YAML'),
     ('- 1\n- 2\n', 'must be a mapping of keys, got list'),
     ('', 'must be a mapping of keys, got NoneType'),
 ])
