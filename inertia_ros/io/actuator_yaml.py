@@ -12,7 +12,7 @@ import math
 from collections.abc import Sequence
 from typing import Any
 
-from .yaml_input import show
+from ..core._validate import show
 
 __all__ = ['MAX_ACTUATORS', 'MAX_JOINT_CHARS', 'MAX_MAGNITUDE', 'check_entry', 'check_top',
            'joint_name', 'number', 'std_of', 'vector3']

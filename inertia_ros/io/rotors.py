@@ -28,10 +28,11 @@ from typing import Any
 
 import numpy as np
 
+from ..core._validate import show
 from ..core.estimation.momentum import Momentum, Wheel, wheel_inputs, wheels_momentum
 from ..core.estimation.rotors import Rotor, RotorSet, rotors_momentum
 from .actuator_yaml import check_entry, check_top, joint_name, number, std_of, vector3
-from .yaml_input import read_yaml, show
+from .yaml_input import read_yaml
 
 __all__ = ['ActuatorInput', 'load_actuators', 'load_rotors', 'rotors_from_dict']
 

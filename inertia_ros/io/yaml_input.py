@@ -31,6 +31,8 @@ import yaml
 from yaml.constructor import ConstructorError
 from yaml.nodes import MappingNode, Node, ScalarNode, SequenceNode
 
+from inertia_ros.core._validate import show
+
 __all__ = ['MAX_DEPTH', 'MAX_INT_DIGITS', 'MAX_NODES', 'MAX_YAML_BYTES', 'YamlInputError',
            'read_yaml', 'show']
 
@@ -49,28 +51,6 @@ _FLOAT_12 = re.compile(r'^[-+]?(?:[0-9][0-9_]*)(?:\.[0-9_]*)?[eE][-+]?[0-9]+$')
 
 class YamlInputError(ValueError):
     """A user YAML file that cannot be read: one line naming the file."""
-
-
-def show(value: Any, limit: int = 60) -> str:
-    """``repr(value)`` cut to ``limit`` characters (for one-line messages about user values).
-
-    Containers are summarised by type and length before ``repr`` is tried, so a value holding
-    an alias bomb is never expanded into text.
-    """
-    if isinstance(value, (list, tuple, dict)) and len(value) > 8:
-        return f'a {type(value).__name__} of {len(value)} items'
-    text = repr(value) if not isinstance(value, (list, tuple, dict)) else _short(value, limit)
-    return text if len(text) <= limit else text[:limit - 3] + '...'
-
-
-def _short(value: Any, limit: int) -> str:
-    """A repr of a small container whose items are themselves shown shortly."""
-    if isinstance(value, dict):
-        items = ', '.join(f'{show(k, 20)}: {show(v, 20)}' for k, v in value.items())
-        text = '{' + items + '}'
-    else:
-        text = '[' + ', '.join(show(v, 20) for v in value) + ']'
-    return text if len(text) <= limit else text[:limit - 3] + '...'
 
 
 class _Loader(yaml.SafeLoader):
