@@ -15,9 +15,9 @@ import numpy as np
 
 from inertia_ros.core._validate import show
 
-__all__ = ['MAX_ACTUATORS', 'MAX_ACTUATOR_WORK', 'MAX_DROP_RATE', 'MAX_DURATION', 'MAX_EVENTS',
-           'MAX_MAGNITUDE', 'MAX_NAME_CHARS', 'MAX_SUBSTEPS', 'MAX_TORQUE_DELAY', 'SceneError',
-           'too_many_substeps']
+__all__ = ['MAX_ACTUATORS', 'MAX_ACTUATOR_SPEED', 'MAX_ACTUATOR_WORK', 'MAX_DROP_RATE',
+           'MAX_DURATION', 'MAX_EVENTS', 'MAX_MAGNITUDE', 'MAX_NAME_CHARS', 'MAX_SUBSTEPS',
+           'MAX_TORQUE_DELAY', 'SceneError', 'too_many_substeps']
 
 
 class SceneError(ValueError):
@@ -32,6 +32,8 @@ MAX_SUBSTEPS = 1e6
 #: Most RK4 substeps times wheels (or rotors) with actuators: their numpy right-hand side
 #: costs 0.1-0.4 ms per substep and joint (the shipped wheels and quadrotor scenes: 25k).
 MAX_ACTUATOR_WORK = 5e4
+#: Fastest wheel or rotor [rad/s] (about 1 million rpm; real ones stay below 1e4).
+MAX_ACTUATOR_SPEED = 1e5
 #: Largest magnitude of any number in a scene (SI units).
 MAX_MAGNITUDE = 1e12
 #: Longest run [s] (11.6 days; stamps stay within the 32-bit seconds of a ROS time).

@@ -39,6 +39,7 @@ from typing import Any
 import numpy as np
 
 from inertia_ros.core._scene_fields import (  # noqa: F401  (re-exported for the parsers)
+    MAX_ACTUATOR_SPEED,
     MAX_ACTUATOR_WORK,
     MAX_ACTUATORS,
     MAX_DROP_RATE,
@@ -660,9 +661,19 @@ def _actuators(d: Mapping[str, Any], duration: float, n_events: float) -> Any:
         return None
     if given[0] == 'wheels':
         from inertia_ros.core.wheel_sim import parse_wheels
-        return parse_wheels(d['wheels'])
-    from inertia_ros.core.rotor_sim import parse_rotors  # JointState actuators like wheels
-    return parse_rotors(d['rotors'], duration)
+        act = parse_wheels(d['wheels'])
+        top = max(abs(w.offset) + abs(w.amplitude) for w in act.wheels)
+    else:
+        from inertia_ros.core.rotor_sim import parse_rotors  # JointState actuators as wheels
+        act = parse_rotors(d['rotors'], duration)
+        P = act._allocation
+        u = act.hover_thrust * P[:, 0] + np.abs(P[:, 1:]) @ (1.5 * act.amplitude)
+        top = math.sqrt(max(float(np.max(u)), 0.0))
+    if top > MAX_ACTUATOR_SPEED:
+        key = 'speed' if given[0] == 'wheels' else 'hover_thrust'
+        raise SceneError(f'{given[0]}: {key} makes {given[0]} spin at up to {top:.3g} rad/s, '
+                         f'more than the simulator allows ({MAX_ACTUATOR_SPEED:g} rad/s)')
+    return act
 
 
 def _check_work(scene: Scene) -> None:

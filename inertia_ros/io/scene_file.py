@@ -33,7 +33,7 @@ def load_scene_dict(path: str | os.PathLike[str]) -> dict:
     Raises
     ------
     SceneError
-        If the file cannot be read (not a regular file, over 1 MiB, not UTF-8), is not
+        If the file cannot be read (not a regular file, over 64 KiB, not UTF-8), is not
         valid YAML (an alias bomb, nesting too deep, a duplicated key) or is not a mapping.
     """
     p = Path(path)

@@ -36,8 +36,9 @@ from inertia_ros.core._validate import show
 __all__ = ['MAX_DEPTH', 'MAX_INT_DIGITS', 'MAX_NODES', 'MAX_YAML_BYTES', 'YamlInputError',
            'read_yaml', 'show']
 
-#: Largest YAML file read [bytes]; description files are a few kB.
-MAX_YAML_BYTES = 1 << 20
+#: Largest YAML file read [bytes]: description files are a few kB, and the pure-Python
+#: parser (the only one whose nesting is bounded) takes ~3 s for 64 KiB of small tokens.
+MAX_YAML_BYTES = 1 << 16
 #: Deepest nesting of collections, aliases expanded.
 MAX_DEPTH = 64
 #: Most nodes of the document, aliases expanded (each use of an anchor counts it again).
