@@ -704,7 +704,8 @@ def _check_work(scene: Scene) -> None:
     limit = MAX_ACTUATOR_WORK / joints if joints else MAX_SUBSTEPS
     if steps > limit:
         what = f' with {joints} wheels or rotors' if joints else ''
-        raise SceneError(f'duration: {T:g} s{what} at these rates and an initial rate of '
+        key = 'initial_omega' if turn / MAX_STEP_ANGLE > events else 'duration'
+        raise SceneError(f'{key}: {T:g} s{what} at these rates and an initial rate of '
                          f'{w0:.3g} rad/s needs about {steps:.3g} integration steps, more than '
                          f'the simulator allows ({limit:.3g}); shorten the run, lower the rates '
                          'or initial_omega')
