@@ -176,7 +176,7 @@ def integrate_rigid_body(t_events: np.ndarray, torque: np.ndarray, inertia: np.n
     changes = np.flatnonzero(np.any(inertia[1:] != inertia[:-1], axis=(1, 2))) + 1
     edges = [0, *changes.tolist(), k - 1]
     sqrt, ceil = math.sqrt, math.ceil
-    budget = MAX_SUBSTEPS
+    budget = MAX_SUBSTEPS + k      # one substep per segment, plus what the rotation needs
     # Classical RK4, written out in plain floats: this is the simulator's inner loop, and
     # function calls or small numpy operations would dominate its cost.  State: omega
     # (wx, wy, wz) and the attitude quaternion (qw, qx, qy, qz).

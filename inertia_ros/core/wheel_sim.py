@@ -164,7 +164,9 @@ def integrate_with_wheels(t_events: np.ndarray, torque: np.ndarray, inertia: np.
     from .scene import MAX_ACTUATOR_WORK, too_many_substeps
 
     n_joints = max(1, len(wheels.wheels))
-    budget = MAX_ACTUATOR_WORK         # substeps x joints: the cost of the right-hand side
+    # substeps x joints (the cost of the right-hand side): one substep per segment (their
+    # number is the scene's sample budget), plus what the rotation needs
+    budget = MAX_ACTUATOR_WORK + k * n_joints
     y = np.concatenate([np.asarray(omega0, dtype=float).reshape(3), [1.0, 0.0, 0.0, 0.0]])
     rows = [y.copy()]
     for j in range(k - 1):
