@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import atexit
 import hashlib
-import json
 import os
 import shutil
 import subprocess
@@ -150,4 +149,3 @@ def test_corpus_covers_the_issue() -> None:
                    'inertia_true', 'axis_1e200', 'inertia_std_1e300', 'position_1e-1',
                    '10000_missing_joints', 'unknown_top_key', '1e-400', '130kB'):
         assert any(needle in n for n in names), needle
-    json.dumps(names)
