@@ -139,7 +139,7 @@ BAD = [
     (r'gyro\.frame_id: must not be empty', _with('gyro.frame_id', '')),
     (r'torque_sensor\.noise_rel: must be >= 0', _with('torque_sensor.noise_rel', -1)),
     ('command_rate: must be a positive number', _with('command_rate', 0.0)),
-    (r'imperfections\.drop_rate: must be < 1', _with('imperfections.drop_rate', 1.0)),
+    (r'imperfections\.drop_rate: must be at most 0.9', _with('imperfections.drop_rate', 1.0)),
     (r'imperfections\.timestamp_jitter: must be <= a quarter',
      _with('imperfections.timestamp_jitter', 0.01)),
     (r'torque\[0\]\.type: must be one of', _with('torque.0.type', 'sawtooth')),
@@ -197,7 +197,7 @@ def test_load_scene_prefixes_file_name(tmp_path):
 
 
 @pytest.mark.parametrize(('text', 'pattern'), [
-    ('body: [1, 2\n', r'line \d+: invalid YAML'),
+    ('body: [1, 2\n', r'line \d+: not valid YAML'),
     ('- 1\n- 2\n', 'must be a mapping of keys, got list'),
     ('', 'must be a mapping of keys, got NoneType'),
 ])

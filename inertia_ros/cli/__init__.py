@@ -14,8 +14,10 @@ from __future__ import annotations
 import argparse
 import importlib
 import math
+import os
 import sys
 from collections.abc import Callable
+from pathlib import Path
 
 from inertia_ros.runtime import keep_freed_memory
 
@@ -65,16 +67,68 @@ def bounded(low: float, high: float, unit: str, integer: bool = False
     rng = f'>= {low:g}{u}' if high == math.inf else f'within [{low:g}, {high:g}]{u}'
 
     def parse(text: str) -> float:
+        shown = _shown(text)
         try:
+            if len(text) > MAX_NUMBER_CHARS:
+                raise ValueError(text)
             value = int(text) if integer else float(text)
         except ValueError:
-            raise argparse.ArgumentTypeError(f'must be {kind} {rng}; got {text!r}') from None
+            raise argparse.ArgumentTypeError(f'must be {kind} {rng}; got {shown}') from None
         if not (math.isfinite(value) and low <= value <= high):
-            raise argparse.ArgumentTypeError(f'must be {rng}; got {text}')
+            raise argparse.ArgumentTypeError(f'must be {rng}; got '
+                                             f'{text if len(text) <= 40 else shown}')
+        mantissa = text.lower().split('e')[0]
+        if value == 0 and any(c in mantissa for c in '123456789'):
+            raise argparse.ArgumentTypeError(f'{shown} is too small for a float (it reads as '
+                                             f'0); give 0 or a number {rng}')
         return value
 
     parse.__name__ = kind
     return parse
+
+
+#: Longest number accepted on the command line [characters].
+MAX_NUMBER_CHARS = 64
+#: Longest path accepted on the command line [bytes] (Linux PATH_MAX), and path component.
+MAX_PATH_BYTES, MAX_NAME_BYTES = 4096, 255
+
+
+def _shown(text: str, limit: int = 40) -> str:
+    """``repr(text)`` cut to ``limit`` characters, for a one-line error."""
+    r = repr(text)
+    return r if len(r) <= limit else f'{r[:limit - 4]}...\' ({len(text)} characters)'
+
+
+def path_arg(text: str) -> Path:
+    """An argparse ``type=`` for a file or directory path: non-empty, no NUL byte, at most
+    :data:`MAX_PATH_BYTES` bytes and :data:`MAX_NAME_BYTES` per component (what the system
+    can open); refused at parse time with one line naming the value."""
+    raw = os.fsencode(text) if text else b''
+    if not text.strip():
+        raise argparse.ArgumentTypeError('must be a path, got an empty string')
+    if '\0' in text:
+        raise argparse.ArgumentTypeError(f'must not contain a NUL byte; got {_shown(text)}')
+    longest = max((len(c) for c in raw.split(b'/')), default=0)
+    if len(raw) > MAX_PATH_BYTES or longest > MAX_NAME_BYTES:
+        raise argparse.ArgumentTypeError(
+            f'a path of at most {MAX_PATH_BYTES} bytes ({MAX_NAME_BYTES} per name) is '
+            f'needed; got {len(raw)} bytes: {_shown(text)}')
+    return Path(text)
+
+
+def path_text_arg(text: str) -> str:
+    """:func:`path_arg`, returning the text itself (for options read as strings)."""
+    path_arg(text)
+    return text
+
+
+def name_arg(text: str) -> str:
+    """An argparse ``type=`` for a topic or link name: 1 to 256 printable characters without
+    spaces."""
+    if not text or len(text) > 256 or not text.isprintable() or any(c.isspace() for c in text):
+        raise argparse.ArgumentTypeError(f'must be a name of 1 to 256 printable characters '
+                                         f'without spaces; got {_shown(text)}')
+    return text
 
 
 def version() -> str:

@@ -24,7 +24,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from inertia_ros.cli import UserError, bounded
+from inertia_ros.cli import UserError, bounded, name_arg, path_arg, path_text_arg
 from inertia_ros.core.estimation.options import (
     BATCH_HOLDS,
     METHODS,
@@ -46,11 +46,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         'estimate', help='estimate the inertia tensor from a recorded MCAP log',
         description='Estimate the inertia tensor from a recorded log (a .mcap file or a '
                     'rosbag2 directory) of angular velocity and known torque.')
-    p.add_argument('path', metavar='PATH', help='.mcap file or rosbag2 directory (read only)')
-    p.add_argument('--omega-topic', metavar='T',
+    p.add_argument('path', metavar='PATH', type=path_text_arg,
+                   help='.mcap file or rosbag2 directory (read only)')
+    p.add_argument('--omega-topic', metavar='T', type=name_arg,
                    help='angular-velocity topic (Imu, Vector3Stamped or TwistStamped); found '
                         'by type when omitted')
-    p.add_argument('--torque-topic', metavar='T',
+    p.add_argument('--torque-topic', metavar='T', type=name_arg,
                    help='torque topic (WrenchStamped or Vector3Stamped); found by type when '
                         'omitted; "none" for torque-free data (no torque stream)')
     p.add_argument('--model', choices=MODELS, default='auto',
@@ -81,31 +82,31 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         f'off (default) or a comma list of {", ".join(NUISANCE_TERMS)}')
     p.add_argument('--ignore-frames', action='store_true',
                    help='accept different header.frame_id values on the two streams')
-    p.add_argument('--wheels', metavar='FILE', type=Path,
+    p.add_argument('--wheels', metavar='FILE', type=path_arg,
                    help='wheels/flywheels YAML (joint, axis, inertia[, inertia_std] per wheel): '
                         'their momentum from the JointState wheel speeds enters the momentum '
                         'form; a torque topic, if any, adds the other known torque')
-    p.add_argument('--wheel-topic', metavar='T',
+    p.add_argument('--wheel-topic', metavar='T', type=name_arg,
                    help='sensor_msgs/JointState topic of the wheel speeds (velocity, rad/s); '
                         'found by type when omitted')
-    p.add_argument('--rotors', metavar='FILE', type=Path,
+    p.add_argument('--rotors', metavar='FILE', type=path_arg,
                    help='multirotor rotors YAML (joint, position, spin, k_f, k_m[, '
                         'time_constant, inertia, *_std] per rotor; example '
                         'config/rotors/quadrotor.yaml): the rotor torques (and momentum) from '
                         'the JointState rotor speeds are the known torque; a torque topic, if '
                         'any, adds to it')
-    p.add_argument('--rotor-topic', metavar='T',
+    p.add_argument('--rotor-topic', metavar='T', type=name_arg,
                    help='sensor_msgs/JointState topic of the rotor speeds (velocity, rad/s); '
                         'found by type when omitted')
     p.add_argument('--format', choices=('text', 'json'), default='text',
                    help='report format (default text)')
-    p.add_argument('-o', '--output', metavar='FILE', type=Path,
+    p.add_argument('-o', '--output', metavar='FILE', type=path_arg,
                    help='write the report to FILE instead of stdout (an existing FILE only '
                         'with --force)')
-    p.add_argument('--plot', metavar='FILE.png', type=Path,
+    p.add_argument('--plot', metavar='FILE.png', type=path_arg,
                    help='also draw torque fit, convergence and principal axes to FILE.png '
                         '(.svg, .pdf: that format; an existing file only with --force)')
-    p.add_argument('--urdf', metavar='FILE', type=Path,
+    p.add_argument('--urdf', metavar='FILE', type=path_arg,
                    help='also write the tensor as a URDF <inertial> block (needs --mass); '
                         'not written (a note on stderr, exit 0) when the status gives no '
                         'complete tensor')

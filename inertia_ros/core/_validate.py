@@ -18,7 +18,7 @@ __all__ = ['MAX_SAMPLE_INTERVAL_S', 'MAX_TIME_S', 'require_after', 'as_float_arr
            'as_noise_std', 'as_rotation',
            'as_sample_block', 'as_samples', 'as_times', 'as_unit_axis', 'as_vector3',
            'as_vectors', 'check_symmetric', 'max_asymmetry', 'refuse_nanoseconds',
-           'require_finite', 'require_plausible']
+           'require_finite', 'require_plausible', 'show']
 
 
 def as_float_array(x: Any, name: str) -> np.ndarray:
@@ -300,3 +300,25 @@ def as_noise_std(x: Any, name: str, *, what: str = '') -> np.ndarray:
         raise ValueError(f'{name}: must be finite and >= 0{what} (at most '
                          f'{MAX_SAMPLE_MAGNITUDE:g}), got {x!r}')
     return arr
+
+
+def show(value: Any, limit: int = 60) -> str:
+    """``repr(value)`` cut to ``limit`` characters (for one-line messages about user values).
+
+    Containers are summarised by type and length before ``repr`` is tried, so a value holding
+    an alias bomb is never expanded into text.
+    """
+    if isinstance(value, (list, tuple, dict)) and len(value) > 8:
+        return f'a {type(value).__name__} of {len(value)} items'
+    text = repr(value) if not isinstance(value, (list, tuple, dict)) else _short(value, limit)
+    return text if len(text) <= limit else text[:limit - 3] + '...'
+
+
+def _short(value: Any, limit: int) -> str:
+    """A repr of a small container whose items are themselves shown shortly."""
+    if isinstance(value, dict):
+        items = ', '.join(f'{show(k, 20)}: {show(v, 20)}' for k, v in value.items())
+        text = '{' + items + '}'
+    else:
+        text = '[' + ', '.join(show(v, 20) for v in value) + ']'
+    return text if len(text) <= limit else text[:limit - 3] + '...'

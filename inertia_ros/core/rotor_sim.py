@@ -38,6 +38,7 @@ from .estimation.rotors import Rotor, RotorSet
 __all__ = ['RotorScene', 'RotorSpeed', 'parse_rotors']
 
 _HARMONIC = 2.7                  # frequency ratio of each axis' second sine
+_MAX_CHECK_POINTS = 200_001      # rotor speeds checked on at most this grid (else bounded)
 
 
 @dataclass(frozen=True, eq=False)
@@ -168,8 +169,12 @@ def parse_rotors(value: Any, duration: float, key: str = 'rotors') -> RotorScene
     if np.linalg.matrix_rank(np.vstack([[r.k_f for r in rotors], rset.torque_rows().T])) < 4:
         raise SceneError(f'{key}.list: the rotors cannot produce every torque axis and the '
                          'thrust (allocation matrix of rank < 4)')
-    t = np.linspace(0.0, duration, max(2, int(math.ceil(duration * 200)) + 1))
-    u_min = float(np.min(sc.squared_speeds(t)[0]))
+    n = int(math.ceil(duration * 200)) + 1
+    if n <= _MAX_CHECK_POINTS:
+        u_min = float(np.min(sc.squared_speeds(np.linspace(0.0, duration, max(2, n)))[0]))
+    else:        # a long run: the bound of each axis' two sines at their peaks (1.5 A)
+        P = sc._allocation
+        u_min = float(np.min(sc.hover_thrust * P[:, 0] - np.abs(P[:, 1:]) @ (1.5 * sc.amplitude)))
     if u_min <= 0:
         raise SceneError(f'{key}.excitation.amplitude: too large for hover_thrust (a rotor '
                          'speed would reach zero); lower it or raise hover_thrust')

@@ -38,6 +38,27 @@ from typing import Any
 
 import numpy as np
 
+from inertia_ros.core._scene_fields import (  # noqa: F401  (re-exported for the parsers)
+    MAX_ACTUATOR_SPEED,
+    MAX_ACTUATOR_WORK,
+    MAX_ACTUATORS,
+    MAX_DROP_RATE,
+    MAX_DURATION,
+    MAX_EVENTS,
+    MAX_MAGNITUDE,
+    MAX_NAME_CHARS,
+    MAX_SUBSTEPS,
+    MAX_TORQUE_DELAY,
+    SceneError,
+    _integer,
+    _mapping,
+    _number,
+    _string,
+    _vector,
+    _vector_or_scalar,
+    too_many_substeps,
+)
+from inertia_ros.core._validate import show
 from inertia_ros.core.tensor import MATRIX_INDEX
 
 __all__ = [
@@ -56,10 +77,6 @@ __all__ = [
 ]
 
 
-class SceneError(ValueError):
-    """A scene dict (or YAML file) that cannot be simulated; the message names the key."""
-
-
 AXIS_NAMES = ('x', 'y', 'z')
 
 #: Type-specific keys of each torque component type, with their defaults (None = required).
@@ -73,72 +90,6 @@ TORQUE_TYPES: Mapping[str, Mapping[str, Any]] = MappingProxyType({
     'constant': {},
 })
 _COMMON_TORQUE_KEYS = ('type', 'amplitude', 'axes', 'start', 'end')
-
-#: Largest number of samples (gyro + torque + command updates) a scene may ask for.
-MAX_EVENTS = 5e7
-
-# --------------------------------------------------------------------------------------------
-# small validators: each raises SceneError naming the key
-# --------------------------------------------------------------------------------------------
-
-def _number(value: Any, key: str, *, positive: bool = False, nonneg: bool = False) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise SceneError(f'{key}: must be a number, got {value!r}')
-    x = float(value)
-    if not math.isfinite(x):
-        raise SceneError(f'{key}: must be finite, got {value!r}')
-    if positive and x <= 0.0:
-        raise SceneError(f'{key}: must be a positive number, got {value!r}')
-    if nonneg and x < 0.0:
-        raise SceneError(f'{key}: must be >= 0, got {value!r}')
-    return x
-
-
-def _integer(value: Any, key: str, *, minimum: int = 0) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
-        raise SceneError(f'{key}: must be an integer, got {value!r}')
-    if int(value) < minimum:
-        raise SceneError(f'{key}: must be >= {minimum}, got {value!r}')
-    return int(value)
-
-
-def _vector(value: Any, key: str, n: int = 3, *, nonneg: bool = False) -> np.ndarray:
-    if isinstance(value, (str, bytes, Mapping)) or not isinstance(value, (Sequence, np.ndarray)):
-        raise SceneError(f'{key}: must be a list of {n} numbers, got {value!r}')
-    if len(value) != n:
-        raise SceneError(f'{key}: must be a list of {n} numbers, got {len(value)} items')
-    out = np.array([_number(v, f'{key}[{i}]', nonneg=nonneg) for i, v in enumerate(value)])
-    out.setflags(write=False)
-    return out
-
-
-def _vector_or_scalar(value: Any, key: str, *, nonneg: bool = False) -> np.ndarray:
-    if isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool):
-        x = _number(value, key, nonneg=nonneg)
-        out = np.full(3, x)
-        out.setflags(write=False)
-        return out
-    return _vector(value, key, nonneg=nonneg)
-
-
-def _string(value: Any, key: str, choices: Sequence[str] | None = None) -> str:
-    if not isinstance(value, str):
-        raise SceneError(f'{key}: must be a string, got {value!r}')
-    if choices is not None and value not in choices:
-        raise SceneError(f'{key}: must be one of {", ".join(choices)}; got {value!r}')
-    return value
-
-
-def _mapping(value: Any, key: str, known: Sequence[str]) -> Mapping[str, Any]:
-    if value is None:
-        return {}
-    if not isinstance(value, Mapping):
-        raise SceneError(f'{key}: must be a mapping, got {value!r}')
-    for k in value:
-        if k not in known:
-            raise SceneError(f'{key}.{k}: unknown key (known: {", ".join(known)})')
-    return value
-
 
 def matrix_from_inertia_value(value: Any, key: str) -> np.ndarray:
     """Return the (3, 3) tensor [kg m^2] for a scene ``inertia`` value, validated as physical.
@@ -227,7 +178,7 @@ def _part_body(part: Any, key: str) -> tuple[Any, float]:
     from inertia_ros.core.inertia import InertiaTensor
 
     if not isinstance(part, Mapping):
-        raise SceneError(f'{key}: must be a mapping with shape and mass, got {part!r}')
+        raise SceneError(f'{key}: must be a mapping with shape and mass, got {show(part)}')
     if 'shape' not in part:
         raise SceneError(f'{key}.shape: missing (one of {", ".join(PART_SHAPES)})')
     shape = _string(part['shape'], f'{key}.shape', tuple(PART_SHAPES))
@@ -262,7 +213,7 @@ def _part_body(part: Any, key: str) -> tuple[Any, float]:
     rot = rpy_matrix(_vector(part.get('rpy', [0.0, 0.0, 0.0]), f'{key}.rpy'))
     subtract = part.get('subtract', False)
     if not isinstance(subtract, bool):
-        raise SceneError(f'{key}.subtract: must be true or false, got {subtract!r}')
+        raise SceneError(f'{key}.subtract: must be true or false, got {show(subtract)}')
     if 'name' in part:
         _string(part['name'], f'{key}.name')
     return body.transformed(rot, pos), (-1.0 if subtract else 1.0)
@@ -357,7 +308,7 @@ class TorqueComponent:
     def from_dict(cls, d: Any, key: str, duration: float) -> TorqueComponent:
         """Validate one ``torque`` list entry; ``key`` names it in errors (``torque[0]``)."""
         if not isinstance(d, Mapping):
-            raise SceneError(f'{key}: must be a mapping with a type, got {d!r}')
+            raise SceneError(f'{key}: must be a mapping with a type, got {show(d)}')
         if 'type' not in d:
             raise SceneError(f'{key}.type: missing (one of {", ".join(TORQUE_TYPES)})')
         typ = _string(d['type'], f'{key}.type', tuple(TORQUE_TYPES))
@@ -372,7 +323,7 @@ class TorqueComponent:
         for i, a in enumerate(axes_raw):
             name = _string(a, f'{key}.axes[{i}]', AXIS_NAMES)
             if AXIS_NAMES.index(name) in axes:
-                raise SceneError(f'{key}.axes: axis {name!r} listed twice')
+                raise SceneError(f'{key}.axes: axis {show(name)} listed twice')
             axes.append(AXIS_NAMES.index(name))
         if 'amplitude' not in d:
             raise SceneError(f'{key}.amplitude: missing (peak torque, N m)')
@@ -615,13 +566,17 @@ class Scene:
     damping: np.ndarray = field(default_factory=lambda: np.zeros(3))
 
     @classmethod
-    def from_dict(cls, d: Mapping[str, Any]) -> Scene:
+    def from_dict(cls, d: Mapping[str, Any], *, max_events: float = MAX_EVENTS) -> Scene:
         """Build and validate a scene from a plain dict (the YAML schema).
 
         Parameters
         ----------
         d : Mapping
             Scene description; only ``body`` is required.  See ``docs/SCENES.md``.
+        max_events : float, optional
+            Sample budget (default :data:`MAX_EVENTS`, what a user's scene file may ask for);
+            the integration-work budgets scale with it.  Benchmarks of long runs, whose
+            scenes are the package's own, pass more.
 
         Returns
         -------
@@ -637,9 +592,11 @@ class Scene:
             raise SceneError(f'scene: must be a mapping of keys, got {type(d).__name__}')
         _mapping(d, 'scene', _TOP_KEYS)
         name = _string(d.get('name', 'scene'), 'name')
-        description = _string(d.get('description', ''), 'description')
+        description = _string(d.get('description', ''), 'description', max_chars=20_000)
         seed = _integer(d.get('seed', 0), 'seed', minimum=0)
         duration = _number(d.get('duration', 10.0), 'duration', positive=True)
+        if duration > MAX_DURATION:
+            raise SceneError(f'duration: at most {MAX_DURATION:g} s, got {duration:g}')
         if 'body' not in d:
             raise SceneError('body: missing (give body.inertia or body.parts)')
         inertia, parts, mass, com = _body_inertia(d['body'], 'body')
@@ -655,29 +612,18 @@ class Scene:
         command_rate = _number(d.get('command_rate', 50.0), 'command_rate', positive=True)
 
         gyro, torque_sensor, imperfections = _sensors(d)
-        n_events = duration * (gyro.rate + torque_sensor.rate + command_rate)
-        if n_events > MAX_EVENTS:
-            raise SceneError(f'duration: {duration:g} s at these rates makes about '
-                             f'{n_events:.3g} samples, more than the simulator allows '
-                             f'({MAX_EVENTS:.0e}); shorten the run or lower the rates')
         change = _inertia_change(d.get('inertia_change'), duration)
-        wheels = None
-        if d.get('wheels') is not None:
-            from inertia_ros.core.wheel_sim import parse_wheels
-            wheels = parse_wheels(d['wheels'])
-        if d.get('rotors') is not None:        # rotors are JointState actuators like wheels
-            if wheels is not None:
-                raise SceneError('rotors: a scene has wheels or rotors, not both')
-            from inertia_ros.core.rotor_sim import parse_rotors
-            wheels = parse_rotors(d['rotors'], duration)
-        return cls(wheels=wheels, damping=_damping(d, wheels), name=name, seed=seed,
-                   duration=duration, inertia=inertia,
-                   initial_omega=omega0, torque=torque, disturbance=disturbance,
-                   command_rate=command_rate, gyro=gyro, torque_sensor=torque_sensor,
-                   imperfections=imperfections, inertia_change=change, parts=parts,
-                   mass=mass, com=com,
-                   description=description, source=MappingProxyType(dict(d)))
-
+        wheels = _actuators(d, duration, max_events,
+                            duration * (gyro.rate + torque_sensor.rate + command_rate))
+        scene = cls(wheels=wheels, damping=_damping(d, wheels), name=name, seed=seed,
+                    duration=duration, inertia=inertia,
+                    initial_omega=omega0, torque=torque, disturbance=disturbance,
+                    command_rate=command_rate, gyro=gyro, torque_sensor=torque_sensor,
+                    imperfections=imperfections, inertia_change=change, parts=parts,
+                    mass=mass, com=com,
+                    description=description, source=MappingProxyType(dict(d)))
+        _check_work(scene, max_events / MAX_EVENTS)
+        return scene
     def to_dict(self) -> dict[str, Any]:
         """Return a copy of the dict the scene was built from (``Scene.from_dict`` round-trips)."""
         return copy.deepcopy(dict(self.source))
@@ -690,6 +636,105 @@ def _damping(d: Mapping[str, Any], actuators: Any) -> np.ndarray:
         raise SceneError('damping: not simulated together with wheels or rotors; give one '
                          'of them')
     return damping
+
+
+def _actuators(d: Mapping[str, Any], duration: float, max_events: float, n_events: float
+               ) -> Any:
+    """The ``wheels`` or ``rotors`` section, after checking the sample budget (the streams'
+    samples ``n_events`` plus the JointState values) before anything is allocated."""
+    given = [k for k in ('wheels', 'rotors') if d.get(k) is not None]
+    if len(given) == 2:
+        raise SceneError('rotors: a scene has wheels or rotors, not both')
+    rate, n_joints = 0.0, 0
+    if given:
+        key = given[0]
+        sec = d[key]
+        if isinstance(sec, Mapping):
+            rate = _number(sec.get('rate', 100.0 if key == 'wheels' else 200.0), f'{key}.rate',
+                           positive=True)
+            items = sec.get('list')
+            n_joints = len(items) if isinstance(items, list) else 0
+            if n_joints > MAX_ACTUATORS:
+                raise SceneError(f'{key}.list: {n_joints} {key}, more than the simulator '
+                                 f'allows ({MAX_ACTUATORS})')
+    total = n_events + duration * rate * max(n_joints, 1)
+    if total > max_events:
+        raise SceneError(f'duration: {duration:g} s at these rates makes about {total:.3g} '
+                         f'samples, more than the simulator allows ({max_events:.0e}); shorten '
+                         'the run or lower the rates')
+    if not given:
+        return None
+    if given[0] == 'wheels':
+        from inertia_ros.core.wheel_sim import parse_wheels
+        act = parse_wheels(d['wheels'])
+        top = max(abs(w.offset) + abs(w.amplitude) for w in act.wheels)
+    else:
+        from inertia_ros.core.rotor_sim import parse_rotors  # JointState actuators as wheels
+        act = parse_rotors(d['rotors'], duration)
+        P = act._allocation
+        u = act.hover_thrust * P[:, 0] + np.abs(P[:, 1:]) @ (1.5 * act.amplitude)
+        top = math.sqrt(max(float(np.max(u)), 0.0))
+    if top > MAX_ACTUATOR_SPEED:
+        key = 'speed' if given[0] == 'wheels' else 'hover_thrust'
+        raise SceneError(f'{given[0]}: {key} makes {given[0]} spin at up to {top:.3g} rad/s, '
+                         f'more than the simulator allows ({MAX_ACTUATOR_SPEED:g} rad/s)')
+    return act
+
+
+def _check_work(scene: Scene, scale: float = 1.0) -> None:
+    """Refuse a scene whose integration surely needs more substeps than the simulator allows
+    (:data:`MAX_SUBSTEPS`, or :data:`MAX_ACTUATOR_WORK` per joint with wheels or rotors,
+    times ``scale``).
+
+    Lower bound of the work: one substep per event (gyro sample, command update), and one per
+    ``MAX_STEP_ANGLE`` of rotation, where the rate can fall from its start ``|I w0| / I_max``
+    at most as fast as the largest torque allows (``||I^-1|| tau_max``).
+    """
+    from inertia_ros.core.simulation import MAX_STEP_ANGLE
+
+    _check_torque_sizes(scene, scale)
+    T = scene.duration
+    events = T * (scene.gyro.rate + scene.command_rate)
+    w0 = float(np.linalg.norm(scene.inertia @ scene.initial_omega)) \
+        / float(np.linalg.eigvalsh(scene.inertia)[-1])
+    tau = sum(float(np.linalg.norm(c.amplitude)) for c in scene.torque) \
+        + float(np.linalg.norm(scene.disturbance))
+    if scene.wheels is not None:
+        tau += float(scene.wheels.max_hdot())
+    slow = float(np.linalg.norm(np.linalg.inv(scene.inertia), 2)) * tau      # rad/s^2
+    if np.any(scene.damping > 0.0):
+        slow = math.inf                              # damping may stop it: no bound
+    turn = T * (w0 - 0.5 * slow * T) if slow * T <= w0 else w0 * w0 / (2.0 * slow)
+    steps = events + turn / MAX_STEP_ANGLE
+    joints = len(scene.wheels.wheels) if scene.wheels is not None else 0
+    limit = scale * (MAX_ACTUATOR_WORK / joints if joints else MAX_SUBSTEPS)
+    if steps > limit:
+        what = f' with {joints} wheels or rotors' if joints else ''
+        key = 'initial_omega' if turn / MAX_STEP_ANGLE > events else 'duration'
+        raise SceneError(f'{key}: {T:g} s{what} at these rates and an initial rate of '
+                         f'{w0:.3g} rad/s needs about {steps:.3g} integration steps, more than '
+                         f'the simulator allows ({limit:.3g}); shorten the run, lower the rates '
+                         'or initial_omega')
+
+
+def _check_torque_sizes(scene: Scene, scale: float) -> None:
+    """Refuse torque components whose evaluation would allocate beyond the sample budget:
+    a multisine's command samples x frequencies, the levels of steps and PRBS."""
+    n_cmd = scene.duration * scene.command_rate + 1.0
+    for i, c in enumerate(scene.torque):
+        span = min(c.end, scene.duration) - c.start
+        if c.type == 'multisine':
+            terms = n_cmd * c.params['n_freq'] * len(c.axes)
+            if terms > 20 * MAX_EVENTS * scale:
+                raise SceneError(f'torque[{i}].n_freq: {c.params["n_freq"]} frequencies on '
+                                 f'{n_cmd:.3g} command samples make {terms:.3g} terms, more '
+                                 f'than the simulator allows ({20 * MAX_EVENTS * scale:.0e})')
+        elif c.type in ('prbs', 'steps'):
+            k = 'bit_time' if c.type == 'prbs' else 'period'
+            if span / c.params[k] > MAX_EVENTS * scale:
+                raise SceneError(f'torque[{i}].{k}: {c.params[k]:g} s makes '
+                                 f'{span / c.params[k]:.3g} levels, more than the simulator '
+                                 f'allows ({MAX_EVENTS * scale:.0e})')
 
 
 def _sensors(d: Mapping[str, Any]) -> tuple[GyroSpec, TorqueSensorSpec, Imperfections]:
@@ -721,9 +766,12 @@ def _sensors(d: Mapping[str, Any]) -> tuple[GyroSpec, TorqueSensorSpec, Imperfec
                                  'imperfections.timestamp_jitter', nonneg=True),
         torque_delay=_number(im.get('torque_delay', 0.0), 'imperfections.torque_delay'),
         drop_rate=_number(im.get('drop_rate', 0.0), 'imperfections.drop_rate', nonneg=True))
-    if imperfections.drop_rate >= 1.0:
-        raise SceneError(f'imperfections.drop_rate: must be < 1, got '
-                         f'{imperfections.drop_rate}')
+    if imperfections.drop_rate > MAX_DROP_RATE:
+        raise SceneError(f'imperfections.drop_rate: must be at most {MAX_DROP_RATE:g} (beyond '
+                         f'it a stream may keep no sample), got {imperfections.drop_rate}')
+    if abs(imperfections.torque_delay) > MAX_TORQUE_DELAY:
+        raise SceneError(f'imperfections.torque_delay: must be within +-{MAX_TORQUE_DELAY:g} '
+                         f's, got {imperfections.torque_delay:g}')
     min_period = 1.0 / max(gyro.rate, torque_sensor.rate)
     if imperfections.timestamp_jitter > 0.25 * min_period:
         raise SceneError(f'imperfections.timestamp_jitter: must be <= a quarter of the '

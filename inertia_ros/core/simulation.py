@@ -37,7 +37,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from inertia_ros.core.scene import Scene
+from inertia_ros.core.scene import MAX_SUBSTEPS, Scene, too_many_substeps
 
 __all__ = ['MAX_STEP_ANGLE', 'SimResult', 'command_grid', 'integrate_rigid_body', 'simulate']
 
@@ -144,7 +144,9 @@ def integrate_rigid_body(t_events: np.ndarray, torque: np.ndarray, inertia: np.n
     Raises
     ------
     ValueError
-        If shapes disagree or the times are not strictly increasing.
+        If shapes disagree or the times are not strictly increasing; a
+        :class:`~inertia_ros.core.scene.SceneError` when the run would need more than
+        :data:`~inertia_ros.core.scene.MAX_SUBSTEPS` substeps (a body spinning too fast).
     """
     t_events = np.asarray(t_events, dtype=float)
     torque = np.asarray(torque, dtype=float)
@@ -174,6 +176,7 @@ def integrate_rigid_body(t_events: np.ndarray, torque: np.ndarray, inertia: np.n
     changes = np.flatnonzero(np.any(inertia[1:] != inertia[:-1], axis=(1, 2))) + 1
     edges = [0, *changes.tolist(), k - 1]
     sqrt, ceil = math.sqrt, math.ceil
+    budget = MAX_SUBSTEPS + k      # one substep per segment, plus what the rotation needs
     # Classical RK4, written out in plain floats: this is the simulator's inner loop, and
     # function calls or small numpy operations would dominate its cost.  State: omega
     # (wx, wy, wz) and the attitude quaternion (qw, qx, qy, qz).
@@ -190,7 +193,11 @@ def integrate_rigid_body(t_events: np.ndarray, torque: np.ndarray, inertia: np.n
             # rate bound over the segment: current spin plus what the torque can add
             wmax = sqrt(wx * wx + wy * wy + wz * wz) \
                 + ii_norm * sqrt(tx * tx + ty * ty + tz * tz) * dt
-            n = max(1, ceil(wmax * dt / max_step_angle))
+            steps = wmax * dt / max_step_angle
+            if not steps < budget:       # also inf / nan: refused before any work
+                raise too_many_substeps(t_events[j], wmax, MAX_SUBSTEPS)
+            n = max(1, ceil(steps))
+            budget -= n
             h = dt / n
             h2 = 0.5 * h
             h6 = h / 6.0

@@ -161,6 +161,12 @@ def integrate_with_wheels(t_events: np.ndarray, torque: np.ndarray, inertia: np.
                              qw * wy + qz * wx - qx * wz, qw * wz + qx * wy - qy * wx])
         return np.concatenate([Ii @ r, dq])
 
+    from .scene import MAX_ACTUATOR_WORK, too_many_substeps
+
+    n_joints = max(1, len(wheels.wheels))
+    # substeps x joints (the cost of the right-hand side): one substep per segment (their
+    # number is the scene's sample budget), plus what the rotation needs
+    budget = MAX_ACTUATOR_WORK + k * n_joints
     y = np.concatenate([np.asarray(omega0, dtype=float).reshape(3), [1.0, 0.0, 0.0, 0.0]])
     rows = [y.copy()]
     for j in range(k - 1):
@@ -170,7 +176,11 @@ def integrate_with_wheels(t_events: np.ndarray, torque: np.ndarray, inertia: np.
         t0, dt = t_events[j], t_events[j + 1] - t_events[j]
         wmax = float(np.linalg.norm(y[:3])) + float(np.linalg.norm(Ii, 2)) * (
             float(np.linalg.norm(tq)) + hdmax) * dt
-        n = max(1, math.ceil(wmax * dt / max_step_angle))
+        steps = wmax * dt / max_step_angle
+        if not steps * n_joints < budget:    # also inf / nan: refused before the work
+            raise too_many_substeps(t0, wmax, MAX_ACTUATOR_WORK / n_joints)
+        n = max(1, math.ceil(steps))
+        budget -= n * n_joints
         hs = dt / n
         for i in range(n):
             t = t0 + i * hs

@@ -28,24 +28,19 @@ from typing import Any
 
 import numpy as np
 
+from ..core._validate import show
 from ..core.estimation.momentum import Momentum, Wheel, wheel_inputs, wheels_momentum
 from ..core.estimation.rotors import Rotor, RotorSet, rotors_momentum
+from .actuator_yaml import check_entry, check_top, joint_name, number, std_of, vector3
+from .yaml_input import read_yaml
 
 __all__ = ['ActuatorInput', 'load_actuators', 'load_rotors', 'rotors_from_dict']
 
 _KEYS = ('joint', 'position', 'spin', 'k_f', 'k_m', 'time_constant', 'inertia', 'k_f_std',
          'k_m_std', 'inertia_std')
 _REQUIRED = ('joint', 'position', 'spin', 'k_f', 'k_m')
-
-
-def _vector3(value: Any, key: str) -> list[float]:
-    """Three finite numbers, or a one-line ValueError naming ``key``."""
-    ok = isinstance(value, (list, tuple)) and len(value) == 3 and all(
-        isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v)
-        for v in value)
-    if not ok:
-        raise ValueError(f'{key}: must be a list of 3 numbers, got {value!r}')
-    return [float(v) for v in value]
+#: Longest motor time constant [s].
+MAX_TIME_CONSTANT = 10.0
 
 
 def rotors_from_dict(d: Any, where: str = 'rotors') -> RotorSet:
@@ -54,58 +49,46 @@ def rotors_from_dict(d: Any, where: str = 'rotors') -> RotorSet:
     Raises
     ------
     ValueError
-        Missing or unknown keys, wrong shapes, bad values, duplicate joints: one line naming
-        the file and the entry.
+        Missing or unknown keys, wrong shapes, values that are not numbers or out of range,
+        duplicate joints: one line naming the file and the entry.
     """
-    if not isinstance(d, dict) or not isinstance(d.get('rotors'), list) or not d['rotors']:
-        raise ValueError(f'{where}: expected a mapping with a non-empty list "rotors:"')
-    unknown = sorted(set(d) - {'rotors', 'thrust_axis'})
-    if unknown:
-        raise ValueError(f'{where}: unknown top-level key(s) {unknown}; allowed: rotors, '
-                         'thrust_axis')
-    axis = _vector3(d['thrust_axis'], f'{where}: thrust_axis') if 'thrust_axis' in d \
-        else [0.0, 0.0, 1.0]
+    items = check_top(d, where, 'rotors', ('rotors', 'thrust_axis'))
+    axis = vector3(d['thrust_axis'], f'{where}: thrust_axis', nonzero=True) \
+        if 'thrust_axis' in d else [0.0, 0.0, 1.0]
     out: list[Rotor] = []
-    for i, it in enumerate(d['rotors']):
+    for i, it in enumerate(items):
         key = f'{where}: rotors[{i}]'
-        if not isinstance(it, dict):
-            raise ValueError(f'{key}: must be a mapping with {", ".join(_REQUIRED)}')
-        bad = sorted(set(it) - set(_KEYS))
-        if bad:
-            raise ValueError(f'{key}: unknown key(s) {bad}; allowed: {list(_KEYS)}')
-        for req in _REQUIRED:
-            if req not in it:
-                raise ValueError(f'{key}.{req}: missing')
-        pos = _vector3(it['position'], f'{key}.position')
-        opt = {k: it[k] for k in _KEYS[5:] if k in it}
+        check_entry(it, key, _KEYS, _REQUIRED)
+        spin = it['spin']
+        if isinstance(spin, bool) or spin not in (1, -1):
+            raise ValueError(f'{key}.spin: must be +1 or -1, got {show(spin)}')
+        val = {'k_f': number(it['k_f'], f'{key}.k_f', positive=True),
+               'k_m': number(it['k_m'], f'{key}.k_m', nonneg=True)}
+        val['time_constant'] = number(it.get('time_constant', 0.0), f'{key}.time_constant',
+                                      nonneg=True, high=MAX_TIME_CONSTANT)
+        val['inertia'] = number(it.get('inertia', 0.0), f'{key}.inertia', nonneg=True)
+        for k in ('k_f', 'k_m', 'inertia'):
+            val[f'{k}_std'] = std_of(it.get(f'{k}_std', 0.0), f'{key}.{k}_std', val[k])
+        joint = joint_name(it['joint'], f'{key}.joint')
+        pos = np.array(vector3(it['position'], f'{key}.position'))
         try:
-            out.append(Rotor(str(it['joint']), np.array(pos), it['spin'], it['k_f'],
-                             it['k_m'], **opt))
+            out.append(Rotor(joint, pos, int(spin), **val))
         except (TypeError, ValueError) as exc:
             raise ValueError(f'{key}: {exc}') from None
+    names = [r.joint for r in out]
+    if len(set(names)) != len(names):
+        dup = sorted({n for n in names if names.count(n) > 1})
+        raise ValueError(f'{where}: joint names must be unique, {dup[0]!r} is given twice')
     try:
         return RotorSet(tuple(out), np.array(axis))
     except ValueError as exc:
         raise ValueError(f'{where}: {exc}') from None
 
 
-def _read_yaml(path: str | Path, what: str) -> Any:
-    """Parse a YAML file; one-line ValueError naming it when unreadable or invalid."""
-    import yaml
-
-    p = Path(path)
-    try:
-        return yaml.safe_load(p.read_text())
-    except OSError as exc:
-        raise ValueError(f'{p}: cannot read the {what} file ({exc.strerror})') from None
-    except yaml.YAMLError as exc:
-        text = ' '.join(str(exc).split())
-        raise ValueError(f'{p}: not valid YAML ({text})') from None
-
-
 def load_rotors(path: str | Path) -> RotorSet:
-    """Read and validate a rotors YAML file (one-line ValueError naming the file)."""
-    return rotors_from_dict(_read_yaml(path, 'rotors'), str(path))
+    """Read and validate a rotors YAML file (bounded, strict: :mod:`.yaml_input`; one-line
+    ValueError naming the file)."""
+    return rotors_from_dict(read_yaml(path, 'rotors'), str(path))
 
 
 @dataclass

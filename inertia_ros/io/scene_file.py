@@ -1,6 +1,7 @@
 """Scene YAML files -> :class:`~inertia_ros.core.scene.Scene` (schema in ``docs/SCENES.md``).
 
-Parsing happens here, outside the pure core: ``yaml.safe_load`` then ``Scene.from_dict``.
+Parsing happens here, outside the pure core: the bounded, strict reader of
+:mod:`inertia_ros.io.yaml_input`, then ``Scene.from_dict``.
 Every problem is one :class:`~inertia_ros.core.scene.SceneError` line naming the file and,
 where it applies, the key or the YAML line, e.g.
 ``config/scenes/x.yaml: gyro.rate: must be a positive number, got 0``.
@@ -10,9 +11,8 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-import yaml
-
 from inertia_ros.core.scene import Scene, SceneError
+from inertia_ros.io.yaml_input import YamlInputError, read_yaml
 
 __all__ = ['load_scene', 'load_scene_dict']
 
@@ -33,24 +33,14 @@ def load_scene_dict(path: str | os.PathLike[str]) -> dict:
     Raises
     ------
     SceneError
-        If the file cannot be read, is not valid YAML or is not a mapping.
+        If the file cannot be read (not a regular file, over 64 KiB, not UTF-8), is not
+        valid YAML (an alias bomb, nesting too deep, a duplicated key) or is not a mapping.
     """
     p = Path(path)
     try:
-        text = p.read_text(encoding='utf-8')
-    except FileNotFoundError:
-        raise SceneError(f'{p}: no such scene file') from None
-    except IsADirectoryError:
-        raise SceneError(f'{p}: is a directory, expected a scene .yaml file') from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise SceneError(f'{p}: cannot read: {exc}') from None
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, 'problem_mark', None)
-        where = f'line {mark.line + 1}: ' if mark is not None else ''
-        problem = getattr(exc, 'problem', None) or str(exc).splitlines()[0]
-        raise SceneError(f'{p}: {where}invalid YAML: {problem}') from None
+        data = read_yaml(p, 'scene')
+    except YamlInputError as exc:
+        raise SceneError(str(exc)) from None
     if not isinstance(data, dict):
         raise SceneError(f'{p}: a scene file must be a mapping of keys, '
                          f'got {type(data).__name__}')

@@ -14,6 +14,8 @@ from pathlib import Path
 from typing import Any
 
 from ..core.estimation.momentum import Wheel
+from .actuator_yaml import check_entry, check_top, joint_name, number, std_of, vector3
+from .yaml_input import read_yaml
 
 __all__ = ['load_wheels', 'wheels_from_dict']
 
@@ -26,47 +28,35 @@ def wheels_from_dict(d: Any, where: str = 'wheels') -> list[Wheel]:
     Raises
     ------
     ValueError
-        Missing or unknown keys, bad values, duplicate joints; the message names the entry.
+        Missing or unknown keys (top level too), values that are not numbers (``true``, a
+        string) or out of range, duplicate joints; one line naming the file and the entry.
     """
-    if not isinstance(d, dict) or not isinstance(d.get('wheels'), list) or not d['wheels']:
-        raise ValueError(f'{where}: expected a mapping with a non-empty list "wheels:"')
+    items = check_top(d, where, 'wheels', ('wheels',))
     out: list[Wheel] = []
-    for i, it in enumerate(d['wheels']):
+    for i, it in enumerate(items):
         key = f'{where}: wheels[{i}]'
-        if not isinstance(it, dict):
-            raise ValueError(f'{key}: must be a mapping with joint, axis, inertia')
-        unknown = sorted(set(it) - set(_KEYS))
-        if unknown:
-            raise ValueError(f'{key}: unknown key(s) {unknown}; allowed: {list(_KEYS)}')
-        for req in ('joint', 'axis', 'inertia'):
-            if req not in it:
-                raise ValueError(f'{key}.{req}: missing')
+        check_entry(it, key, _KEYS, ('joint', 'axis', 'inertia'))
+        inertia = number(it['inertia'], f'{key}.inertia', positive=True)
+        std = std_of(it.get('inertia_std', 0.0), f'{key}.inertia_std', inertia)
+        joint = joint_name(it['joint'], f'{key}.joint')
+        axis = vector3(it['axis'], f'{key}.axis', nonzero=True)
         try:
-            out.append(Wheel(str(it['joint']), it['axis'], float(it['inertia']),
-                             float(it.get('inertia_std', 0.0))))
+            out.append(Wheel(joint, axis, inertia, std))
         except (TypeError, ValueError) as exc:
             raise ValueError(f'{key}: {exc}') from None
     names = [w.joint for w in out]
     if len(set(names)) != len(names):
-        raise ValueError(f'{where}: joint names must be unique, got {names}')
+        dup = sorted({n for n in names if names.count(n) > 1})
+        raise ValueError(f'{where}: joint names must be unique, {dup[0]!r} is given twice')
     return out
 
 
 def load_wheels(path: str | Path) -> list[Wheel]:
-    """Read and validate a wheels YAML file.
+    """Read and validate a wheels YAML file (bounded, strict: :mod:`.yaml_input`).
 
     Raises
     ------
     ValueError
-        Unreadable file, bad YAML or an invalid entry (the message names the file).
+        Unreadable file, bad YAML or an invalid entry (one line naming the file).
     """
-    import yaml
-
-    p = Path(path)
-    try:
-        d = yaml.safe_load(p.read_text())
-    except OSError as exc:
-        raise ValueError(f'{p}: cannot read the wheels file ({exc.strerror})') from None
-    except yaml.YAMLError as exc:
-        raise ValueError(f'{p}: not valid YAML ({exc})') from None
-    return wheels_from_dict(d, str(p))
+    return wheels_from_dict(read_yaml(path, 'wheels'), str(path))
