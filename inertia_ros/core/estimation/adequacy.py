@@ -84,7 +84,27 @@ def _pooled(thetas: np.ndarray, infos: np.ndarray) -> tuple[np.ndarray, float]:
     return mean, float(np.einsum('ki,kij,kj->', d, infos, d))
 
 
-def window_consistency(thetas: np.ndarray, covs: np.ndarray, t_mid: np.ndarray
+def _pooled_common(thetas: np.ndarray, infos: np.ndarray, common: np.ndarray) -> float:
+    """The scatter chi2 with stated common errors profiled out under their prior.
+
+    Window ``k`` reads ``theta_k = theta_bar + S_k u + e_k`` with ``u ~ N(0, 1)`` (q,) shared
+    by every window (a stated calibration error) and ``e_k ~ N(0, C_k)``: the minimum over
+    ``(theta_bar, u)`` of ``sum_k r_k' C_k^-1 r_k + u' u``, which equals the generalised
+    chi2 of the scatter under the covariance ``blockdiag(C_k) + S S'``.
+    """
+    K, p = thetas.shape
+    q = common.shape[2]
+    A = np.concatenate([np.broadcast_to(np.eye(p), (K, p, p)), common], axis=2)  # (K, p, p+q)
+    H = np.einsum('kij,kil,klm->jm', A, infos, A)
+    H[p:, p:] += np.eye(q)
+    g = np.einsum('kij,kil,kl->j', A, infos, thetas)
+    x = np.linalg.lstsq(H, g, rcond=1e-12)[0]
+    r = thetas - np.einsum('kij,j->ki', A, x)
+    return float(np.einsum('ki,kij,kj->', r, infos, r) + x[p:] @ x[p:])
+
+
+def window_consistency(thetas: np.ndarray, covs: np.ndarray, t_mid: np.ndarray,
+                       common: np.ndarray | None = None
                        ) -> tuple[float, int, float, float | None]:
     """Test that the window estimates agree; locate a step change.
 
@@ -96,6 +116,10 @@ def window_consistency(thetas: np.ndarray, covs: np.ndarray, t_mid: np.ndarray
         Their covariances (from the noise model, not inflated).
     t_mid : numpy.ndarray, shape (K,)
         Window mid-times [s].
+    common : numpy.ndarray, shape (K, p, q), optional
+        Each window's change per one stated sigma of ``q`` errors shared by every window
+        (a calibration whose effect depends on the motion): they are profiled out under
+        their prior (:func:`_pooled_common`), so a stated error does not fail the test.
 
     Returns
     -------
@@ -119,7 +143,10 @@ def window_consistency(thetas: np.ndarray, covs: np.ndarray, t_mid: np.ndarray
     infos = np.array([np.linalg.pinv(0.5 * (C + C.T), rcond=1e-10, hermitian=True)
                       for C in covs])
     rank = int(np.linalg.matrix_rank(infos.sum(axis=0), tol=None))
-    _, chi2 = _pooled(thetas, infos)
+    if common is not None and np.any(np.asarray(common)[good] != 0.0):
+        chi2 = _pooled_common(thetas, infos, np.asarray(common, dtype=float)[good])
+    else:
+        _, chi2 = _pooled(thetas, infos)
     dof = (K - 1) * rank
     pval = chi2_sf(chi2, dof) if dof > 0 else 1.0
     change_at = None
@@ -136,7 +163,8 @@ def window_consistency(thetas: np.ndarray, covs: np.ndarray, t_mid: np.ndarray
 
 def check_adequacy(thetas: np.ndarray, covs: np.ndarray, t_mid: np.ndarray, excess: float,
                    alpha: float = ADEQUACY_ALPHA,
-                   max_excess: float = MAX_RESIDUAL_EXCESS) -> Adequacy:
+                   max_excess: float = MAX_RESIDUAL_EXCESS,
+                   common: np.ndarray | None = None) -> Adequacy:
     """Run both tests and name the likely cause of a failure.
 
     Parameters
@@ -149,12 +177,14 @@ def check_adequacy(thetas: np.ndarray, covs: np.ndarray, t_mid: np.ndarray, exce
         Level of the window test.
     max_excess : float
         Largest residual excess accepted.
+    common : numpy.ndarray, shape (K, p, q), optional
+        As :func:`window_consistency`: stated errors shared by the windows.
 
     Returns
     -------
     Adequacy
     """
-    chi2, dof, pval, change_at = window_consistency(thetas, covs, t_mid)
+    chi2, dof, pval, change_at = window_consistency(thetas, covs, t_mid, common)
     excess = float(excess) if np.isfinite(excess) else 1.0
     causes = []
     if dof > 0 and pval < alpha:

@@ -86,7 +86,7 @@ from .assemble import conclude, status_only
 from .equations import Equations, build_equations
 from .filtered import equations_for
 from .fit import Fit, fit_two_pass
-from .homogeneous import homogeneous_estimate, is_torque_free, torque_free_stats
+from .homogeneous import is_torque_free, torque_free_checked
 from .model import model_basis, symmetry_axis
 from .noise import isotropy_floor, noise_std_from_differences
 from .nuisance import nuisance_hook
@@ -383,7 +383,7 @@ def _estimate_shifted(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray
     diag['torque_rms'] = torque_rms
     if is_torque_free(torque_rms, np.sqrt(torque_var)):
         return _homogeneous(method, tg, w, ts, tau, mask, breaks, hold, gyro_var,
-                            segment or 10.0, window, diag, base)
+                            segment or 10.0, window, diag, base, policy)
     eq = equations_for(method, tg, w, ts, tau, mask, breaks, hold, gyro_var, window)
     wm = w[mask]
     eq.motion = (wm.T @ wm / len(wm), med_g)          # gyroscopic noise walk (fit meat)
@@ -548,15 +548,16 @@ def _choose_segment(eq: Equations, ts: np.ndarray, tau_end: float, gyro_var: np.
 def _homogeneous(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.ndarray,
                  mask: np.ndarray, breaks: np.ndarray, hold: str, gyro_var: np.ndarray,
                  segment: float | None, window: float | None, diag: dict[str, Any],
-                 base: dict[str, Any]) -> InertiaEstimate:
-    """Torque-free data: ratios and axes from the null vector of the homogeneous problem."""
+                 base: dict[str, Any], policy: SelectionPolicy) -> InertiaEstimate:
+    """Torque-free data: ratios and axes from the null vector of the homogeneous problem,
+    with the adequacy tests and the stated calibration (:func:`.torque_free_checked`)."""
     if len(ts) == 0:
         ts = np.array([tg[0], tg[-1]])
         tau = np.zeros((2, 3))
     meth = method if method != 'integral_ls' else 'integral'
     eq = equations_for(meth, tg, w, ts, tau, mask, breaks, hold, gyro_var, window)
-    st, walk = torque_free_stats(eq, tg[mask], w[mask], segment)
-    return homogeneous_estimate(st, gyro_var, diag, base, walk=walk)
+    return torque_free_checked(eq, tg[mask], w[mask], segment, gyro_var, diag, base,
+                               policy.gyro_scale_std, policy.torque_scale_std)
 
 
 def _maximum_likelihood(first: InertiaEstimate, tg: np.ndarray, w: np.ndarray, ts: np.ndarray,

@@ -51,39 +51,29 @@ from typing import Any
 
 import numpy as np
 
-from .._validate import as_noise_std, as_sample_block, require_after
-from .assemble import add_calibration, assemble, status_only
-from .fit import Fit, solve_symmetric
-from .homogeneous import is_torque_free
-from .model import model_basis, parameter_names
+from .._validate import as_noise_std
+from .fit import solve_symmetric
+from .model import model_basis
 from .model import symmetry_axis as unit_axis
 from .noise import StreamingNoise, gyroscopic_walk_cov
 from .options import (
     ALPHA,
-    GAP_FACTOR,
     HOLDS,
-    IDENTIFIABILITY_TOL,
     MODELS,
     TORQUE_BIAS,
     check_choice,
 )
 from .regressors import cumulative_monomials, cumulative_torque, gyroscopic_matrix, momentum_matrix
-from .result import InertiaEstimate
 from .selection import SelectionPolicy
+from .tracking_input import StreamInput
+from .tracking_output import EXCESS_TIME, StateOutput
 
 __all__ = ['TrackingEstimator', 'chi2_upper_quantile']
 
-_DT_HISTORY = 64          # recent sample intervals kept per stream for the nominal interval
-_MAX_BUFFER = 400_000     # gyro samples kept waiting for torque
-_EXCESS_TIME = 2.0        # time constant of the innovation excess average [s]
-_MISMATCH_EXCESS = 1.5    # innovation excess above which the status is model_mismatch
 _DIFFUSE = 1e6            # prior variance of the empty filter, in squared scale units
 _PRIOR_INFLATION = 100.0  # start-up fit covariance -> the filter's prior
-_EIV_MAX = 0.05           # largest entry of P B_eff for the first-order compensation
-_WARM_KEEP = 5.0          # start-up samples kept while undetermined [warmup lengths]
 _SETTLED = 0.05           # relative sigma of the moments below which the weights follow x
 _REFRESH = 0.25          # data time between re-derivations of the weights [s]
-_NOISE_EVERY = 500        # gyro samples between re-readings of the noise levels
 
 
 def chi2_upper_quantile(dof: int, level: float) -> float:
@@ -155,8 +145,12 @@ class _Trend:
         return self.Stx / self.Stt
 
 
-class TrackingEstimator:
+class TrackingEstimator(StreamInput, StateOutput):
     """Kalman filter on the tensor parameters and the angular momentum (see the module doc).
+
+    The filter (start-up, blocks, prediction, weights, change test) is here; the input side
+    (buffering, alignment, gaps, noise levels) is :class:`.tracking_input.StreamInput`, the
+    output side (estimate, covariance, status) :class:`.tracking_output.StateOutput`.
 
     Parameters
     ----------
@@ -230,7 +224,7 @@ class TrackingEstimator:
         self._thresholds: dict[int, float] = {}
         self.reset()
 
-    # ------------------------------------------------------------------------------ input
+    # ------------------------------------------------------------------------------ state
     def reset(self) -> None:
         """Forget everything (clock jump, new run); the configuration is kept."""
         self._gt: list[np.ndarray] = []
@@ -278,88 +272,6 @@ class TrackingEstimator:
         self._Beff = np.zeros((self.k, self.k))  # its sum, forgotten as the information
         self._trend = _Trend(2.0 * self.window, self.k + self.nb)
 
-    def add_gyro(self, t: Any, omega: Any) -> None:
-        """Add gyro samples: ``t`` (n,) [s] increasing across calls, ``omega`` (n, 3) [rad/s]."""
-        ta, wa = as_sample_block(t, omega, 'omega')
-        if len(ta) == 0:
-            return
-        require_after(ta[0], self._last_t_in, 'omega')
-        self._last_t_in = float(ta[-1])
-        self._gt.append(ta)
-        self._gw.append(wa)
-        if sum(len(x) for x in self._gt) > _MAX_BUFFER:        # torque stalled: keep newest
-            t, w = np.concatenate(self._gt), np.concatenate(self._gw)
-            self.samples_dropped += len(t) - _MAX_BUFFER // 2
-            self._gt, self._gw = [t[-(_MAX_BUFFER // 2):]], [w[-(_MAX_BUFFER // 2):]]
-        if len(self._ts):
-            self._process()
-
-    def add_torque(self, t: Any, tau: Any) -> None:
-        """Add torque samples: ``t`` (n,) [s] increasing across calls, ``tau`` (n, 3) [N m]."""
-        ta, xa = as_sample_block(t, tau, 'torque')
-        if len(ta) == 0:
-            return
-        require_after(ta[0], self._last_tau_in, 'torque')
-        edges = ta if self._last_tau_in is None else np.concatenate([[self._last_tau_in], ta])
-        self._tq_dts = np.concatenate([self._tq_dts, np.diff(edges)])[-_DT_HISTORY:]
-        self._last_tau_in = float(ta[-1])
-        self._ts = np.concatenate([self._ts, ta])
-        self._tau = np.concatenate([self._tau, xa])
-        self._tau_nv.add(xa)
-        if self._gt:
-            self._process()
-
-    # ------------------------------------------------------------------------- processing
-    def _process(self) -> None:
-        """Fold in the buffered gyro samples the torque now covers, block by block."""
-        if not self._gt or len(self._ts) == 0:
-            return
-        t, w = np.concatenate(self._gt), np.concatenate(self._gw)
-        early = t < self._ts[0]
-        if np.any(early):                                # before any torque: never usable
-            self.samples_dropped += int(np.sum(early))
-            t, w = t[~early], w[~early]
-        ready = t <= self._ts[-1]
-        self._gt, self._gw = ([t[~ready]], [w[~ready]]) if not np.all(ready) else ([], [])
-        t, w = t[ready], w[ready]
-        if len(t) == 0:
-            return
-        if self._gyro_noise is None:
-            self._gyro_nv.add(w)
-        self._m2_sum = self._m2_sum + w.T @ w
-        self._m2_n += len(w)
-        last = self._warm[-1][0][-1] if self._warm else self._prev[0] if self._prev else None
-        edges = t if last is None else np.concatenate([[last], t])
-        self._g_dts = np.concatenate([self._g_dts, np.diff(edges)])[-_DT_HISTORY:]
-        self.samples_used += len(t)
-        self._refresh_noise()
-        if self._warm is None:
-            self._fold_in(t, w, flush=False)
-            return
-        self._warm.append((t, w))
-        while len(self._warm) > 1 and t[-1] - self._warm[1][0][0] >= _WARM_KEEP * self.warmup:
-            del self._warm[0]                  # never determined yet: keep the newest only
-        j = int(np.searchsorted(self._ts, self._warm[0][0][0], side='right')) - 1
-        if j > 0:
-            self._ts, self._tau = self._ts[j:], self._tau[j:]
-        span = t[-1] - self._warm[0][0][0]
-        if span >= self.warmup and t[-1] - self._tried >= 0.25 * self.warmup:
-            self._tried = float(t[-1])
-            self._initialise()
-
-    def _refresh_noise(self) -> None:
-        """Re-read the streams' noise levels every :data:`_NOISE_EVERY` gyro samples (they
-        are medians over thousands of samples: once a block would cost more than the rest)."""
-        if self._warm is None and self.samples_used - self._noise_at < _NOISE_EVERY:
-            return
-        self._noise_at = self.samples_used
-        if self._gyro_noise is not None:
-            self._nv = self._gyro_noise ** 2
-        else:
-            v = self._gyro_nv.variance()
-            self._nv = v if np.any(v > 0) else np.full(3, 1e-12)
-        self._tv = self._tau_nv.variance() if self._tau_nv.count >= 16 else np.zeros(3)
-
     def _initialise(self) -> None:
         """Start the filter on the start-up samples.
 
@@ -401,58 +313,6 @@ class TrackingEstimator:
                                         @ self.basis.T), 0.0))
         return bool(np.all(theta[:3] > 0) and np.all(se[:3] < _SETTLED * theta[:3]))
 
-    def _fold_in(self, t: np.ndarray, w: np.ndarray, flush: bool) -> None:
-        """Fold in the pending samples and ``t`` (n,), ``w`` (n, 3): every full block, and
-        the last partial one only with ``flush``."""
-        if self._pend is not None:
-            t = np.concatenate([self._pend[0], t])
-            w = np.concatenate([self._pend[1], w])
-            self._pend = None
-        lo = self._run(t, w, flush)
-        if lo < len(t):
-            self._pend = (t[lo:], w[lo:])
-        self._trim_torque()
-
-    def _run(self, t: np.ndarray, w: np.ndarray, flush: bool = True) -> int:
-        """Fold in samples ``t`` (n,), ``w`` (n, 3) in blocks of ``block`` seconds; return
-        where the unfolded rest starts.  Across a gap of either stream (an interval over
-        ``GAP_FACTOR`` nominal ones) the filter re-anchors after it (:meth:`_reanchor`)."""
-        lo = 0
-        gap = GAP_FACTOR * (self._gdt if self._gdt > 0 else math.inf)
-        while lo < len(t):
-            end = self._prev[0] + self.block
-            hi = max(int(np.searchsorted(t, end - 1e-9, side='right')), lo + 1)
-            after = self._torque_gap(float(t[hi - 1]))
-            if after is not None:                      # samples the held torque misses
-                skip = int(np.searchsorted(t, after, side='left'))
-                self.samples_dropped += skip - lo
-                if skip >= len(t):
-                    return len(t)
-                self._reanchor(float(t[skip]), w[skip])
-                lo = skip + 1
-                continue
-            if t[lo] - self._prev[0] > gap:
-                self._reanchor(float(t[lo]), w[lo])
-                lo += 1
-                continue
-            step = np.flatnonzero(np.diff(t[lo:hi]) > gap)
-            if len(step):
-                hi = lo + int(step[0]) + 1
-            elif hi == len(t) and t[-1] < end - 1e-9 and not flush:
-                break                                   # a partial block: wait for more
-            self._block(t[lo:hi], w[lo:hi])
-            lo = hi
-        return lo
-
-    def _torque_gap(self, t: float) -> float | None:
-        """The end [s] of a torque gap between the anchor and ``t``, or None."""
-        if self._tdt <= 0:
-            return None
-        a = max(int(np.searchsorted(self._ts, self._prev[0], side='right')) - 1, 0)
-        b = int(np.searchsorted(self._ts, t, side='left'))
-        long = np.flatnonzero(np.diff(self._ts[a:b + 1]) > GAP_FACTOR * self._tdt)
-        return float(self._ts[a + long[-1] + 1]) if len(long) else None
-
     def _reanchor(self, t: float, w: np.ndarray) -> None:
         """Across a gap: anchor at ``(t, w)`` with the momentum ``L = I w`` of the current
         tensor (covariance from the tensor's and the gyro noise's)."""
@@ -467,14 +327,6 @@ class TrackingEstimator:
         self.P[L, L] = AP @ A.T + R
         self._prev = (t, w.copy())
         self.gaps += 1
-
-    def _trim_torque(self) -> None:
-        """Drop torque samples no longer needed (keep the one at or before the anchor)."""
-        if self._prev is None or self._warm is not None:
-            return
-        j = int(np.searchsorted(self._ts, self._prev[0], side='right')) - 1
-        if j > 0:
-            self._ts, self._tau = self._ts[j:], self._tau[j:]
 
     # ------------------------------------------------------------------------ the filter
     def _scale(self) -> float:
@@ -586,8 +438,8 @@ class TrackingEstimator:
         self.P[:self.k, :self.k] += np.eye(self.k) * s ** 2
 
     def _note_excess(self, ratio: float, dt: float) -> None:
-        """Running mean of the innovation excess (NIS / dof) over about ``_EXCESS_TIME`` s."""
-        a = math.exp(-dt / _EXCESS_TIME)
+        """Running mean of the innovation excess (NIS / dof) over about ``EXCESS_TIME`` s."""
+        a = math.exp(-dt / EXCESS_TIME)
         self._excess_w = a * self._excess_w + (1 - a)
         self._excess += (1 - a) / self._excess_w * (ratio - self._excess)
 
@@ -641,110 +493,3 @@ class TrackingEstimator:
         G = gyroscopic_walk_cov(I, nv, m2, gdt, tdt) if np.all(np.isfinite(I)) else 0.0
         return tdt * (np.diag(self._tv) + G)
 
-    # ---------------------------------------------------------------------------- output
-    def _covariance(self) -> np.ndarray:
-        """Covariance (p, p) of ``[psi, d]`` against the current tensor.
-
-        The noise part of exponentially weighted estimates is half the filter's ``P`` (the
-        sandwich ``sum w^2 / sum w`` of the weights; the recursive estimator's ``w00 / w0``);
-        the memory lags ``rate * window`` behind a tensor that changes at ``rate``
-        (:class:`_Trend` of the recent estimates), which is added as ``lag lag'``.
-        """
-        p = self.k + self.nb
-        cov = 0.5 * self.P[:p, :p]
-        rate = self._trend.rate(self._prev[0]) if self._prev is not None else None
-        if rate is not None:
-            lag = rate * self.window
-            cov = cov + np.outer(lag, lag)
-        return cov
-
-    def _compensated(self) -> np.ndarray:
-        """``[psi, d]`` without the errors-in-variables bias (p,).
-
-        Each block's regressor carries the averaged gyro noise, whose own information ``B``
-        (``sum_c sigma_c^2 L(e_c)' R^-1 L(e_c)``, the batch fit's ``n B``) the filter counts
-        as signal: with ``B_eff`` their sum under the same forgetting, the filter estimate is
-        ``(1 - P B_eff) psi`` to first order, which is undone here while ``P B_eff`` is small
-        (the state itself keeps it: a per-block subtraction can make the information
-        indefinite).
-        """
-        p, k = self.k + self.nb, self.k
-        out = self.x[:p].copy()
-        PB = self.P[:k, :k] @ self._Beff
-        if float(np.max(np.abs(PB))) < _EIV_MAX:       # first order; not while re-converging
-            out[:k] = out[:k] + PB @ out[:k]
-        return out
-
-    def current(self) -> tuple[np.ndarray, np.ndarray] | None:
-        """The tracked tensor ``theta`` (6,) [kg m^2] and its covariance (6, 6) now, without
-        the status rules of :meth:`estimate` (None during the start-up)."""
-        self._process()
-        if self._warm is not None:
-            return None
-        if self._pend is not None:
-            self._fold_in(np.empty(0), np.empty((0, 3)), flush=True)
-        cov = self._covariance()[:self.k, :self.k]
-        return self.basis @ self._compensated()[:self.k], self.basis @ cov @ self.basis.T
-
-    def estimate(self) -> InertiaEstimate:
-        """The current tensor with its covariance and status (``method='tracking'``).
-
-        Returns
-        -------
-        InertiaEstimate
-            ``insufficient_data`` during the start-up; then ``ok`` (or ``model_mismatch``
-            when the innovations persistently exceed the noise model, or
-            ``partially_identifiable`` / ``insufficient_excitation`` by the batch rules on
-            the filter's covariance).  ``diagnostics`` carries ``memory_s``,
-            ``changes_detected``, ``last_change_s`` and ``innovation_excess``.
-        """
-        self._process()
-        if self._warm is None and self._pend is not None:
-            self._fold_in(np.empty(0), np.empty((0, 3)), flush=True)
-        base = dict(method='tracking', samples_used=self.samples_used,
-                    samples_dropped=self.samples_dropped)
-        nv = self._nv if self._nv is not None else np.zeros(3)
-        diag: dict[str, Any] = {'gyro_noise_std': np.sqrt(nv), 'warnings': [],
-                                'memory_s': self.window, 'changes_detected': len(self.changes),
-                                'last_change_s': self.changes[-1] if self.changes else None,
-                                'innovation_excess': self._excess, 'updates': self.updates}
-        if self._warm is not None:
-            diag['reason'] = (f'start-up: {self.samples_used} gyro samples, the tensor is '
-                              f'not determined yet (needs {self.warmup:g} s of excitation)')
-            tq = self._tau[-4096:]
-            if len(tq) >= 16 and is_torque_free(np.sqrt(np.mean(tq ** 2, axis=0)),
-                                                np.sqrt(self._tv)):
-                diag['reason'] = ('torque-free data: the tracker needs a known torque for the '
-                                  'scale (method recursive gives the ratios and axes)')
-            return status_only('insufficient_data', diag, base)
-        return self._result(diag, base)
-
-    def _result(self, diag: dict[str, Any], base: dict[str, Any]) -> InertiaEstimate:
-        """Identifiability, status and the :class:`InertiaEstimate` of the filter state."""
-        p = self.k + self.nb
-        beta, cov = self._compensated(), self._covariance()
-        recent = bool(self.changes) and self._prev is not None and \
-            self._prev[0] - self.changes[-1] < 2.0 * _EXCESS_TIME
-        status = 'ok'
-        if self._excess > _MISMATCH_EXCESS and not recent:
-            status = 'model_mismatch'
-            cov = cov * self._excess
-            diag['reason'] = (f'the model does not explain the data: the innovations are '
-                              f'{self._excess:.3g} times the noise model')
-        info = solve_symmetric(cov, np.eye(p))
-        f = Fit(beta, cov, info, info, self.basis, bool(self.nb), np.zeros(3),
-                3 * self.samples_used, excess=max(self._excess, 1.0))
-        add_calibration(f, self.policy, None, diag)
-        theta = self.basis @ beta[:self.k]
-        se = np.sqrt(np.maximum(np.diag(self.basis @ f.cov[:self.k, :self.k]
-                                        @ self.basis.T), 0.0))
-        scale = max(float(np.max(theta[:3])), 0.0)
-        free = se <= IDENTIFIABILITY_TOL * scale
-        if scale <= 0 or not np.any(free[:3]):
-            diag['reason'] = 'no principal-diagonal element is determined by the data'
-            return status_only('insufficient_excitation', diag, base)
-        if not np.all(free):
-            status = 'partially_identifiable'
-        diag['parameters'] = parameter_names(self.basis, bool(self.nb), self.model)
-        return assemble(status, f, self.model, free, diag, base,
-                        physical=self.policy.physical and status != 'partially_identifiable')

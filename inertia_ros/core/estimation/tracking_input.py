@@ -1,0 +1,170 @@
+"""The input side of :class:`.tracking.TrackingEstimator`: streams to blocks.
+
+:class:`StreamInput` buffers the gyro samples until the torque covers them, keeps the
+streams' nominal intervals and noise levels, collects the start-up samples, cuts the
+covered samples into blocks of ``block`` seconds and handles the gaps of either stream
+(re-anchoring after them).  The filter itself (:meth:`_initialise`, :meth:`_block`,
+:meth:`_reanchor`) is the estimator's; this mixin only decides what reaches it and when.
+"""
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from .._validate import as_sample_block, require_after
+from .options import GAP_FACTOR
+
+__all__ = ['StreamInput']
+
+_DT_HISTORY = 64          # recent sample intervals kept per stream for the nominal interval
+_MAX_BUFFER = 400_000     # gyro samples kept waiting for torque
+_WARM_KEEP = 5.0          # start-up samples kept while undetermined [warmup lengths]
+_NOISE_EVERY = 500        # gyro samples between re-readings of the noise levels
+
+
+class StreamInput:
+    """Buffering, alignment, noise levels and blocks of the tracker (a mixin: the state is
+    the estimator's, made by its ``reset``)."""
+
+    def add_gyro(self, t: Any, omega: Any) -> None:
+        """Add gyro samples: ``t`` (n,) [s] increasing across calls, ``omega`` (n, 3) [rad/s]."""
+        ta, wa = as_sample_block(t, omega, 'omega')
+        if len(ta) == 0:
+            return
+        require_after(ta[0], self._last_t_in, 'omega')
+        self._last_t_in = float(ta[-1])
+        self._gt.append(ta)
+        self._gw.append(wa)
+        if sum(len(x) for x in self._gt) > _MAX_BUFFER:        # torque stalled: keep newest
+            t, w = np.concatenate(self._gt), np.concatenate(self._gw)
+            self.samples_dropped += len(t) - _MAX_BUFFER // 2
+            self._gt, self._gw = [t[-(_MAX_BUFFER // 2):]], [w[-(_MAX_BUFFER // 2):]]
+        if len(self._ts):
+            self._process()
+
+    def add_torque(self, t: Any, tau: Any) -> None:
+        """Add torque samples: ``t`` (n,) [s] increasing across calls, ``tau`` (n, 3) [N m]."""
+        ta, xa = as_sample_block(t, tau, 'torque')
+        if len(ta) == 0:
+            return
+        require_after(ta[0], self._last_tau_in, 'torque')
+        edges = ta if self._last_tau_in is None else np.concatenate([[self._last_tau_in], ta])
+        self._tq_dts = np.concatenate([self._tq_dts, np.diff(edges)])[-_DT_HISTORY:]
+        self._last_tau_in = float(ta[-1])
+        self._ts = np.concatenate([self._ts, ta])
+        self._tau = np.concatenate([self._tau, xa])
+        self._tau_nv.add(xa)
+        if self._gt:
+            self._process()
+
+    def _process(self) -> None:
+        """Fold in the buffered gyro samples the torque now covers, block by block."""
+        if not self._gt or len(self._ts) == 0:
+            return
+        t, w = np.concatenate(self._gt), np.concatenate(self._gw)
+        early = t < self._ts[0]
+        if np.any(early):                                # before any torque: never usable
+            self.samples_dropped += int(np.sum(early))
+            t, w = t[~early], w[~early]
+        ready = t <= self._ts[-1]
+        self._gt, self._gw = ([t[~ready]], [w[~ready]]) if not np.all(ready) else ([], [])
+        t, w = t[ready], w[ready]
+        if len(t) == 0:
+            return
+        if self._gyro_noise is None:
+            self._gyro_nv.add(w)
+        self._m2_sum = self._m2_sum + w.T @ w
+        self._m2_n += len(w)
+        last = self._warm[-1][0][-1] if self._warm else self._prev[0] if self._prev else None
+        edges = t if last is None else np.concatenate([[last], t])
+        self._g_dts = np.concatenate([self._g_dts, np.diff(edges)])[-_DT_HISTORY:]
+        self.samples_used += len(t)
+        self._refresh_noise()
+        if self._warm is None:
+            self._fold_in(t, w, flush=False)
+            return
+        self._warm.append((t, w))
+        while len(self._warm) > 1 and t[-1] - self._warm[1][0][0] >= _WARM_KEEP * self.warmup:
+            del self._warm[0]                  # never determined yet: keep the newest only
+        j = int(np.searchsorted(self._ts, self._warm[0][0][0], side='right')) - 1
+        if j > 0:
+            self._ts, self._tau = self._ts[j:], self._tau[j:]
+        span = t[-1] - self._warm[0][0][0]
+        if span >= self.warmup and t[-1] - self._tried >= 0.25 * self.warmup:
+            self._tried = float(t[-1])
+            self._initialise()
+
+    def _refresh_noise(self) -> None:
+        """Re-read the streams' noise levels every :data:`_NOISE_EVERY` gyro samples (they
+        are medians over thousands of samples: once a block would cost more than the rest)."""
+        if self._warm is None and self.samples_used - self._noise_at < _NOISE_EVERY:
+            return
+        self._noise_at = self.samples_used
+        if self._gyro_noise is not None:
+            self._nv = self._gyro_noise ** 2
+        else:
+            v = self._gyro_nv.variance()
+            self._nv = v if np.any(v > 0) else np.full(3, 1e-12)
+        self._tv = self._tau_nv.variance() if self._tau_nv.count >= 16 else np.zeros(3)
+
+    def _fold_in(self, t: np.ndarray, w: np.ndarray, flush: bool) -> None:
+        """Fold in the pending samples and ``t`` (n,), ``w`` (n, 3): every full block, and
+        the last partial one only with ``flush``."""
+        if self._pend is not None:
+            t = np.concatenate([self._pend[0], t])
+            w = np.concatenate([self._pend[1], w])
+            self._pend = None
+        lo = self._run(t, w, flush)
+        if lo < len(t):
+            self._pend = (t[lo:], w[lo:])
+        self._trim_torque()
+
+    def _run(self, t: np.ndarray, w: np.ndarray, flush: bool = True) -> int:
+        """Fold in samples ``t`` (n,), ``w`` (n, 3) in blocks of ``block`` seconds; return
+        where the unfolded rest starts.  Across a gap of either stream (an interval over
+        ``GAP_FACTOR`` nominal ones) the filter re-anchors after it (:meth:`_reanchor`)."""
+        lo = 0
+        gap = GAP_FACTOR * (self._gdt if self._gdt > 0 else math.inf)
+        while lo < len(t):
+            end = self._prev[0] + self.block
+            hi = max(int(np.searchsorted(t, end - 1e-9, side='right')), lo + 1)
+            after = self._torque_gap(float(t[hi - 1]))
+            if after is not None:                      # samples the held torque misses
+                skip = int(np.searchsorted(t, after, side='left'))
+                self.samples_dropped += skip - lo
+                if skip >= len(t):
+                    return len(t)
+                self._reanchor(float(t[skip]), w[skip])
+                lo = skip + 1
+                continue
+            if t[lo] - self._prev[0] > gap:
+                self._reanchor(float(t[lo]), w[lo])
+                lo += 1
+                continue
+            step = np.flatnonzero(np.diff(t[lo:hi]) > gap)
+            if len(step):
+                hi = lo + int(step[0]) + 1
+            elif hi == len(t) and t[-1] < end - 1e-9 and not flush:
+                break                                   # a partial block: wait for more
+            self._block(t[lo:hi], w[lo:hi])
+            lo = hi
+        return lo
+
+    def _torque_gap(self, t: float) -> float | None:
+        """The end [s] of a torque gap between the anchor and ``t``, or None."""
+        if self._tdt <= 0:
+            return None
+        a = max(int(np.searchsorted(self._ts, self._prev[0], side='right')) - 1, 0)
+        b = int(np.searchsorted(self._ts, t, side='left'))
+        long = np.flatnonzero(np.diff(self._ts[a:b + 1]) > GAP_FACTOR * self._tdt)
+        return float(self._ts[a + long[-1] + 1]) if len(long) else None
+
+    def _trim_torque(self) -> None:
+        """Drop torque samples no longer needed (keep the one at or before the anchor)."""
+        if self._prev is None or self._warm is not None:
+            return
+        j = int(np.searchsorted(self._ts, self._prev[0], side='right')) - 1
+        if j > 0:
+            self._ts, self._tau = self._ts[j:], self._tau[j:]

@@ -1,0 +1,139 @@
+"""The output side of :class:`.tracking.TrackingEstimator`: the filter state as a result.
+
+:class:`StateOutput` turns the filter's state into what a user reads: the estimate without
+the errors-in-variables bias, its covariance against the current tensor (noise and the
+memory's lag behind a drifting tensor), and the :class:`.result.InertiaEstimate` with the
+batch rules for status, identifiability and the stated calibration.
+"""
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from .assemble import add_calibration, assemble, status_only
+from .fit import Fit, solve_symmetric
+from .homogeneous import is_torque_free
+from .model import parameter_names
+from .options import IDENTIFIABILITY_TOL
+from .result import InertiaEstimate
+
+__all__ = ['EXCESS_TIME', 'StateOutput']
+
+#: Time constant [s] of the innovation excess average (and how long after a detected change
+#: a high excess is not yet a mismatch).
+EXCESS_TIME = 2.0
+_MISMATCH_EXCESS = 1.5    # innovation excess above which the status is model_mismatch
+_EIV_MAX = 0.05           # largest entry of P B_eff for the first-order compensation
+
+
+class StateOutput:
+    """Estimate, covariance and result of the tracker (a mixin: the state is the
+    estimator's)."""
+
+    def _covariance(self) -> np.ndarray:
+        """Covariance (p, p) of ``[psi, d]`` against the current tensor.
+
+        The noise part of exponentially weighted estimates is half the filter's ``P`` (the
+        sandwich ``sum w^2 / sum w`` of the weights; the recursive estimator's ``w00 / w0``);
+        the memory lags ``rate * window`` behind a tensor that changes at ``rate``
+        (:class:`_Trend` of the recent estimates), which is added as ``lag lag'``.
+        """
+        p = self.k + self.nb
+        cov = 0.5 * self.P[:p, :p]
+        rate = self._trend.rate(self._prev[0]) if self._prev is not None else None
+        if rate is not None:
+            lag = rate * self.window
+            cov = cov + np.outer(lag, lag)
+        return cov
+
+    def _compensated(self) -> np.ndarray:
+        """``[psi, d]`` without the errors-in-variables bias (p,).
+
+        Each block's regressor carries the averaged gyro noise, whose own information ``B``
+        (``sum_c sigma_c^2 L(e_c)' R^-1 L(e_c)``, the batch fit's ``n B``) the filter counts
+        as signal: with ``B_eff`` their sum under the same forgetting, the filter estimate is
+        ``(1 - P B_eff) psi`` to first order, which is undone here while ``P B_eff`` is small
+        (the state itself keeps it: a per-block subtraction can make the information
+        indefinite).
+        """
+        p, k = self.k + self.nb, self.k
+        out = self.x[:p].copy()
+        PB = self.P[:k, :k] @ self._Beff
+        if float(np.max(np.abs(PB))) < _EIV_MAX:       # first order; not while re-converging
+            out[:k] = out[:k] + PB @ out[:k]
+        return out
+
+    def current(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """The tracked tensor ``theta`` (6,) [kg m^2] and its covariance (6, 6) now, without
+        the status rules of :meth:`estimate` (None during the start-up)."""
+        self._process()
+        if self._warm is not None:
+            return None
+        if self._pend is not None:
+            self._fold_in(np.empty(0), np.empty((0, 3)), flush=True)
+        cov = self._covariance()[:self.k, :self.k]
+        return self.basis @ self._compensated()[:self.k], self.basis @ cov @ self.basis.T
+
+    def estimate(self) -> InertiaEstimate:
+        """The current tensor with its covariance and status (``method='tracking'``).
+
+        Returns
+        -------
+        InertiaEstimate
+            ``insufficient_data`` during the start-up; then ``ok`` (or ``model_mismatch``
+            when the innovations persistently exceed the noise model, or
+            ``partially_identifiable`` / ``insufficient_excitation`` by the batch rules on
+            the filter's covariance).  ``diagnostics`` carries ``memory_s``,
+            ``changes_detected``, ``last_change_s`` and ``innovation_excess``.
+        """
+        self._process()
+        if self._warm is None and self._pend is not None:
+            self._fold_in(np.empty(0), np.empty((0, 3)), flush=True)
+        base = dict(method='tracking', samples_used=self.samples_used,
+                    samples_dropped=self.samples_dropped)
+        nv = self._nv if self._nv is not None else np.zeros(3)
+        diag: dict[str, Any] = {'gyro_noise_std': np.sqrt(nv), 'warnings': [],
+                                'memory_s': self.window, 'changes_detected': len(self.changes),
+                                'last_change_s': self.changes[-1] if self.changes else None,
+                                'innovation_excess': self._excess, 'updates': self.updates}
+        if self._warm is not None:
+            diag['reason'] = (f'start-up: {self.samples_used} gyro samples, the tensor is '
+                              f'not determined yet (needs {self.warmup:g} s of excitation)')
+            tq = self._tau[-4096:]
+            if len(tq) >= 16 and is_torque_free(np.sqrt(np.mean(tq ** 2, axis=0)),
+                                                np.sqrt(self._tv)):
+                diag['reason'] = ('torque-free data: the tracker needs a known torque for the '
+                                  'scale (method recursive gives the ratios and axes)')
+            return status_only('insufficient_data', diag, base)
+        return self._result(diag, base)
+
+    def _result(self, diag: dict[str, Any], base: dict[str, Any]) -> InertiaEstimate:
+        """Identifiability, status and the :class:`InertiaEstimate` of the filter state."""
+        p = self.k + self.nb
+        beta, cov = self._compensated(), self._covariance()
+        recent = bool(self.changes) and self._prev is not None and \
+            self._prev[0] - self.changes[-1] < 2.0 * EXCESS_TIME
+        status = 'ok'
+        if self._excess > _MISMATCH_EXCESS and not recent:
+            status = 'model_mismatch'
+            cov = cov * self._excess
+            diag['reason'] = (f'the model does not explain the data: the innovations are '
+                              f'{self._excess:.3g} times the noise model')
+        info = solve_symmetric(cov, np.eye(p))
+        f = Fit(beta, cov, info, info, self.basis, bool(self.nb), np.zeros(3),
+                3 * self.samples_used, excess=max(self._excess, 1.0))
+        add_calibration(f, self.policy, None, diag)
+        theta = self.basis @ beta[:self.k]
+        se = np.sqrt(np.maximum(np.diag(self.basis @ f.cov[:self.k, :self.k]
+                                        @ self.basis.T), 0.0))
+        scale = max(float(np.max(theta[:3])), 0.0)
+        free = se <= IDENTIFIABILITY_TOL * scale
+        if scale <= 0 or not np.any(free[:3]):
+            diag['reason'] = 'no principal-diagonal element is determined by the data'
+            return status_only('insufficient_excitation', diag, base)
+        if not np.all(free):
+            status = 'partially_identifiable'
+        diag['parameters'] = parameter_names(self.basis, bool(self.nb), self.model)
+        return assemble(status, f, self.model, free, diag, base,
+                        physical=self.policy.physical and status != 'partially_identifiable')
