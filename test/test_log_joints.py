@@ -478,3 +478,13 @@ def test_joint_stream_that_never_overlaps_is_one_line(sim: SimResult, tmp_path: 
     text = str(info.value)
     assert 'the angular-velocity and JointState streams never overlap' in text
     assert '--torque-delay' not in text and '\n' not in text
+
+
+def test_many_missing_joints_give_a_short_line() -> None:
+    """10,000 wanted joints that no message names: the error shows a few and the count, not a
+    100 KB line (issue 29)."""
+    from inertia_ros.io.log_types import missing_joints_error
+    names = [f'joint_{i:05d}' for i in range(10_000)]
+    text = str(missing_joints_error('/joint_states', names, ['rw1', 'rw2'], 'wheels'))
+    assert len(text) < 400 and '\n' not in text
+    assert "'joint_00000'" in text and '(10000 in all)' in text and "['rw1', 'rw2']" in text

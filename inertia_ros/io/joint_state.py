@@ -18,7 +18,7 @@ import numpy as np
 
 from .cdr_encode import split_stamp
 from .log_topics import JOINT_STATE
-from .log_types import LogError
+from .log_types import LogError, missing_joints_error
 
 __all__ = ['JOINT_STATE', 'ROW_AMBIGUOUS', 'ROW_INCOMPLETE', 'ROW_MALFORMED', 'ROW_MISMATCHED',
            'ROW_OK', 'decode_joint_state', 'encode_joint_message', 'encode_joint_state',
@@ -408,8 +408,7 @@ def read_wheel_speeds(path: str | Path, joints: Sequence[str], topic: str | None
             rows.append(row)
     missing = [j for j in joints if j not in seen]
     if missing:
-        raise LogError(f'{topic}: joint(s) {missing} never appear in JointState.name '
-                       f'(names seen: {sorted(seen)}); fix the {what} file\'s joint names')
+        raise missing_joints_error(topic, missing, seen, what)
     if len(stamps) < 2:
         raise LogError(f'{topic}: fewer than 2 messages carry velocities for all of '
                        f'{list(joints)}')

@@ -11,7 +11,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from inertia_ros.io.log_clocks import median_of, median_step, pieces, runs
-from inertia_ros.io.log_types import JointCounts, LogError, PreparedStream, RawTopic, StreamCounts
+from inertia_ros.io.log_types import (
+    JointCounts,
+    LogError,
+    PreparedStream,
+    RawTopic,
+    StreamCounts,
+    missing_joints_error,
+)
 
 __all__ = ['Cleaned', 'clean', 'prepare', 'prepare_joints']
 
@@ -117,9 +124,7 @@ def prepare_joints(topic: str, msg_type: str, raw: RawTopic | None, joints: Sequ
         raise LogError(f'{topic}: no messages of type {msg_type} in the log (empty stream)')
     missing = [j for j in joints if j not in raw.names_seen]
     if missing:
-        raise LogError(f'{topic}: joint(s) {missing} never appear in JointState.name '
-                       f'(names seen: {sorted(raw.names_seen)}); fix the {what} file\'s joint '
-                       'names')
+        raise missing_joints_error(topic, missing, raw.names_seen, what)
     status = raw.status_array()
     counts = JointCounts(received=int(status.size))
     for code, (name, text) in _JOINT_DROPS.items():

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import json
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -297,3 +298,17 @@ class RawTopic:
             return None
         return np.argsort(ordinal, kind='stable')
 
+
+
+def missing_joints_error(topic: str, missing: Sequence[str], seen: Iterable[str],
+                         what: str) -> LogError:
+    """The one-line error for wanted joints that no JointState message names.
+
+    At most five names of each list are shown, with the counts, so that a file of many joints
+    still gives a short line.
+    """
+    def few(names: Sequence[str]) -> str:
+        shown = ', '.join(repr(n[:64]) for n in names[:5])
+        return f'[{shown}, ...] ({len(names)} in all)' if len(names) > 5 else f'[{shown}]'
+    return LogError(f'{topic}: joint(s) {few(list(missing))} never appear in JointState.name '
+                    f'(names seen: {few(sorted(seen))}); fix the {what} file\'s joint names')
