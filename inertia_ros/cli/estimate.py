@@ -98,6 +98,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument('--rotor-topic', metavar='T', type=name_arg,
                    help='sensor_msgs/JointState topic of the rotor speeds (velocity, rad/s); '
                         'found by type when omitted')
+    _add_output_options(p)
+    p.add_argument('--no-progress', action='store_true', help='no progress bar on stderr')
+    p.set_defaults(func=run)
+
+
+def _add_output_options(p: argparse.ArgumentParser) -> None:
+    """The report's format and the files ``estimate`` may write (report, figure, URDF)."""
     p.add_argument('--format', choices=('text', 'json'), default='text',
                    help='report format (default text)')
     p.add_argument('-o', '--output', metavar='FILE', type=path_arg,
@@ -120,8 +127,6 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help='centre of mass in the link frame for --urdf [m] (default 0 0 0)')
     p.add_argument('--link', default='base_link', metavar='NAME',
                    help='link name for --urdf (default base_link)')
-    p.add_argument('--no-progress', action='store_true', help='no progress bar on stderr')
-    p.set_defaults(func=run)
 
 
 # --------------------------------------------------------------------------------------------
