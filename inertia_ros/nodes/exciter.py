@@ -188,9 +188,12 @@ class ExciterNode(Node):
             self.final_sent = True
             self._stopped_at = time.monotonic()
         if (cmd.state, cmd.reason.split(':')[0]) != (self.state, self.reason.split(':')[0]):
-            log = self.get_logger().warning if cmd.state in ('holding', 'stopped') \
-                and self.rules.stop_reason != 'target_reached' else self.get_logger().info
-            log(f'{self.state} -> {cmd.state}' + (f': {cmd.reason}' if cmd.reason else ''))
+            text = f'{self.state} -> {cmd.state}' + (f': {cmd.reason}' if cmd.reason else '')
+            if cmd.state == 'holding' or (cmd.state == 'stopped'
+                                          and self.rules.stop_reason != 'target_reached'):
+                self.get_logger().warning(text)
+            else:
+                self.get_logger().info(text)
             self.state, self.reason = cmd.state, cmd.reason
             self._publish_diagnostics()
         self.state, self.reason = cmd.state, cmd.reason

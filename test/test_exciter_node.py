@@ -1,0 +1,166 @@
+"""The exciter node and the closed-loop simulator as processes (issue 28 part 2).
+
+Refusals: invalid parameters or scenes end the process with one line and status 2, and
+nothing is ever published on the command topic.  The closed loop: simulator + estimator +
+exciter as three processes, watched by a fourth (this one).
+"""
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+from conftest import ROOT
+
+rclpy = pytest.importorskip('rclpy')
+
+from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
+from geometry_msgs.msg import WrenchStamped  # noqa: E402
+from rclpy.executors import SingleThreadedExecutor  # noqa: E402
+from rclpy.node import Node  # noqa: E402
+from sensor_msgs.msg import Imu  # noqa: E402
+
+from inertia_ros.nodes._ros import sensor_qos  # noqa: E402
+
+pytestmark = pytest.mark.ros
+
+DOMAIN_ID = 1 + (os.getpid() + 91) % 110 + 110   # 111..220: apart from the in-process tests
+SCENES = ROOT / 'config' / 'scenes'
+
+
+def _env():
+    return dict(os.environ, ROS_DOMAIN_ID=str(DOMAIN_ID),
+                PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get('PYTHONPATH', ''))
+
+
+@pytest.fixture(scope='module')
+def listener():
+    """A node on the processes' domain recording the command topic and the diagnostics."""
+    ctx = rclpy.context.Context()
+    rclpy.init(context=ctx, domain_id=DOMAIN_ID)
+    node = Node('test_exciter_listener', context=ctx)
+    rec = {'cmd': [], 'imu': [], 'diag': []}
+    node.create_subscription(WrenchStamped, 'torque_command', rec['cmd'].append, 100)
+    node.create_subscription(Imu, 'imu', rec['imu'].append, sensor_qos(1000))
+    node.create_subscription(DiagnosticArray, '/diagnostics', rec['diag'].append, 100)
+    exe = SingleThreadedExecutor(context=ctx)
+    exe.add_node(node)
+    yield exe, rec
+    exe.shutdown()
+    node.destroy_node()
+    rclpy.try_shutdown(context=ctx)
+
+
+def run_while_listening(exe, cmd, timeout=30.0):
+    """Run ``cmd`` to its end while spinning the listener; (returncode, stderr)."""
+    proc = subprocess.Popen(cmd, env=_env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True)
+    end = time.monotonic() + timeout
+    while proc.poll() is None and time.monotonic() < end:
+        exe.spin_once(timeout_sec=0.05)
+    if proc.poll() is None:
+        proc.kill()
+    _, err = proc.communicate()
+    return proc.returncode, err
+
+
+@pytest.mark.parametrize('args, named', [
+    (['-p', 'max_torque:=0.0'], "'max_torque'"),
+    (['-p', 'target_rel_std:=2.0'], "'target_rel_std'"),
+    (['-p', 'rate:=fast'], "'rate'"),
+    (['-p', 'scene:=/nonexistent/plan.yaml'], 'plan.yaml'),
+    (['-p', f'scene:={SCENES / "torque_free.yaml"}'], 'no torque components'),
+])
+def test_invalid_exciter_parameters_are_refused_in_one_line(listener, args, named):
+    exe, rec = listener
+    before = len(rec['cmd'])
+    code, err = run_while_listening(
+        exe, [sys.executable, '-m', 'inertia_ros.exciter_node', '--ros-args', *args])
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    assert code == 2, err
+    assert len(lines) == 1 and 'Traceback' not in err and named in lines[0], err
+    assert lines[0].startswith('exciter: error:'), lines
+    assert len(rec['cmd']) == before, 'a refused exciter published a command'
+
+
+def test_closed_loop_simulator_refuses_a_wheels_scene(listener):
+    exe, _ = listener
+    code, err = run_while_listening(
+        exe, [sys.executable, '-m', 'inertia_ros.scene_simulator_node', '--ros-args',
+              '-p', f'scene:={SCENES / "wheels.yaml"}', '-p', 'command_topic:=torque_command'])
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    assert code == 2 and len(lines) == 1 and 'wheels or rotors' in lines[0], err
+
+
+def test_exciter_help_lists_its_parameters():
+    out = subprocess.run([sys.executable, '-m', 'inertia_ros.exciter_node', '--help'],
+                         env=_env(), capture_output=True, text=True, timeout=60)
+    assert out.returncode == 0
+    for name in ('max_torque', 'max_slew', 'max_rate', 'target_rel_std', 'timeout',
+                 'estimator_timeout', 'command_topic', 'frame_id', 'scene', 'rate'):
+        assert f'  {name}' in out.stdout, name
+
+
+def _exciter_statuses(rec):
+    return [s for arr in rec['diag'] for s in arr.status if s.name == 'exciter: excitation']
+
+
+@pytest.mark.slow
+def test_closed_loop_three_processes_stop_within_limits(listener, tmp_path):
+    """Simulator (closed loop) + estimator + exciter: the exciter stops at the target, its
+    commands stay within max_torque, the measured body rate within max_rate + 5 %, and
+    nothing is commanded after the final zero."""
+    from inertia_ros.cli.demo import stop_processes
+
+    exe, rec = listener
+    for v in rec.values():
+        v.clear()
+    max_torque, max_rate = 0.08, 0.15
+    py = sys.executable
+    cmds = {
+        'est': [py, '-m', 'inertia_ros.inertia_estimator_node', '--ros-args',
+                '--params-file', str(ROOT / 'config' / 'inertia_estimator.yaml')],
+        'exc': [py, '-m', 'inertia_ros.exciter_node', '--ros-args',
+                '-p', f'max_torque:={max_torque}', '-p', 'max_slew:=0.5',
+                '-p', f'max_rate:={max_rate}', '-p', 'target_rel_std:=0.005',
+                '-p', 'timeout:=40.0'],
+        'sim': [py, '-m', 'inertia_ros.scene_simulator_node', '--ros-args',
+                '-p', 'command_topic:=torque_command', '-p', 'wait_for_subscribers:=1'],
+    }
+    procs, logs = [], []
+    try:
+        for name, cmd in cmds.items():
+            logs.append(open(tmp_path / f'{name}.log', 'w'))
+            procs.append(subprocess.Popen(cmd, env=_env(), stdout=logs[-1],
+                                          stderr=subprocess.STDOUT))
+        end, stopped_at = time.monotonic() + 55.0, None
+        while time.monotonic() < end:
+            exe.spin_once(timeout_sec=0.05)
+            if stopped_at is None and any(s.values[0].value == 'stopped'
+                                          for s in _exciter_statuses(rec)):
+                stopped_at = time.monotonic()
+            if stopped_at is not None and time.monotonic() - stopped_at > 2.0:
+                break
+    finally:
+        stop_processes(procs)
+        for log in logs:
+            log.close()
+    text = ''.join((tmp_path / f'{n}.log').read_text()[-1500:] for n in cmds)
+    assert stopped_at is not None, 'the exciter never stopped\n' + text
+    final = [s for s in _exciter_statuses(rec) if s.values[0].value == 'stopped'][-1]
+    values = {kv.key: kv.value for kv in final.values}
+    assert values['stop_reason'] == 'target_reached', values
+    torque = np.array([[m.wrench.torque.x, m.wrench.torque.y, m.wrench.torque.z]
+                       for m in rec['cmd']])
+    assert torque.shape[0] > 50, text
+    assert np.abs(torque).max() <= max_torque + 1e-12
+    assert np.all(torque[-1] == 0.0)                 # the final zero, and nothing after it
+    assert int(values['commands']) == torque.shape[0]
+    omega = np.array([[m.angular_velocity.x, m.angular_velocity.y, m.angular_velocity.z]
+                      for m in rec['imu']])
+    assert omega.shape[0] > 500, text
+    assert np.linalg.norm(omega, axis=1).max() <= 1.05 * max_rate
