@@ -164,3 +164,73 @@ def test_closed_loop_three_processes_stop_within_limits(listener, tmp_path):
                       for m in rec['imu']])
     assert omega.shape[0] > 500, text
     assert np.linalg.norm(omega, axis=1).max() <= 1.05 * max_rate
+
+
+# --------------------------------------------------------------------------- in process
+@pytest.fixture
+def exciter_node():
+    from rclpy.parameter import Parameter
+
+    from inertia_ros.nodes.exciter import ExciterNode
+
+    ctx = rclpy.context.Context()
+    rclpy.init(context=ctx, domain_id=1 + (os.getpid() + 5) % 110)
+    made = []
+
+    def make(**overrides):
+        n = ExciterNode(context=ctx, parameter_overrides=[
+            Parameter(k, value=v) for k, v in overrides.items()])
+        made.append(n)
+        return n
+    yield make
+    for n in made:
+        n.destroy_node()
+    rclpy.try_shutdown(context=ctx)
+
+
+def _status(resets: int, reason: str = '') -> DiagnosticArray:
+    from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
+
+    return DiagnosticArray(status=[DiagnosticStatus(
+        name='inertia_estimator: inertia estimate', values=[
+            KeyValue(key='resets', value=str(resets)),
+            KeyValue(key='last_reset_reason', value=reason)])])
+
+
+def test_node_follows_the_covariance_and_the_estimator_resets(exciter_node):
+    """Principal sigma from the covariance topic (with moments and axes), and a rising
+    ``resets`` count on the estimator's diagnostics stops the exciter."""
+    from geometry_msgs.msg import QuaternionStamped, Vector3Stamped
+
+    from inertia_ros.nodes.messages import covariance_msg
+
+    node = exciter_node(target_rel_std=0.005)
+    node.rules.on_gyro(node.now_s(), np.zeros(3))
+    node._on_tick()
+    assert node.state == 'exciting' and node.commands == 1
+    node._on_diagnostics(_status(0))
+    node._on_moments(Vector3Stamped(vector=messages_vec(0.9, 1.0, 1.2)))
+    q = QuaternionStamped()
+    q.quaternion.w = 1.0
+    node._on_axes(q)
+    node._on_covariance(covariance_msg(np.diag([0.9 ** 2, 1.0, 1.2 ** 2, 0, 0, 0]) * 1e-4))
+    assert node.rel_std == pytest.approx(0.01, rel=1e-9)     # 1 % on every moment
+    assert not node.rules.stopped
+    node._on_diagnostics(_status(1, 'service call'))
+    assert node.rules.stop_reason == 'reset' and 'service call' in node.rules.stop_detail
+    node._on_tick()
+    assert node.state == 'stopped' and node.final_sent and node.commands == 2
+    node._on_tick()
+    assert node.commands == 2                                  # never again
+
+
+def messages_vec(x, y, z):
+    from geometry_msgs.msg import Vector3
+
+    return Vector3(x=x, y=y, z=z)
+
+
+def test_a_plan_entirely_over_the_torque_limit_is_refused(exciter_node):
+    with pytest.raises(ValueError, match='every planned command exceeds max_torque') as err:
+        exciter_node(max_torque=1e-6)
+    assert '\n' not in str(err.value)

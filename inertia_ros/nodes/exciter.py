@@ -76,6 +76,12 @@ class ExciterNode(Node):
             raise ValueError(f'scene {path}: no torque components to command; give a '
                              'planned scene with a torque profile')
         self.schedule = TorqueSchedule.from_scene(scene)
+        over = float(np.mean(np.any(np.abs(self.schedule.torque) > cfg['max_torque'], axis=1)))
+        if over >= 1.0:
+            raise ValueError(f'scene {path}: every planned command exceeds max_torque '
+                             f"{cfg['max_torque']:g} N m on some axis (peak "
+                             f'{np.abs(self.schedule.torque).max():.4g} N m): lower the '
+                             "scene's torque amplitude or raise max_torque")
         self.limits = ExciterLimits(
             max_torque=cfg['max_torque'], max_slew=cfg['max_slew'], max_rate=cfg['max_rate'],
             target_rel_std=cfg['target_rel_std'], timeout=cfg['timeout'],
@@ -110,6 +116,10 @@ class ExciterNode(Node):
         self._stopped_at: float | None = None
         self.create_timer(1.0 / cfg['rate'], self._on_tick)
         self.create_timer(1.0, self._publish_diagnostics)
+        if over > 0.0:
+            self.get_logger().warning(
+                f'{100 * over:.1f} % of the planned commands exceed max_torque '
+                f"{cfg['max_torque']:g} N m on some axis: zero is commanded there")
         self.get_logger().info(
             f'exciting with scene {scene.name!r} from {path} on {self.pub_cmd.topic_name}: '
             f'max_torque {self.limits.max_torque:g} N m, max_slew {self.limits.max_slew:g} '
