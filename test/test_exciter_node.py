@@ -163,7 +163,11 @@ def test_closed_loop_three_processes_stop_within_limits(listener, tmp_path):
     omega = np.array([[m.angular_velocity.x, m.angular_velocity.y, m.angular_velocity.z]
                       for m in rec['imu']])
     assert omega.shape[0] > 500, text
-    assert np.linalg.norm(omega, axis=1).max() <= 1.05 * max_rate
+    # the gyro's white noise (0.002 rad/s per axis) alone reaches ~0.007 rad/s in 2000
+    # samples; a 45 ms running mean (9 samples) cuts it to ~0.0025 and the body rate
+    # (under 0.1 rad/s^2 here) moves by less than 0.005 rad/s in that time
+    rate = np.convolve(np.linalg.norm(omega, axis=1), np.ones(9) / 9, mode='valid')
+    assert rate.max() <= 1.05 * max_rate
 
 
 # --------------------------------------------------------------------------- in process
