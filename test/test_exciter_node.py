@@ -238,3 +238,50 @@ def test_a_plan_entirely_over_the_torque_limit_is_refused(exciter_node):
     with pytest.raises(ValueError, match='every planned command exceeds max_torque') as err:
         exciter_node(max_torque=1e-6)
     assert '\n' not in str(err.value)
+
+
+@pytest.mark.slow
+def test_exciter_stops_when_no_estimator_answers(listener, tmp_path):
+    """Simulator + exciter, no estimator: after estimator_timeout (2 s) of excitation the
+    exciter stops (ERROR on /diagnostics), sends one zero and no command after it."""
+    from inertia_ros.cli.demo import stop_processes
+
+    exe, rec = listener
+    for v in rec.values():
+        v.clear()
+    py = sys.executable
+    cmds = [[py, '-m', 'inertia_ros.exciter_node', '--ros-args',
+             '-p', 'estimator_timeout:=2.0'],
+            [py, '-m', 'inertia_ros.scene_simulator_node', '--ros-args',
+             '-p', 'command_topic:=torque_command', '-p', 'wait_for_subscribers:=0',
+             '-p', 'start_delay:=3.0']]
+    procs, logs = [], []
+    try:
+        for i, cmd in enumerate(cmds):
+            logs.append(open(tmp_path / f'{i}.log', 'w'))
+            procs.append(subprocess.Popen(cmd, env=_env(), stdout=logs[-1],
+                                          stderr=subprocess.STDOUT))
+        end, stopped_at, n_at_stop = time.monotonic() + 30.0, None, None
+        while time.monotonic() < end:
+            exe.spin_once(timeout_sec=0.05)
+            if stopped_at is None and any(s.values[0].value == 'stopped'
+                                          for s in _exciter_statuses(rec)):
+                stopped_at = time.monotonic()
+            if stopped_at is not None and n_at_stop is None \
+                    and time.monotonic() - stopped_at > 0.5:
+                n_at_stop = len(rec['cmd'])
+            if stopped_at is not None and time.monotonic() - stopped_at > 3.0:
+                break
+    finally:
+        stop_processes(procs)
+        for log in logs:
+            log.close()
+    text = ''.join((tmp_path / f'{i}.log').read_text()[-1500:] for i in range(2))
+    assert stopped_at is not None, text
+    final = [s for s in _exciter_statuses(rec) if s.values[0].value == 'stopped'][0]
+    values = {kv.key: kv.value for kv in final.values}   # published at the stop
+    assert values['stop_reason'] == 'estimator_lost' and final.level == b'\x02', values
+    assert 2.0 <= float(values['elapsed']) < 4.0, values
+    assert len(rec['cmd']) == n_at_stop == int(values['commands']), text
+    cmd = rec['cmd'][-1].wrench.torque
+    assert (cmd.x, cmd.y, cmd.z) == (0.0, 0.0, 0.0)
