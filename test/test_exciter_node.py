@@ -285,3 +285,43 @@ def test_exciter_stops_when_no_estimator_answers(listener, tmp_path):
     assert len(rec['cmd']) == n_at_stop == int(values['commands']), text
     cmd = rec['cmd'][-1].wrench.torque
     assert (cmd.x, cmd.y, cmd.z) == (0.0, 0.0, 0.0)
+
+
+def test_closed_loop_player_applies_valid_commands_only(exciter_node, tmp_path):
+    """The simulator's closed loop holds the newest valid command: one in another frame or
+    not finite is ignored; the body (a unit sphere at rest) spins up under it from t = 0:
+    omega_x = 0.1 N m * t / 1 kg m^2 exactly (1e-9 relative) at the simulated time t."""
+    import yaml
+    from rclpy.parameter import Parameter
+
+    from inertia_ros.io.scene_file import load_scene
+    from inertia_ros.nodes.messages import wrench_msg
+    from inertia_ros.nodes.scene_simulator import SceneSimulatorNode
+
+    d = dict(load_scene(SCENES / 'default.yaml').source, duration=2.0,
+             initial_omega=[0.0, 0.0, 0.0],
+             body={'inertia': [1.0, 1.0, 1.0, 0.0, 0.0, 0.0]})
+    path = tmp_path / 'still.yaml'
+    path.write_text(yaml.safe_dump(d))
+    probe = exciter_node()          # only for its context
+    node = SceneSimulatorNode(context=probe.context, parameter_overrides=[
+        Parameter('scene', value=str(path)), Parameter('command_topic', value='cmd_test')])
+    try:
+        player = node.player
+        player._on_command(wrench_msg(0, [0.1, 0.0, 0.0], 'base_link'))
+        player._on_command(wrench_msg(0, [0.5, 0.5, 0.5], 'other_frame'))
+        player._on_command(wrench_msg(0, [np.nan, 0.0, 0.0], 'base_link'))
+        np.testing.assert_array_equal(player.command, [0.1, 0.0, 0.0])
+        assert player.commands == 1
+        player.start(0)
+        t0 = time.monotonic()
+        while time.monotonic() - t0 < 0.3:
+            time.sleep(0.01)
+            player._on_tick()
+        elapsed = player.body.t
+        assert player.published[0] >= 50 and player.published[1] >= 10
+        assert elapsed > 0.25
+        assert player.body.omega[0] == pytest.approx(0.1 * elapsed, rel=1e-9)
+        player.stop()
+    finally:
+        node.destroy_node()
