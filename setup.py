@@ -45,6 +45,7 @@ setup(
             'inertia_estimator = inertia_ros.inertia_estimator_node:main',
             'scene_simulator = inertia_ros.scene_simulator_node:main',
             'bag_player = inertia_ros.bag_player_node:main',
+            'exciter = inertia_ros.exciter_node:main',
             # The offline command line (python -m inertia_ros): estimate, simulate, bench, demo
             'inertia-ros = inertia_ros.cli:main',
         ],

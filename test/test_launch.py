@@ -29,7 +29,8 @@ from test_package import console_scripts, setup_kwargs
 from conftest import ROOT
 
 PKG = 'inertia_ros'
-LAUNCH_FILES = ('estimator.launch.xml', 'sim.launch.xml', 'replay.launch.xml')
+LAUNCH_FILES = ('estimator.launch.xml', 'sim.launch.xml', 'replay.launch.xml',
+                'active.launch.xml')
 #: Parameters every rclpy node has without declaring them.
 STANDARD_PARAMETERS = {'use_sim_time': False}
 #: Node-relative topic names each executable subscribes or publishes (README, DESIGN.md): the
@@ -38,6 +39,7 @@ NODE_TOPICS = {
     'inertia_estimator': {'imu', 'omega', 'torque'},
     'scene_simulator': {'imu', 'omega', 'torque'},
     'bag_player': {'imu', 'omega', 'torque'},
+    'exciter': {'imu', 'torque_command'},
 }
 #: Attributes the launch XML front end accepts on each tag used here (launch, launch_ros).
 TAG_ATTRIBUTES = {
@@ -193,8 +195,8 @@ def check_launch_file(path: Path, share: Callable[[str], Path | None],
     return started
 
 
-def test_launch_files_are_the_documented_three():
-    """launch/ holds the estimator, simulation and replay launch files, all installed."""
+def test_launch_files_are_the_documented_four():
+    """launch/ holds the estimator, simulation, replay and active launch files, all installed."""
     assert sorted(p.name for p in (ROOT / 'launch').glob('*.launch.xml')) == \
         sorted(LAUNCH_FILES)
     for name in LAUNCH_FILES:
@@ -205,6 +207,7 @@ def test_launch_files_are_the_documented_three():
     ('estimator.launch.xml', ['inertia_estimator']),
     ('sim.launch.xml', ['inertia_estimator', 'scene_simulator']),
     ('replay.launch.xml', ['inertia_estimator', 'bag_player']),
+    ('active.launch.xml', ['inertia_estimator', 'scene_simulator', 'exciter']),
 ])
 def test_launch_file_names_only_what_exists(name, starts):
     """Executables, parameters (name and type), remaps, arguments and files all exist."""

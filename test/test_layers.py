@@ -76,7 +76,8 @@ ROS_ROOTS = ('rclpy', 'rcl_interfaces', 'builtin_interfaces', 'std_srvs',
              'ament_index_python', 'rosidl_runtime_py')
 #: Modules outside nodes/ that may reach the nodes, inside a function only (lazily).
 LAZY_NODE_USERS = ('inertia_ros/inertia_estimator_node.py', 'inertia_ros/scene_simulator_node.py',
-                   'inertia_ros/bag_player_node.py', 'inertia_ros/cli/demo.py',
+                   'inertia_ros/bag_player_node.py', 'inertia_ros/exciter_node.py',
+                   'inertia_ros/cli/demo.py',
                    'inertia_ros/bench/node.py')
 
 

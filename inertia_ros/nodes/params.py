@@ -17,9 +17,9 @@ refuse the rest in one line:
   starting ROS (:func:`print_help_if_asked`).
 
 The tables (:data:`ESTIMATOR`, :data:`PLAYBACK`, :data:`SCENE_SIMULATOR`,
-:data:`BAG_PLAYER`) are the single source of the declared parameters, the ``--help`` text and
-the config/*.yaml documentation.  rclpy is imported only where a node is built, so ``--help``
-is fast.
+:data:`BAG_PLAYER`, :data:`EXCITER`) are the single source of the declared parameters, the
+``--help`` text and the config/*.yaml documentation.  rclpy is imported only where a node is
+built, so ``--help`` is fast.
 """
 from __future__ import annotations
 
@@ -33,8 +33,8 @@ from typing import Any
 from inertia_ros.core.estimation.options import HOLDS, METHODS, MODELS, TORQUE_BIAS
 from inertia_ros.core.estimation.windowed import ONLINE_METHODS
 
-__all__ = ['BAG_PLAYER', 'ESTIMATOR', 'NODE_TABLES', 'PLAYBACK', 'SCENE_SIMULATOR', 'ParamSpec',
-           'check_changes', 'coerce', 'coerce_changes', 'declare', 'descriptor',
+__all__ = ['BAG_PLAYER', 'ESTIMATOR', 'EXCITER', 'NODE_TABLES', 'PLAYBACK', 'SCENE_SIMULATOR',
+           'ParamSpec', 'check_changes', 'coerce', 'coerce_changes', 'declare', 'descriptor',
            'print_help_if_asked', 'range_text', 'usage']
 
 #: Parameters every rclpy node has; never reported as unknown.
@@ -415,6 +415,10 @@ SCENE_SIMULATOR: dict[str, ParamSpec] = {
                        read_only=True),
     'seed': ParamSpec(-1, "seed of the simulation's random draws; -1 = the scene's own seed",
                       -1, 2**31 - 1, read_only=True),
+    'command_topic': ParamSpec('', 'closed loop: integrate the body under the torque '
+                               'commanded on this topic (geometry_msgs/WrenchStamped, held '
+                               "until the next command, zero before the first) instead of the "
+                               "scene's own profile; '' = open loop", read_only=True),
     **PLAYBACK,
 }
 
@@ -431,6 +435,43 @@ BAG_PLAYER: dict[str, ParamSpec] = {
     **PLAYBACK,
 }
 
+#: ``exciter`` (config/exciter.yaml documents the same set).
+EXCITER: dict[str, ParamSpec] = {
+    'scene': ParamSpec('', "scene YAML whose torque profile is commanded (a planned scene; "
+                       "its body tensor is the prior of the rate prediction); '' = the "
+                       "package's config/scenes/default.yaml", read_only=True),
+    'command_topic': ParamSpec('torque_command', 'topic of the torque command '
+                               '(geometry_msgs/WrenchStamped)', read_only=True),
+    'frame_id': ParamSpec('', "frame of the command; '' = the scene's gyro frame",
+                          read_only=True),
+    'estimator': ParamSpec('/inertia_estimator', "the estimator node whose "
+                           "'<estimator>/inertia_covariance', principal moments and axes and "
+                           '/diagnostics are followed', read_only=True),
+    'max_torque': ParamSpec(0.1, 'largest commanded torque per axis; a planned command over '
+                            'it is held at zero [N m]', 1e-9, 1e6, read_only=True),
+    'max_slew': ParamSpec(1.0, 'largest change of the command per axis [N m/s]', 1e-9, 1e9,
+                          read_only=True),
+    'max_rate': ParamSpec(1.0, 'largest body rate |omega|: hold zero when it would be crossed '
+                          '[rad/s]', 1e-6, 1e4, read_only=True),
+    'rate_margin': ParamSpec(0.2, 'relative uncertainty of the tensor in the rate prediction '
+                             '[dimensionless]', 0.0, 1.0, read_only=True),
+    'rate_hysteresis': ParamSpec(0.8, 'after a rate hold, resume under this fraction of '
+                                 'max_rate [dimensionless]', 0.01, 0.99, read_only=True),
+    'target_rel_std': ParamSpec(0.02, 'stop when every principal moment has a relative '
+                                'sigma at or below this [dimensionless]', 1e-6, 1.0,
+                                read_only=True),
+    'timeout': ParamSpec(120.0, 'stop after this much excitation [s]', 0.1, 86400.0,
+                         read_only=True),
+    'estimator_timeout': ParamSpec(10.0, 'stop when no covariance arrived for this long '
+                                   '(from the start of the excitation until the first) [s]',
+                                   0.1, 3600.0, read_only=True),
+    'stall_window': ParamSpec(20.0, 'stop when the relative sigma fell less than 2 % over '
+                              'this window [s]', 0.1, 86400.0, read_only=True),
+    'rate': ParamSpec(50.0, 'command rate [Hz]', 1.0, 1000.0, read_only=True),
+    'exit_on_stop': ParamSpec(False, 'exit the process 2 s after the final zero command',
+                              read_only=True),
+}
+
 #: Node name -> (one-line summary, parameter table), for ``--help`` and the tests.
 NODE_TABLES: dict[str, tuple[str, dict[str, ParamSpec]]] = {
     'inertia_estimator': ('Live inertia-tensor estimator: subscribes imu (or omega) and '
@@ -443,6 +484,10 @@ NODE_TABLES: dict[str, tuple[str, dict[str, ParamSpec]]] = {
     'bag_player': ('Plays a recorded log (.mcap or rosbag2 directory) back on imu (or omega) '
                    "and torque, with ~/truth; waits for the estimator's subscriptions first.",
                    BAG_PLAYER),
+    'exciter': ('Commands a planned torque profile on torque_command within its torque, slew '
+                "and body-rate limits, follows the estimator's covariance and stops at the "
+                'target sigma, a timeout, a reset, a lost or stalled estimator; state on '
+                '/diagnostics.', EXCITER),
 }
 
 
