@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -14,10 +15,10 @@ import pytest
 from conftest import ROOT
 from inertia_ros.cli import COMMANDS, build_parser
 
-#: The node executables: module, console script (``ros2 run inertia_ros NAME``).
-NODES = (('inertia_ros.inertia_estimator_node', 'inertia_estimator'),
-         ('inertia_ros.scene_simulator_node', 'scene_simulator'),
-         ('inertia_ros.bag_player_node', 'bag_player'))
+#: The node executables: module, console script (``ros2 run inertia_ros NAME``), read from
+#: setup.py's console_scripts (every ``NAME = inertia_ros.X_node:main``).
+NODES = tuple((m, name) for name, m in re.findall(
+    r"'(\w+) = (inertia_ros\.\w+_node):main'", (ROOT / 'setup.py').read_text()))
 
 
 def _sub_commands(parser: argparse.ArgumentParser, prefix: tuple[str, ...] = ()
@@ -94,3 +95,9 @@ def test_console_script_help(name: str) -> None:
     """The installed executables answer ``--help`` (``inertia-ros`` under its own name)."""
     proc = _run([str(_script(name)), '--help'])
     _check(proc, 'usage: inertia-ros' if name == 'inertia-ros' else 'usage')
+
+
+def test_every_node_module_is_an_executable() -> None:
+    """Each ``inertia_ros/*_node.py`` is a console script, so its ``--help`` is tested above."""
+    modules = {f'inertia_ros.{p.stem}' for p in (ROOT / 'inertia_ros').glob('*_node.py')}
+    assert modules == {m for m, _ in NODES} and len(NODES) >= 4
