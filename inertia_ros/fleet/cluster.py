@@ -139,10 +139,13 @@ def _start_local(distributed: Any, workers: int | None, processes: bool) -> tupl
     from inertia_ros.cli.fleet import _cores
 
     n = workers or _cores()
+    # Dask's own log only at CRITICAL: a worker stopped by Ctrl-C or at the end logs its
+    # lost heartbeat with a traceback at ERROR; a log a worker cannot finish is a 'failed'
+    # row with the error anyway
     try:
         cluster = distributed.LocalCluster(n_workers=n, threads_per_worker=1,
                                            processes=processes, dashboard_address=None,
-                                           silence_logs=logging.ERROR)
+                                           silence_logs=logging.CRITICAL)
     except Exception as exc:
         raise ClusterError(f'cannot start a local Dask cluster of {n} workers '
                            f'({_first_line(exc)})') from None
