@@ -362,3 +362,30 @@ def test_ctrl_c_exits_130_and_stops_the_workers(tmp_path: Path, when: float,
     assert 'Traceback' not in err and 'KeyboardInterrupt' not in err, err
     assert err.strip().splitlines()[-1].startswith('inertia_ros fleet: interrupted'), err
     assert dt < FAST_S
+
+
+def _sleep_forever() -> None:  # a child process that would outlive its parent
+    time.sleep(600)
+
+
+def test_shutdown_stops_the_runs_own_processes_only() -> None:
+    """Whatever ended the run, the shut-down terminates the child processes the run started
+    (a worker process left behind before) and no other."""
+    import multiprocessing
+
+    from inertia_ros.fleet import cluster
+
+    ctx = multiprocessing.get_context('spawn')
+    older = ctx.Process(target=_sleep_forever, daemon=True)
+    older.start()
+    try:
+        before = set(multiprocessing.active_children())
+        mine = ctx.Process(target=_sleep_forever, daemon=True)
+        mine.start()
+        t0 = time.monotonic()
+        cluster._shutdown(None, None, before)
+        assert not mine.is_alive() and time.monotonic() - t0 < FAST_S
+        assert older.is_alive()
+    finally:
+        older.kill()
+        older.join()
