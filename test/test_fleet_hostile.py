@@ -389,3 +389,48 @@ def test_shutdown_stops_the_runs_own_processes_only() -> None:
     finally:
         older.kill()
         older.join()
+
+
+def test_long_empty_and_unwritable_values_are_one_short_line(tmp_path: Path,
+                                                             capsys: pytest.CaptureFixture,
+                                                             in_process: dict) -> None:
+    """A 130 kB PATH, --out, --report or --wheels (tracebacks: name too long), an empty
+    PATH (it searched the working directory), an --out or --report where nothing can be
+    made (refused only after every log had run): one line of at most a few hundred
+    characters, before any log runs."""
+    long = str(tmp_path / ('a' * 130_000))
+    out = str(tmp_path / 'r.csv')
+    cases = [((long, '--out', out), 'cannot search (File name too long)'),
+             ((str(GOOD), '--out', long + '.csv'), 'cannot write there'),
+             ((str(GOOD), '--out', out, '--report', long), 'cannot make this directory'),
+             ((str(GOOD), '--out', out, '--wheels', long), 'cannot read'),
+             (('', '--out', out), "PATH '' is empty"),
+             ((str(GOOD), '--out', '/proc/r.csv'), 'cannot write there'),
+             ((str(GOOD), '--out', out, '--report', '/dev/null/x'), 'Not a directory')]
+    for args, words in cases:
+        err = _refused(_fleet(capsys, *args), words)
+        assert len(err) < 400, err
+    assert in_process['runs'] == [] and os.listdir(tmp_path) == []
+
+
+def test_a_long_option_value_reaches_every_log(tmp_path: Path,
+                                               capsys: pytest.CaptureFixture) -> None:
+    """A 130 kB option value given to Dask's map as a keyword argument made every row
+    'failed' (an AssertionError in its scheduler): the options travel inside each task, and
+    each log gives its own error row (threads of this process, a real Dask client)."""
+    pytest.importorskip('distributed')
+    logs = tmp_path / 'v1'
+    logs.mkdir()
+    for i in range(2):
+        shutil.copyfile(GOOD, logs / f'{i}.mcap')
+    mp = pytest.MonkeyPatch()
+    mp.setattr(fleet_run, 'LOCAL_PROCESSES', False)
+    try:
+        code, out, err, _ = _fleet(capsys, str(logs), '--out', str(tmp_path / 'r.csv'),
+                                   '--workers', '1', '--omega-topic', 't' * 130_000)
+    finally:
+        mp.undo()
+    assert code == 0, err
+    rows = fleet_table.read_rows(tmp_path / 'r.csv')
+    assert [r['status'] for r in rows] == ['error', 'error']
+    assert all('topic ttt' in r['error'] for r in rows)

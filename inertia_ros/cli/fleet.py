@@ -200,34 +200,60 @@ def _check_workers(args: argparse.Namespace) -> None:
 
 
 def _check_out(out: Path) -> None:
-    """``--out``: a .parquet/.csv name in a writable directory, a regular file if present."""
-    from inertia_ros.fleet.discover import display_path
+    """``--out``: a .parquet/.csv name in a writable directory, a regular file if present
+    (the directory is tried with a temporary file, removed at once)."""
+    import tempfile
+
+    from inertia_ros.fleet.discover import shown
     from inertia_ros.fleet.table import TableError, table_format
 
-    shown = display_path(str(out))
+    name = shown(str(out))
     try:
         table_format(out)
-    except TableError as exc:
-        raise UserError(f'--out {display_path(str(exc))}') from None
-    if out.is_symlink():
-        raise UserError(f'--out {shown}: is a symbolic link; give the path of the table '
-                        f'itself (a link is never written through)')
-    if out.is_dir():
-        raise UserError(f'--out {shown}: is a directory; give a .parquet or .csv file name')
-    if out.exists() and not out.is_file():
-        raise UserError(f'--out {shown}: exists and is not a regular file; choose another '
-                        f'--out')
-    parent = out.parent
-    if not parent.is_dir():
-        raise UserError(f'--out {shown}: directory {display_path(str(parent))} does not exist')
-    if not os.access(parent, os.W_OK | os.X_OK):
-        raise UserError(f'--out {shown}: cannot write in {display_path(str(parent))} '
-                        f'(permission denied); choose another --out')
+    except TableError:
+        raise UserError(f'--out {name}: unknown table format; name it .parquet or .csv'
+                        ) from None
+    try:
+        if out.is_symlink():
+            raise UserError(f'--out {name}: is a symbolic link; give the path of the table '
+                            f'itself (a link is never written through)')
+        if out.is_dir():
+            raise UserError(f'--out {name}: is a directory; give a .parquet or .csv file '
+                            f'name')
+        if out.exists() and not out.is_file():
+            raise UserError(f'--out {name}: exists and is not a regular file; choose '
+                            f'another --out')
+        if not out.parent.is_dir():
+            raise UserError(f'--out {name}: directory {shown(str(out.parent))} does not '
+                            f'exist')
+        fd, probe = tempfile.mkstemp(prefix=f'.{out.name}.', suffix='.tmp', dir=out.parent)
+        os.close(fd)
+        os.unlink(probe)
+    except (OSError, ValueError) as exc:  # too long a name, permissions, a NUL byte, ...
+        raise UserError(f'--out {name}: cannot write there '
+                        f'({getattr(exc, "strerror", None) or exc}); choose another --out'
+                        ) from None
+
+
+def _check_report(report: Path | None) -> None:
+    """``--report``: the directory is made now (before any log runs), or refused."""
+    from inertia_ros.fleet.discover import shown
+
+    if report is None:
+        return
+    try:
+        if report.exists() and not report.is_dir():
+            raise UserError(f'--report {shown(str(report))}: exists and is not a directory; '
+                            f'give a directory')
+        report.mkdir(parents=True, exist_ok=True)
+    except (OSError, ValueError) as exc:
+        raise UserError(f'--report {shown(str(report))}: cannot make this directory '
+                        f'({getattr(exc, "strerror", None) or exc})') from None
 
 
 def _check_estimate_options(args: argparse.Namespace) -> None:
     """The per-log file outputs are refused; input files must be readable regular files."""
-    from inertia_ros.fleet.discover import _file_problem, display_path
+    from inertia_ros.fleet.discover import _file_problem, shown
 
     for a in _estimate_actions():
         v = getattr(args, a.dest, a.default)
@@ -242,7 +268,7 @@ def _check_estimate_options(args: argparse.Namespace) -> None:
         if a.type is Path:
             _, problem = _file_problem(Path(v))
             if problem is not None:
-                raise UserError(f'{opt} {display_path(str(v))}: {problem}')
+                raise UserError(f'{opt} {shown(str(v))}: {problem}')
 
 
 def _check_options(args: argparse.Namespace) -> None:
@@ -258,9 +284,7 @@ def _check_options(args: argparse.Namespace) -> None:
         raise UserError('--model axisymmetric needs --symmetry-axis x|y|z')
     _check_estimate_options(args)
     _check_out(args.out)
-    report = args.report
-    if report is not None and report.exists() and not report.is_dir():
-        raise UserError(f'--report {report}: exists and is not a directory; give a directory')
+    _check_report(args.report)
     if args.scheduler is not None:
         try:
             check_scheduler(args.scheduler)
@@ -287,13 +311,14 @@ def _unchanged(old: list[dict[str, Any]], found: dict[str, Any],
 
 def _write_report(rows: list[dict[str, Any]], report: Path) -> None:
     """Write the fleet report next to ``report`` and name it on stderr."""
+    from inertia_ros.fleet.discover import shown
     from inertia_ros.fleet.report import write_report
 
     try:
         md = write_report(rows, report)
     except OSError as exc:
-        raise UserError(f'--report {report}: {exc.strerror or exc}') from None
-    print(f'report: {md}', file=sys.stderr)
+        raise UserError(f'--report {shown(str(report))}: {exc.strerror or exc}') from None
+    print(f'report: {shown(str(md), 1000)}', file=sys.stderr)
 
 
 def _summary(rows: list[dict[str, Any]], refs: list[Any], found: dict[str, Any],
@@ -349,7 +374,7 @@ def _estimate_todo(args: argparse.Namespace, todo: list[Any], flags: list[str],
 
 def run(args: argparse.Namespace) -> int:
     """Run the command; return the exit status."""
-    from inertia_ros.fleet.discover import DiscoveryError, discover, display_path
+    from inertia_ros.fleet.discover import DiscoveryError, discover, display_path, shown
     from inertia_ros.fleet.run import options_signature
     from inertia_ros.fleet.table import TableError, read_rows, write_rows
 
@@ -363,13 +388,13 @@ def run(args: argparse.Namespace) -> int:
         raise UserError(str(exc)) from None
     if not refs:
         raise UserError(f'no logs (.mcap files or rosbag2 directories) under '
-                        f'{display_path(", ".join(args.paths))}')
+                        f'{shown(", ".join(args.paths))}')
     flags = estimate_flags(args)
     signature = options_signature(flags, rule)
     try:
         old = read_rows(out) if out.exists() else []
     except TableError as exc:
-        raise UserError(f'--out {display_path(str(exc))}') from None
+        raise UserError(f'--out {shown(str(exc), 400)}') from None
     found = {display_path(r.path): r for r in refs}  # the rows' paths are display paths
     kept = _unchanged(old, found, display_path(signature))
     todo = [r for p, r in found.items() if p not in kept]
@@ -389,7 +414,7 @@ def run(args: argparse.Namespace) -> int:
         try:
             write_rows(out, rows)
         except TableError as exc:
-            raise UserError(f'--out {display_path(str(exc))}') from None
+            raise UserError(f'--out {shown(str(exc), 400)}') from None
     if args.report is not None and not interrupted:
         _write_report(rows, args.report)
     summary = _summary(rows, refs, found, todo, new_rows, workers, display_path(str(out)), t0)

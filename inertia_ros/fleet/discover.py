@@ -31,7 +31,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-__all__ = ['DiscoveryError', 'LogRef', 'discover', 'display_path', 'is_url',
+__all__ = ['DiscoveryError', 'LogRef', 'discover', 'display_path', 'is_url', 'shown',
            'vehicle_from_dir']
 
 #: File-name suffix of an MCAP log.
@@ -85,6 +85,17 @@ def display_path(path: str) -> str:
     return path.encode('utf-8', 'surrogateescape').decode('utf-8', 'backslashreplace')
 
 
+def shown(text: str, limit: int = 160) -> str:
+    """A user's value for a one-line message: :func:`display_path`, control characters
+    escaped, the middle of a long one elided (at most ``limit`` characters)."""
+    t = display_path(text)
+    t = ''.join(c if c.isprintable() else repr(c)[1:-1] for c in t)
+    if len(t) <= limit:
+        return t
+    half = (limit - 5) // 2
+    return f'{t[:half]} ... {t[-half:]}'
+
+
 def is_url(path: str) -> bool:
     """True for ``PROTOCOL://...`` other than ``file://`` (those are read through fsspec)."""
     head, sep, _ = path.partition('://')
@@ -116,12 +127,13 @@ def _file_problem(p: Path) -> tuple[os.stat_result | None, str | None]:
     """``(stat, None)`` of a regular file (links followed), else ``(None, why)``."""
     try:
         st = p.stat()
-    except OSError as exc:
-        if exc.errno == errno.ELOOP:
+    except (OSError, ValueError) as exc:  # ValueError: a NUL in the name
+        errnum = getattr(exc, 'errno', None)
+        if errnum == errno.ELOOP:
             return None, 'symbolic link loop; not read'
-        if exc.errno == errno.ENOENT and p.is_symlink():
+        if errnum == errno.ENOENT and os.path.islink(p):
             return None, 'dangling symbolic link (its target does not exist); not read'
-        return None, f'cannot read ({exc.strerror or exc})'
+        return None, f'cannot read ({getattr(exc, "strerror", None) or exc})'
     if not stat.S_ISREG(st.st_mode):
         what = next((w for test, w in _KINDS if test(st.st_mode)), 'not a regular file')
         return None, f'not a regular file ({what}); not read'
@@ -172,11 +184,21 @@ def _walk_local(root: Path) -> list[LogRef]:
 
 
 def _discover_local(arg: str) -> list[LogRef]:
+    if not arg.strip():
+        raise DiscoveryError(f'PATH {arg!r} is empty; give a file or a directory')
+    try:
+        return _discover_local_path(arg)
+    except (OSError, ValueError) as exc:  # a name too long, a NUL byte, ...
+        raise DiscoveryError(f'{shown(arg)}: cannot search '
+                             f'({getattr(exc, "strerror", None) or exc})') from None
+
+
+def _discover_local_path(arg: str) -> list[LogRef]:
     p = Path(arg.removeprefix('file://')).expanduser()
     p = Path(os.path.abspath(p))
     if not p.is_dir():
         if not p.exists() and not p.is_symlink():
-            raise DiscoveryError(f'{display_path(arg)}: no such file or directory')
+            raise DiscoveryError(f'{shown(arg)}: no such file or directory')
         return [_local_file(p)]  # a file, or a path that is not one (a row with its problem)
     if (p / BAG_METADATA).exists():
         return [_local_bag(p)]
@@ -206,18 +228,21 @@ def _discover_url(arg: str) -> list[LogRef]:
     try:
         import fsspec
     except ImportError:  # pragma: no cover - fsspec comes with dask
-        raise DiscoveryError(f'{arg}: URLs need fsspec (pip install fsspec)') from None
+        raise DiscoveryError(f'{shown(arg)}: URLs need fsspec (pip install fsspec)') from None
     try:
         fs, root = fsspec.core.url_to_fs(arg)
         if not fs.exists(root):
-            raise DiscoveryError(f'{arg}: no such file or directory')
+            raise DiscoveryError(f'{shown(arg)}: no such file or directory')
         if fs.isfile(root):
             info = fs.info(root)
             return [LogRef(fs.unstrip_protocol(root), int(info.get('size') or 0),
                            _mtime_ns(info), 'mcap')]
         entries = fs.find(root, withdirs=False, detail=True)
-    except (ImportError, ValueError, OSError) as exc:
-        raise DiscoveryError(f'{arg}: cannot list this URL ({exc})') from None
+    except DiscoveryError:
+        raise
+    except Exception as exc:  # whatever a filesystem backend raises
+        raise DiscoveryError(f'{shown(arg)}: cannot list this URL '
+                             f'({shown(str(exc), 200)})') from None
     root = root.rstrip('/')
     by_dir: dict[str, list[tuple[str, dict[str, Any]]]] = {}
     for name, info in entries.items():

@@ -19,6 +19,7 @@ again by the next invocation).
 from __future__ import annotations
 
 import contextlib
+import functools
 import io
 import json
 import math
@@ -415,8 +416,11 @@ def run_logs(client: Any, refs: Sequence[LogRef], flags: Sequence[str] = (),
     from distributed import as_completed
 
     flags = list(flags)
-    futures = client.map(estimate_log, list(refs), flags=flags, vehicle_from=vehicle_from,
-                         pure=False)
+    # the options travel inside each task (a partial), not as map keyword arguments: Dask
+    # makes a large keyword argument (a 130 kB option) a shared task of its own, which its
+    # scheduler then failed on (AssertionError, every row 'failed')
+    task = functools.partial(estimate_log, flags=flags, vehicle_from=vehicle_from)
+    futures = client.map(task, list(refs), pure=False)
     by_key = {f.key: ref for f, ref in zip(futures, refs, strict=True)}
     rows: list[dict[str, Any]] = []
     interrupted = False
