@@ -278,7 +278,10 @@ def _check_options(args: argparse.Namespace) -> None:
     _check_workers(args)
     rule = args.vehicle_from
     if rule != 'dir' and not (rule.startswith('metadata:') and len(rule) > len('metadata:')):
-        raise UserError(f'--vehicle-from: expected dir or metadata:KEY, got {rule!r}')
+        from inertia_ros.fleet.discover import shown
+
+        raise UserError(f'--vehicle-from: expected dir or metadata:KEY, got '
+                        f'{shown(repr(rule))}')
     if getattr(args, 'model', None) == 'axisymmetric' \
             and getattr(args, 'symmetry_axis', None) is None:
         raise UserError('--model axisymmetric needs --symmetry-axis x|y|z')

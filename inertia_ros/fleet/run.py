@@ -41,6 +41,7 @@ from inertia_ros.fleet.discover import (
     LogRef,
     display_path,
     is_url,
+    shown,
     vehicle_from_dir,
 )
 
@@ -203,7 +204,8 @@ def row_from_report(ref: LogRef, report: dict[str, Any] | None, *, signature: st
     row = _empty_row(ref, signature)
     row.update({'vehicle': vehicle, 'wall_s': wall_s, 'cpu_s': cpu_s, 'worker': worker})
     if report is None:
-        row.update({'status': ERROR, 'error': error or 'no report', 'log_start_ns': start_ns,
+        row.update({'status': ERROR, 'error': shown(error or 'no report', 2000),
+                    'log_start_ns': start_ns,
                     'log_start': _iso(start_ns)})
     else:
         _fill_from_report(row, report, start_ns)
