@@ -338,6 +338,25 @@ def _summary(rows: list[dict[str, Any]], refs: list[Any], found: dict[str, Any],
                + f' -> {out}')
 
 
+def _in_own_process() -> bool:
+    """True when this process is the command line (``python -m inertia_ros``,
+    ``inertia-ros``), not a program that called :func:`inertia_ros.cli.main`."""
+    argv0 = Path(sys.argv[0]) if sys.argv and sys.argv[0] else Path()
+    return argv0.name == 'inertia-ros' or argv0.parts[-2:] == ('inertia_ros', '__main__.py')
+
+
+def _ignore_ctrl_c() -> Any:
+    """After a Ctrl-C: further ones are ignored while the rows are written and the process
+    exits, so it exits 130 (a second Ctrl-C then ended it by SIGINT, status -2).  Returns
+    the previous handler (None off the main thread, where nothing is changed)."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        return None
+    return signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
 def _estimate_todo(args: argparse.Namespace, todo: list[Any], flags: list[str],
                    new_rows: list[dict[str, Any]], checkpoint: Any) -> tuple[int, bool]:
     """Run the logs of ``todo`` on the cluster, appending their rows to ``new_rows``.
@@ -350,6 +369,13 @@ def _estimate_todo(args: argparse.Namespace, todo: list[Any], flags: list[str],
 
     bar = _Bar(len(todo), sys.stderr.isatty() and not args.no_progress)
     last = [time.monotonic()]
+    if _in_own_process():
+        # Dask's own log stays quiet to the end of the process (its event loop can report a
+        # closed connection with a traceback at INFO while the interpreter exits); a log
+        # that cannot be finished is a 'failed' row anyway
+        import logging
+
+        logging.getLogger('distributed').setLevel(logging.CRITICAL)
     workers = 0
     interrupted = False
 
@@ -411,8 +437,31 @@ def run(args: argparse.Namespace) -> int:
     if todo:
         workers, interrupted = _estimate_todo(args, todo, flags, new_rows,
                                               lambda: write_rows(out, table()))
-    interrupted = interrupted and len(new_rows) < len(todo)  # not if only closing was cut
-    rows = table()
+    previous = _ignore_ctrl_c() if interrupted else None
+    try:
+        return _finish(args, rows=table(), old=old, refs=refs, found=found, todo=todo,
+                       new_rows=new_rows, workers=workers, t0=t0,
+                       interrupted=interrupted and len(new_rows) < len(todo))
+    finally:
+        if previous is not None and not _in_own_process():  # a caller's handler is its own
+            import signal
+
+            signal.signal(signal.SIGINT, previous)
+
+
+def _finish(args: argparse.Namespace, *, rows: list[dict[str, Any]],
+            old: list[dict[str, Any]], refs: list[Any], found: dict[str, Any],
+            todo: list[Any], new_rows: list[dict[str, Any]], workers: int, t0: float,
+            interrupted: bool) -> int:
+    """Write the table (and the report), print the summary; return the exit status.
+
+    ``interrupted``: Ctrl-C stopped the run before every log of ``todo`` had a row (not if
+    only the cluster's shut-down was cut short).
+    """
+    from inertia_ros.fleet.discover import display_path, shown
+    from inertia_ros.fleet.table import TableError, write_rows
+
+    out: Path = args.out
     if todo or len(rows) != len(old):
         try:
             write_rows(out, rows)
