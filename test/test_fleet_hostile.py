@@ -16,6 +16,7 @@ from pathlib import Path
 
 import pytest
 
+import inertia_ros.cli.fleet as cli_fleet
 import inertia_ros.fleet.run as fleet_run
 from conftest import ROOT
 from inertia_ros.cli import build_parser, main
@@ -84,10 +85,11 @@ def test_fleet_help_lists_every_estimate_option(capsys: pytest.CaptureFixture) -
     assert '--nuisance TERMS' in out and '--wheels FILE' in out and '--model {' in out
     assert '--urdf' not in out  # refused in a fleet, so not offered
     est = build_parser('estimate')._subparsers._group_actions[0].choices['estimate']
-    for a in est._actions:
-        if a.option_strings and a.dest not in ('path', 'format', 'output', 'plot', 'help',
-                                               'urdf', 'mass', 'com', 'link'):
-            assert max(a.option_strings, key=len) in out, a.dest
+    passed = [a for a in est._actions if a.option_strings
+              and a.dest not in (*cli_fleet._OWN, *cli_fleet._PER_LOG_OUTPUTS)]
+    assert len(passed) >= 15
+    for a in passed:
+        assert max(a.option_strings, key=len) in out, a.dest
 
 
 def test_options_pass_through_as_typed(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
@@ -403,7 +405,7 @@ def test_long_empty_and_unwritable_values_are_one_short_line(tmp_path: Path,
     cases = [((long, '--out', out), 'cannot search (File name too long)'),
              ((str(GOOD), '--out', long + '.csv'), 'cannot write there'),
              ((str(GOOD), '--out', out, '--report', long), 'cannot make this directory'),
-             ((str(GOOD), '--out', out, '--wheels', long), 'cannot read'),
+             ((str(GOOD), '--out', out, '--wheels', long), '--wheels'),
              (('', '--out', out), "PATH '' is empty"),
              ((str(GOOD), '--out', '/proc/r.csv'), 'cannot write there'),
              ((str(GOOD), '--out', out, '--report', '/dev/null/x'), 'Not a directory')]
@@ -415,9 +417,9 @@ def test_long_empty_and_unwritable_values_are_one_short_line(tmp_path: Path,
 
 def test_a_long_option_value_reaches_every_log(tmp_path: Path,
                                                capsys: pytest.CaptureFixture) -> None:
-    """A 130 kB option value given to Dask's map as a keyword argument made every row
-    'failed' (an AssertionError in its scheduler): the options travel inside each task, and
-    each log gives its own error row (threads of this process, a real Dask client)."""
+    """A 130 kB option given to Dask's map as a keyword argument made every row 'failed'
+    (an AssertionError in its scheduler): the options travel inside each task, and each log
+    gives its own row (threads of this process, a real Dask client)."""
     pytest.importorskip('distributed')
     logs = tmp_path / 'v1'
     logs.mkdir()
@@ -427,10 +429,11 @@ def test_a_long_option_value_reaches_every_log(tmp_path: Path,
     mp.setattr(fleet_run, 'LOCAL_PROCESSES', False)
     try:
         code, out, err, _ = _fleet(capsys, str(logs), '--out', str(tmp_path / 'r.csv'),
-                                   '--workers', '1', '--omega-topic', 't' * 130_000)
+                                   '--workers', '1', '--vehicle-from',
+                                   'metadata:' + 'k' * 130_000)
     finally:
         mp.undo()
     assert code == 0, err
     rows = fleet_table.read_rows(tmp_path / 'r.csv')
-    assert [r['status'] for r in rows] == ['error', 'error']
-    assert all('topic ttt' in r['error'] for r in rows)
+    assert [r['status'] for r in rows] == ['ok', 'ok']
+    assert [r['vehicle'] for r in rows] == [None, None]  # no such metadata key

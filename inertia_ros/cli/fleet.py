@@ -33,8 +33,9 @@ from inertia_ros.cli import UserError
 
 __all__ = ['add_parser', 'estimate_flags', 'run']
 
-#: ``estimate`` options that the fleet sets itself (per-log output), not passed through.
-_OWN = {'path', 'format', 'output', 'plot', 'no_progress', 'help'}
+#: ``estimate`` options that the fleet sets itself (per-log output), not passed through
+#: (``force``: estimate's overwrite permission, for outputs a fleet does not write).
+_OWN = {'path', 'format', 'output', 'plot', 'no_progress', 'help', 'force'}
 #: ``estimate`` options that write one file per log: refused in a fleet (one line).
 _PER_LOG_OUTPUTS = ('urdf', 'mass', 'com', 'link')
 #: Seconds between checkpoints of the table during a long run.
@@ -132,7 +133,8 @@ def estimate_flags(args: argparse.Namespace) -> list[str]:
     """The ``estimate`` options of ``args`` that differ from their defaults, as argv.
 
     Each option's words are those typed (``--com 0 0 0.1``, ``--nuisance a,b``); file names
-    (options of type Path) are made absolute, so a worker in another directory finds them.
+    (options parsed to a Path) are made absolute, so a worker in another directory finds
+    them.
     """
     words: dict[str, list[str]] = getattr(args, 'estimate_words', None) or {}
     flags: list[str] = []
@@ -145,7 +147,7 @@ def estimate_flags(args: argparse.Namespace) -> list[str]:
             flags.append(opt)
             continue
         given = words.get(a.dest) or [str(x) for x in (v if isinstance(v, list) else [v])]
-        if a.type is Path:
+        if isinstance(v, Path):  # a file the workers read
             given = [os.path.abspath(w) for w in given]
         flags += [opt, *given]
     return flags
@@ -265,8 +267,8 @@ def _check_estimate_options(args: argparse.Namespace) -> None:
                 f'{opt}: a fleet writes no file per log (they would all need their own name); '
                 f'its table holds every log\'s tensor: for one log\'s URDF run `python -m '
                 f'inertia_ros estimate LOG --urdf FILE --mass M`')
-        if a.type is Path:
-            _, problem = _file_problem(Path(v))
+        if isinstance(v, Path):  # an input file (--wheels, --rotors)
+            _, problem = _file_problem(v)
             if problem is not None:
                 raise UserError(f'{opt} {shown(str(v))}: {problem}')
 
