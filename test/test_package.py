@@ -71,7 +71,7 @@ OPTIONAL_IMPORTS: dict[str, str] = {
                  '(requirements-bench.txt), skipped with a note when not importable',
     # the fleet command: declared (rosdep/inertia_ros.yaml keys), yet imported only by fleet,
     # with a one-line error when absent
-    'distributed': 'inertia_ros/fleet/run.py: Dask for python -m inertia_ros fleet',
+    'distributed': 'inertia_ros/fleet/cluster.py: Dask for python -m inertia_ros fleet',
     'pyarrow': 'inertia_ros/fleet/table.py: Parquet tables of fleet (CSV without it)',
     'fsspec': 'inertia_ros/fleet/discover.py: fleet on URLs (s3://, ...)',
 }

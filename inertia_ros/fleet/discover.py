@@ -13,17 +13,26 @@ A path given on the command line is
 
 Each log is identified by ``(path, size, mtime_ns)``: the size and the latest modification
 time of its files, so a re-run can tell an unchanged log from a new or rewritten one.
+
+A log that cannot be read as a file (a dangling symbolic link, a symbolic-link loop, a FIFO,
+a device or a socket named ``*.mcap``) is still found, with its ``problem``: it becomes a row
+with that error and is never opened (a FIFO would block the worker for ever).  File names
+that are not UTF-8 are kept as the bytes the filesystem gave (to open them) and shown with
+backslash escapes (:func:`display_path`) in rows, tables and messages.
 """
 from __future__ import annotations
 
+import errno
 import os
 import posixpath
+import stat
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-__all__ = ['DiscoveryError', 'LogRef', 'discover', 'is_url', 'vehicle_from_dir']
+__all__ = ['DiscoveryError', 'LogRef', 'discover', 'display_path', 'is_url', 'shown',
+           'vehicle_from_dir']
 
 #: File-name suffix of an MCAP log.
 MCAP_SUFFIX = '.mcap'
@@ -50,17 +59,41 @@ class LogRef:
         filesystem does not report one.
     kind : str
         ``'mcap'`` (a single file) or ``'rosbag2'`` (a bag directory).
+    problem : str or None
+        Why the log cannot be opened (``'dangling symbolic link'``, ``'not a regular file
+        (FIFO)'``, ...); None for a readable log.  Such a log is a row with this error.
     """
 
     path: str
     size: int
     mtime_ns: int
     kind: str
+    problem: str | None = None
 
     @property
     def key(self) -> tuple[str, int, int]:
         """The identity of this version of the log: ``(path, size, mtime_ns)``."""
         return (self.path, self.size, self.mtime_ns)
+
+
+def display_path(path: str) -> str:
+    """``path`` as valid UTF-8 text: bytes of a non-UTF-8 file name as ``\\xNN`` escapes.
+
+    >>> display_path('/logs/caf\\udce9.mcap')
+    '/logs/caf\\\\xe9.mcap'
+    """
+    return path.encode('utf-8', 'surrogateescape').decode('utf-8', 'backslashreplace')
+
+
+def shown(text: str, limit: int = 160) -> str:
+    """A user's value for a one-line message: :func:`display_path`, control characters
+    escaped, the middle of a long one elided (at most ``limit`` characters)."""
+    t = display_path(text)
+    t = ''.join(c if c.isprintable() else repr(c)[1:-1] for c in t)
+    if len(t) <= limit:
+        return t
+    half = (limit - 5) // 2
+    return f'{t[:half]} ... {t[-half:]}'
 
 
 def is_url(path: str) -> bool:
@@ -85,25 +118,50 @@ def vehicle_from_dir(path: str) -> str:
 # Local filesystem
 
 
-def _local_stats(paths: Iterable[Path]) -> tuple[int, int]:
+_KINDS = ((stat.S_ISFIFO, 'a FIFO'), (stat.S_ISCHR, 'a character device'),
+          (stat.S_ISBLK, 'a block device'), (stat.S_ISSOCK, 'a socket'),
+          (stat.S_ISDIR, 'a directory'))
+
+
+def _file_problem(p: Path) -> tuple[os.stat_result | None, str | None]:
+    """``(stat, None)`` of a regular file (links followed), else ``(None, why)``."""
+    try:
+        st = p.stat()
+    except (OSError, ValueError) as exc:  # ValueError: a NUL in the name
+        errnum = getattr(exc, 'errno', None)
+        if errnum == errno.ELOOP:
+            return None, 'symbolic link loop; not read'
+        if errnum == errno.ENOENT and os.path.islink(p):
+            return None, 'dangling symbolic link (its target does not exist); not read'
+        return None, f'cannot read ({getattr(exc, "strerror", None) or exc})'
+    if not stat.S_ISREG(st.st_mode):
+        what = next((w for test, w in _KINDS if test(st.st_mode)), 'not a regular file')
+        return None, f'not a regular file ({what}); not read'
+    return st, None
+
+
+def _local_stats(paths: Iterable[Path]) -> tuple[int, int, str | None]:
+    """Total size [bytes], latest mtime [ns] and the first problem of the files."""
     size = 0
     mtime = 0
     for p in paths:
-        st = p.stat()
+        st, problem = _file_problem(p)
+        if st is None:
+            return 0, 0, f'{display_path(str(p))}: {problem}'
         size += st.st_size
         mtime = max(mtime, st.st_mtime_ns)
-    return size, mtime
+    return size, mtime, None
 
 
 def _local_bag(d: Path) -> LogRef:
     files = [d / BAG_METADATA] + sorted(d.glob('*' + MCAP_SUFFIX))
-    size, mtime = _local_stats(files)
-    return LogRef(str(d), size, mtime, 'rosbag2')
+    size, mtime, problem = _local_stats(files)
+    return LogRef(str(d), size, mtime, 'rosbag2', problem)
 
 
 def _local_file(f: Path) -> LogRef:
-    size, mtime = _local_stats([f])
-    return LogRef(str(f), size, mtime, 'mcap')
+    size, mtime, problem = _local_stats([f])
+    return LogRef(str(f), size, mtime, 'mcap', problem)
 
 
 def _skip(name: str) -> bool:
@@ -126,13 +184,23 @@ def _walk_local(root: Path) -> list[LogRef]:
 
 
 def _discover_local(arg: str) -> list[LogRef]:
+    if not arg.strip():
+        raise DiscoveryError(f'PATH {arg!r} is empty; give a file or a directory')
+    try:
+        return _discover_local_path(arg)
+    except (OSError, ValueError) as exc:  # a name too long, a NUL byte, ...
+        raise DiscoveryError(f'{shown(arg)}: cannot search '
+                             f'({getattr(exc, "strerror", None) or exc})') from None
+
+
+def _discover_local_path(arg: str) -> list[LogRef]:
     p = Path(arg.removeprefix('file://')).expanduser()
     p = Path(os.path.abspath(p))
-    if not p.exists():
-        raise DiscoveryError(f'{arg}: no such file or directory')
-    if p.is_file():
-        return [_local_file(p)]
-    if (p / BAG_METADATA).is_file():
+    if not p.is_dir():
+        if not p.exists() and not p.is_symlink():
+            raise DiscoveryError(f'{shown(arg)}: no such file or directory')
+        return [_local_file(p)]  # a file, or a path that is not one (a row with its problem)
+    if (p / BAG_METADATA).exists():
         return [_local_bag(p)]
     return _walk_local(p)
 
@@ -160,18 +228,21 @@ def _discover_url(arg: str) -> list[LogRef]:
     try:
         import fsspec
     except ImportError:  # pragma: no cover - fsspec comes with dask
-        raise DiscoveryError(f'{arg}: URLs need fsspec (pip install fsspec)') from None
+        raise DiscoveryError(f'{shown(arg)}: URLs need fsspec (pip install fsspec)') from None
     try:
         fs, root = fsspec.core.url_to_fs(arg)
         if not fs.exists(root):
-            raise DiscoveryError(f'{arg}: no such file or directory')
+            raise DiscoveryError(f'{shown(arg)}: no such file or directory')
         if fs.isfile(root):
             info = fs.info(root)
             return [LogRef(fs.unstrip_protocol(root), int(info.get('size') or 0),
                            _mtime_ns(info), 'mcap')]
         entries = fs.find(root, withdirs=False, detail=True)
-    except (ImportError, ValueError, OSError) as exc:
-        raise DiscoveryError(f'{arg}: cannot list this URL ({exc})') from None
+    except DiscoveryError:
+        raise
+    except Exception as exc:  # whatever a filesystem backend raises
+        raise DiscoveryError(f'{shown(arg)}: cannot list this URL '
+                             f'({shown(str(exc), 200)})') from None
     root = root.rstrip('/')
     by_dir: dict[str, list[tuple[str, dict[str, Any]]]] = {}
     for name, info in entries.items():

@@ -1,8 +1,10 @@
 """Fleet report: a trend plot per vehicle, the outlier table and the status counts.
 
 ``write_report(rows, DIR)`` writes ``DIR/fleet_report.md`` (status counts, outliers, one line
-per vehicle, the plots) and ``DIR/trend_<vehicle>.png`` (principal moments against log start
-time with one- and three-sigma bands; outliers circled in red, failed logs as grey ticks).
+per vehicle, every log without an estimate and why, the plots) and ``DIR/trend_<vehicle>.png``
+for each vehicle with a tensor (principal moments against log start time, or against the log
+number when the start times do not tell the logs apart, with one- and three-sigma bands;
+outliers circled in red, failed logs as grey ticks).
 
 Outliers
 --------
@@ -142,8 +144,21 @@ def _safe_name(vehicle: str) -> str:
     return re.sub(r'[^A-Za-z0-9_.-]+', '_', vehicle).strip('._') or 'vehicle'
 
 
+def _distinct_times(rows: Sequence[dict[str, Any]]) -> bool:
+    """True when the logs' start times tell them apart (all known and all different)."""
+    times = [r.get('log_start_ns') for r in rows]
+    return None not in times and len(set(times)) == len(times)
+
+
 def _plot_vehicle(path: Path, vehicle: str, rows: Sequence[dict[str, Any]],
                   outliers: Sequence[dict[str, Any]]) -> None:
+    """The trend PNG of one vehicle's logs (``rows`` in report order, at least one with its
+    three principal moments).
+
+    The x axis is the log start time (UTC) when the logs with a tensor have distinct start
+    times; otherwise (copies of one log, or logs whose clocks all start at the same instant)
+    it is the log's number in report order (start time, then path), as the axis says.
+    """
     import matplotlib
 
     matplotlib.use('Agg')
@@ -151,40 +166,46 @@ def _plot_vehicle(path: Path, vehicle: str, rows: Sequence[dict[str, Any]],
     import matplotlib.pyplot as plt
     import numpy as np
 
-    def when(r: dict[str, Any]) -> Any:
-        return np.datetime64(int(r['log_start_ns']), 'ns')
-
-    timed = [r for r in rows if r.get('log_start_ns') is not None]
-    good = [r for r in timed if _has_tensor(r)
+    good = [r for r in rows if _has_tensor(r)
             and all(r.get(f'I{k}') is not None for k in (1, 2, 3))]
-    bad = [r for r in timed if r.get('status') in (ERROR, FAILED)]
+    by_time = _distinct_times(good)
+    number = {r['path']: i for i, r in enumerate(rows, start=1)}
+
+    def where(r: dict[str, Any]) -> Any:
+        return np.datetime64(int(r['log_start_ns']), 'ns') if by_time else number[r['path']]
+
+    bad = [r for r in rows if r.get('status') in (ERROR, FAILED)
+           and (not by_time or r.get('log_start_ns') is not None)]
     flagged = {o['path'] for o in outliers}
     fig, axes = plt.subplots(3, 1, figsize=(10, 7.5), sharex=True, layout='constrained')
     colors = ('tab:blue', 'tab:orange', 'tab:green')
-    t = np.array([when(r) for r in good])
+    t = np.array([where(r) for r in good])
     fl = np.array([r['path'] in flagged for r in good], dtype=bool)
     for k, (ax, c) in enumerate(zip(axes, colors, strict=True), start=1):
-        if good:
-            m = np.array([r[f'I{k}'] for r in good], dtype=float)
-            s = np.array([r.get(f'I{k}_std') or 0.0 for r in good], dtype=float)
-            ax.fill_between(t, m - 3 * s, m + 3 * s, color=c, alpha=0.15, lw=0,
-                            label='3 sigma')
-            ax.fill_between(t, m - s, m + s, color=c, alpha=0.35, lw=0, label='1 sigma')
-            ax.plot(t, m, '.-', color=c, lw=0.8, ms=4, label=f'I{k}')
-            if fl.any():
-                ax.plot(t[fl], m[fl], 'o', mfc='none', mec='tab:red', ms=10, mew=1.5,
-                        label='outlier (> 3 sigma from the previous log)')
+        m = np.array([r[f'I{k}'] for r in good], dtype=float)
+        s = np.array([r.get(f'I{k}_std') or 0.0 for r in good], dtype=float)
+        ax.fill_between(t, m - 3 * s, m + 3 * s, color=c, alpha=0.15, lw=0, label='3 sigma')
+        ax.fill_between(t, m - s, m + s, color=c, alpha=0.35, lw=0, label='1 sigma')
+        ax.plot(t, m, '.-', color=c, lw=0.8, ms=4, label=f'I{k}')
+        if fl.any():
+            ax.plot(t[fl], m[fl], 'o', mfc='none', mec='tab:red', ms=10, mew=1.5,
+                    label='outlier (> 3 sigma from the previous log)')
         for i, r in enumerate(bad):
-            ax.axvline(when(r), color='0.5', lw=0.8, ls=':',
+            ax.axvline(where(r), color='0.5', lw=0.8, ls=':',
                        label=f'{r["status"]} (no estimate)' if i == 0 else None)
         ax.set_ylabel(f'I{k} [kg m^2]')
-        if good or bad:
-            ax.legend(loc='best', fontsize=7)
-    axes[-1].set_xlabel('log start (UTC)')
+        ax.legend(loc='best', fontsize=7)
     n_bad = sum(1 for r in rows if not _has_tensor(r))
     axes[0].set_title(f'{vehicle}: principal moments per log with 1 and 3 sigma bands '
                       f'({len(rows)} logs, {n_bad} without a tensor)')
-    axes[-1].xaxis.set_major_formatter(mdates.ConciseDateFormatter(mdates.AutoDateLocator()))
+    if by_time:
+        axes[-1].set_xlabel('log start (UTC)')
+        axes[-1].xaxis.set_major_formatter(
+            mdates.ConciseDateFormatter(mdates.AutoDateLocator()))
+    else:
+        axes[-1].set_xlabel('log number, in order of start time then path (the start times '
+                            'do not tell the logs apart)')
+        axes[-1].xaxis.get_major_locator().set_params(integer=True)
     fig.savefig(path, dpi=100)
     plt.close(fig)
 
@@ -195,9 +216,52 @@ def _cell(v: Any) -> str:
     return str(v).replace('|', '\\|').replace('\n', ' ')
 
 
+def _n(count: int, noun: str) -> str:
+    """``'1 outlier'``, ``'2 outliers'``."""
+    return f'{count} {noun}{"" if count == 1 else "s"}'
+
+
+def _outlier_lines(outliers: Sequence[dict[str, Any]]) -> list[str]:
+    if not outliers:
+        return ['None.']
+    lines = ['| vehicle | log | start (UTC) | previous log | sigma | largest change | '
+             'dI1, dI2, dI3 [kg m^2] |', '| --- | --- | --- | --- | ---: | --- | --- |']
+    for o in outliers:
+        dI = '' if o['dI'] is None else ', '.join(f'{x:+.4g}' for x in o['dI'])
+        lines.append(f'| {_cell(o["vehicle"])} | {_cell(o["path"])} | '
+                     f'{_cell(o["log_start"])} | {_cell(o["previous"])} | '
+                     f'{o["sigma"]:.1f} | {o["worst"]} ({o["z"]:.1f} sigma) | {dI} |')
+    return lines
+
+
+def _png_names(vehicles: Sequence[str]) -> dict[str, str]:
+    """A distinct, filesystem-safe ``trend_*.png`` name per vehicle."""
+    pngs: dict[str, str] = {}
+    for v in vehicles:
+        name = _safe_name(v)
+        while f'trend_{name}.png' in pngs.values():
+            name += '_'
+        pngs[v] = f'trend_{name}.png'
+    return pngs
+
+
+def _without_estimate(vehicle: str, rows: Sequence[dict[str, Any]]) -> list[str]:
+    """Table lines of the logs that gave no tensor: errors, failures and the estimates that
+    identified nothing (insufficient_excitation, scale_unobservable, ...), with why."""
+    return [f'| {_cell(vehicle)} | {_cell(r.get("path"))} | {_cell(r.get("status"))} | '
+            f'{_cell(r.get("error") or r.get("reason"))} |'
+            for r in rows if not _has_tensor(r)]
+
+
 def write_report(rows: Sequence[dict[str, Any]], out_dir: str | Path,
                  threshold: float = THRESHOLD_SIGMA) -> Path:
-    """Write the Markdown report and one PNG per vehicle; return the Markdown path.
+    """Write the Markdown report and a trend PNG per vehicle with a tensor; return the
+    Markdown path.
+
+    Each vehicle's logs are in order of start time, then path (logs that share a start
+    time, such as copies of one log, are ordered by path, and their plot is against the
+    log number; the report says so).  A vehicle none of whose logs gave a tensor has no
+    plot.
 
     Parameters
     ----------
@@ -216,52 +280,46 @@ def write_report(rows: Sequence[dict[str, Any]], out_dir: str | Path,
     for r in rows:
         by_vehicle[_vehicle(r)].append(r)
     lines = ['# Fleet report', '',
-             f'{len(rows)} logs, {len(by_vehicle)} vehicles, {len(outliers)} outliers '
-             f'(a tensor more than {threshold:g} sigma from the vehicle\'s previous one).', '',
+             f'{_n(len(rows), "log")}, {_n(len(by_vehicle), "vehicle")}, '
+             f'{_n(len(outliers), "outlier")} (a tensor more than {threshold:g} sigma from '
+             f'the vehicle\'s previous one; each vehicle\'s logs in order of start time, '
+             f'then path).', '',
              '## Status counts', '', '| status | logs |', '| --- | ---: |']
     lines += [f'| {s} | {n} |' for s, n in sorted(counts.items(), key=lambda x: (-x[1], x[0]))]
-    lines += ['', '## Outliers', '']
-    if outliers:
-        lines += ['| vehicle | log | start (UTC) | previous log | sigma | largest change | '
-                  'dI1, dI2, dI3 [kg m^2] |', '| --- | --- | --- | --- | ---: | --- | --- |']
-        for o in outliers:
-            dI = '' if o['dI'] is None else ', '.join(f'{x:+.4g}' for x in o['dI'])
-            lines.append(f'| {_cell(o["vehicle"])} | {_cell(o["path"])} | '
-                         f'{_cell(o["log_start"])} | {_cell(o["previous"])} | '
-                         f'{o["sigma"]:.1f} | {o["worst"]} ({o["z"]:.1f} sigma) | {dI} |')
-    else:
-        lines.append('None.')
+    lines += ['', '## Outliers', '', *_outlier_lines(outliers)]
     lines += ['', '## Vehicles', '',
               '| vehicle | logs | with a tensor | errors | outliers | latest I1, I2, I3 '
               '[kg m^2] | trend |', '| --- | ---: | ---: | ---: | ---: | --- | --- |']
-    errors_md = []
-    pngs: dict[str, str] = {}
-    for v in sorted(by_vehicle):
-        name = _safe_name(v)
-        while f'trend_{name}.png' in pngs.values():
-            name += '_'
-        pngs[v] = f'trend_{name}.png'
+    missing: list[str] = []
+    pngs = _png_names(sorted(by_vehicle))
+    plotted: list[str] = []
+    same_time: list[str] = []
     for v in sorted(by_vehicle):
         vr = sorted(by_vehicle[v], key=_order)
-        png = pngs[v]
-        _plot_vehicle(out / png, v, vr, [o for o in outliers if o['vehicle'] == v])
         tens = [r for r in vr if _has_tensor(r)]
-        latest = ''
-        if tens and all(tens[-1].get(f'I{k}') is not None for k in (1, 2, 3)):
-            latest = ', '.join(f'{tens[-1][f"I{k}"]:.4g}' for k in (1, 2, 3))
+        full = [r for r in tens if all(r.get(f'I{k}') is not None for k in (1, 2, 3))]
+        trend = 'none (no log with a tensor)'
+        if full:
+            _plot_vehicle(out / pngs[v], v, vr, [o for o in outliers if o['vehicle'] == v])
+            plotted.append(v)
+            trend = f'[{pngs[v]}]({pngs[v]})'
+            if not _distinct_times(full):
+                same_time.append(v)
+        latest = ', '.join(f'{full[-1][f"I{k}"]:.4g}' for k in (1, 2, 3)) \
+            if full and full[-1] is tens[-1] else ''
         errs = [r for r in vr if r.get('status') in (ERROR, FAILED)]
-        errors_md += [f'| {_cell(v)} | {_cell(r["path"])} | {r["status"]} | '
-                      f'{_cell(r.get("error"))} |' for r in errs]
+        missing += _without_estimate(v, vr)
         lines.append(f'| {_cell(v)} | {len(vr)} | {len(tens)} | {len(errs)} | '
-                     f'{sum(o["vehicle"] == v for o in outliers)} | {latest} | '
-                     f'[{png}]({png}) |')
+                     f'{sum(o["vehicle"] == v for o in outliers)} | {latest} | {trend} |')
+    if same_time:
+        lines += ['', f'Logs of {", ".join(_cell(v) for v in same_time)} share start times '
+                      '(copies of one log, or clocks that all start at the same instant): '
+                      'they are ordered by path, and plotted against their number in that '
+                      'order.']
     lines += ['', '## Logs without an estimate', '']
-    if errors_md:
-        lines += ['| vehicle | log | status | error |', '| --- | --- | --- | --- |'] + errors_md
-    else:
-        lines.append('None.')
-    lines += ['', '## Trends', '']
-    lines += [f'![{_cell(v)}]({pngs[v]})' for v in sorted(by_vehicle)]
+    lines += (['| vehicle | log | status | why |', '| --- | --- | --- | --- |', *missing]
+              if missing else ['None.'])
+    lines += ['', '## Trends', '', *(f'![{_cell(v)}]({pngs[v]})' for v in plotted)]
     md = out / 'fleet_report.md'
-    md.write_text('\n'.join(lines) + '\n')
+    md.write_text('\n'.join(lines) + '\n', encoding='utf-8')
     return md

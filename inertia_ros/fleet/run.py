@@ -19,13 +19,12 @@ again by the next invocation).
 from __future__ import annotations
 
 import contextlib
+import functools
 import io
 import json
-import logging
 import math
 import os
 import shlex
-import signal
 import tempfile
 import threading
 import time
@@ -35,10 +34,19 @@ from pathlib import Path
 from typing import Any
 
 from inertia_ros.core.tensor import THETA_COLS, THETA_NAMES, THETA_ROWS
-from inertia_ros.fleet.discover import BAG_METADATA, MCAP_SUFFIX, LogRef, is_url, vehicle_from_dir
+from inertia_ros.fleet.cluster import ClusterError, n_workers, open_client
+from inertia_ros.fleet.discover import (
+    BAG_METADATA,
+    MCAP_SUFFIX,
+    LogRef,
+    display_path,
+    is_url,
+    shown,
+    vehicle_from_dir,
+)
 
-__all__ = ['ERROR', 'FAILED', 'estimate_log', 'log_info', 'open_client',
-           'options_signature', 'row_from_report', 'run_logs']
+__all__ = ['ERROR', 'FAILED', 'ClusterError', 'estimate_log', 'log_info', 'n_workers',
+           'open_client', 'options_signature', 'row_from_report', 'run_logs']
 
 #: Status of a row whose log ``estimate`` could not use (exit 2) or crashed on.
 ERROR = 'error'
@@ -145,7 +153,8 @@ def _iso(ns: int | None) -> str | None:
 
 def _empty_row(ref: LogRef, signature: str) -> dict[str, Any]:
     row: dict[str, Any] = {
-        'path': ref.path, 'size': ref.size, 'mtime_ns': ref.mtime_ns, 'options': signature,
+        'path': display_path(ref.path), 'size': ref.size, 'mtime_ns': ref.mtime_ns,
+        'options': signature,
         'vehicle': None, 'log_start_ns': None, 'log_start': None, 'status': None,
         'reason': None, 'error': None}
     for n in THETA_NAMES:
@@ -189,14 +198,23 @@ def row_from_report(ref: LogRef, report: dict[str, Any] | None, *, signature: st
     -------
     dict
         The columns of :data:`inertia_ros.fleet.table.COLUMNS`; tensor elements and their
-        one-sigma errors in kg m^2, None where not identified.
+        one-sigma errors in kg m^2, None where not identified.  Text is valid UTF-8 (the
+        bytes of a non-UTF-8 file name in a path, vehicle or error as ``\\xNN``).
     """
     row = _empty_row(ref, signature)
     row.update({'vehicle': vehicle, 'wall_s': wall_s, 'cpu_s': cpu_s, 'worker': worker})
     if report is None:
-        row.update({'status': ERROR, 'error': error or 'no report', 'log_start_ns': start_ns,
+        row.update({'status': ERROR, 'error': shown(error or 'no report', 2000),
+                    'log_start_ns': start_ns,
                     'log_start': _iso(start_ns)})
-        return row
+    else:
+        _fill_from_report(row, report, start_ns)
+    return {k: display_path(v) if isinstance(v, str) else v for k, v in row.items()}
+
+
+def _fill_from_report(row: dict[str, Any], report: dict[str, Any], start_ns: int | None
+                      ) -> None:
+    """Set the columns of ``row`` that come from an ``estimate`` JSON report."""
     diag = report.get('diagnostics') or {}
     log = diag.get('log') or {}
     epoch = log.get('epoch_ns', start_ns)
@@ -222,7 +240,6 @@ def row_from_report(ref: LogRef, report: dict[str, Any] | None, *, signature: st
     row['samples_used'] = samples.get('used')
     row['samples_dropped'] = samples.get('dropped')
     row['report'] = json.dumps(report, separators=(',', ':'), allow_nan=False)
-    return row
 
 
 def _worker_name() -> str | None:
@@ -304,6 +321,10 @@ def estimate_log(ref: LogRef, flags: Sequence[str] = (), vehicle_from: str = 'di
     t0, c0 = time.perf_counter(), time.process_time()
     signature = options_signature(flags, vehicle_from)
     worker = _worker_name()
+    if ref.problem is not None:  # never opened (a FIFO would block this worker for ever)
+        return row_from_report(ref, None, signature=signature,
+                               vehicle=_vehicle(ref, vehicle_from, None), error=ref.problem,
+                               wall_s=time.perf_counter() - t0, worker=worker)
     with tempfile.TemporaryDirectory(prefix='inertia_fleet_') as tmpdir:
         tmp = Path(tmpdir)
         local = ref.path
@@ -365,107 +386,7 @@ def failed_row(ref: LogRef, flags: Sequence[str], vehicle_from: str, exc: BaseEx
 
 
 # --------------------------------------------------------------------------------------------
-# The cluster
-
-
-class ClusterError(RuntimeError):
-    """The Dask cluster could not be started or reached."""
-
-
-def _probe() -> str:
-    """Run on each worker: inertia_ros is importable there (returns its location)."""
-    import inertia_ros.cli
-
-    return str(Path(inertia_ros.cli.__file__).parent.parent)
-
-
-@contextlib.contextmanager
-def _sigint_ignored() -> Iterator[None]:
-    """Ignore SIGINT inside the block (main thread only; elsewhere a no-op)."""
-    try:
-        previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
-    except ValueError:  # not the main thread
-        yield
-        return
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGINT, previous)
-
-
-@contextlib.contextmanager
-def open_client(workers: int | None = None, scheduler: str | None = None,
-                connect_timeout: float = 20.0) -> Iterator[Any]:
-    """A ``distributed.Client``: on a new local cluster, or on the scheduler at an address.
-
-    Parameters
-    ----------
-    workers : int, optional
-        Local cluster size (one single-threaded worker process each; default: the number of
-        CPU cores).  Ignored with ``scheduler``.
-    scheduler : str, optional
-        ``tcp://HOST:PORT`` of a running ``dask scheduler``.
-    connect_timeout : float, optional
-        How long to wait for the scheduler and for a first worker [s].
-
-    Raises
-    ------
-    ClusterError
-        The scheduler cannot be reached, has no worker, or its workers cannot import
-        inertia_ros.
-    """
-    try:
-        import distributed
-    except ImportError:
-        raise ClusterError('fleet needs Dask: pip install dask distributed (pinned in '
-                           'requirements.txt)') from None
-    Client, LocalCluster = distributed.Client, distributed.LocalCluster
-    cluster = None
-    client = None
-    try:
-        if scheduler is not None:
-            try:
-                client = Client(scheduler, timeout=connect_timeout)
-            except (OSError, TimeoutError, ValueError) as exc:
-                raise ClusterError(
-                    f'--scheduler {scheduler}: cannot connect ({exc}); start one with '
-                    f'`dask scheduler` and workers with `dask worker {scheduler}`') from None
-            try:
-                client.wait_for_workers(1, timeout=connect_timeout)
-            except (TimeoutError, OSError):
-                raise ClusterError(
-                    f'--scheduler {scheduler}: no worker joined within {connect_timeout:.0f} s; '
-                    f'start workers with `dask worker {scheduler} --nthreads 1`') from None
-        else:
-            n = workers or os.cpu_count() or 1
-            # The worker processes inherit an ignored SIGINT: Ctrl-C in a terminal reaches the
-            # whole process group, and it is the client's to handle (cancel, write the rows,
-            # close the cluster), not a traceback in every worker.
-            with _sigint_ignored():
-                cluster = LocalCluster(n_workers=n, threads_per_worker=1,
-                                       processes=LOCAL_PROCESSES,
-                                       dashboard_address=None, silence_logs=logging.ERROR)
-            client = Client(cluster)
-        try:
-            client.run(_probe)
-        except Exception as exc:
-            raise ClusterError(
-                f'the Dask workers cannot import inertia_ros ({type(exc).__name__}: {exc}); '
-                'install it in the workers\' environment') from None
-        yield client
-    finally:
-        with contextlib.suppress(Exception):
-            if client is not None:
-                client.close()
-        with contextlib.suppress(Exception):
-            if cluster is not None:
-                cluster.close()
-
-
-def n_workers(client: Any) -> int:
-    """Number of workers (worker threads) the client's scheduler has now."""
-    info = client.scheduler_info()
-    return sum(int(w.get('nthreads', 1)) for w in info.get('workers', {}).values()) or 0
+# The submission loop (the client: inertia_ros.fleet.cluster)
 
 
 def run_logs(client: Any, refs: Sequence[LogRef], flags: Sequence[str] = (),
@@ -497,8 +418,11 @@ def run_logs(client: Any, refs: Sequence[LogRef], flags: Sequence[str] = (),
     from distributed import as_completed
 
     flags = list(flags)
-    futures = client.map(estimate_log, list(refs), flags=flags, vehicle_from=vehicle_from,
-                         pure=False)
+    # the options travel inside each task (a partial), not as map keyword arguments: Dask
+    # makes a large keyword argument (a 130 kB option) a shared task of its own, which its
+    # scheduler then failed on (AssertionError, every row 'failed')
+    task = functools.partial(estimate_log, flags=flags, vehicle_from=vehicle_from)
+    futures = client.map(task, list(refs), pure=False)
     by_key = {f.key: ref for f, ref in zip(futures, refs, strict=True)}
     rows: list[dict[str, Any]] = []
     interrupted = False

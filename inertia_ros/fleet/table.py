@@ -3,13 +3,20 @@
 Both formats hold the same columns (:data:`COLUMNS`) in the same order; missing values are
 nulls in Parquet and empty fields in CSV.  Floats are written at full precision (CSV uses
 ``repr``), so a round trip is exact (an empty string reads back as null).  Files are
-replaced atomically (written beside the target, then renamed), so an interrupted write never
-leaves half a table.
+replaced atomically (written to a new temporary file beside the target, created with an
+unpredictable name and ``O_EXCL`` so a planted file or link there is never written through,
+then renamed over the target), so an interrupted write never leaves half a table.
+
+:func:`read_rows` reads only a table this module wrote (exactly :data:`COLUMNS`, in order):
+any other file is refused, so a user's own file at ``--out`` is never taken for earlier
+results and rewritten.
 """
 from __future__ import annotations
 
+import contextlib
 import csv
 import os
+import tempfile
 from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import Any
@@ -73,8 +80,40 @@ def _arrow_schema() -> Any:
     return pa.schema([(n, kinds[k]) for n, k in COLUMNS.items()])
 
 
+def _umask() -> int:
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
+def _write_to(fh: Any, fmt: str, clean: Sequence[dict[str, Any]]) -> None:
+    """Write the cleaned rows to the open binary file ``fh``."""
+    if fmt == 'parquet':
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+
+        cols = {n: [r[n] for r in clean] for n in COLUMNS}
+        pq.write_table(pa.table(cols, schema=_arrow_schema()), fh, compression='zstd')
+        return
+    import io
+
+    text = io.TextIOWrapper(fh, encoding='utf-8', newline='')
+    w = csv.writer(text)
+    w.writerow(COLUMNS)
+    for r in clean:
+        w.writerow(['' if r[n] is None else repr(r[n]) if isinstance(r[n], float)
+                    else r[n] for n in COLUMNS])
+    text.flush()
+    text.detach()
+
+
 def write_rows(path: str | os.PathLike[str], rows: Iterable[dict[str, Any]]) -> None:
     """Write ``rows`` (dicts with the :data:`COLUMNS` keys) to ``path``, replacing it.
+
+    The rows go to a new temporary file in the same directory (``tempfile.mkstemp``:
+    unpredictable name, ``O_EXCL``, mode as for a new file under the umask), which then
+    replaces ``path`` (``os.replace``; a symbolic link at ``path`` is replaced, its target
+    never written).
 
     Raises
     ------
@@ -83,26 +122,23 @@ def write_rows(path: str | os.PathLike[str], rows: Iterable[dict[str, Any]]) -> 
     """
     fmt = table_format(path)
     target = Path(path)
-    tmp = target.with_name(f'.{target.name}.tmp')
     clean = [_clean(r) for r in rows]
     try:
-        if fmt == 'parquet':
-            import pyarrow as pa
-            import pyarrow.parquet as pq
-
-            cols = {n: [r[n] for r in clean] for n in COLUMNS}
-            pq.write_table(pa.table(cols, schema=_arrow_schema()), tmp, compression='zstd')
-        else:
-            with open(tmp, 'w', newline='', encoding='utf-8') as fh:
-                w = csv.writer(fh)
-                w.writerow(COLUMNS)
-                for r in clean:
-                    w.writerow(['' if r[n] is None else repr(r[n]) if isinstance(r[n], float)
-                                else r[n] for n in COLUMNS])
-        os.replace(tmp, target)
+        fd, tmp = tempfile.mkstemp(prefix=f'.{target.name}.', suffix='.tmp',
+                                   dir=target.parent)
     except OSError as exc:
-        tmp.unlink(missing_ok=True)
         raise TableError(f'{path}: cannot write ({exc.strerror or exc})') from None
+    try:
+        with os.fdopen(fd, 'wb') as fh:
+            os.fchmod(fh.fileno(), 0o666 & ~_umask())
+            _write_to(fh, fmt, clean)
+        os.replace(tmp, target)
+    except BaseException as exc:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        if isinstance(exc, OSError):
+            raise TableError(f'{path}: cannot write ({exc.strerror or exc})') from None
+        raise
 
 
 def read_rows(path: str | os.PathLike[str]) -> list[dict[str, Any]]:
@@ -111,25 +147,30 @@ def read_rows(path: str | os.PathLike[str]) -> list[dict[str, Any]]:
     Raises
     ------
     TableError
-        Unknown suffix, unreadable file, or a file without the ``path`` column.
+        Unknown suffix, unreadable file, or a file whose columns are not :data:`COLUMNS` (not
+        written by :func:`write_rows`).
     """
     fmt = table_format(path)
     try:
         if fmt == 'parquet':
             import pyarrow.parquet as pq
 
-            raw: Sequence[dict[str, Any]] = pq.read_table(path).to_pylist()
+            names = list(pq.read_schema(path).names)
+            raw: Sequence[dict[str, Any]] = (pq.read_table(path).to_pylist()
+                                             if names == list(COLUMNS) else [])
         else:
             with open(path, newline='', encoding='utf-8') as fh:
-                raw = list(csv.DictReader(fh))
+                reader = csv.DictReader(fh)
+                names = list(reader.fieldnames or [])
+                raw = list(reader) if names == list(COLUMNS) else []
     except OSError as exc:
         raise TableError(f'{path}: cannot read ({exc.strerror or exc})') from None
     except Exception as exc:
         raise TableError(f'{path}: not a fleet table ({type(exc).__name__}: {exc}); '
                          f'move it away or choose another --out') from None
-    if raw and 'path' not in raw[0]:
-        raise TableError(f'{path}: not a fleet table (no "path" column); move it away or '
-                         f'choose another --out')
+    if names != list(COLUMNS):
+        raise TableError(f'{path}: exists and is not a table written by inertia_ros fleet '
+                         f'(its columns differ); it is left as it is: choose another --out')
     try:
         return [_clean(r) for r in raw]
     except (TypeError, ValueError) as exc:
