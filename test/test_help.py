@@ -101,3 +101,16 @@ def test_every_node_module_is_an_executable() -> None:
     """Each ``inertia_ros/*_node.py`` is a console script, so its ``--help`` is tested above."""
     modules = {f'inertia_ros.{p.stem}' for p in (ROOT / 'inertia_ros').glob('*_node.py')}
     assert modules == {m for m, _ in NODES} and len(NODES) >= 4
+
+
+@pytest.mark.parametrize('argv', [['estimate', 'bags/default.mcap', '--model', 'x' * 100_000],
+                                  ['fleet', 'bags', '--out', 'r.csv', '--workers', '9' * 5000],
+                                  ['simulate', 'config/scenes/default.yaml', '--seed', 'a\nb']])
+def test_a_bad_value_is_one_short_line(argv: list[str]) -> None:
+    """argparse quotes an invalid value whole: the error stays one line of at most ~500
+    characters, naming the option (issue 29: a 1 MB choice was echoed in full)."""
+    proc = _run([sys.executable, '-m', 'inertia_ros', *argv])
+    assert proc.returncode == 2, proc.stderr
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and len(lines[0]) < 520 and 'error: ' in lines[0], proc.stderr[:600]
+    assert 'Traceback' not in proc.stderr

@@ -30,6 +30,10 @@ class UserError(Exception):
     """An error in the user's input: printed as one line, exit status 2."""
 
 
+#: Longest parse error shown: argparse quotes an invalid value (a 1 MB choice) in full.
+MAX_ERROR_CHARS = 400
+
+
 class Parser(argparse.ArgumentParser):
     """An argument parser whose errors are one line on stderr and exit status 2.
 
@@ -40,6 +44,11 @@ class Parser(argparse.ArgumentParser):
     def error(self, message: str) -> None:  # type: ignore[override]
         """Print ``message`` as one line and exit with status 2."""
         name = self.prog.removeprefix('python -m ')
+        message = ' '.join(message.split())       # one line, whatever the value held
+        if len(message) > MAX_ERROR_CHARS:          # argparse echoes a bad value whole
+            cut = MAX_ERROR_CHARS // 2
+            message = (f'{message[:cut]} ...[{len(message) - 2 * cut} characters]... '
+                       f'{message[-cut:]}')
         self.exit(2, f'{name}: error: {message} (see --help)\n')
 
 
