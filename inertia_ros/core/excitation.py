@@ -1,0 +1,745 @@
+"""Excitation design: which torque profile to command, and for how long.
+
+From a prior tensor (value and uncertainty), the actuator and body-rate limits, the sensor rates
+and noise, and a target precision, :func:`plan` designs a multisine torque profile that reaches
+the target in as little time as it can, predicts the standard error of each tensor element and
+principal moment against time (the Cramer-Rao bound of :mod:`.crlb`, which the project's ML
+estimator attains), and compares the design with standard profiles at the same limits.
+
+Profiles are lists of scene torque components (``docs/SCENES.md``): the designed multisine is a
+sum of ``sine`` components, so a scene built from it is played exactly by the simulator.  Every
+profile, designed or standard, is held to the same limits the same way: its peak torque per
+axis is scaled to the limit, then the whole profile is scaled down until the simulated body
+rate ``|omega|`` stays within the body-rate limit on every prior body.
+
+Design
+------
+Per axis, ``n`` tones on harmonics of a base frequency ``f0`` (axis ``j`` takes the harmonics
+``3 m + j + 1``, so the three axes never share a frequency), amplitudes flat or falling as
+``1 / h`` (a square-wave-like spectrum that spends the torque on large rate swings), and
+Schroeder phases (low crest factor) or the same phases turned by 90 degrees (rate swings
+centred on the initial rate).  The base frequency is searched around the corner frequency
+``u_max / (2 pi I omega_max)`` at which a full-amplitude tone just reaches the rate limit.
+Each candidate is scored by its criterion (the largest targeted relative sigma) at the design
+horizon, on the prior value and then, for the best few, on bodies drawn from the prior: the
+worst case decides.
+
+Information is evaluated at a reduced rate ``r`` with the noise rescaled to the same spectral
+density (gyro std ``sigma_g sqrt(r / rate_g)``, held torque noise ``sigma_t sqrt(r / rate_t)``):
+the bound is unchanged to < 1 % when ``r`` is several times the highest tone (checked in
+``test/test_excitation.py``) and costs ``r / rate`` as much.
+
+Model no more than the target needs: when the target asks only for the principal moments and
+the prior's products of inertia are small (``|I_ij| <= NEAR_DIAGONAL sqrt(I_ii I_jj)``), the
+information of the diagonal model (no product columns) is used and the estimator should be run
+with ``model='diagonal'``; otherwise the full model's.
+"""
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from .crlb import fisher_information
+from .scene import SceneError, TorqueComponent
+from .simulation import integrate_rigid_body
+from .tensor import MATRIX_INDEX, THETA_NAMES
+
+__all__ = ['NEAR_DIAGONAL', 'Limits', 'Plan', 'Prior', 'Profile', 'Target', 'criterion',
+           'design_candidates', 'make_prior', 'plan', 'principal_std', 'scene_dict',
+           'standard_profiles', 'targeted_rel_std']
+
+#: Largest ``|I_ij| / sqrt(I_ii I_jj)`` of a near-diagonal prior (principal-moment targets).
+NEAR_DIAGONAL = 0.02
+#: Share of the body-rate limit a profile may use (margin for the prior's spread).
+RATE_MARGIN = 0.97
+#: Highest rate [Hz] at which information is evaluated during the design.
+DESIGN_RATE_MAX = 10.0
+#: Longest design horizon [s].
+HORIZON_MAX = 60.0
+_DIAG_KEEP = np.array([0, 1, 2, 6, 7, 8])
+
+
+@dataclass(frozen=True, eq=False)
+class Prior:
+    """Prior knowledge of the tensor.
+
+    Attributes
+    ----------
+    inertia : numpy.ndarray, shape (3, 3)
+        Prior value [kg m^2], symmetric positive definite, triangle inequality satisfied.
+    std : numpy.ndarray, shape (6,)
+        One-sigma uncertainty of ``theta = [ixx, iyy, izz, ixy, ixz, iyz]`` [kg m^2].
+    """
+
+    inertia: np.ndarray
+    std: np.ndarray
+
+    @property
+    def theta(self) -> np.ndarray:
+        """Prior ``theta`` [kg m^2], shape (6,)."""
+        return self.inertia[[0, 1, 2, 0, 0, 1], [0, 1, 2, 1, 2, 2]]
+
+    def near_diagonal(self) -> bool:
+        """Products small against the moments (``<= NEAR_DIAGONAL``, see module docstring)."""
+        d = np.diag(self.inertia)
+        ratio = np.abs(self.theta[3:]) / np.sqrt(d[[0, 0, 1]] * d[[1, 2, 2]])
+        return bool(np.all(ratio <= NEAR_DIAGONAL))
+
+    def bodies(self, n: int, seed: int = 0) -> list[np.ndarray]:
+        """The prior value and ``n - 1`` physical tensors drawn from ``N(theta, diag(std^2))``."""
+        rng = np.random.default_rng(seed)
+        out = [self.inertia]
+        for _ in range(200 * n):
+            if len(out) >= n:
+                break
+            m = (self.theta + rng.standard_normal(6) * self.std)[MATRIX_INDEX]
+            if _physical_problem(m) is None:
+                out.append(m)
+        return out
+
+
+def _physical_problem(m: np.ndarray) -> str | None:
+    """Why ``m`` is not a rigid-body tensor, or None."""
+    if not np.all(np.isfinite(m)):
+        return 'has non-finite values'
+    ev = np.linalg.eigvalsh(m)
+    if ev[0] <= 0:
+        return f'is not positive definite (principal moments {np.round(ev, 6).tolist()})'
+    if ev[0] + ev[1] < ev[2] * (1 - 1e-9):
+        return ('violates the triangle inequality I1 + I2 >= I3 (principal moments '
+                f'{np.round(ev, 6).tolist()})')
+    return None
+
+
+def make_prior(theta: Any, rel_std: float = 0.2, std: Any = None) -> Prior:
+    """Validate a prior.
+
+    Parameters
+    ----------
+    theta : array_like, shape (6,)
+        ``[ixx, iyy, izz, ixy, ixz, iyz]`` [kg m^2] (matrix elements).
+    rel_std : float
+        Relative one-sigma uncertainty (0.2 = 20 %) of the moments; the products get
+        ``rel_std * max(|I_ij|, 0.05 trace / 3)``.  Used when ``std`` is None.
+    std : array_like, shape (6,), optional
+        Absolute one-sigma uncertainty [kg m^2] per element (a previous estimate's).
+
+    Raises
+    ------
+    ValueError
+        One line naming the field: non-finite values, a tensor that is not physical, a
+        non-positive ``rel_std`` or negative ``std``.
+    """
+    th = np.asarray(theta, dtype=float)
+    if th.shape != (6,) or not np.all(np.isfinite(th)):
+        raise ValueError(f'prior inertia: expected 6 finite numbers ixx iyy izz ixy ixz iyz, '
+                         f'got {np.asarray(theta).tolist()}')
+    m = th[MATRIX_INDEX]
+    why = _physical_problem(m)
+    if why is not None:
+        raise ValueError(f'prior inertia {th.tolist()} {why}: give a physical tensor')
+    if std is None:
+        if not (math.isfinite(rel_std) and rel_std > 0):
+            raise ValueError(f'prior relative std: must be a finite number > 0, got {rel_std}')
+        floor = 0.05 * np.trace(m) / 3.0
+        s = rel_std * np.concatenate([np.abs(th[:3]), np.maximum(np.abs(th[3:]), floor)])
+    else:
+        s = np.asarray(std, dtype=float)
+        if s.shape != (6,) or not np.all(np.isfinite(s)) or np.any(s < 0):
+            raise ValueError(f'prior std: expected 6 finite numbers >= 0, got {s.tolist()}')
+    return Prior(m, s)
+
+
+@dataclass(frozen=True)
+class Limits:
+    """Actuator, body-rate and sensor figures (SI).
+
+    Attributes
+    ----------
+    max_torque : tuple of 3 float
+        Peak torque per body axis [N m].
+    max_rate : float
+        Largest body rate ``|omega|`` [rad/s].
+    gyro_rate, torque_rate : float
+        Sample rates [Hz]; the torque is commanded and measured at ``torque_rate``.
+    gyro_noise : float
+        Gyro white-noise std [rad/s].
+    torque_noise : float
+        Torque-sample noise std [N m] (held over the sample interval).
+    torque_noise_rel : float
+        Additional torque noise as a share of the profile's RMS per axis (a scene's
+        ``noise_rel``).
+    initial_omega : tuple of 3 float
+        Body rate at the start [rad/s].
+    """
+
+    max_torque: tuple[float, float, float]
+    max_rate: float
+    gyro_rate: float = 200.0
+    torque_rate: float = 50.0
+    gyro_noise: float = 0.002
+    torque_noise: float = 0.001
+    torque_noise_rel: float = 0.0
+    initial_omega: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+    def __post_init__(self) -> None:
+        """Refuse non-finite, zero or negative limits (one line naming the field)."""
+        mt = tuple(float(v) for v in np.atleast_1d(np.asarray(self.max_torque, dtype=float)))
+        if len(mt) == 1:
+            mt = mt * 3
+        object.__setattr__(self, 'max_torque', mt)
+        checks = {'max_torque': mt, 'max_rate': (self.max_rate,),
+                  'gyro_rate': (self.gyro_rate,), 'torque_rate': (self.torque_rate,),
+                  'gyro_noise': (self.gyro_noise,)}
+        for name, vals in checks.items():
+            if len(vals) != 3 and name == 'max_torque' or not all(
+                    math.isfinite(v) and v > 0 for v in vals):
+                raise ValueError(f'{name}: must be finite and > 0, got '
+                                 f'{list(vals) if len(vals) > 1 else vals[0]}')
+        for name in ('torque_noise', 'torque_noise_rel'):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v >= 0):
+                raise ValueError(f'{name}: must be finite and >= 0, got {v}')
+        w0 = np.asarray(self.initial_omega, dtype=float)
+        if w0.shape != (3,) or not np.all(np.isfinite(w0)):
+            raise ValueError(f'initial_omega: expected 3 finite numbers, got {w0.tolist()}')
+        if np.linalg.norm(w0) >= self.max_rate:
+            raise ValueError(f'initial_omega: |omega0| = {np.linalg.norm(w0):g} rad/s is already '
+                             f'at the body-rate limit {self.max_rate:g} rad/s: raise max_rate')
+
+
+@dataclass(frozen=True)
+class Target:
+    """What the manoeuvre must achieve.
+
+    Attributes
+    ----------
+    rel_std : float or None
+        Relative one-sigma target of every targeted quantity (0.01 = 1 %); None with a
+        ``duration`` target.
+    elements : tuple of str
+        Targeted quantities: ``principal`` (the three principal moments) or element names of
+        ``THETA_NAMES``.  A product's relative sigma is against ``trace / 3``.
+    duration : float or None
+        A fixed manoeuvre length [s] instead of a precision: the design minimises the
+        criterion at this length.
+    max_duration : float
+        Longest acceptable manoeuvre [s].
+    """
+
+    rel_std: float | None = 0.01
+    elements: tuple[str, ...] = ('principal',)
+    duration: float | None = None
+    max_duration: float = 300.0
+
+    def __post_init__(self) -> None:
+        """Refuse a malformed target (one line naming the field)."""
+        if not (math.isfinite(self.max_duration) and self.max_duration > 0):
+            raise ValueError(f'max_duration: must be finite and > 0, got {self.max_duration}')
+        if (self.rel_std is None) == (self.duration is None):
+            raise ValueError('target: give exactly one of a relative std or a duration')
+        if self.rel_std is not None and not (math.isfinite(self.rel_std) and self.rel_std > 0):
+            raise ValueError(f'target relative std: must be finite and > 0, got {self.rel_std}')
+        if self.duration is not None and not (
+                math.isfinite(self.duration) and 0 < self.duration <= self.max_duration):
+            raise ValueError(f'target duration: must be within (0, max_duration = '
+                             f'{self.max_duration:g}] s, got {self.duration}')
+        for e in self.elements:
+            if e != 'principal' and e not in THETA_NAMES:
+                raise ValueError(f'target element {e!r}: must be principal or one of '
+                                 f'{", ".join(THETA_NAMES)}')
+        if not self.elements:
+            raise ValueError('target elements: give at least one')
+
+
+@dataclass(frozen=True)
+class Profile:
+    """A torque profile: scene torque components (``docs/SCENES.md``) and a name."""
+
+    name: str
+    components: tuple[Mapping[str, Any], ...]
+
+    def scaled(self, factor: Any) -> Profile:
+        """The profile with every component's amplitude multiplied by ``factor`` (3,)."""
+        f = np.broadcast_to(np.asarray(factor, dtype=float), (3,))
+        comps = []
+        for c in self.components:
+            a = np.broadcast_to(np.asarray(c['amplitude'], dtype=float), (3,)) * f
+            comps.append({**c, 'amplitude': [float(v) for v in a]})
+        return Profile(self.name, tuple(comps))
+
+    def torque(self, t: np.ndarray, duration: float, seed: int = 0) -> np.ndarray:
+        """Commanded torque [N m] at the command times ``t`` (M,), shape (M, 3).
+
+        Random draws (PRBS levels, random phases) follow the simulator's seeding, so a scene
+        built by :func:`scene_dict` with the same seed commands the same values.
+        """
+        r_torque = np.random.default_rng(seed).spawn(7)[0]
+        out = np.zeros((t.size, 3))
+        rngs = r_torque.spawn(len(self.components))
+        for i, (c, r) in enumerate(zip(self.components, rngs, strict=True)):
+            try:
+                comp = TorqueComponent.from_dict(dict(c), f'torque[{i}]', duration)
+            except SceneError as exc:
+                raise ValueError(str(exc)) from None
+            out += comp.evaluate(t, r)
+        return out
+
+
+# --------------------------------------------------------------------------------------------
+# profiles
+# --------------------------------------------------------------------------------------------
+
+def standard_profiles(max_torque: Sequence[float]) -> list[Profile]:
+    """The standard profiles at peak torque ``max_torque`` (3,) [N m] per axis.
+
+    constant; sines (one per axis, 0.10 / 0.13 / 0.17 Hz); chirp (scene default: 0.02 to 1 Hz,
+    one axis after the other); PRBS (0.5 s bits); random-phase multisine and Schroeder
+    multisine (scene defaults: 6 tones per axis, 0.02 to 0.5 Hz).
+    """
+    mt = [float(v) for v in max_torque]
+    sines = tuple({'type': 'sine', 'frequency': f, 'amplitude': mt, 'axes': [ax]}
+                  for f, ax in zip((0.10, 0.13, 0.17), 'xyz', strict=True))
+    return [Profile('constant', ({'type': 'constant', 'amplitude': mt},)),
+            Profile('sines', sines),
+            Profile('chirp', ({'type': 'chirp', 'amplitude': mt},)),
+            Profile('prbs', ({'type': 'prbs', 'amplitude': mt, 'bit_time': 0.5},)),
+            Profile('random multisine', ({'type': 'multisine', 'amplitude': mt,
+                                          'phases': 'random'},)),
+            Profile('schroeder multisine', ({'type': 'multisine', 'amplitude': mt},))]
+
+
+def multisine(f0: float, n: int, decay: float, quadrature: bool) -> Profile:
+    """A designed multisine as ``sine`` components (unit amplitude per tone).
+
+    Parameters
+    ----------
+    f0 : float
+        Base frequency [Hz]; axis ``j`` gets the harmonics ``h = 3 m + j + 1``, m < n.
+    n : int
+        Tones per axis.
+    decay : float
+        Tone amplitude ``h ** -decay`` (0 flat, 1 square-wave-like).
+    quadrature : bool
+        Turn the Schroeder phases by 90 degrees (each tone a cosine: rate swings centred).
+    """
+    comps = []
+    n_all = 3 * n
+    for m in range(n):
+        for j, ax in enumerate('xyz'):
+            h = 3 * m + j + 1
+            phase = -math.pi * h * (h - 1) / n_all + (math.pi / 2 if quadrature else 0.0)
+            amp = [0.0, 0.0, 0.0]
+            amp[j] = float(h ** -decay)
+            comps.append({'type': 'sine', 'frequency': float(h * f0), 'amplitude': amp,
+                          'axes': [ax], 'phase': float(math.remainder(phase, 2 * math.pi))})
+    return Profile(f'designed multisine (f0 {f0:.4g} Hz, {n}/axis)', tuple(comps))
+
+
+def design_candidates(prior: Prior, lim: Limits, horizon: float, rate: float
+                      ) -> list[tuple[dict[str, Any], Profile]]:
+    """The multisines searched by :func:`plan`: ``(parameters, profile)`` pairs.
+
+    Base frequencies around the corner ``f_c = u / (2 pi I omega_max)`` (geometric mean over
+    the axes), from ``f_c / 4`` to ``4 f_c``, kept within one period per horizon and a highest
+    tone at most ``rate / 5``.
+    """
+    u_over_i = np.asarray(lim.max_torque) / np.diag(prior.inertia)
+    f_c = float(np.exp(np.mean(np.log(u_over_i)))) / (2 * math.pi * lim.max_rate)
+    out = []
+    for n in (1, 3):
+        hi = rate / (5.0 * 3 * n)
+        lo = 1.0 / horizon
+        if hi < lo:
+            continue
+        fs = sorted({float(np.clip(f_c * k, lo, hi)) for k in (0.25, 0.5, 1.0, 2.0, 4.0)})
+        for f0 in fs:
+            for decay in (0.0, 1.0):
+                for quad in (False, True):
+                    if n == 1 and decay:
+                        continue          # one tone per axis: decay changes nothing
+                    par = {'f0': f0, 'n_per_axis': n, 'decay': decay, 'quadrature': quad}
+                    out.append((par, multisine(f0, n, decay, quad)))
+    return out
+
+
+def scene_dict(profile: Profile, lim: Limits, duration: float, inertia: np.ndarray,
+               seed: int = 0, name: str = 'planned') -> dict[str, Any]:
+    """A scene (``docs/SCENES.md`` schema) that plays ``profile`` on a body ``inertia``."""
+    th = inertia[[0, 1, 2, 0, 0, 1], [0, 1, 2, 1, 2, 2]]
+    return {
+        'name': name,
+        'description': f'{profile.name}, planned by python -m inertia_ros plan',
+        'seed': int(seed), 'duration': float(duration),
+        'body': {'inertia': [float(v) for v in th]},
+        'initial_omega': [float(v) for v in lim.initial_omega],
+        'torque': [dict(c) for c in profile.components],
+        'disturbance': [0.0, 0.0, 0.0],
+        'command_rate': float(lim.torque_rate),
+        'gyro': {'rate': float(lim.gyro_rate), 'noise_std': float(lim.gyro_noise),
+                 'bias': [0.0, 0.0, 0.0], 'frame_id': 'base_link'},
+        'torque_sensor': {'rate': float(lim.torque_rate), 'noise_rel': float(lim.torque_noise_rel),
+                          'noise_std': float(lim.torque_noise)},
+        'imperfections': {'timestamp_jitter': 0.0, 'torque_delay': 0.0, 'drop_rate': 0.0},
+    }
+
+
+# --------------------------------------------------------------------------------------------
+# limits and information
+# --------------------------------------------------------------------------------------------
+
+def _grid(duration: float, rate: float) -> np.ndarray:
+    """Sample times ``k / rate`` within ``[0, duration]`` [s]."""
+    return np.arange(int(math.floor(duration * rate + 1e-9)) + 1) / rate
+
+
+def peak_rate(profile: Profile, bodies: Sequence[np.ndarray], lim: Limits, duration: float,
+              rate: float, seed: int = 0) -> float:
+    """Largest noise-free ``|omega|`` [rad/s] over the bodies, torque held at ``rate`` [Hz]."""
+    t = _grid(duration, rate)
+    cmd = profile.torque(t, duration, seed)
+    worst = 0.0
+    for body in bodies:
+        w, _ = integrate_rigid_body(t, cmd[:-1], body, np.asarray(lim.initial_omega))
+        worst = max(worst, float(np.max(np.linalg.norm(w, axis=1))))
+    return worst
+
+
+def enforce_limits(profile: Profile, bodies: Sequence[np.ndarray], lim: Limits,
+                   duration: float, rate: float, seed: int = 0) -> tuple[Profile, float]:
+    """Scale ``profile`` to the torque limit per axis, then down to the body-rate limit.
+
+    Returns
+    -------
+    profile : Profile
+        Peak torque per axis ``<= max_torque`` on the command grid; noise-free peak body rate
+        ``<= RATE_MARGIN max_rate`` on every body (torque held at ``rate``).
+    peak : float
+        That peak body rate [rad/s].
+    """
+    t = _grid(duration, lim.torque_rate)
+    cmd = profile.torque(t, duration, seed)
+    peak_u = np.max(np.abs(cmd), axis=0)
+    f = np.where(peak_u > 0, np.asarray(lim.max_torque) / np.where(peak_u > 0, peak_u, 1), 0)
+    scaled = profile.scaled(f)
+    w0 = float(np.linalg.norm(lim.initial_omega))
+    allowed = RATE_MARGIN * lim.max_rate
+    s = 1.0
+    pk = peak_rate(scaled, bodies, lim, duration, rate, seed)
+    for _ in range(8):
+        if pk <= allowed:
+            break
+        s *= 0.98 * (allowed - w0) / max(pk - w0, 1e-12)
+        pk = peak_rate(scaled.scaled(s), bodies, lim, duration, rate, seed)
+    return scaled.scaled(s), pk
+
+
+def _fishers(profile: Profile, body: np.ndarray, lim: Limits, duration: float,
+             times: Sequence[float], rate: float, seed: int = 0) -> list[np.ndarray]:
+    """Fisher information [theta, w0] of the record up to each of ``times`` [s].
+
+    Evaluated at ``rate`` [Hz] (at most the sensor rates) with the noise rescaled to the same
+    spectral density (module docstring).
+    """
+    t_cmd = _grid(duration, lim.torque_rate)
+    cmd = profile.torque(t_cmd, duration, seed)
+    rms = np.sqrt(np.mean(cmd ** 2, axis=0))
+    t_std = lim.torque_noise + lim.torque_noise_rel * rms
+    rg, rt = min(rate, lim.gyro_rate), min(rate, lim.torque_rate)
+    ts = _grid(duration, rt)
+    cmd_s = cmd[np.minimum(np.floor(ts * lim.torque_rate + 1e-6).astype(int), cmd.shape[0] - 1)]
+    tg_all = _grid(duration, rg)
+    out = []
+    for t_end in times:
+        tg = tg_all[tg_all <= t_end + 1e-9]
+        if tg.size < 3:
+            out.append(np.zeros((9, 9)))
+            continue
+        keep = ts <= t_end + 1e-9
+        fr = fisher_information(tg, ts[keep], cmd_s[keep], body, np.asarray(lim.initial_omega),
+                                gyro_std=lim.gyro_noise * math.sqrt(rg / lim.gyro_rate),
+                                torque_std=t_std * math.sqrt(rt / lim.torque_rate))
+        out.append(fr.information)
+    return out
+
+
+# --------------------------------------------------------------------------------------------
+# criterion
+# --------------------------------------------------------------------------------------------
+
+def theta_covariance(information: np.ndarray, model: str) -> np.ndarray:
+    """Bound on the covariance of ``theta`` [kg^2 m^4], shape (6, 6), from ``[theta, w0]``
+    information (9, 9); ``model='diagonal'`` drops the products (their rows are zero).
+    Infinite diagonal when the information is singular."""
+    keep = _DIAG_KEEP if model == 'diagonal' else np.arange(information.shape[0])
+    F = information[np.ix_(keep, keep)]
+    d = np.sqrt(np.clip(np.diag(F), 0, None))
+    cov = np.zeros((6, 6))
+    n_th = 3 if model == 'diagonal' else 6
+    if np.any(d <= 0) or np.linalg.cond(F / np.outer(d, d)) > 1e14:
+        cov[np.arange(n_th), np.arange(n_th)] = np.inf
+        return cov
+    c = np.linalg.inv(F / np.outer(d, d)) / np.outer(d, d)
+    cov[:n_th, :n_th] = c[:n_th, :n_th]
+    return cov
+
+
+def principal_std(inertia: np.ndarray, cov: np.ndarray) -> np.ndarray:
+    """First-order std [kg m^2] of the ascending principal moments, shape (3,).
+
+    ``d lambda_k / d theta = [vx^2, vy^2, vz^2, 2 vx vy, 2 vx vz, 2 vy vz]`` with ``v`` the
+    k-th principal axis; ``cov`` (6, 6) is the covariance of ``theta``.
+    """
+    _, v = np.linalg.eigh(inertia)
+    J = np.stack([v[0] ** 2, v[1] ** 2, v[2] ** 2, 2 * v[0] * v[1], 2 * v[0] * v[2],
+                  2 * v[1] * v[2]], axis=1)                    # (3 moments, 6)
+    if not np.all(np.isfinite(cov)):
+        return np.full(3, np.inf)
+    return np.sqrt(np.clip(np.einsum('ki,ij,kj->k', J, cov, J), 0, None))
+
+
+def targeted_rel_std(cov: np.ndarray, inertia: np.ndarray, elements: Sequence[str]
+                     ) -> dict[str, float]:
+    """Relative std of each targeted quantity: ``I1 I2 I3`` for ``principal``, element names
+    otherwise (a product against ``trace / 3``)."""
+    out: dict[str, float] = {}
+    lam = np.linalg.eigvalsh(inertia)
+    for e in elements:
+        if e == 'principal':
+            ps = principal_std(inertia, cov)
+            out.update({f'I{k + 1}': float(ps[k] / lam[k]) for k in range(3)})
+        else:
+            i = THETA_NAMES.index(e)
+            scale = inertia[i, i] if i < 3 else np.trace(inertia) / 3.0
+            out[e] = float(math.sqrt(cov[i, i]) / scale)
+    return out
+
+
+def criterion(information: np.ndarray, inertia: np.ndarray, target: Target, model: str
+              ) -> float:
+    """The largest targeted relative std (dimensionless): lower is better."""
+    cov = theta_covariance(information, model)
+    return max(targeted_rel_std(cov, inertia, target.elements).values())
+
+
+def _time_to(times: np.ndarray, crit: np.ndarray, goal: float) -> float:
+    """First time [s] the criterion reaches ``goal`` (log-log interpolation), or inf."""
+    ok = np.flatnonzero(crit <= goal)
+    if ok.size == 0:
+        return math.inf
+    k = int(ok[0])
+    if k == 0 or not math.isfinite(crit[k - 1]):
+        return float(times[k])
+    x0, x1 = math.log(times[k - 1]), math.log(times[k])
+    y0, y1 = math.log(crit[k - 1]), math.log(crit[k])
+    return float(math.exp(x0 + (math.log(goal) - y0) * (x1 - x0) / (y1 - y0)))
+
+
+# --------------------------------------------------------------------------------------------
+# the plan
+# --------------------------------------------------------------------------------------------
+
+@dataclass(frozen=True, eq=False)
+class Plan:
+    """A designed excitation and its predictions.
+
+    Attributes
+    ----------
+    profile : Profile
+        The designed profile, within the limits.
+    design : dict
+        Its parameters (``f0`` Hz, ``n_per_axis``, ``decay``, ``quadrature``).
+    model : str
+        ``full`` or ``diagonal``: the model whose information the plan uses (run the
+        estimator with it).
+    duration : float
+        Suggested manoeuvre length [s]: the time to target (rounded up), or the target
+        duration.
+    time_to_target : float
+        Predicted time [s] at which every targeted relative std reaches the target (prior
+        value body); ``nan`` for a duration target.
+    times : numpy.ndarray, shape (K,)
+        Times [s] of the predicted curves.
+    element_std : numpy.ndarray, shape (K, 6)
+        Predicted std of ``theta`` [kg m^2] against time.
+    principal_std : numpy.ndarray, shape (K, 3)
+        Predicted std of the principal moments [kg m^2] against time.
+    criterion : numpy.ndarray, shape (K,)
+        Largest targeted relative std against time.
+    peak_rate : float
+        Simulated peak ``|omega|`` [rad/s] over the prior bodies.
+    comparison : list of dict
+        One row per profile (designed first): ``name``, ``criterion`` (worst over the prior
+        bodies at the horizon), ``time_to_target`` [s] (inf when not reached within
+        ``max_duration``), ``peak_rate`` [rad/s], ``peak_torque`` [N m] per axis.
+    horizon : float
+        Length [s] at which the candidates were compared.
+    """
+
+    profile: Profile
+    design: dict[str, Any]
+    model: str
+    duration: float
+    time_to_target: float
+    times: np.ndarray
+    element_std: np.ndarray
+    principal_std: np.ndarray
+    criterion: np.ndarray
+    peak_rate: float
+    comparison: list[dict[str, Any]] = field(default_factory=list)
+    horizon: float = 0.0
+
+
+def choose_model(prior: Prior, target: Target) -> str:
+    """``diagonal`` for a principal-moments target on a near-diagonal prior, else ``full``."""
+    if tuple(target.elements) == ('principal',) and prior.near_diagonal():
+        return 'diagonal'
+    return 'full'
+
+
+def _score(profile: Profile, bodies: Sequence[np.ndarray], lim: Limits, target: Target,
+           model: str, horizon: float, rate: float, seed: int) -> tuple[Profile, float, float]:
+    """Limit ``profile`` on ``bodies``; its worst criterion over them at ``horizon``."""
+    prof, pk = enforce_limits(profile, bodies, lim, horizon, rate, seed)
+    worst = 0.0
+    for body in bodies:
+        F = _fishers(prof, body, lim, horizon, [horizon], rate, seed)[0]
+        worst = max(worst, criterion(F, body, target, model))
+    return prof, worst, pk
+
+
+def _curve(profile: Profile, prior: Prior, lim: Limits, target: Target, model: str,
+           t_end: float, rate: float, seed: int, n: int = 14
+           ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Times and predicted element std, principal std and criterion on the prior value."""
+    t0 = max(4.0 / rate, t_end / 100.0)
+    times = np.geomspace(t0, t_end, n)
+    el, pr, cr = [], [], []
+    for F in _fishers(profile, prior.inertia, lim, t_end, times, rate, seed):
+        cov = theta_covariance(F, model)
+        el.append(np.sqrt(np.diag(cov)))
+        pr.append(principal_std(prior.inertia, cov))
+        cr.append(max(targeted_rel_std(cov, prior.inertia, target.elements).values()))
+    return times, np.array(el), np.array(pr), np.array(cr)
+
+
+def _design(prior: Prior, bodies: list[np.ndarray], lim: Limits, target: Target, model: str,
+            horizon: float, rate: float, seed: int) -> tuple[dict[str, Any], Profile, float]:
+    """Best candidate: scored on the prior value, the best four on every prior body."""
+    scored = []
+    for par, prof in design_candidates(prior, lim, horizon, rate):
+        limited, crit, _ = _score(prof, bodies[:1], lim, target, model, horizon, rate, seed)
+        scored.append((crit, par, prof))
+    scored.sort(key=lambda s: s[0])
+    best: tuple[float, dict[str, Any], Profile] | None = None
+    for _, par, prof in scored[:4]:
+        limited, crit, _ = _score(prof, bodies, lim, target, model, horizon, rate, seed)
+        if best is None or crit < best[0]:
+            best = (crit, par, prof)
+    assert best is not None
+    return best[1], best[2], best[0]
+
+
+def _row(name: str, prof: Profile, bodies: list[np.ndarray], prior: Prior, lim: Limits,
+         target: Target, model: str, t_end: float, horizon: float, rate: float, seed: int
+         ) -> tuple[dict[str, Any], Profile, tuple[np.ndarray, ...]]:
+    """A comparison row: the profile limited over ``t_end`` and its predictions."""
+    limited, pk = enforce_limits(prof, bodies, lim, t_end, rate, seed)
+    _, crit, _ = _score(prof, bodies, lim, target, model, horizon, rate, seed)
+    curve = _curve(limited, prior, lim, target, model, t_end, rate, seed)
+    goal = target.rel_std if target.rel_std is not None else -1.0
+    ttt = _time_to(curve[0], curve[3], goal) if goal > 0 else math.nan
+    cmd = limited.torque(_grid(t_end, lim.torque_rate), t_end, seed)
+    row = {'name': name, 'criterion': crit, 'criterion_at_end': float(curve[3][-1]),
+           'time_to_target': ttt, 'peak_rate': pk,
+           'peak_torque': [float(v) for v in np.max(np.abs(cmd), axis=0)]}
+    return row, limited, curve
+
+
+def simulated_peak_rate(profile: Profile, bodies: Sequence[np.ndarray], lim: Limits,
+                        duration: float, seed: int = 0) -> float:
+    """Peak true ``|omega|`` [rad/s] of the project's simulator playing the profile's scene on
+    each body (:func:`scene_dict`, :func:`.simulation.simulate`)."""
+    from .scene import Scene
+    from .simulation import simulate
+
+    worst = 0.0
+    for body in bodies:
+        sim = simulate(Scene.from_dict(scene_dict(profile, lim, duration, body, seed)), seed)
+        worst = max(worst, float(np.max(np.linalg.norm(sim.omega_true, axis=1))))
+    return worst
+
+
+def plan(prior: Prior, lim: Limits, target: Target, *, n_bodies: int = 3, seed: int = 0,
+         compare: bool = True) -> Plan:
+    """Design an excitation for ``target`` within ``lim``, robust over ``prior``.
+
+    Parameters
+    ----------
+    prior : Prior
+        Prior tensor and its uncertainty (:func:`make_prior`).
+    lim : Limits
+        Torque, body-rate and sensor figures.
+    target : Target
+        Precision (or duration) and the longest acceptable manoeuvre.
+    n_bodies : int
+        Bodies the design must work for: the prior value and ``n_bodies - 1`` draws.
+    seed : int
+        Seed of the prior draws and of the random standard profiles.
+    compare : bool
+        Also evaluate the standard profiles (:func:`standard_profiles`).
+
+    Returns
+    -------
+    Plan
+
+    Raises
+    ------
+    ValueError
+        The target is not reached within ``max_duration`` at these limits (the message says
+        what it reaches and what to change).
+    """
+    model = choose_model(prior, target)
+    rate = min(DESIGN_RATE_MAX, lim.gyro_rate, lim.torque_rate)
+    bodies = prior.bodies(max(1, n_bodies), seed)
+    t_end = target.duration if target.duration is not None else target.max_duration
+    horizon = min(t_end, HORIZON_MAX)
+    par, prof, _ = _design(prior, bodies, lim, target, model, horizon, rate, seed)
+    row, limited, curve = _row('designed', prof, bodies, prior, lim, target, model, t_end,
+                               horizon, rate, seed)
+    ttt = row['time_to_target']
+    if math.isfinite(ttt) and ttt < 0.5 * horizon:     # design again for the time it takes
+        horizon = max(1.2 * ttt, 5.0)
+        par, prof, _ = _design(prior, bodies, lim, target, model, horizon, rate, seed)
+        row, limited, curve = _row('designed', prof, bodies, prior, lim, target, model,
+                                   t_end, horizon, rate, seed)
+        ttt = row['time_to_target']
+    if target.rel_std is not None and not math.isfinite(ttt):
+        raise ValueError(
+            f'target not reachable: the designed profile reaches {100 * curve[3][-1]:.3g} % '
+            f'(target {100 * target.rel_std:g} %) in the maximum duration '
+            f'{target.max_duration:g} s at max torque {list(lim.max_torque)} N m and max rate '
+            f'{lim.max_rate:g} rad/s; raise --max-duration, --max-torque or --max-rate, lower '
+            'the sensor noise, or relax --target-rel-std')
+    duration = t_end if target.duration is not None else min(
+        target.max_duration, float(math.ceil(1.1 * ttt)))
+    pk = simulated_peak_rate(limited, bodies, lim, duration, seed)
+    if pk > lim.max_rate:           # the held command at full rate swings a little further
+        w0 = float(np.linalg.norm(lim.initial_omega))
+        limited = limited.scaled(RATE_MARGIN * (lim.max_rate - w0) / (pk - w0))
+        curve = _curve(limited, prior, lim, target, model, t_end, rate, seed)
+        ttt = _time_to(curve[0], curve[3], target.rel_std) if target.rel_std else math.nan
+        pk = simulated_peak_rate(limited, bodies, lim, duration, seed)
+    rows = [{**row, 'name': limited.name, 'time_to_target': ttt, 'peak_rate': pk}]
+    if compare:
+        for std_prof in standard_profiles(lim.max_torque):
+            rows.append(_row(std_prof.name, std_prof, bodies, prior, lim, target, model,
+                             t_end, horizon, rate, seed)[0])
+    return Plan(profile=limited, design=par, model=model, duration=duration,
+                time_to_target=ttt if target.rel_std is not None else math.nan,
+                times=curve[0], element_std=curve[1], principal_std=curve[2],
+                criterion=curve[3], peak_rate=pk, comparison=rows, horizon=horizon)
