@@ -42,6 +42,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+from scipy.optimize import minimize_scalar
 
 from .crlb import fisher_information
 from .scene import SceneError, TorqueComponent
@@ -313,57 +314,76 @@ def standard_profiles(max_torque: Sequence[float]) -> list[Profile]:
             Profile('schroeder multisine', ({'type': 'multisine', 'amplitude': mt},))]
 
 
-def multisine(f0: float, n: int, decay: float, quadrature: bool) -> Profile:
+def multisine(f0: float, n: int, decay: float, quadrature: bool,
+              spread: float | None = None) -> Profile:
     """A designed multisine as ``sine`` components (unit amplitude per tone).
 
     Parameters
     ----------
     f0 : float
-        Base frequency [Hz]; axis ``j`` gets the harmonics ``h = 3 m + j + 1``, m < n.
+        Base frequency [Hz].
     n : int
         Tones per axis.
     decay : float
-        Tone amplitude ``h ** -decay`` (0 flat, 1 square-wave-like).
+        Tone amplitude ``h ** -decay`` for harmonic ``h`` (0 flat, 1 square-wave-like).
     quadrature : bool
-        Turn the Schroeder phases by 90 degrees (each tone a cosine: rate swings centred).
+        Turn the phases by 90 degrees (each tone a cosine: rate swings centred).
+    spread : float, optional
+        None: harmonic layout, axis ``j`` takes the harmonics ``h = 3 m + j + 1`` of ``f0``
+        with Schroeder phases over all of them.  A number: axis ``j`` has its own base
+        ``f0 (1 + spread j)`` and the odd harmonics ``h = 2 m + 1`` of it, the axes staggered
+        by 120 degrees (with ``spread = 0`` the rate vector turns at a steady magnitude, which
+        uses a body-rate limit on ``|omega|`` best).
     """
     comps = []
-    n_all = 3 * n
     for m in range(n):
         for j, ax in enumerate('xyz'):
-            h = 3 * m + j + 1
-            phase = -math.pi * h * (h - 1) / n_all + (math.pi / 2 if quadrature else 0.0)
+            if spread is None:
+                h = 3 * m + j + 1
+                freq = h * f0
+                phase = -math.pi * h * (h - 1) / (3 * n)
+            else:
+                h = 2 * m + 1
+                freq = h * f0 * (1.0 + spread * j)
+                phase = -math.pi * m * (m - 1) / n + h * 2.0 * math.pi * j / 3.0
+            phase += math.pi / 2 if quadrature else 0.0
             amp = [0.0, 0.0, 0.0]
             amp[j] = float(h ** -decay)
-            comps.append({'type': 'sine', 'frequency': float(h * f0), 'amplitude': amp,
+            comps.append({'type': 'sine', 'frequency': float(freq), 'amplitude': amp,
                           'axes': [ax], 'phase': float(math.remainder(phase, 2 * math.pi))})
-    return Profile(f'designed multisine (f0 {f0:.4g} Hz, {n}/axis)', tuple(comps))
+    layout = 'harmonic' if spread is None else f'spread {spread:g}'
+    return Profile(f'designed multisine (f0 {f0:.4g} Hz, {n}/axis, {layout})', tuple(comps))
+
+
+def corner_frequency(prior: Prior, lim: Limits) -> float:
+    """``f_c = u / (2 pi I omega_max)`` [Hz] (geometric mean over the axes): a full-torque tone
+    below it would cross the body-rate limit."""
+    u_over_i = np.asarray(lim.max_torque) / np.diag(prior.inertia)
+    return float(np.exp(np.mean(np.log(u_over_i)))) / (2 * math.pi * lim.max_rate)
 
 
 def design_candidates(prior: Prior, lim: Limits, horizon: float, rate: float
                       ) -> list[tuple[dict[str, Any], Profile]]:
     """The multisines searched by :func:`plan`: ``(parameters, profile)`` pairs.
 
-    Base frequencies around the corner ``f_c = u / (2 pi I omega_max)`` (geometric mean over
-    the axes), from ``f_c / 4`` to ``4 f_c``, kept within one period per horizon and a highest
-    tone at most ``rate / 5``.
+    Base frequencies from ``f_c / 4`` to ``4 f_c`` (:func:`corner_frequency`), kept within one
+    period per horizon and a highest tone at most ``rate / 5``; harmonic and spread layouts,
+    one or a few tones per axis, flat or falling amplitudes, sine or cosine phases.
     """
-    u_over_i = np.asarray(lim.max_torque) / np.diag(prior.inertia)
-    f_c = float(np.exp(np.mean(np.log(u_over_i)))) / (2 * math.pi * lim.max_rate)
+    f_c = corner_frequency(prior, lim)
     out = []
-    for n in (1, 3):
-        hi = rate / (5.0 * 3 * n)
-        lo = 1.0 / horizon
+    layouts = [(None, 1, 0.0), (None, 3, 0.0), (None, 3, 1.0),
+               (0.0, 1, 0.0), (0.15, 1, 0.0), (0.3, 1, 0.0), (0.15, 2, 1.0)]
+    for spread, n, decay in layouts:
+        top = 3 * n if spread is None else (2 * n - 1) * (1 + 2 * spread)
+        hi, lo = rate / (5.0 * top), 1.0 / horizon
         if hi < lo:
             continue
-        fs = sorted({float(np.clip(f_c * k, lo, hi)) for k in (0.25, 0.5, 1.0, 2.0, 4.0)})
-        for f0 in fs:
-            for decay in (0.0, 1.0):
-                for quad in (False, True):
-                    if n == 1 and decay:
-                        continue          # one tone per axis: decay changes nothing
-                    par = {'f0': f0, 'n_per_axis': n, 'decay': decay, 'quadrature': quad}
-                    out.append((par, multisine(f0, n, decay, quad)))
+        for f0 in sorted({float(np.clip(f_c * k, lo, hi)) for k in (0.25, 0.5, 1.0, 2.0, 4.0)}):
+            for quad in (False, True):
+                par = {'f0': f0, 'n_per_axis': n, 'decay': decay, 'quadrature': quad,
+                       'spread': spread}
+                out.append((par, multisine(f0, n, decay, quad, spread)))
     return out
 
 
@@ -417,7 +437,8 @@ def enforce_limits(profile: Profile, bodies: Sequence[np.ndarray], lim: Limits,
     -------
     profile : Profile
         Peak torque per axis ``<= max_torque`` on the command grid; noise-free peak body rate
-        ``<= RATE_MARGIN max_rate`` on every body (torque held at ``rate``).
+        ``<= RATE_MARGIN max_rate`` on every body (torque held at the torque rate; ``rate``
+        is ignored).
     peak : float
         That peak body rate [rad/s].
     """
@@ -429,6 +450,7 @@ def enforce_limits(profile: Profile, bodies: Sequence[np.ndarray], lim: Limits,
     w0 = float(np.linalg.norm(lim.initial_omega))
     allowed = RATE_MARGIN * lim.max_rate
     s = 1.0
+    rate = lim.torque_rate          # the command as the actuator holds it
     pk = peak_rate(scaled, bodies, lim, duration, rate, seed)
     for _ in range(8):
         if pk <= allowed:
@@ -641,7 +663,36 @@ def _design(prior: Prior, bodies: list[np.ndarray], lim: Limits, target: Target,
         if best is None or crit < best[0]:
             best = (crit, par, prof)
     assert best is not None
-    return best[1], best[2], best[0]
+    crit, par, prof = best
+
+    def cost(log_f: float) -> float:
+        cand = multisine(math.exp(log_f), par['n_per_axis'], par['decay'], par['quadrature'],
+                         par['spread'])
+        return _score(cand, bodies, lim, target, model, horizon, rate, seed)[1]
+
+    lf = math.log(par['f0'])
+    res = minimize_scalar(cost, bounds=(lf - 0.5, lf + 0.5), method='bounded',
+                          options={'maxiter': 8, 'xatol': 0.03})
+    if res.fun < crit:
+        par = {**par, 'f0': float(math.exp(res.x))}
+        prof = multisine(par['f0'], par['n_per_axis'], par['decay'], par['quadrature'],
+                         par['spread'])
+        crit = float(res.fun)
+    return par, prof, crit
+
+
+def _horizon(prior: Prior, lim: Limits, target: Target, model: str, t_end: float,
+             rate: float, seed: int) -> float:
+    """Design horizon [s]: the target duration, or the time to target of a harmonic
+    multisine at the corner frequency (at least 5 s, at most ``HORIZON_MAX``)."""
+    if target.rel_std is None:
+        return t_end
+    h0 = min(t_end, HORIZON_MAX)
+    guess = multisine(max(corner_frequency(prior, lim), 1.0 / h0), 1, 0.0, True)
+    limited, _ = enforce_limits(guess, [prior.inertia], lim, t_end, rate, seed)
+    times, _, _, crit = _curve(limited, prior, lim, target, model, t_end, rate, seed, n=10)
+    t_guess = _time_to(times, crit, target.rel_std)
+    return float(np.clip(t_guess, 5.0, h0)) if math.isfinite(t_guess) else h0
 
 
 def _row(name: str, prof: Profile, bodies: list[np.ndarray], prior: Prior, lim: Limits,
@@ -707,17 +758,11 @@ def plan(prior: Prior, lim: Limits, target: Target, *, n_bodies: int = 3, seed: 
     rate = min(DESIGN_RATE_MAX, lim.gyro_rate, lim.torque_rate)
     bodies = prior.bodies(max(1, n_bodies), seed)
     t_end = target.duration if target.duration is not None else target.max_duration
-    horizon = min(t_end, HORIZON_MAX)
+    horizon = min(t_end, _horizon(prior, lim, target, model, t_end, rate, seed))
     par, prof, _ = _design(prior, bodies, lim, target, model, horizon, rate, seed)
     row, limited, curve = _row('designed', prof, bodies, prior, lim, target, model, t_end,
                                horizon, rate, seed)
     ttt = row['time_to_target']
-    if math.isfinite(ttt) and ttt < 0.5 * horizon:     # design again for the time it takes
-        horizon = max(1.2 * ttt, 5.0)
-        par, prof, _ = _design(prior, bodies, lim, target, model, horizon, rate, seed)
-        row, limited, curve = _row('designed', prof, bodies, prior, lim, target, model,
-                                   t_end, horizon, rate, seed)
-        ttt = row['time_to_target']
     if target.rel_std is not None and not math.isfinite(ttt):
         raise ValueError(
             f'target not reachable: the designed profile reaches {100 * curve[3][-1]:.3g} % '
