@@ -104,12 +104,15 @@ def test_reduced_rate_information_equals_full_rate() -> None:
 def test_near_diagonal_principal_target_does_not_pay_for_products() -> None:
     """A near-diagonal prior with a principal-moments target uses the diagonal model, whose
     predicted principal sigma at the same record is below the full model's; any product in the
-    target (or a body with 5 % products) keeps the full model."""
+    target (or a body with 2 % or 5 % products) keeps the full model."""
     near = ex.make_prior([1.0, 1.2, 0.9, 0.002, 0.0, -0.001], 0.2)
     assert ex.choose_model(near, ex.Target(rel_std=0.01)) == 'diagonal'
     assert ex.choose_model(near, ex.Target(rel_std=0.01, elements=('principal', 'ixy'))) \
         == 'full'
     assert ex.choose_model(ex.make_prior(DEFAULT_THETA), ex.Target(rel_std=0.01)) == 'full'
+    # the cubesat scene's 2 % products bias a diagonal fit beyond a 0.1 % target
+    cubesat = ex.make_prior([0.020, 0.023, 0.015, 0.0004, -0.0003, 0.0002])
+    assert ex.choose_model(cubesat, ex.Target(rel_std=0.001)) == 'full'
     prof, _ = ex.enforce_limits(ex.multisine(0.08, 1, 0.0, True), [near.inertia], LIMITS,
                                 20.0, 10.0)
     F = ex._fishers(prof, near.inertia, LIMITS, 20.0, [20.0], 10.0)[0]

@@ -209,12 +209,12 @@ def _text(s: dict[str, Any]) -> str:
              f'{100 * s["predicted"]["criterion"][-1]:.3g} %',
              f'  scene duration {s["duration"]:g} s; peak body rate {s["peak_rate"]:.3g} rad/s '
              f'(limit {s["max_rate"]:g}); peak torque limit {s["max_torque"]} N m',
-             '', f'  {"profile":<44} {"criterion @ horizon":>20} {"time to target":>15}']
+             '', f'  {"profile":<56} {"criterion @ horizon":>20} {"time to target":>15}']
     for r in s['comparison']:
         crit = f"{100 * r['criterion']:.3g} %" if r['criterion'] is not None else 'inf'
         t = r['time_to_target']
-        lines.append(f"  {r['name']:<44} {crit:>20} "
-                     f"{_fmt_time(t if t is not None else math.inf):>15}")
+        t_txt = 'n/a' if tgt['rel_std'] is None else _fmt_time(t if t is not None else math.inf)
+        lines.append(f"  {r['name']:<56} {crit:>20} {t_txt:>15}")
     lines.append(f'  (criterion: largest targeted relative sigma, worst prior body, at '
                  f'{s["horizon"]:.3g} s)')
     return '\n'.join(lines) + '\n'
