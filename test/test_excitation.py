@@ -81,7 +81,7 @@ def test_predicted_time_matches_the_estimator_within_25_percent(default_plan: ex
                            model=default_plan.model, torque_bias='off')
             cov = np.nan_to_num(np.asarray(est.covariance), nan=np.inf)
             crit.append(max(ex.targeted_rel_std(cov, est.inertia, TARGET.elements).values()))
-        t_ach = ex._time_to(fracs * t_pred, np.array(crit), TARGET.rel_std)
+        t_ach = ex.time_to_reach(fracs * t_pred, np.array(crit), TARGET.rel_std)
         assert abs(t_pred - t_ach) <= 0.25 * t_ach, (seed, t_pred, t_ach, crit)
 
 
@@ -91,7 +91,7 @@ def test_reduced_rate_information_equals_full_rate() -> None:
     prof, _ = ex.enforce_limits(ex.multisine(0.08, 1, 0.0, True), [np.array(
         ex.make_prior(DEFAULT_THETA).inertia)], LIMITS, 20.0, 10.0)
     body = ex.make_prior(DEFAULT_THETA).inertia
-    F10 = ex._fishers(prof, body, LIMITS, 20.0, [20.0], 10.0)[0]
+    F10 = ex.information_at(prof, body, LIMITS, 20.0, [20.0], 10.0)[0]
     t_g, t_s = np.arange(4001) / 200.0, np.arange(1001) / 50.0
     cmd = prof.torque(t_s, 20.0)
     rms = np.sqrt(np.mean(cmd ** 2, axis=0))
@@ -115,7 +115,7 @@ def test_near_diagonal_principal_target_does_not_pay_for_products() -> None:
     assert ex.choose_model(cubesat, ex.Target(rel_std=0.001)) == 'full'
     prof, _ = ex.enforce_limits(ex.multisine(0.08, 1, 0.0, True), [near.inertia], LIMITS,
                                 20.0, 10.0)
-    F = ex._fishers(prof, near.inertia, LIMITS, 20.0, [20.0], 10.0)[0]
+    F = ex.information_at(prof, near.inertia, LIMITS, 20.0, [20.0], 10.0)[0]
     diag = ex.principal_std(near.inertia, ex.theta_covariance(F, 'diagonal'))
     full = ex.principal_std(near.inertia, ex.theta_covariance(F, 'full'))
     assert np.all(diag < full)

@@ -24,10 +24,9 @@ Each candidate is scored by its criterion (the largest targeted relative sigma) 
 horizon, on the prior value and then, for the best few, on bodies drawn from the prior: the
 worst case decides.
 
-Information is evaluated at a reduced rate ``r`` with the noise rescaled to the same spectral
-density (gyro std ``sigma_g sqrt(r / rate_g)``, held torque noise ``sigma_t sqrt(r / rate_t)``):
-the bound is unchanged to < 1 % when ``r`` is several times the highest tone (checked in
-``test/test_excitation.py``) and costs ``r / rate`` as much.
+Information is evaluated at a reduced rate ``r`` with the noise rescaled to the same density
+(gyro std ``sigma_g sqrt(r / rate_g)``, torque ``sigma_t sqrt(r / rate_t)``): the bound is
+unchanged to < 2 % (``test/test_excitation.py``) at ``r / rate`` of the cost.
 
 Model no more than the target needs: when the target asks only for the principal moments and
 the prior's products of inertia are small (``|I_ij| <= NEAR_DIAGONAL sqrt(I_ii I_jj)``, and the
@@ -39,24 +38,30 @@ and show in its residuals: the estimator would report a model mismatch.)
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 from scipy.optimize import minimize_scalar
 
-from .crlb import fisher_information
-from .scene import SceneError, TorqueComponent
-from .simulation import integrate_rigid_body
-from .tensor import MATRIX_INDEX, THETA_NAMES
+from ..crlb import fisher_information
+from ..simulation import integrate_rigid_body
+from ..tensor import THETA_NAMES
+from .inputs import Limits, Prior, Profile, Target
+from .profiles import (
+    _from,
+    corner_frequency,
+    design_candidates,
+    multisine,
+    scene_dict,
+    standard_profiles,
+)
 
-__all__ = ['NEAR_DIAGONAL', 'Limits', 'Plan', 'Prior', 'Profile', 'Target', 'criterion',
-           'design_candidates', 'make_prior', 'plan', 'principal_std', 'scene_dict',
-           'standard_profiles', 'targeted_rel_std']
+__all__ = ['Plan', 'choose_model', 'criterion', 'enforce_limits', 'information_at', 'plan',
+           'principal_std', 'simulated_peak_rate', 'targeted_rel_std', 'theta_covariance',
+           'time_to_reach']
 
-#: Largest ``|I_ij| / sqrt(I_ii I_jj)`` of a near-diagonal prior (principal-moment targets).
-NEAR_DIAGONAL = 0.005
 #: Share of the body-rate limit a profile may use (margin for the prior's spread).
 RATE_MARGIN = 0.97
 #: Highest rate [Hz] at which information is evaluated during the design.
@@ -64,351 +69,6 @@ DESIGN_RATE_MAX = 10.0
 #: Longest design horizon [s].
 HORIZON_MAX = 60.0
 _DIAG_KEEP = np.array([0, 1, 2, 6, 7, 8])
-
-
-@dataclass(frozen=True, eq=False)
-class Prior:
-    """Prior knowledge of the tensor.
-
-    Attributes
-    ----------
-    inertia : numpy.ndarray, shape (3, 3)
-        Prior value [kg m^2], symmetric positive definite, triangle inequality satisfied.
-    std : numpy.ndarray, shape (6,)
-        One-sigma uncertainty of ``theta = [ixx, iyy, izz, ixy, ixz, iyz]`` [kg m^2].
-    """
-
-    inertia: np.ndarray
-    std: np.ndarray
-
-    @property
-    def theta(self) -> np.ndarray:
-        """Prior ``theta`` [kg m^2], shape (6,)."""
-        return self.inertia[[0, 1, 2, 0, 0, 1], [0, 1, 2, 1, 2, 2]]
-
-    def near_diagonal(self) -> bool:
-        """Products small against the moments (``<= NEAR_DIAGONAL``, see module docstring)."""
-        d = np.diag(self.inertia)
-        ratio = np.abs(self.theta[3:]) / np.sqrt(d[[0, 0, 1]] * d[[1, 2, 2]])
-        return bool(np.all(ratio <= NEAR_DIAGONAL))
-
-    def bodies(self, n: int, seed: int = 0) -> list[np.ndarray]:
-        """The prior value and ``n - 1`` physical tensors drawn from ``N(theta, diag(std^2))``."""
-        rng = np.random.default_rng(seed)
-        out = [self.inertia]
-        for _ in range(200 * n):
-            if len(out) >= n:
-                break
-            m = (self.theta + rng.standard_normal(6) * self.std)[MATRIX_INDEX]
-            if _physical_problem(m) is None:
-                out.append(m)
-        return out
-
-
-def _physical_problem(m: np.ndarray) -> str | None:
-    """Why ``m`` is not a rigid-body tensor, or None."""
-    if not np.all(np.isfinite(m)):
-        return 'has non-finite values'
-    ev = np.linalg.eigvalsh(m)
-    if ev[0] <= 0:
-        return f'is not positive definite (principal moments {np.round(ev, 6).tolist()})'
-    if ev[0] + ev[1] < ev[2] * (1 - 1e-9):
-        return ('violates the triangle inequality I1 + I2 >= I3 (principal moments '
-                f'{np.round(ev, 6).tolist()})')
-    return None
-
-
-def make_prior(theta: Any, rel_std: float = 0.2, std: Any = None) -> Prior:
-    """Validate a prior.
-
-    Parameters
-    ----------
-    theta : array_like, shape (6,)
-        ``[ixx, iyy, izz, ixy, ixz, iyz]`` [kg m^2] (matrix elements).
-    rel_std : float
-        Relative one-sigma uncertainty (0.2 = 20 %) of the moments; the products get
-        ``rel_std * max(|I_ij|, 0.05 trace / 3)``.  Used when ``std`` is None.
-    std : array_like, shape (6,), optional
-        Absolute one-sigma uncertainty [kg m^2] per element (a previous estimate's).
-
-    Raises
-    ------
-    ValueError
-        One line naming the field: non-finite values, a tensor that is not physical, a
-        non-positive ``rel_std`` or negative ``std``.
-    """
-    th = np.asarray(theta, dtype=float)
-    if th.shape != (6,) or not np.all(np.isfinite(th)):
-        raise ValueError(f'prior inertia: expected 6 finite numbers ixx iyy izz ixy ixz iyz, '
-                         f'got {np.asarray(theta).tolist()}')
-    m = th[MATRIX_INDEX]
-    why = _physical_problem(m)
-    if why is not None:
-        raise ValueError(f'prior inertia {th.tolist()} {why}: give a physical tensor')
-    if std is None:
-        if not (math.isfinite(rel_std) and rel_std > 0):
-            raise ValueError(f'prior relative std: must be a finite number > 0, got {rel_std}')
-        floor = 0.05 * np.trace(m) / 3.0
-        s = rel_std * np.concatenate([np.abs(th[:3]), np.maximum(np.abs(th[3:]), floor)])
-    else:
-        s = np.asarray(std, dtype=float)
-        if s.shape != (6,) or not np.all(np.isfinite(s)) or np.any(s < 0):
-            raise ValueError(f'prior std: expected 6 finite numbers >= 0, got {s.tolist()}')
-    return Prior(m, s)
-
-
-@dataclass(frozen=True)
-class Limits:
-    """Actuator, body-rate and sensor figures (SI).
-
-    Attributes
-    ----------
-    max_torque : tuple of 3 float
-        Peak torque per body axis [N m].
-    max_rate : float
-        Largest body rate ``|omega|`` [rad/s].
-    gyro_rate, torque_rate : float
-        Sample rates [Hz]; the torque is commanded and measured at ``torque_rate``.
-    gyro_noise : float
-        Gyro white-noise std [rad/s].
-    torque_noise : float
-        Torque-sample noise std [N m] (held over the sample interval).
-    torque_noise_rel : float
-        Additional torque noise as a share of the profile's RMS per axis (a scene's
-        ``noise_rel``).
-    initial_omega : tuple of 3 float
-        Body rate at the start [rad/s].
-    """
-
-    max_torque: tuple[float, float, float]
-    max_rate: float
-    gyro_rate: float = 200.0
-    torque_rate: float = 50.0
-    gyro_noise: float = 0.002
-    torque_noise: float = 0.001
-    torque_noise_rel: float = 0.0
-    initial_omega: tuple[float, float, float] = (0.0, 0.0, 0.0)
-
-    def __post_init__(self) -> None:
-        """Refuse non-finite, zero or negative limits (one line naming the field)."""
-        mt = tuple(float(v) for v in np.atleast_1d(np.asarray(self.max_torque, dtype=float)))
-        if len(mt) == 1:
-            mt = mt * 3
-        object.__setattr__(self, 'max_torque', mt)
-        checks = {'max_torque': mt, 'max_rate': (self.max_rate,),
-                  'gyro_rate': (self.gyro_rate,), 'torque_rate': (self.torque_rate,),
-                  'gyro_noise': (self.gyro_noise,)}
-        for name, vals in checks.items():
-            if len(vals) != 3 and name == 'max_torque' or not all(
-                    math.isfinite(v) and v > 0 for v in vals):
-                raise ValueError(f'{name}: must be finite and > 0, got '
-                                 f'{list(vals) if len(vals) > 1 else vals[0]}')
-        for name in ('torque_noise', 'torque_noise_rel'):
-            v = getattr(self, name)
-            if not (math.isfinite(v) and v >= 0):
-                raise ValueError(f'{name}: must be finite and >= 0, got {v}')
-        w0 = np.asarray(self.initial_omega, dtype=float)
-        if w0.shape != (3,) or not np.all(np.isfinite(w0)):
-            raise ValueError(f'initial_omega: expected 3 finite numbers, got {w0.tolist()}')
-        if np.linalg.norm(w0) >= self.max_rate:
-            raise ValueError(f'initial_omega: |omega0| = {np.linalg.norm(w0):g} rad/s is already '
-                             f'at the body-rate limit {self.max_rate:g} rad/s: raise max_rate')
-
-
-@dataclass(frozen=True)
-class Target:
-    """What the manoeuvre must achieve.
-
-    Attributes
-    ----------
-    rel_std : float or None
-        Relative one-sigma target of every targeted quantity (0.01 = 1 %); None with a
-        ``duration`` target.
-    elements : tuple of str
-        Targeted quantities: ``principal`` (the three principal moments) or element names of
-        ``THETA_NAMES``.  A product's relative sigma is against ``trace / 3``.
-    duration : float or None
-        A fixed manoeuvre length [s] instead of a precision: the design minimises the
-        criterion at this length.
-    max_duration : float
-        Longest acceptable manoeuvre [s].
-    """
-
-    rel_std: float | None = 0.01
-    elements: tuple[str, ...] = ('principal',)
-    duration: float | None = None
-    max_duration: float = 300.0
-
-    def __post_init__(self) -> None:
-        """Refuse a malformed target (one line naming the field)."""
-        if not (math.isfinite(self.max_duration) and self.max_duration > 0):
-            raise ValueError(f'max_duration: must be finite and > 0, got {self.max_duration}')
-        if (self.rel_std is None) == (self.duration is None):
-            raise ValueError('target: give exactly one of a relative std or a duration')
-        if self.rel_std is not None and not (math.isfinite(self.rel_std) and self.rel_std > 0):
-            raise ValueError(f'target relative std: must be finite and > 0, got {self.rel_std}')
-        if self.duration is not None and not (
-                math.isfinite(self.duration) and 0 < self.duration <= self.max_duration):
-            raise ValueError(f'target duration: must be within (0, max_duration = '
-                             f'{self.max_duration:g}] s, got {self.duration}')
-        for e in self.elements:
-            if e != 'principal' and e not in THETA_NAMES:
-                raise ValueError(f'target element {e!r}: must be principal or one of '
-                                 f'{", ".join(THETA_NAMES)}')
-        if not self.elements:
-            raise ValueError('target elements: give at least one')
-
-
-@dataclass(frozen=True)
-class Profile:
-    """A torque profile: scene torque components (``docs/SCENES.md``) and a name."""
-
-    name: str
-    components: tuple[Mapping[str, Any], ...]
-
-    def scaled(self, factor: Any) -> Profile:
-        """The profile with every component's amplitude multiplied by ``factor`` (3,)."""
-        f = np.broadcast_to(np.asarray(factor, dtype=float), (3,))
-        comps = []
-        for c in self.components:
-            a = np.broadcast_to(np.asarray(c['amplitude'], dtype=float), (3,)) * f
-            comps.append({**c, 'amplitude': [float(v) for v in a]})
-        return Profile(self.name, tuple(comps))
-
-    def torque(self, t: np.ndarray, duration: float, seed: int = 0) -> np.ndarray:
-        """Commanded torque [N m] at the command times ``t`` (M,), shape (M, 3).
-
-        Random draws (PRBS levels, random phases) follow the simulator's seeding, so a scene
-        built by :func:`scene_dict` with the same seed commands the same values.
-        """
-        r_torque = np.random.default_rng(seed).spawn(7)[0]
-        out = np.zeros((t.size, 3))
-        rngs = r_torque.spawn(len(self.components))
-        for i, (c, r) in enumerate(zip(self.components, rngs, strict=True)):
-            try:
-                comp = TorqueComponent.from_dict(dict(c), f'torque[{i}]', duration)
-            except SceneError as exc:
-                raise ValueError(str(exc)) from None
-            out += comp.evaluate(t, r)
-        return out
-
-
-# --------------------------------------------------------------------------------------------
-# profiles
-# --------------------------------------------------------------------------------------------
-
-def standard_profiles(max_torque: Sequence[float]) -> list[Profile]:
-    """The standard profiles at peak torque ``max_torque`` (3,) [N m] per axis.
-
-    constant; sines (one per axis, 0.10 / 0.13 / 0.17 Hz); chirp (scene default: 0.02 to 1 Hz,
-    one axis after the other); PRBS (0.5 s bits); random-phase multisine and Schroeder
-    multisine (scene defaults: 6 tones per axis, 0.02 to 0.5 Hz).
-    """
-    mt = [float(v) for v in max_torque]
-    sines = tuple({'type': 'sine', 'frequency': f, 'amplitude': mt, 'axes': [ax]}
-                  for f, ax in zip((0.10, 0.13, 0.17), 'xyz', strict=True))
-    return [Profile('constant', ({'type': 'constant', 'amplitude': mt},)),
-            Profile('sines', sines),
-            Profile('chirp', ({'type': 'chirp', 'amplitude': mt},)),
-            Profile('prbs', ({'type': 'prbs', 'amplitude': mt, 'bit_time': 0.5},)),
-            Profile('random multisine', ({'type': 'multisine', 'amplitude': mt,
-                                          'phases': 'random'},)),
-            Profile('schroeder multisine', ({'type': 'multisine', 'amplitude': mt},))]
-
-
-def multisine(f0: float, n: int, decay: float, quadrature: bool,
-              spread: float | None = None) -> Profile:
-    """A designed multisine as ``sine`` components (unit amplitude per tone).
-
-    Parameters
-    ----------
-    f0 : float
-        Base frequency [Hz].
-    n : int
-        Tones per axis.
-    decay : float
-        Tone amplitude ``h ** -decay`` for harmonic ``h`` (0 flat, 1 square-wave-like).
-    quadrature : bool
-        Turn the phases by 90 degrees (each tone a cosine: rate swings centred).
-    spread : float, optional
-        None: harmonic layout, axis ``j`` takes the harmonics ``h = 3 m + j + 1`` of ``f0``
-        with Schroeder phases over all of them.  A number: axis ``j`` has its own base
-        ``f0 (1 + spread j)`` and the odd harmonics ``h = 2 m + 1`` of it, the axes staggered
-        by 120 degrees (with ``spread = 0`` the rate vector turns at a steady magnitude, which
-        uses a body-rate limit on ``|omega|`` best).
-    """
-    comps = []
-    for m in range(n):
-        for j, ax in enumerate('xyz'):
-            if spread is None:
-                h = 3 * m + j + 1
-                freq = h * f0
-                phase = -math.pi * h * (h - 1) / (3 * n)
-            else:
-                h = 2 * m + 1
-                freq = h * f0 * (1.0 + spread * j)
-                phase = -math.pi * m * (m - 1) / n + h * 2.0 * math.pi * j / 3.0
-            phase += math.pi / 2 if quadrature else 0.0
-            amp = [0.0, 0.0, 0.0]
-            amp[j] = float(h ** -decay)
-            comps.append({'type': 'sine', 'frequency': float(freq), 'amplitude': amp,
-                          'axes': [ax], 'phase': float(math.remainder(phase, 2 * math.pi))})
-    layout = 'harmonic' if spread is None else f'spread {spread:g}'
-    return Profile(f'designed multisine (f0 {f0:.4g} Hz, {n}/axis, {layout})', tuple(comps))
-
-
-def corner_frequency(prior: Prior, lim: Limits) -> float:
-    """``f_c = u / (2 pi I omega_max)`` [Hz] (geometric mean over the axes): a full-torque tone
-    below it would cross the body-rate limit."""
-    u_over_i = np.asarray(lim.max_torque) / np.diag(prior.inertia)
-    return float(np.exp(np.mean(np.log(u_over_i)))) / (2 * math.pi * lim.max_rate)
-
-
-def design_candidates(prior: Prior, lim: Limits, horizon: float, rate: float
-                      ) -> list[tuple[dict[str, Any], Profile]]:
-    """The multisines searched by :func:`plan`: ``(parameters, profile)`` pairs.
-
-    Base frequencies from ``f_c / 4`` to ``4 f_c`` (:func:`corner_frequency`), kept within one
-    period per horizon and a highest tone at most ``rate / 5``; harmonic and spread layouts,
-    one or a few tones per axis, flat or falling amplitudes, sine or cosine phases.
-    """
-    f_c = corner_frequency(prior, lim)
-    out = []
-    layouts = [(None, 1, 0.0), (None, 3, 0.0), (None, 3, 1.0),
-               (0.0, 1, 0.0), (0.15, 1, 0.0), (0.3, 1, 0.0), (0.15, 2, 1.0)]
-    for spread, n, decay in layouts:
-        top = 3 * n if spread is None else (2 * n - 1) * (1 + 2 * spread)
-        hi, lo = rate / (5.0 * top), 1.0 / horizon
-        if hi < lo:
-            continue
-        for f0 in sorted({float(np.clip(f_c * k, lo, hi)) for k in (0.25, 0.5, 1.0, 2.0, 4.0)}):
-            for quad in (False, True):
-                par = {'f0': f0, 'n_per_axis': n, 'decay': decay, 'quadrature': quad,
-                       'spread': spread}
-                out.append((par, multisine(f0, n, decay, quad, spread)))
-    return out
-
-
-def scene_dict(profile: Profile, lim: Limits, duration: float, inertia: np.ndarray,
-               seed: int = 0, name: str = 'planned') -> dict[str, Any]:
-    """A scene (``docs/SCENES.md`` schema) that plays ``profile`` on a body ``inertia``."""
-    th = inertia[[0, 1, 2, 0, 0, 1], [0, 1, 2, 1, 2, 2]]
-    return {
-        'name': name,
-        'description': f'{profile.name}, planned by python -m inertia_ros plan',
-        'seed': int(seed), 'duration': float(duration),
-        'body': {'inertia': [float(v) for v in th]},
-        'initial_omega': [float(v) for v in lim.initial_omega],
-        'torque': [dict(c) for c in profile.components],
-        'disturbance': [0.0, 0.0, 0.0],
-        'command_rate': float(lim.torque_rate),
-        'gyro': {'rate': float(lim.gyro_rate), 'noise_std': float(lim.gyro_noise),
-                 'bias': [0.0, 0.0, 0.0], 'frame_id': 'base_link'},
-        'torque_sensor': {'rate': float(lim.torque_rate), 'noise_rel': float(lim.torque_noise_rel),
-                          'noise_std': float(lim.torque_noise)},
-        'imperfections': {'timestamp_jitter': 0.0, 'torque_delay': 0.0, 'drop_rate': 0.0},
-    }
-
 
 # --------------------------------------------------------------------------------------------
 # limits and information
@@ -462,7 +122,7 @@ def enforce_limits(profile: Profile, bodies: Sequence[np.ndarray], lim: Limits,
     return scaled.scaled(s), pk
 
 
-def _fishers(profile: Profile, body: np.ndarray, lim: Limits, duration: float,
+def information_at(profile: Profile, body: np.ndarray, lim: Limits, duration: float,
              times: Sequence[float], rate: float, seed: int = 0) -> list[np.ndarray]:
     """Fisher information [theta, w0] of the record up to each of ``times`` [s].
 
@@ -550,7 +210,7 @@ def criterion(information: np.ndarray, inertia: np.ndarray, target: Target, mode
     return max(targeted_rel_std(cov, inertia, target.elements).values())
 
 
-def _time_to(times: np.ndarray, crit: np.ndarray, goal: float) -> float:
+def time_to_reach(times: np.ndarray, crit: np.ndarray, goal: float) -> float:
     """First time [s] the criterion reaches ``goal`` (log-log interpolation), or inf."""
     ok = np.flatnonzero(crit <= goal)
     if ok.size == 0:
@@ -636,7 +296,7 @@ def _score(profile: Profile, bodies: Sequence[np.ndarray], lim: Limits, target: 
     prof, pk = enforce_limits(profile, bodies, lim, horizon, rate, seed)
     worst = 0.0
     for body in bodies:
-        F = _fishers(prof, body, lim, horizon, [horizon], rate, seed)[0]
+        F = information_at(prof, body, lim, horizon, [horizon], rate, seed)[0]
         worst = max(worst, criterion(F, body, target, model))
     return prof, worst, pk
 
@@ -648,7 +308,7 @@ def _curve(profile: Profile, prior: Prior, lim: Limits, target: Target, model: s
     t0 = max(4.0 / rate, t_end / 100.0)
     times = np.geomspace(t0, t_end, n)
     el, pr, cr = [], [], []
-    for F in _fishers(profile, prior.inertia, lim, t_end, times, rate, seed):
+    for F in information_at(profile, prior.inertia, lim, t_end, times, rate, seed):
         cov = theta_covariance(F, model)
         el.append(np.sqrt(np.diag(cov)))
         pr.append(principal_std(prior.inertia, cov))
@@ -657,24 +317,21 @@ def _curve(profile: Profile, prior: Prior, lim: Limits, target: Target, model: s
 
 
 def _design(prior: Prior, bodies: list[np.ndarray], lim: Limits, target: Target, model: str,
-            horizon: float, rate: float, seed: int) -> tuple[dict[str, Any], Profile, float]:
-    """Best candidate: scored on the prior value, the best four on every prior body."""
+            horizon: float, rate: float, seed: int) -> list[tuple[dict[str, Any], Profile]]:
+    """The best three candidates, best first: scored on the prior value, the best four on
+    every prior body (worst case), the best one's base frequency refined."""
     scored = []
     for par, prof in design_candidates(prior, lim, horizon, rate):
         limited, crit, _ = _score(prof, bodies[:1], lim, target, model, horizon, rate, seed)
         scored.append((crit, par, prof))
     scored.sort(key=lambda s: s[0])
-    best: tuple[float, dict[str, Any], Profile] | None = None
-    for _, par, prof in scored[:4]:
-        limited, crit, _ = _score(prof, bodies, lim, target, model, horizon, rate, seed)
-        if best is None or crit < best[0]:
-            best = (crit, par, prof)
-    assert best is not None
-    crit, par, prof = best
+    robust = sorted(((_score(prof, bodies, lim, target, model, horizon, rate, seed)[1], i,
+                      par, prof) for i, (_, par, prof) in enumerate(scored[:4])),
+                    key=lambda s: (s[0], s[1]))
+    crit, _, par, prof = robust[0]
 
     def cost(log_f: float) -> float:
-        cand = multisine(math.exp(log_f), par['n_per_axis'], par['decay'], par['quadrature'],
-                         par['spread'])
+        cand = _from({**par, 'f0': math.exp(log_f)})
         return _score(cand, bodies, lim, target, model, horizon, rate, seed)[1]
 
     lf = math.log(par['f0'])
@@ -682,10 +339,8 @@ def _design(prior: Prior, bodies: list[np.ndarray], lim: Limits, target: Target,
                           options={'maxiter': 8, 'xatol': 0.03})
     if res.fun < crit:
         par = {**par, 'f0': float(math.exp(res.x))}
-        prof = multisine(par['f0'], par['n_per_axis'], par['decay'], par['quadrature'],
-                         par['spread'])
-        crit = float(res.fun)
-    return par, prof, crit
+        prof = _from(par)
+    return [(par, prof)] + [(r[2], r[3]) for r in robust[1:3]]
 
 
 def _horizon(prior: Prior, lim: Limits, target: Target, model: str, t_end: float,
@@ -698,7 +353,7 @@ def _horizon(prior: Prior, lim: Limits, target: Target, model: str, t_end: float
     guess = multisine(max(corner_frequency(prior, lim), 1.0 / h0), 1, 0.0, True)
     limited, _ = enforce_limits(guess, [prior.inertia], lim, t_end, rate, seed)
     times, _, _, crit = _curve(limited, prior, lim, target, model, t_end, rate, seed, n=10)
-    t_guess = _time_to(times, crit, target.rel_std)
+    t_guess = time_to_reach(times, crit, target.rel_std)
     return float(np.clip(t_guess, 5.0, h0)) if math.isfinite(t_guess) else h0
 
 
@@ -710,7 +365,7 @@ def _row(name: str, prof: Profile, bodies: list[np.ndarray], prior: Prior, lim: 
     _, crit, _ = _score(prof, bodies, lim, target, model, horizon, rate, seed)
     curve = _curve(limited, prior, lim, target, model, t_end, rate, seed)
     goal = target.rel_std if target.rel_std is not None else -1.0
-    ttt = _time_to(curve[0], curve[3], goal) if goal > 0 else math.nan
+    ttt = time_to_reach(curve[0], curve[3], goal) if goal > 0 else math.nan
     cmd = limited.torque(_grid(t_end, lim.torque_rate), t_end, seed)
     row = {'name': name, 'criterion': crit, 'criterion_at_end': float(curve[3][-1]),
            'time_to_target': ttt, 'peak_rate': pk,
@@ -722,8 +377,8 @@ def simulated_peak_rate(profile: Profile, bodies: Sequence[np.ndarray], lim: Lim
                         duration: float, seed: int = 0) -> float:
     """Peak true ``|omega|`` [rad/s] of the project's simulator playing the profile's scene on
     each body (:func:`scene_dict`, :func:`.simulation.simulate`)."""
-    from .scene import Scene
-    from .simulation import simulate
+    from ..scene import Scene
+    from ..simulation import simulate
 
     worst = 0.0
     for body in bodies:
@@ -766,9 +421,15 @@ def plan(prior: Prior, lim: Limits, target: Target, *, n_bodies: int = 3, seed: 
     bodies = prior.bodies(max(1, n_bodies), seed)
     t_end = target.duration if target.duration is not None else target.max_duration
     horizon = min(t_end, _horizon(prior, lim, target, model, t_end, rate, seed))
-    par, prof, _ = _design(prior, bodies, lim, target, model, horizon, rate, seed)
-    row, limited, curve = _row('designed', prof, bodies, prior, lim, target, model, t_end,
-                               horizon, rate, seed)
+    best: Any = None
+    for par_i, prof_i in _design(prior, bodies, lim, target, model, horizon, rate, seed):
+        got = _row('designed', prof_i, bodies, prior, lim, target, model, t_end, horizon,
+                   rate, seed)
+        if best is None or got[0]['time_to_target'] < best[1][0]['time_to_target']:
+            best = (par_i, got)
+        if target.rel_std is None:
+            break                     # a duration target: the criterion decided already
+    par, (row, limited, curve) = best
     ttt = row['time_to_target']
     if target.rel_std is not None and not math.isfinite(ttt):
         raise ValueError(
@@ -784,7 +445,7 @@ def plan(prior: Prior, lim: Limits, target: Target, *, n_bodies: int = 3, seed: 
         w0 = float(np.linalg.norm(lim.initial_omega))
         limited = limited.scaled(RATE_MARGIN * (lim.max_rate - w0) / (pk - w0))
         curve = _curve(limited, prior, lim, target, model, t_end, rate, seed)
-        ttt = _time_to(curve[0], curve[3], target.rel_std) if target.rel_std else math.nan
+        ttt = time_to_reach(curve[0], curve[3], target.rel_std) if target.rel_std else math.nan
         pk = simulated_peak_rate(limited, bodies, lim, duration, seed)
     rows = [{**row, 'name': limited.name, 'time_to_target': ttt, 'peak_rate': pk}]
     if compare:
