@@ -236,7 +236,8 @@ class Plan:
     profile : Profile
         The designed profile, within the limits.
     design : dict
-        Its parameters (``f0`` Hz, ``n_per_axis``, ``decay``, ``quadrature``).
+        Its parameters (``f0`` Hz, ``n_per_axis``, ``decay``, ``quadrature``, ``spread``,
+        ``stagger``: :func:`.profiles.multisine`).
     model : str
         ``full`` or ``diagonal``: the model whose information the plan uses (run the
         estimator with it).
