@@ -23,7 +23,7 @@ from inertia_ros.runtime import keep_freed_memory
 
 #: Command modules, in the order ``--help`` lists them.  A module is listed here only once
 #: the command it implements is real.
-COMMANDS: tuple[str, ...] = ('simulate', 'estimate', 'fleet', 'bench', 'demo')
+COMMANDS: tuple[str, ...] = ('simulate', 'estimate', 'fleet', 'bench', 'demo', 'plan')
 
 
 class UserError(Exception):

@@ -1,0 +1,28 @@
+"""Excitation design (issue 28): :func:`plan` designs a torque profile within actuator and
+body-rate limits that reaches a target precision soonest, robust over a prior tensor, and
+predicts its sigma against time (see :mod:`.design`).
+
+``inputs``: prior, limits, target, profile; ``profiles``: the designed multisine family and the
+standard profiles; ``design``: limits, information, criterion and the plan.
+"""
+from .design import (
+                     Plan,
+                     choose_model,
+                     criterion,
+                     enforce_limits,
+                     information_at,
+                     plan,
+                     principal_std,
+                     simulated_peak_rate,
+                     targeted_rel_std,
+                     theta_covariance,
+                     time_to_reach,
+)
+from .inputs import NEAR_DIAGONAL, Limits, Prior, Profile, Target, make_prior
+from .profiles import corner_frequency, design_candidates, multisine, scene_dict, standard_profiles
+
+__all__ = ['NEAR_DIAGONAL', 'Limits', 'Plan', 'Prior', 'Profile', 'Target', 'choose_model',
+           'corner_frequency', 'criterion', 'design_candidates', 'enforce_limits',
+           'information_at', 'make_prior', 'multisine', 'plan', 'principal_std', 'scene_dict',
+           'simulated_peak_rate', 'standard_profiles', 'targeted_rel_std', 'theta_covariance',
+           'time_to_reach']
