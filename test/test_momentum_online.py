@@ -191,3 +191,24 @@ def test_a_stalled_momentum_stream_bounds_the_buffer(monkeypatch) -> None:
     assert est.samples_used >= 290 and e.gaps >= 1, (est.samples_used, e.gaps)
     z = (est.theta - r.inertia[THETA_IDX]) / est.theta_std
     assert est.status == 'ok' and np.all(np.abs(z) < 4), z
+
+
+def test_linear_hold_does_not_relinearise_the_equivalent_torque() -> None:
+    """Issue 26 defect 1: with ``hold='linear'`` (the other torque's hold) and no other torque,
+    the equivalent torque is still integrated as held over its grid intervals: the result is
+    the ``zoh`` one (same theta within 1e-9 relative), status ok and residual excess < 1.5.
+    On 5a72dae the held torque was integrated as linear: excess ~17, model_mismatch."""
+    sc = Scene.from_dict(scene_dict(duration=10.0, gyro_rate=100.0))
+    r = simulate(sc, 0)
+    ws = [Wheel(w.joint, w.axis, w.inertia) for w in sc.wheels.wheels]
+    res = {h: feed_blocks(MomentumRecursiveEstimator(other_torque=False, torque_bias=False,
+                                                     hold=h), r, ws)
+           for h in ('zoh', 'linear')}
+    lin = res['linear']
+    assert lin.status == 'ok', lin.diagnostics.get('reason')
+    assert lin.diagnostics['residual_excess'] < 1.5, lin.diagnostics['residual_excess']
+    np.testing.assert_allclose(lin.theta, res['zoh'].theta, rtol=1e-9)
+    z = (lin.theta - r.inertia[THETA_IDX]) / lin.theta_std
+    assert np.all(np.abs(z) < 4), z
+    with pytest.raises(ValueError, match='hold'):
+        MomentumRecursiveEstimator(hold='cubic')

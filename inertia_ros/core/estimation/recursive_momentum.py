@@ -101,16 +101,26 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
     other_torque : bool
         True: another known torque arrives through :meth:`add_torque` and the equations wait
         for it; False: the momentum input is the only known torque.
+    hold : {'zoh', 'linear'}
+        Hold of the other torque between its samples (``torque_hold``).  The equivalent torque
+        fed to the :class:`~.recursive.RecursiveEstimator` is always held over its grid
+        intervals (``zoh``): the other torque's hold is applied once, when it is reduced.
     **kwargs
-        The options of :class:`~.recursive.RecursiveEstimator`.
+        The other options of :class:`~.recursive.RecursiveEstimator`.
     """
 
     def __init__(self, names: Sequence[str] = (), other_torque: bool = True,
-                 **kwargs: Any) -> None:
+                 hold: str = 'zoh', **kwargs: Any) -> None:
+        from .options import HOLDS, check_choice
+
+        check_choice('hold', hold, HOLDS)
         self.names = tuple(names)
         self.other_torque = bool(other_torque)
-        self._kwargs = dict(kwargs)
-        super().__init__(**kwargs)
+        self.torque_hold = hold
+        # the equivalent torque is held over each grid interval: integrated as held, whatever
+        # the other torque's hold (which _other_on has applied already)
+        self._kwargs = dict(kwargs, hold=HOLDS[0])
+        super().__init__(**self._kwargs)
 
     def reset(self) -> None:
         """Forget everything (also the per-input sensitivity estimators)."""
@@ -210,7 +220,7 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
         if self.other_torque:
             if len(self._o.t) == 0:
                 return None
-            hi = min(hi, float(self._o.t[-1]) if self.hold == 'linear' else np.inf)
+            hi = min(hi, float(self._o.t[-1]) if self.torque_hold == 'linear' else np.inf)
         return hi
 
     def _advance(self) -> None:
@@ -224,7 +234,7 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
         tg, tm = self._g.t, self._m.t
         grid = np.union1d(tg[(tg >= c) & (tg <= hi)], tm[(tm >= c) & (tm <= hi)])
         grid = np.union1d([c], grid)
-        if self.other_torque and self.hold != 'linear':
+        if self.other_torque and self.torque_hold != 'linear':
             # zero-order hold: interval [g_i, g_i+1) needs the torque sample at or before g_i
             # to be the last one: a torque sample at or after g_i has arrived
             grid = grid[:int(np.searchsorted(grid, self._o.t[-1], side='right')) + 1]
@@ -315,7 +325,7 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
     def _other_on(self, grid: np.ndarray) -> np.ndarray:
         """The other torque over each grid interval (G - 1, 3): held or trapezoid."""
         ts, tau = self._o.t, self._o.v[0]
-        if self.hold == 'linear':
+        if self.torque_hold == 'linear':
             tq = np.column_stack([np.interp(grid, ts, tau[:, k]) for k in range(3)])
             return 0.5 * (tq[1:] + tq[:-1])
         j = np.clip(np.searchsorted(ts, grid[:-1], side='right') - 1, 0, len(ts) - 1)
