@@ -273,18 +273,28 @@ def equivalent_torque(tg: np.ndarray, w: np.ndarray, t_h: np.ndarray, h: np.ndar
         ``grid[0]`` equals ``int tau dt - (h - h(grid[0])) - int w x h dt`` (trapezoid on the
         grid for ``w x h``; ``h`` and ``w`` linear between their samples).
     inside : ndarray of bool, shape (N,)
-        Gyro samples inside the coverage.
+        Gyro samples inside the coverage and outside the momentum gaps.
+
+    Notes
+    -----
+    A momentum interval over ``GAP_FACTOR`` nominal ones is a gap (:func:`.align.gap_starts`,
+    the online estimator's rule): the gyro samples strictly inside it are left out, the grid
+    spans it with one interval (a torque gap to the estimators, which start a new anchored
+    segment after it) and ``h`` is interpolated within each gap-free run only.
     """
+    from .align import gap_starts, inside_gaps
+
     lo, hi = max(tg[0], t_h[0]), min(tg[-1], t_h[-1])
     if len(ts):
         lo = max(lo, ts[0])
         end = ts[-1] + (float(np.median(np.diff(ts))) if hold == 'zoh' else 0.0)
         hi = min(hi, end)
-    inside = (tg >= lo) & (tg <= hi)
+    gaps = gap_starts(t_h)
+    inside = (tg >= lo) & (tg <= hi) & ~inside_gaps(t_h, gaps, tg)
     grid = np.union1d(tg[inside], t_h[(t_h >= lo) & (t_h <= hi)])
     if len(grid) < 2:
         return grid, np.zeros((len(grid), 3)), inside
-    hg = _interp_h(t_h, h, grid)
+    hg = _interp_h(t_h, h, grid, gaps)
     wg = np.column_stack([np.interp(grid, tg, w[:, c]) for c in range(3)])
     c = np.cross(wg, hg)
     dt = np.diff(grid)[:, None]
@@ -304,18 +314,20 @@ def equivalent_torque(tg: np.ndarray, w: np.ndarray, t_h: np.ndarray, h: np.ndar
     return grid, out, inside
 
 
-def _interp_h(t_h: np.ndarray, h: np.ndarray, t: np.ndarray) -> np.ndarray:
-    """``h`` at ``t`` by cubic Hermite interpolation (slopes by ``np.gradient``).
+def _interp_h(t_h: np.ndarray, h: np.ndarray, t: np.ndarray,
+              gaps: np.ndarray | None = None) -> np.ndarray:
+    """``h`` at ``t`` (inside ``t_h``) by cubic Hermite interpolation, slopes by
+    ``np.gradient`` within each gap-free run (:func:`.align.run_slopes`; the online rule).
 
     Linear interpolation would leave an error ``h'' dt^2 / 8`` between wheel samples that is
     coherent over the record (a bias of the tensor at 1e-5 relative for a 100 Hz JointState).
     """
+    from .align import gap_starts, hermite, run_slopes
+
     if len(t_h) < 3:
         return np.column_stack([np.interp(t, t_h, h[:, c]) for c in range(3)])
-    from scipy.interpolate import CubicHermiteSpline  # lazily: the online path needs numpy only
-
-    return CubicHermiteSpline(t_h, h, np.gradient(h, t_h, axis=0), axis=0,
-                              extrapolate=False)(t)
+    gaps = gap_starts(t_h) if gaps is None else gaps
+    return hermite(t_h, h, run_slopes(t_h, h, gaps), t)
 
 
 def _cross_matrices(v: np.ndarray) -> np.ndarray:

@@ -35,11 +35,11 @@ from typing import Any
 import numpy as np
 
 from ..tensor import theta_to_matrix
+from .align import gap_starts, hermite, run_slopes
 from .fit import fit_two_pass
 from .model import model_basis
 from .momentum import Momentum, _cross_matrices
 from .noise import StreamingNoise
-from .options import GAP_FACTOR
 from .recursive import RecursiveEstimator
 from .result import InertiaEstimate
 from .uncertainty import principal_with_std, ratio_cov
@@ -68,16 +68,6 @@ class _Buffer:
         if i > 0:
             self.t = self.t[i:]
             self.v = [a[:, i:] if a.ndim == 3 else a[i:] for a in self.v]
-
-
-def _hermite(t_h: np.ndarray, h: np.ndarray, slopes: np.ndarray, t: np.ndarray) -> np.ndarray:
-    """Cubic Hermite interpolation of ``h`` (K, 3) with ``slopes`` at ``t`` (inside t_h)."""
-    j = np.clip(np.searchsorted(t_h, t, side='right') - 1, 0, len(t_h) - 2)
-    dx = (t_h[j + 1] - t_h[j])[:, None]
-    u = (t - t_h[j])[:, None] / dx
-    h00, h10 = 2 * u ** 3 - 3 * u ** 2 + 1, u ** 3 - 2 * u ** 2 + u
-    h01, h11 = -2 * u ** 3 + 3 * u ** 2, u ** 3 - u ** 2
-    return h00 * h[j] + h10 * dx * slopes[j] + h01 * h[j + 1] + h11 * dx * slopes[j + 1]
 
 
 def _interval_torque(grid: np.ndarray, wg: np.ndarray, hg: np.ndarray,
@@ -230,18 +220,21 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
             return
         if self._cursor is None and not self._start():
             return
-        c, hi = self._skip_gaps(float(self._cursor), hi)
-        tg, tm = self._g.t, self._m.t
-        grid = np.union1d(tg[(tg >= c) & (tg <= hi)], tm[(tm >= c) & (tm <= hi)])
-        grid = np.union1d([c], grid)
-        if self.other_torque and self.torque_hold != 'linear':
-            # zero-order hold: interval [g_i, g_i+1) needs the torque sample at or before g_i
-            # to be the last one: a torque sample at or after g_i has arrived
-            grid = grid[:int(np.searchsorted(grid, self._o.t[-1], side='right')) + 1]
-            grid = grid[grid <= hi]
-        if len(grid) < 2:
-            return
-        self._emit(grid)
+        while True:                   # run by run: a block may reach past momentum gaps
+            c, end = self._skip_gaps(float(self._cursor), hi)
+            tg, tm = self._g.t, self._m.t
+            grid = np.union1d(tg[(tg >= c) & (tg <= end)], tm[(tm >= c) & (tm <= end)])
+            grid = np.union1d([c], grid)
+            if self.other_torque and self.torque_hold != 'linear':
+                # zero-order hold: interval [g_i, g_i+1) needs the torque sample at or before
+                # g_i to be the last one: a torque sample at or after g_i has arrived
+                grid = grid[:int(np.searchsorted(grid, self._o.t[-1], side='right')) + 1]
+                grid = grid[grid <= end]
+            if len(grid) < 2:
+                return
+            self._emit(grid)
+            if end >= hi:
+                return
 
     def _skip_gaps(self, c: float, hi: float) -> tuple[float, float]:
         """Momentum gaps (an interval over ``GAP_FACTOR`` nominal ones): nothing known of
@@ -249,11 +242,8 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
         dropped; the jump of the emitted torque stamps starts a new anchored segment, whose
         intercept takes the unknown change); the grid stops at the next gap.  Returns the
         cursor and the horizon."""
-        if len(self._m_dt) < 2:
-            return c, hi
         tm = self._m.t
-        big = np.flatnonzero(np.diff(tm) > GAP_FACTOR * float(np.median(self._m_dt)))
-        for i in big:
+        for i in self._momentum_gaps():
             if tm[i] <= c < tm[i + 1]:
                 skipped = (self._g.t > c) & (self._g.t < tm[i + 1])
                 self.samples_dropped += int(np.sum(skipped))
@@ -263,6 +253,13 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
             elif tm[i] >= c:
                 return c, min(hi, float(tm[i]))
         return c, hi
+
+    def _momentum_gaps(self) -> np.ndarray:
+        """Gaps of the buffered momentum samples (:func:`.align.gap_starts`, the batch rule,
+        on the nominal interval of the recent samples); none before two intervals."""
+        if len(self._m_dt) < 2:
+            return np.zeros(0, dtype=int)
+        return gap_starts(self._m.t, float(np.median(self._m_dt)))
 
     def _start(self) -> bool:
         """Set the first grid time (the batch's common coverage start); drop earlier gyro."""
@@ -281,8 +278,8 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
         """Feed the equivalent torque on ``grid`` (and the gyro samples it covers)."""
         tm = self._m.t
         h, tq, dh, dtq = self._m.v
-        slopes = np.gradient(h, tm, axis=0)
-        hg = _hermite(tm, h, slopes, grid)
+        gaps = self._momentum_gaps()
+        hg = hermite(tm, h, run_slopes(tm, h, gaps), grid)
         wg = np.column_stack([np.interp(grid, self._g.t, self._g.v[0][:, k])
                               for k in range(3)])
         has_tr = self._tr_noise.count > 0
@@ -301,8 +298,7 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
         if np.any(fresh):
             super().add_gyro(t_in[fresh], w_in[fresh])
         for i, est in enumerate(self._pert):
-            dslopes = np.gradient(dh[i], tm, axis=0)
-            d = _interval_torque(grid, wg, _hermite(tm, dh[i], dslopes, grid),
+            d = _interval_torque(grid, wg, hermite(tm, dh[i], run_slopes(tm, dh[i], gaps), grid),
                                  lin(dtq[i]) if has_tr else None)
             est.add_torque(grid[:-1], d)
             if np.any(fresh):
