@@ -405,9 +405,15 @@ def estimate_with_momentum(t_gyro: Any, omega: Any, t_torque: Any, torque: Any,
     ts = as_times(t_torque, 't_torque')
     tau = as_samples(torque, len(ts), 'torque', 't_torque')
     from .options import BATCH_HOLDS, HOLDS, check_choice
+    from .selection import SelectionPolicy
 
     hold = options.pop('hold', HOLDS[0])
     check_choice('hold', hold, BATCH_HOLDS)
+    # the torque sensor's scale error scales the other torque only, never the momentum: it
+    # is propagated as one more uncertain input (:func:`_propagate`), not as a scale of y
+    scale = options.pop('torque_scale_std', 0.0)
+    SelectionPolicy(torque_scale_std=scale)           # validates
+    scale = float(scale) if len(ts) else 0.0
     hold = HOLDS[0] if hold not in HOLDS else hold   # of the other torque; the result is held
     grid, tq, inside = equivalent_torque(tg, w, mom.t, mom.h, ts, tau, hold, mom.torque)
     if int(np.sum(inside)) < 6 or len(grid) < 2:
@@ -426,8 +432,9 @@ def estimate_with_momentum(t_gyro: Any, omega: Any, t_torque: Any, torque: Any,
                           'about their stated std (the data resolve them better than stated)')
     res = replace(base, samples_dropped=base.samples_dropped + int(np.sum(~inside)),
                   diagnostics=diag)
-    if len(mom.h_std) and res.inertia is not None and np.all(np.isfinite(res.inertia)):
-        res = _propagate(res, tg[inside], w[inside], ts, tau, mom, hold, tn, options)
+    if (len(mom.h_std) or scale) and res.inertia is not None \
+            and np.all(np.isfinite(res.inertia)):
+        res = _propagate(res, tg[inside], w[inside], ts, tau, mom, hold, tn, options, scale)
     return res
 
 
@@ -462,9 +469,24 @@ def _estimate(tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.ndarray, *,
     return batch._maximum_likelihood(first, tg, w, ts, tau, HOLDS[0], axis, selection)
 
 
+def _changes(mom: Momentum, tau: np.ndarray, scale: float
+             ) -> list[tuple[str, np.ndarray, np.ndarray | None, np.ndarray]]:
+    """The inputs moved by one sigma each: ``(name, h, torque on the momentum stamps, other
+    torque)``; the torque scale (``scale`` > 0) moves the other torque only."""
+    out = []
+    dtq = mom.torque_std if mom.torque is not None else [None] * len(mom.names)
+    for name, dh, dt in zip(mom.names, mom.h_std, dtq, strict=True):
+        out.append((name, mom.h + dh, None if dt is None else mom.torque + dt, tau))
+    if scale:
+        out.append(('torque_scale', mom.h, mom.torque, tau * (1.0 + scale)))
+    return out
+
+
 def _propagate(res: Any, tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.ndarray,
-               mom: Momentum, hold: str, tn: np.ndarray, options: dict[str, Any]) -> Any:
-    """Add the one-sigma sensitivity of every reported quantity to each uncertain input."""
+               mom: Momentum, hold: str, tn: np.ndarray, options: dict[str, Any],
+               scale: float = 0.0) -> Any:
+    """Add the one-sigma sensitivity of every reported quantity to each uncertain input
+    (:func:`_changes`: wheel inertias, rotor coefficients, the torque scale)."""
 
     diag = dict(res.diagnostics)
     fixed = dict(options)
@@ -487,10 +509,8 @@ def _propagate(res: Any, tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.
     var_r = np.zeros((3, 3))
     var_a = np.zeros(3)
     per: dict[str, Any] = {}
-    dtq = mom.torque_std if mom.torque is not None else [None] * len(mom.names)
-    for name, dh, dt in zip(mom.names, mom.h_std, dtq, strict=True):
-        grid, tq, _ = equivalent_torque(tg, w, mom.t, mom.h + dh, ts, tau, hold,
-                                        None if dt is None else mom.torque + dt)
+    for name, h, tq_h, tau_p in _changes(mom, tau, scale):
+        grid, tq, _ = equivalent_torque(tg, w, mom.t, h, ts, tau_p, hold, tq_h)
         p = _estimate(tg, w, grid, tq, torque_noise=tn, **fixed)
         if p.inertia is None or ref.inertia is None:
             continue
@@ -523,6 +543,11 @@ def _propagate(res: Any, tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.
     diag['wheel_inertia'] = {'inputs': per, 'theta_std_added': np.sqrt(var6),
                              'rule': 'one-sigma change of the estimate per input, added in '
                                      'quadrature'}
+    if scale:
+        calib = dict(diag.get('calibration') or {'gyro_scale_std': 0.0})
+        calib.update(torque_scale_std=scale, torque_scale_applies_to='the torque stream only '
+                     "(not the momentum input): input 'torque_scale' of input_uncertainty")
+        diag['calibration'] = calib
     # the online estimator's name for the same record (wheel inertias, rotor coefficients)
     diag['input_uncertainty'] = diag['wheel_inertia']
     cov = None if res.covariance is None else np.asarray(res.covariance) + outer

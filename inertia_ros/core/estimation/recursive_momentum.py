@@ -96,17 +96,23 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
         fed to the :class:`~.recursive.RecursiveEstimator` is always held over its grid
         intervals (``zoh``): the other torque's hold is applied once, when it is reduced.
     **kwargs
-        The other options of :class:`~.recursive.RecursiveEstimator`.
+        The other options of :class:`~.recursive.RecursiveEstimator`.  ``torque_scale_std``
+        scales the other torque only, never the momentum: it is propagated as one more
+        uncertain input (``torque_scale``, fed the other torque times that std).
     """
 
     def __init__(self, names: Sequence[str] = (), other_torque: bool = True,
                  hold: str = 'zoh', **kwargs: Any) -> None:
         from .options import HOLDS, check_choice
+        from .selection import SelectionPolicy
 
         check_choice('hold', hold, HOLDS)
+        scale = kwargs.pop('torque_scale_std', 0.0)
+        SelectionPolicy(torque_scale_std=scale)           # validates
         self.names = tuple(names)
         self.other_torque = bool(other_torque)
         self.torque_hold = hold
+        self.torque_scale_std = float(scale) if self.other_torque else 0.0
         # the equivalent torque is held over each grid interval: integrated as held, whatever
         # the other torque's hold (which _other_on has applied already)
         self._kwargs = dict(kwargs, hold=HOLDS[0])
@@ -121,6 +127,9 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
         self._o = _Buffer((3,))                       # other torque
         self._cursor: float | None = None             # start of the next grid interval [s]
         self._pert = [RecursiveEstimator(**self._kwargs) for _ in range(p)]
+        # the torque scale's sensitivity: fed the other torque times its std
+        self._scale_est = RecursiveEstimator(**self._kwargs) \
+            if getattr(self, 'torque_scale_std', 0.0) else None
         self._h_noise = StreamingNoise(floor=False)
         self._tr_noise = StreamingNoise(floor=False)
         self._o_noise = StreamingNoise(floor=False)
@@ -287,8 +296,9 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
         def lin(y: np.ndarray) -> np.ndarray:
             return np.column_stack([np.interp(grid, tm, y[:, k]) for k in range(3)])
         out = _interval_torque(grid, wg, hg, lin(tq) if has_tr else None)
-        if self.other_torque:
-            out = out + self._other_on(grid)
+        other = self._other_on(grid) if self.other_torque else None
+        if other is not None:
+            out = out + other
         self._walk(hg[:-1], wg[:-1])
         gi = (self._g.t >= grid[0]) & (self._g.t <= grid[-1])
         t_in = self._g.t[gi]
@@ -297,9 +307,13 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
         super().add_torque(grid[:-1], out)
         if np.any(fresh):
             super().add_gyro(t_in[fresh], w_in[fresh])
-        for i, est in enumerate(self._pert):
-            d = _interval_torque(grid, wg, hermite(tm, dh[i], run_slopes(tm, dh[i], gaps), grid),
-                                 lin(dtq[i]) if has_tr else None)
+        changes = [(est, _interval_torque(grid, wg, hermite(tm, dh[i], run_slopes(tm, dh[i],
+                                                                              gaps), grid),
+                                          lin(dtq[i]) if has_tr else None))
+                   for i, est in enumerate(self._pert)]
+        if self._scale_est is not None and other is not None:
+            changes.append((self._scale_est, self.torque_scale_std * other))
+        for est, d in changes:
             est.add_torque(grid[:-1], d)
             if np.any(fresh):
                 est.add_gyro(t_in[fresh], w_in[fresh])
@@ -382,7 +396,8 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
         if est.status == 'insufficient_data' and self.other_torque and len(self._o.t) == 0:
             diag['reason'] = ('no other torque sample yet: the momentum input waits for it '
                               '(build with other_torque=False when there is none)')
-        if self._pert and est.status in ('ok', 'model_mismatch') and est.theta is not None \
+        uncertain = bool(self._pert) or self._scale_est is not None
+        if uncertain and est.status in ('ok', 'model_mismatch') and est.theta is not None \
                 and np.all(np.isfinite(est.theta)):
             est = self._propagate(est)
         return est
@@ -402,7 +417,10 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
         n_eff = self._neffc + (self._w0 - self._w00 / self._w0 if self._w0 > 0 else 0.0)
         k = basis.shape[1]
         per, outer = {}, np.zeros((6, 6))
-        for nm, p in zip(self.names, self._pert, strict=True):
+        pairs = list(zip(self.names, self._pert, strict=True))
+        if self._scale_est is not None:
+            pairs.append(('torque_scale', self._scale_est))
+        for nm, p in pairs:
             p._process()
             p._white_y_cov = self._white_y_cov
             f = fit_two_pass(p._stats(nv, n_eff), basis, bias, nv, np.zeros(3), None, est.theta)
@@ -433,6 +451,12 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
         diag['input_uncertainty'] = {
             'inputs': per, 'theta_std_added': np.sqrt(np.diag(outer)),
             'rule': 'linear sensitivity of the estimate to each input, added in quadrature'}
+        if self._scale_est is not None:
+            calib = dict(diag.get('calibration') or {'gyro_scale_std': 0.0})
+            calib.update(torque_scale_std=self.torque_scale_std,
+                         torque_scale_applies_to='the torque stream only (not the momentum '
+                         "input): input 'torque_scale' of input_uncertainty")
+            diag['calibration'] = calib
         return replace(est, covariance=cov6,
                        inertia_std=theta_to_matrix(np.sqrt(np.maximum(np.diag(cov6), 0.0)),
                                                    check_finite=False),
