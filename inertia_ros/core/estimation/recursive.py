@@ -20,8 +20,10 @@ estimate follow a changing tensor.
 Everything ``estimate()`` needs is kept up to date as samples are merged, so its cost does not
 grow with the record: closed segments are folded into fixed sums, and the open segment's
 torque-noise statistics (:func:`.statistics.torque_stats` of its demeaned variables) are
-accumulated per torque interval in closed form (see :meth:`RecursiveEstimator._walk_add`)
-instead of being recomputed from the segment's samples, which are no longer stored.
+accumulated per torque interval in closed form (see :meth:`.accumulator.OnlineStats.walk_add`)
+instead of being recomputed from the segment's samples, which are no longer stored.  The
+statistics live in :class:`.accumulator.OnlineStats`, which owns its state; this class aligns
+the streams into the variables and concludes.
 Torque-free data (:func:`.homogeneous.is_torque_free`, the batch rule) gives
 ``scale_unobservable`` with the ratios and principal axes from the null vector of the same
 statistics, as the batch estimator does.
@@ -38,10 +40,10 @@ from typing import Any
 import numpy as np
 
 from .._validate import MAX_TIME_S, as_noise_std, as_sample_block, require_after
+from .accumulator import OnlineStats
 from .adequacy import Adequacy, check_adequacy
 from .assemble import conclude, status_only
 from .fit import Fit, fit_two_pass
-from .history import SegmentHistory, SegmentStats
 from .homogeneous import homogeneous_estimate, is_torque_free
 from .model import symmetry_axis as unit_axis
 from .noise import StreamingNoise, median_rows
@@ -57,7 +59,7 @@ from .options import (
     TORQUE_BIAS,
     check_choice,
 )
-from .regressors import cumulative_torque, gram, lift, monomials
+from .regressors import cumulative_torque, lift, monomials
 from .result import InertiaEstimate
 from .selection import SelectionPolicy
 from .statistics import SufficientStats
@@ -173,36 +175,20 @@ class RecursiveEstimator:
         self._t0: float | None = None    # time origin of the bias column
         self._prev: tuple[float, np.ndarray] | None = None   # last processed gyro sample
         self._M = np.zeros(6)            # monomial integral at the last processed sample
-        self._w0 = 0.0                   # sum of weights
-        self._w00 = 0.0                  # sum of squared weights
-        self._mean = np.zeros(13)          # open segment: weighted mean and centred Gram of V
-        self._C = np.zeros((13, 13))
-        self._Cc = np.zeros((13, 13))      # closed segments
-        self._wc = self._w00c = self._neffc = 0.0
-        self._seg_start: float | None = None
-        self._first_segment = True
-        self._walk_reset()
-        self._GPc = np.zeros((13, 13))        # closed segments' torque-noise Gram
-        self._walkc = 0.0
+        # the statistics of the merged equations, owning their state
+        self._acc = OnlineStats(self.segment, self.window, self.forgetting)
         self._tau_var: np.ndarray | None = None
-        self._m2_sum = np.zeros((3, 3))   # (decayed) sum of w w' [rad^2/s^2] and its count
-        self._m2_n = 0.0
-        self._history = SegmentHistory()  # closed segments apart, for the adequacy test
-        self._clock = 0.0                 # decay clock: sum of log(decay factors)
         self._adequacy: Adequacy | None = None   # last adequacy result, reused between tests
         self._adequacy_left = 0
         #: deferred adequacy test: (estimate serial, final fit, gyro and torque noise variances)
         self._adequacy_due: tuple[int, Fit, np.ndarray, np.ndarray] | None = None
         self._estimates = 0               # estimate() calls (serial of the last one)
-        self._tq_ss = np.zeros(3)        # (decayed) sum of squared torque [N^2 m^2]
-        self._tq_n = 0.0                 # and its (decayed) count
         self._tau_dt = 0.0
         self._tq_dts = np.empty(0)       # recent torque / gyro sample intervals [s]
         self._g_dts = np.empty(0)
         self._g_dt = 0.0                 # their median (0 before two samples)
         self._tq_last: float | None = None
         self.gaps = 0                    # gaps that ended a segment holding data
-        self._t_last: float | None = None
         self._last_t_in: float | None = None
         self._last_tau_in: float | None = None
         self._gyro_nv = StreamingNoise(floor=True)      # gyro noise (unless given)
@@ -315,8 +301,7 @@ class RecursiveEstimator:
             return
         if self._gyro_noise is None:
             self._gyro_nv.add(w)
-        self._m2_sum = self._m2_sum + w.T @ w          # mean(w w'): the gyroscopic noise walk
-        self._m2_n += len(w)
+        self._acc.add_motion(w)                 # mean(w w'): the gyroscopic noise walk
         # torque integral at the gyro times, relative to self._ts[0]
         T = self._T_base + cumulative_torque(self._ts, self._tau, t, self.hold)
         M = self._monomial_integral(t, w)
@@ -328,11 +313,11 @@ class RecursiveEstimator:
         lo = 0
         for k in breaks:
             if k > lo:
-                self._merge(t[lo:k], V[lo:k])
-            self.gaps += self._w0 > 0       # a break that ends a segment holding data
-            self._close_segment(float(t[k]))
+                self._acc.merge(t[lo:k], V[lo:k], self._ts)
+            self.gaps += self._acc.w0 > 0   # a break that ends a segment holding data
+            self._acc.close(float(t[k]))
             lo = k
-        self._merge(t[lo:], V[lo:])
+        self._acc.merge(t[lo:], V[lo:], self._ts)
         self.samples_used += len(t)
         # keep torque samples from the last one at or before the last processed gyro time
         j = int(np.searchsorted(self._ts, t[-1], side='right') - 1)
@@ -349,8 +334,7 @@ class RecursiveEstimator:
         self._ts = np.concatenate([self._ts, new_t])
         self._tau = np.concatenate([self._tau, new_tau])
         self._pt, self._ptau = [], []
-        self._tq_ss = self._tq_ss + np.einsum('ij,ij->j', new_tau, new_tau)
-        self._tq_n += len(new_t)
+        self._acc.add_torque_power(new_tau)
         edges = new_t if self._tq_last is None else np.concatenate([[self._tq_last], new_t])
         self._tq_dts = np.concatenate([self._tq_dts, np.diff(edges)])[-_DT_HISTORY:]
         self._tq_last = float(new_t[-1])
@@ -450,166 +434,6 @@ class RecursiveEstimator:
         breaks = sorted({int(np.searchsorted(t, b, side='left')) for b in starts})
         return t, w, [k for k in breaks if k < len(t)]
 
-    def _merge(self, t: np.ndarray, V: np.ndarray) -> None:
-        """Merge a block of equations, closing anchored segments at their boundaries."""
-        while len(t):
-            if self._seg_start is None:
-                self._seg_start = float(t[0])
-            k = int(np.searchsorted(t, self._seg_start + self.segment, side='left'))
-            if k == 0:
-                self._close_segment(float(t[0]))
-                continue
-            self._merge_piece(t[:k], V[:k])
-            t, V = t[k:], V[k:]
-            if len(t):
-                self._close_segment(float(t[0]))
-
-    def _walk_reset(self) -> None:
-        """Empty the open segment's torque-noise accumulators (see :meth:`_walk_add`)."""
-        self._wk_s: float | None = None   # start of the open torque interval [s]
-        self._wk_ok = True                # a torque sample at or before the segment's start
-        self._wk_ntt = 0                  # torque samples of the segment up to the last gyro
-        self._wk_n = 0                    # gyro samples of the segment
-        self._wk_t0 = self._wk_tl = 0.0   # first and last gyro time of the segment [s]
-        self._wk_ref = np.zeros(13)       # reference row: variables are kept relative to it
-        self._wk_S = np.zeros(14)         # sum of x_b = [v_b - ref, 1]
-        self._wk_St = np.zeros(14)        # open interval: sum of (t_b - s_J) x_b
-        self._wk_h2 = 0.0                 # closed intervals: sum h_j^2, sum h_j Q_j,
-        self._wk_hQ = np.zeros(14)        # sum Q_j Q_j'  (Q_j = St_j - h_j F_j, 14 vectors)
-        self._wk_QQ = np.zeros((14, 14))
-
-    def _walk_add(self, t: np.ndarray, V: np.ndarray) -> None:
-        """Accumulate the open segment's torque-noise statistics over new equations.
-
-        The segment's torque-noise sums (:func:`.statistics.torque_stats` on the segment-demeaned
-        variables) are ``P_j = [1 | -mean] R_j`` with ``R_j = sum_b o_j(b) x_b``,
-        ``o_j(b) = clip(t_b - s_j, 0, h_j)`` and ``x_b = [v_b - ref, 1]``.  Once torque interval
-        ``j`` is closed (a gyro sample at or after its end has arrived), ``R_j = h_j S + Q_j``
-        with the running segment sum ``S`` and a fixed ``Q_j``; so ``sum_j R_j R_j'`` needs only
-        ``sum h_j^2``, ``sum h_j Q_j`` and ``sum Q_j Q_j'`` of the closed intervals plus the open
-        one: O(new samples + new torque samples) per block, none per ``estimate()``.
-        """
-        ts = self._ts
-        n = len(t)
-        if self._wk_s is None:
-            i = int(np.searchsorted(ts, t[0], side='right')) - 1
-            if i < 0:                      # cannot happen: such gyro samples are dropped
-                self._wk_ok = False
-                i = 0
-            self._wk_s = float(ts[i])
-            # the first segment's torque list starts at the first torque sample, later ones
-            # at the last torque sample at or before their start
-            self._wk_ntt = i + 1 if self._first_segment else 1
-            self._wk_ref = V[0].copy()
-            self._wk_t0 = float(t[0])
-        X = np.empty((n, 14))
-        np.subtract(V, self._wk_ref[None], out=X[:, :13])
-        X[:, 13] = 1.0
-        lo = int(np.searchsorted(ts, self._wk_s, side='right'))
-        hi = int(np.searchsorted(ts, t[-1], side='right'))
-        b = ts[lo:hi]                      # torque samples starting new intervals
-        k = len(b)
-        if k == 0:
-            self._wk_St = self._wk_St + (t - self._wk_s) @ X
-        else:
-            bounds = np.concatenate([[self._wk_s], b])
-            first = np.searchsorted(t, bounds, side='left')
-            counts = np.diff(np.append(first, n))
-            nz = counts > 0
-            u = t - np.repeat(bounds, counts)
-            Sm = np.zeros((k + 1, 14))
-            St = np.zeros((k + 1, 14))
-            Sm[nz] = np.add.reduceat(X, first[nz], axis=0)
-            St[nz] = np.add.reduceat(X * u[:, None], first[nz], axis=0)
-            h = np.diff(bounds)
-            St[0] += self._wk_St
-            # every earlier sample precedes the end of the block's first interval
-            F = self._wk_S + np.cumsum(Sm[:k], axis=0)
-            Q = St[:k] - h[:, None] * F
-            self._wk_h2 += float(h @ h)
-            self._wk_hQ = self._wk_hQ + h @ Q
-            self._wk_QQ = self._wk_QQ + Q.T @ Q
-            self._wk_St = St[k]
-            self._wk_s = float(bounds[k])
-            self._wk_ntt += k
-        self._wk_S = self._wk_S + X.sum(axis=0)
-        self._wk_n += n
-        self._wk_tl = float(t[-1])
-
-    def _segment_walk(self) -> tuple[np.ndarray, float]:
-        """Torque-noise Gram (13 x 13) and walk time of the open segment (as statistics)."""
-        if self._wk_n == 0 or self._tau_nv.count == 0 or self._wk_ntt < 2 or not self._wk_ok:
-            return np.zeros((13, 13)), 0.0
-        S, hQ = self._wk_S, self._wk_hQ
-        RR = self._wk_h2 * np.outer(S, S) + np.outer(S, hQ) + np.outer(hQ, S) + self._wk_QQ \
-            + np.outer(self._wk_St, self._wk_St)
-        L = np.empty((13, 14))
-        L[:, :13] = np.eye(13)
-        L[:, 13] = -S[:13] / self._wk_n
-        G = L @ RR @ L.T
-        return 0.5 * (G + G.T), self._wk_n * (self._wk_tl - self._wk_t0) / 6.0
-
-    def _close_segment(self, new_start: float) -> None:
-        """Fold the current segment's statistics into the closed ones; start a new one."""
-        if self._w0 > 0:
-            self._Cc = self._Cc + self._C
-            self._wc += self._w0
-            self._w00c += self._w00
-            self._neffc += self._w0 - self._w00 / self._w0
-            gp, walk = self._segment_walk()
-            self._GPc = self._GPc + gp
-            self._walkc += walk
-            self._history.add(self._open_segment(gp, walk))
-        self._w0 = self._w00 = 0.0
-        self._mean = np.zeros(13)
-        self._C = np.zeros((13, 13))
-        self._walk_reset()
-        self._first_segment = False
-        self._seg_start = new_start
-
-    def _merge_piece(self, t: np.ndarray, V: np.ndarray) -> None:
-        """Merge equations of one segment into the weighted centred statistics."""
-        n = len(t)
-        self._walk_add(t, V)
-        if self.window:
-            wts = np.exp(-(t[-1] - t) / self.window)
-            # nothing merged yet: nothing to decay (the torque statistics gathered before the
-            # first merge must survive it)
-            old = float(np.exp(-(t[-1] - self._t_last) / self.window)) \
-                if self._t_last is not None else 1.0
-        else:
-            lam = self.forgetting
-            wts = lam ** np.arange(n - 1, -1, -1, dtype=float)
-            old = lam ** n
-        self._t_last = float(t[-1])
-        self._clock += math.log(max(old, 1e-300))
-        wb = float(np.sum(wts))
-        mb = wts @ V / wb
-        D = (V - mb[None]) * np.sqrt(wts)[:, None]
-        w_old = old * self._w0
-        total = w_old + wb
-        delta = mb - self._mean
-        self._C = old * self._C + gram(D) + (w_old * wb / total) * np.outer(delta, delta)
-        self._mean = self._mean + delta * (wb / total)
-        self._w0 = total
-        self._w00 = old * old * self._w00 + float(np.sum(wts * wts))
-        self._Cc = old * self._Cc
-        self._GPc = old * old * self._GPc
-        self._walkc *= old
-        self._tq_ss = old * self._tq_ss
-        self._tq_n *= old
-        self._m2_sum = old * self._m2_sum
-        self._m2_n *= old
-        self._wc *= old
-        self._w00c *= old * old
-        self._neffc *= old
-
-    def _open_segment(self, gp: np.ndarray, walk: float) -> SegmentStats:
-        """The open segment's statistics as a :class:`SegmentStats` (at the current clock)."""
-        neff = self._w0 - self._w00 / self._w0 if self._w0 > 0 else 0.0
-        return SegmentStats(self._C.copy(), gp, walk, self._w0, self._w00, neff, self._wk_t0,
-                            self._wk_tl, self._clock)
-
     def _window_adequacy(self, f: Fit, nv: np.ndarray, tv: np.ndarray) -> Adequacy:
         """The adequacy tests of ``f``: its parameter set refitted on groups of segments.
 
@@ -633,10 +457,11 @@ class RecursiveEstimator:
     def _test_adequacy(self, f: Fit, nv: np.ndarray, tv: np.ndarray) -> Adequacy:
         """The window tests of ``f`` on the current statistics (:meth:`_window_adequacy`)."""
         p, k = len(f.beta), f.basis.shape[1]
-        gp, walk = self._segment_walk()
+        acc = self._acc
+        gp, walk = acc.segment_walk()
         # as the batch's windows, >= ADEQUACY_MIN_WINDOW_S (a 1 s open segment: chi2 ~2000)
-        groups = [g for g in self._history.groups(ADEQUACY_WINDOWS,
-                                                  self._open_segment(gp, walk), self._clock)
+        groups = [g for g in acc.history.groups(ADEQUACY_WINDOWS, acc.open_segment(gp, walk),
+                                                acc.clock)
                   if g.neff >= MIN_EQUATIONS and g.t1 - g.t0 >= ADEQUACY_MIN_WINDOW_S]
         thetas, covs, mids = np.zeros((0, p)), np.zeros((0, p, p)), np.zeros(0)
         if len(groups) >= 2:
@@ -675,7 +500,7 @@ class RecursiveEstimator:
 
     def _omega_m2(self) -> np.ndarray:
         """``mean(w w')`` of the merged gyro samples [rad^2/s^2] (decayed as the weights)."""
-        return self._m2_sum / max(self._m2_n, 1e-300)
+        return self._acc.omega_m2()
 
     def _gyro_dt(self) -> float:
         """Median recent gyro sample interval [s] (0 before two samples)."""
@@ -706,12 +531,13 @@ class RecursiveEstimator:
         if gyro_scale != 1.0:
             K = np.diag(np.r_[np.full(3, gyro_scale), np.full(6, gyro_scale ** 2),
                               np.ones(4)]) @ K
-        C_all = lift(K.T @ (self._C + self._Cc) @ K)
-        gp, walk = self._segment_walk()
-        CP = lift(K.T @ (self._GPc + gp) @ K) if self._tau_var is not None else None
-        return SufficientStats(C_all, CP, int(round(self._w0 + self._wc)), int(round(n_eff)), 1,
+        acc = self._acc
+        C_all = lift(K.T @ (acc.C + acc.Cc) @ K)
+        gp, walk = acc.segment_walk()
+        CP = lift(K.T @ (acc.GPc + gp) @ K) if self._tau_var is not None else None
+        return SufficientStats(C_all, CP, int(round(acc.w0 + acc.wc)), int(round(n_eff)), 1,
                                kind='anchored', eiv_var=nv, weighted=True,
-                               walk_time=self._walkc + walk, torque_dt=self._tau_dt,
+                               walk_time=acc.walkc + walk, torque_dt=self._tau_dt,
                                omega_m2=self._omega_m2(), gyro_dt=self._gyro_dt(),
                                white_y_cov=self._white_y_cov)
 
@@ -731,24 +557,24 @@ class RecursiveEstimator:
                     samples_dropped=self.samples_dropped)
         nv = self._gyro_var()
         diag: dict[str, Any] = {'gyro_noise_std': np.sqrt(nv), 'warnings': [],
-                                'effective_samples': self._w0 + self._wc}
+                                'effective_samples': self._acc.w0 + self._acc.wc}
         if self.gaps:
             diag['warnings'].append(f'{self.gaps} gap(s) in the streams: each started a new '
                                     'segment; gyro samples inside torque gaps were dropped')
-        n_eff = self._neffc + (self._w0 - self._w00 / self._w0 if self._w0 > 0 else 0.0)
+        n_eff = self._acc.n_eff()
         self._tau_var = self._torque_variance()
         if self.samples_used < MIN_GYRO_SAMPLES or n_eff < MIN_EQUATIONS:
             diag['reason'] = f'only {self.samples_used} gyro samples covered by torque so far'
             return status_only('insufficient_data', diag, base)
         # torque-free data (the batch rule): the scale is unobservable, the ratios and the
         # principal axes come from the null vector of the homogeneous problem
-        torque_rms = np.sqrt(self._tq_ss / max(self._tq_n, 1e-300))
+        torque_rms = self._acc.torque_rms()
         diag['torque_rms'] = torque_rms
         tq_std = np.sqrt(self._tau_var) if self._tau_var is not None else np.zeros(3)
         diag['torque_noise_std'] = tq_std
         st = self._stats(nv, n_eff)
         # the meat of weighted sums scales by w^2 / w
-        ratio = (self._w00 + self._w00c) / (self._w0 + self._wc)
+        ratio = (self._acc.w00 + self._acc.w00c) / (self._acc.w0 + self._acc.wc)
         if is_torque_free(torque_rms, tq_std):
             return homogeneous_estimate(st, nv, diag, base, cov_scale=ratio)
         tv = self._tau_var if self._tau_var is not None else np.zeros(3)

@@ -414,7 +414,7 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
         basis = model_basis(name, self.axis)
         bias = bool(est.model and est.model.endswith('+bias'))
         nv = self._gyro_var()
-        n_eff = self._neffc + (self._w0 - self._w00 / self._w0 if self._w0 > 0 else 0.0)
+        n_eff = self._acc.n_eff()
         k = basis.shape[1]
         per, outer = {}, np.zeros((6, 6))
         pairs = list(zip(self.names, self._pert, strict=True))
@@ -436,7 +436,7 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
         name = (est.model or 'full').removesuffix('+bias')
         if name not in ('full', 'diagonal', 'axisymmetric'):
             return est
-        span = (self._t_last or 0.0) - (self._t0 or 0.0)
+        span = (self._acc.t_last or 0.0) - (self._t0 or 0.0)
         cached = self._prop_cache
         if cached is not None and cached[0] == est.model and self._fresh(cached[3], span):
             per, outer = cached[1], cached[2]
