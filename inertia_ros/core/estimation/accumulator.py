@@ -16,8 +16,12 @@ import math
 
 import numpy as np
 
+from .adequacy import Adequacy, check_adequacy
+from .fit import Fit, fit_two_pass
 from .history import SegmentHistory, SegmentStats
-from .regressors import gram
+from .options import ADEQUACY_MIN_WINDOW_S, ADEQUACY_WINDOWS, MIN_EQUATIONS
+from .regressors import gram, lift
+from .statistics import SufficientStats
 
 __all__ = ['OnlineStats']
 
@@ -259,3 +263,63 @@ class OnlineStats:
         L[:, 13] = -S[:13] / self._wk_n
         G = L @ RR @ L.T
         return 0.5 * (G + G.T), self._wk_n * (self._wk_tl - self._wk_t0) / 6.0
+
+    # ------------------------------------------------------------------ reading back
+    def stats(self, nv: np.ndarray, n_eff: float, walk_noise: bool, *, torque_dt: float,
+              gyro_dt: float, white_y_cov: np.ndarray | None,
+              gyro_scale: float = 1.0) -> SufficientStats:
+        """The weighted statistics of everything merged, in the batch estimator's form.
+
+        The gyro-noise correction of the squared-rate integrals, ``m_c -> m_c - sigma_c^2 s``,
+        is linear in the 13 variables (``K``) and applied here with the noise variance ``nv``
+        (3,) [rad^2/s^2].  ``walk_noise``: include the torque-noise Gram.  ``gyro_scale``
+        gives the statistics of a gyro read that many times larger (``w`` and the
+        squared-rate integrals scale exactly; for the gyro-scale sensitivity).  ``torque_dt``,
+        ``gyro_dt`` [s] and ``white_y_cov`` (3, 3) are the noise model's stream figures.
+        """
+        K = np.eye(13)
+        K[9, 3:6] = -nv
+        if gyro_scale != 1.0:
+            K = np.diag(np.r_[np.full(3, gyro_scale), np.full(6, gyro_scale ** 2),
+                              np.ones(4)]) @ K
+        C_all = lift(K.T @ (self.C + self.Cc) @ K)
+        gp, walk = self.segment_walk()
+        CP = lift(K.T @ (self.GPc + gp) @ K) if walk_noise else None
+        return SufficientStats(C_all, CP, int(round(self.w0 + self.wc)), int(round(n_eff)), 1,
+                               kind='anchored', eiv_var=nv, weighted=True,
+                               walk_time=self.walkc + walk, torque_dt=torque_dt,
+                               omega_m2=self.omega_m2(), gyro_dt=gyro_dt,
+                               white_y_cov=white_y_cov)
+
+    def window_test(self, f: Fit, nv: np.ndarray, tv: np.ndarray, *, torque_dt: float,
+                    gyro_dt: float, white_y_cov: np.ndarray | None) -> Adequacy:
+        """The adequacy tests of ``f``: its parameter set refitted on groups of segments.
+
+        Up to :data:`ADEQUACY_WINDOWS` consecutive groups of the kept segments (the open one
+        included), each fitted with the weights of ``f``'s tensor, as the batch estimator does
+        on time windows; ``nv``, ``tv`` (3,) the gyro and torque noise variances.
+        """
+        p, k = len(f.beta), f.basis.shape[1]
+        gp, walk = self.segment_walk()
+        # as the batch's windows, >= ADEQUACY_MIN_WINDOW_S (a 1 s open segment: chi2 ~2000)
+        groups = [g for g in self.history.groups(ADEQUACY_WINDOWS, self.open_segment(gp, walk),
+                                                 self.clock)
+                  if g.neff >= MIN_EQUATIONS and g.t1 - g.t0 >= ADEQUACY_MIN_WINDOW_S]
+        thetas, covs, mids = np.zeros((0, p)), np.zeros((0, p, p)), np.zeros(0)
+        if len(groups) >= 2:
+            K = np.eye(13)
+            K[9, 3:6] = -nv
+            theta0 = f.basis @ f.beta[:k]
+            fits = []
+            for g in groups:
+                st = SufficientStats(lift(K.T @ g.C @ K), lift(K.T @ g.GP @ K),
+                                     int(round(g.w0)), int(round(g.neff)), 1, kind='anchored',
+                                     eiv_var=nv, weighted=True, walk_time=g.walk,
+                                     torque_dt=torque_dt, omega_m2=self.omega_m2(),
+                                     gyro_dt=gyro_dt, white_y_cov=white_y_cov)
+                fk = fit_two_pass(st, f.basis, f.bias, nv, tv, None, theta0)
+                fits.append((fk.beta, fk.cov * (g.w00 / g.w0), 0.5 * (g.t0 + g.t1)))
+            thetas = np.array([x[0] for x in fits])
+            covs = np.array([x[1] for x in fits])
+            mids = np.array([x[2] for x in fits])
+        return check_adequacy(thetas, covs, mids, f.excess)

@@ -41,15 +41,13 @@ import numpy as np
 
 from .._validate import MAX_TIME_S, as_noise_std, as_sample_block, require_after
 from .accumulator import OnlineStats
-from .adequacy import Adequacy, check_adequacy
-from .assemble import conclude, status_only
+from .adequacy import Adequacy
+from .assemble import status_only
 from .fit import Fit, fit_two_pass
 from .homogeneous import homogeneous_estimate, is_torque_free
 from .model import symmetry_axis as unit_axis
 from .noise import StreamingNoise, median_rows
 from .options import (
-    ADEQUACY_MIN_WINDOW_S,
-    ADEQUACY_WINDOWS,
     ALPHA,
     GAP_FACTOR,
     HOLDS,
@@ -59,8 +57,9 @@ from .options import (
     TORQUE_BIAS,
     check_choice,
 )
-from .regressors import cumulative_torque, lift, monomials
+from .regressors import cumulative_torque, monomials
 from .result import InertiaEstimate
+from .schedule import Reselection
 from .selection import SelectionPolicy
 from .statistics import SufficientStats
 
@@ -140,11 +139,9 @@ class RecursiveEstimator:
         self.segment = float(segment if segment is not None else (window or 10.0))
         if int(block) < 1:
             raise ValueError(f'block: must be >= 1, got {block!r}')
-        if isinstance(reselect_every, bool) or int(reselect_every) != reselect_every \
-                or reselect_every < 1:
-            raise ValueError(f'reselect_every: must be an integer >= 1, got {reselect_every!r}')
-        self.reselect_every = int(reselect_every)
-        self.defer_adequacy = bool(defer_adequacy)
+        self._schedule = Reselection(reselect_every, defer_adequacy)   # validates
+        self.reselect_every = self._schedule.every
+        self.defer_adequacy = self._schedule.defer
         self.model = model
         self.torque_bias = torque_bias
         self.forgetting = float(forgetting)
@@ -178,11 +175,7 @@ class RecursiveEstimator:
         # the statistics of the merged equations, owning their state
         self._acc = OnlineStats(self.segment, self.window, self.forgetting)
         self._tau_var: np.ndarray | None = None
-        self._adequacy: Adequacy | None = None   # last adequacy result, reused between tests
-        self._adequacy_left = 0
-        #: deferred adequacy test: (estimate serial, final fit, gyro and torque noise variances)
-        self._adequacy_due: tuple[int, Fit, np.ndarray, np.ndarray] | None = None
-        self._estimates = 0               # estimate() calls (serial of the last one)
+        self._schedule.reset()            # the re-selection schedule's verdicts
         self._tau_dt = 0.0
         self._tq_dts = np.empty(0)       # recent torque / gyro sample intervals [s]
         self._g_dts = np.empty(0)
@@ -195,9 +188,6 @@ class RecursiveEstimator:
         self._tau_nv = StreamingNoise(floor=False)     # torque noise
         self.samples_used = 0
         self.samples_dropped = 0
-        # model selection reused between re-selections: (torque_bias, model, its record)
-        self._selection: tuple[str, str, dict[str, Any]] | None = None
-        self._selection_left = 0
 
     def add_gyro(self, t: Any, omega: Any) -> None:
         """Add gyro samples.
@@ -434,53 +424,10 @@ class RecursiveEstimator:
         breaks = sorted({int(np.searchsorted(t, b, side='left')) for b in starts})
         return t, w, [k for k in breaks if k < len(t)]
 
-    def _window_adequacy(self, f: Fit, nv: np.ndarray, tv: np.ndarray) -> Adequacy:
-        """The adequacy tests of ``f``: its parameter set refitted on groups of segments.
-
-        Up to :data:`ADEQUACY_WINDOWS` consecutive groups of the kept segments (the open one
-        included), each fitted with the weights of ``f``'s tensor, as the batch estimator does
-        on time windows.  Run every ``reselect_every`` estimates; reused in between (with
-        ``defer_adequacy`` also at a test estimate, the test left to :meth:`refresh`).
-        """
-        if self._adequacy_due is not None and self._adequacy_due[0] != self._estimates:
-            self._adequacy_due = None         # owed by an earlier estimate: test these data
-        elif self._adequacy is not None and self._adequacy_left > 0:
-            self._adequacy_left -= 1
-            return self._adequacy
-        elif self.defer_adequacy and self._adequacy is not None:
-            self._adequacy_due = (self._estimates, f, nv, tv)   # the last call's fit wins
-            return self._adequacy
-        self._adequacy = self._test_adequacy(f, nv, tv)
-        self._adequacy_left = self.reselect_every - 1
-        return self._adequacy
-
     def _test_adequacy(self, f: Fit, nv: np.ndarray, tv: np.ndarray) -> Adequacy:
-        """The window tests of ``f`` on the current statistics (:meth:`_window_adequacy`)."""
-        p, k = len(f.beta), f.basis.shape[1]
-        acc = self._acc
-        gp, walk = acc.segment_walk()
-        # as the batch's windows, >= ADEQUACY_MIN_WINDOW_S (a 1 s open segment: chi2 ~2000)
-        groups = [g for g in acc.history.groups(ADEQUACY_WINDOWS, acc.open_segment(gp, walk),
-                                                acc.clock)
-                  if g.neff >= MIN_EQUATIONS and g.t1 - g.t0 >= ADEQUACY_MIN_WINDOW_S]
-        thetas, covs, mids = np.zeros((0, p)), np.zeros((0, p, p)), np.zeros(0)
-        if len(groups) >= 2:
-            K = np.eye(13)
-            K[9, 3:6] = -nv
-            theta0 = f.basis @ f.beta[:k]
-            fits = []
-            for g in groups:
-                st = SufficientStats(lift(K.T @ g.C @ K), lift(K.T @ g.GP @ K),
-                                     int(round(g.w0)), int(round(g.neff)), 1, kind='anchored',
-                                     eiv_var=nv, weighted=True, walk_time=g.walk,
-                                     torque_dt=self._tau_dt, omega_m2=self._omega_m2(),
-                                     gyro_dt=self._gyro_dt(), white_y_cov=self._white_y_cov)
-                fk = fit_two_pass(st, f.basis, f.bias, nv, tv, None, theta0)
-                fits.append((fk.beta, fk.cov * (g.w00 / g.w0), 0.5 * (g.t0 + g.t1)))
-            thetas = np.array([x[0] for x in fits])
-            covs = np.array([x[1] for x in fits])
-            mids = np.array([x[2] for x in fits])
-        return check_adequacy(thetas, covs, mids, f.excess)
+        """The window tests of ``f`` on the current statistics
+        (:meth:`.accumulator.OnlineStats.window_test`)."""
+        return self._acc.window_test(f, nv, tv, **self._context())
 
     def refresh(self) -> bool:
         """Run the adequacy test the last estimate deferred (``defer_adequacy``), if any: call
@@ -491,12 +438,7 @@ class RecursiveEstimator:
         bool
             True when a test ran.
         """
-        if self._adequacy_due is None:
-            return False
-        (_, f, nv, tv), self._adequacy_due = self._adequacy_due, None
-        self._adequacy = self._test_adequacy(f, nv, tv)
-        self._adequacy_left = self.reselect_every - 1
-        return True
+        return self._schedule.refresh(self._test_adequacy)
 
     def _omega_m2(self) -> np.ndarray:
         """``mean(w w')`` of the merged gyro samples [rad^2/s^2] (decayed as the weights)."""
@@ -518,28 +460,15 @@ class RecursiveEstimator:
         momentum input states its own (:mod:`.recursive_momentum`)."""
         return self._tau_nv.variance() if self._tau_nv.count >= 16 else None
 
-    def _stats(self, nv: np.ndarray, n_eff: float, gyro_scale: float = 1.0) -> SufficientStats:
-        """The weighted statistics of everything merged, in the batch estimator's form.
+    def _context(self) -> dict[str, Any]:
+        """The noise model's stream figures for the statistics: intervals, white y noise."""
+        return {'torque_dt': self._tau_dt, 'gyro_dt': self._gyro_dt(),
+                'white_y_cov': self._white_y_cov}
 
-        The gyro-noise correction of the squared-rate integrals, ``m_c -> m_c - sigma_c^2 s``,
-        is linear in the 13 variables (``K``) and applied here with the current noise level.
-        ``gyro_scale`` gives the statistics of a gyro read that many times larger (``w`` and
-        the squared-rate integrals scale exactly; for the gyro-scale sensitivity).
-        """
-        K = np.eye(13)
-        K[9, 3:6] = -nv
-        if gyro_scale != 1.0:
-            K = np.diag(np.r_[np.full(3, gyro_scale), np.full(6, gyro_scale ** 2),
-                              np.ones(4)]) @ K
-        acc = self._acc
-        C_all = lift(K.T @ (acc.C + acc.Cc) @ K)
-        gp, walk = acc.segment_walk()
-        CP = lift(K.T @ (acc.GPc + gp) @ K) if self._tau_var is not None else None
-        return SufficientStats(C_all, CP, int(round(acc.w0 + acc.wc)), int(round(n_eff)), 1,
-                               kind='anchored', eiv_var=nv, weighted=True,
-                               walk_time=acc.walkc + walk, torque_dt=self._tau_dt,
-                               omega_m2=self._omega_m2(), gyro_dt=self._gyro_dt(),
-                               white_y_cov=self._white_y_cov)
+    def _stats(self, nv: np.ndarray, n_eff: float, gyro_scale: float = 1.0) -> SufficientStats:
+        """The weighted statistics of everything merged (:meth:`.OnlineStats.stats`)."""
+        return self._acc.stats(nv, n_eff, self._tau_var is not None, gyro_scale=gyro_scale,
+                               **self._context())
 
     def estimate(self) -> InertiaEstimate:
         """Current estimate from everything merged so far (flushes covered samples first).
@@ -552,7 +481,7 @@ class RecursiveEstimator:
             residual variance when that is larger.
         """
         self._process()
-        self._estimates += 1
+        self._schedule.tick()
         base = dict(method='recursive', samples_used=self.samples_used,
                     samples_dropped=self.samples_dropped)
         nv = self._gyro_var()
@@ -588,7 +517,7 @@ class RecursiveEstimator:
 
         def adequacy(f: Fit, chosen: str) -> Adequacy:
             """Window consistency over the kept segments and the residual excess."""
-            return self._window_adequacy(f, nv, tv)
+            return self._schedule.window_adequacy(f, nv, tv, self._test_adequacy)
 
         def gyro_sensitivity(f: Fit) -> np.ndarray:
             """``d beta / d g``: refit of the statistics of a gyro read 1e-4 larger."""
@@ -598,29 +527,6 @@ class RecursiveEstimator:
                               theta0).beta for s in (1.0, 1.0 + 1e-4)]
             return (b[1] - b[0]) / 1e-4
 
-        return self._conclude(fit, diag, base, adequacy, gyro_sensitivity)
-
-    def _conclude(self, fit: Any, diag: dict[str, Any], base: dict[str, Any],
-                  adequacy: Any, sensitivity: Any) -> InertiaEstimate:
-        """Model selection (reused between re-selections) and the result."""
-        auto = self.model == 'auto' or self.torque_bias == 'auto'
-        if auto and self._selection is not None and self._selection_left > 0:
-            self._selection_left -= 1
-            bias, model, record = self._selection
-            est = conclude(fit, model, bias, self.axis, self.policy,
-                           dict(diag, warnings=list(diag['warnings'])), base, adequacy,
-                           sensitivity)
-            if est.status in ('ok', 'model_mismatch'):
-                est.diagnostics['model_selection'] = dict(record, reused=True)
-                return est
-        est = conclude(fit, self.model, self.torque_bias, self.axis, self.policy, diag, base,
-                       adequacy, sensitivity)
-        self._selection = None
-        if auto and est.status in ('ok', 'model_mismatch'):
-            record = dict(est.diagnostics.get('model_selection') or {},
-                          selected_at_samples=self.samples_used)
-            est.diagnostics['model_selection'] = record
-            self._selection = ('on' if est.model.endswith('+bias') else 'off',
-                               est.model.removesuffix('+bias'), record)
-            self._selection_left = self.reselect_every - 1
-        return est
+        return self._schedule.conclude(fit, self.model, self.torque_bias, self.axis, self.policy,
+                                       diag, base, adequacy, gyro_sensitivity,
+                                       self.samples_used)
