@@ -42,14 +42,14 @@ import numpy as np
 from .._validate import MAX_TIME_S, as_noise_std, as_sample_block, require_after
 from .accumulator import OnlineStats
 from .adequacy import Adequacy
+from .align import OnlineAligner
 from .assemble import status_only
 from .fit import Fit, fit_two_pass
 from .homogeneous import homogeneous_estimate, is_torque_free
 from .model import symmetry_axis as unit_axis
-from .noise import StreamingNoise, median_rows
+from .noise import StreamingNoise
 from .options import (
     ALPHA,
-    GAP_FACTOR,
     HOLDS,
     MIN_EQUATIONS,
     MIN_GYRO_SAMPLES,
@@ -57,7 +57,6 @@ from .options import (
     TORQUE_BIAS,
     check_choice,
 )
-from .regressors import cumulative_torque, monomials
 from .result import InertiaEstimate
 from .schedule import Reselection
 from .selection import SelectionPolicy
@@ -166,21 +165,11 @@ class RecursiveEstimator:
         self._new_torque = False            # torque arrived since the last _process
         self._gt: list[np.ndarray] = []
         self._gw: list[np.ndarray] = []
-        self._ts = np.empty(0)
-        self._tau = np.empty((0, 3))
-        self._T_base = np.zeros(3)       # torque integral at self._ts[0]
-        self._t0: float | None = None    # time origin of the bias column
-        self._prev: tuple[float, np.ndarray] | None = None   # last processed gyro sample
-        self._M = np.zeros(6)            # monomial integral at the last processed sample
+        self._align = OnlineAligner()    # the held torque, intervals, monomial integral
         # the statistics of the merged equations, owning their state
         self._acc = OnlineStats(self.segment, self.window, self.forgetting)
         self._tau_var: np.ndarray | None = None
         self._schedule.reset()            # the re-selection schedule's verdicts
-        self._tau_dt = 0.0
-        self._tq_dts = np.empty(0)       # recent torque / gyro sample intervals [s]
-        self._g_dts = np.empty(0)
-        self._g_dt = 0.0                 # their median (0 before two samples)
-        self._tq_last: float | None = None
         self.gaps = 0                    # gaps that ended a segment holding data
         self._last_t_in: float | None = None
         self._last_tau_in: float | None = None
@@ -292,137 +281,47 @@ class RecursiveEstimator:
         if self._gyro_noise is None:
             self._gyro_nv.add(w)
         self._acc.add_motion(w)                 # mean(w w'): the gyroscopic noise walk
-        # torque integral at the gyro times, relative to self._ts[0]
-        T = self._T_base + cumulative_torque(self._ts, self._tau, t, self.hold)
-        M = self._monomial_integral(t, w)
-        # raw monomial integrals: the gyro-noise correction m - s sigma^2 is linear in the
-        # variables, applied to the statistics at estimate() with the final noise estimate
-        V = np.concatenate([w, M, (t - self._t0)[:, None], T], axis=1)
+        V = self._align.variables(t, w, self.hold)       # [w, m, t, T] (n, 13)
         # a gap starts a new anchored segment: the wrongly held torque and the trapezoid across
         # the gap shift T and M by constants, which the new segment's momentum absorbs
         lo = 0
         for k in breaks:
             if k > lo:
-                self._acc.merge(t[lo:k], V[lo:k], self._ts)
+                self._acc.merge(t[lo:k], V[lo:k], self._align.ts)
             self.gaps += self._acc.w0 > 0   # a break that ends a segment holding data
             self._acc.close(float(t[k]))
             lo = k
-        self._acc.merge(t[lo:], V[lo:], self._ts)
+        self._acc.merge(t[lo:], V[lo:], self._align.ts)
         self.samples_used += len(t)
-        # keep torque samples from the last one at or before the last processed gyro time
-        j = int(np.searchsorted(self._ts, t[-1], side='right') - 1)
-        if j > 0:
-            self._T_base = self._T_base + cumulative_torque(self._ts, self._tau,
-                                                            self._ts[j:j + 1], self.hold)[0]
-            self._ts = self._ts[j:]
-            self._tau = self._tau[j:]
+        self._align.trim(float(t[-1]), self.hold)
 
     def _take_torque(self) -> None:
         """Move the pending torque samples into the held stream; update the torque noise."""
         new_t = np.concatenate(self._pt)
         new_tau = np.concatenate(self._ptau)
-        self._ts = np.concatenate([self._ts, new_t])
-        self._tau = np.concatenate([self._tau, new_tau])
         self._pt, self._ptau = [], []
+        self._align.take(new_t, new_tau)
         self._acc.add_torque_power(new_tau)
-        edges = new_t if self._tq_last is None else np.concatenate([[self._tq_last], new_t])
-        self._tq_dts = np.concatenate([self._tq_dts, np.diff(edges)])[-_DT_HISTORY:]
-        self._tq_last = float(new_t[-1])
         # the same robust estimator as batch, on the recent samples whatever the block size
         # (the variance itself is taken in estimate())
         self._tau_nv.add(new_tau)
-        if len(self._tq_dts):
-            self._tau_dt = float(median_rows(self._tq_dts[:, None])[0])   # np.median, faster
 
     def _ready_gyro(self) -> tuple[np.ndarray, np.ndarray, list[int]]:
         """Buffered gyro samples now covered by torque (the rest stays buffered), with gaps.
 
         Returns the samples ``t`` (n,), ``w`` (n, 3) and the indices where a gap starts a
-        new segment (see :meth:`_gaps`).
+        new segment (:meth:`.align.OnlineAligner.gaps`).
         """
-        t = np.concatenate(self._gt)
-        w = np.concatenate(self._gw)
-        self._gt, self._gw = [], []
-        self._n_buf = 0
-        if len(self._ts) == 0:
-            self._gt, self._gw = [t], [w]
-            self._n_buf = len(t)
-            return t[:0], w[:0], []
-        # gyro samples before the first torque sample can never be used
-        early = t < self._ts[0]
-        if np.any(early):
-            self.samples_dropped += int(np.sum(early))
-            t, w = t[~early], w[~early]
-        ready = t <= self._ts[-1]
-        if not np.all(ready):
-            self._gt, self._gw = [t[~ready]], [w[~ready]]
-            self._n_buf = int(np.sum(~ready))
-            t, w = t[ready], w[ready]
-        return self._gaps(t, w)
-
-    def _monomial_integral(self, t: np.ndarray, w: np.ndarray) -> np.ndarray:
-        """Trapezoid integral (n, 6) of the monomials, continuing from the last sample."""
-        m = monomials(w)
-        if self._prev is None:
-            tt = t
-            mm = m
-            start = np.zeros(6)
-            self._t0 = float(t[0])
-        else:
-            tt = np.concatenate([[self._prev[0]], t])
-            mm = np.concatenate([monomials(self._prev[1][None, :]), m])
-            start = self._M
-        inc = 0.5 * (mm[1:] + mm[:-1]) * np.diff(tt)[:, None]
-        M = np.empty((len(t), 6))
-        if self._prev is None:
-            M[0] = start
-            np.cumsum(inc, axis=0, out=M[1:])
-            M[1:] += start
-        else:
-            np.cumsum(inc, axis=0, out=M)
-            M += start
-        self._M = M[-1].copy()
-        self._prev = (float(t[-1]), w[-1].copy())
-        return M
-
-    def _gaps(self, t: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[int]]:
-        """Drop gyro samples inside torque gaps; find where gaps force a new segment.
-
-        A torque interval longer than ``GAP_FACTOR`` nominal intervals (lost messages, a
-        paused controller) would be integrated as the last command held throughout, and a
-        gyro gap would be bridged by one trapezoid: both corrupt every later equation of the
-        segment.  Gyro samples the held torque cannot cover are dropped (counted), and the
-        first sample after each gap starts a new anchored segment.
-
-        Returns
-        -------
-        t, w : ndarray
-            The kept gyro samples.
-        breaks : list of int
-            Sorted indices into the kept ``t`` where a new segment starts.
-        """
-        starts: list[float] = []
-        keep = np.ones(len(t), dtype=bool)
-        if len(self._tq_dts) >= 2 and len(self._ts) >= 2:
-            nominal = self._tau_dt           # the median of self._tq_dts (_take_torque)
-            dq = np.diff(self._ts)
-            for i in np.flatnonzero(dq > GAP_FACTOR * nominal):
-                keep &= ~((t > self._ts[i] + nominal) & (t < self._ts[i + 1]))
-                starts.append(float(self._ts[i + 1]))
-        edges = t if self._prev is None else np.concatenate([[self._prev[0]], t])
-        dg = np.diff(edges)
-        self._g_dts = np.concatenate([self._g_dts, dg])[-_DT_HISTORY:]
-        self._g_dt = float(median_rows(self._g_dts[:, None])[0]) if len(self._g_dts) else 0.0
-        if len(self._g_dts) >= 2:
-            big = np.flatnonzero(dg > GAP_FACTOR * self._g_dt)
-            starts.extend(float(edges[i + 1]) for i in big)
-        if not starts:
-            return t, w, []
-        dropped = int(np.sum(~keep))
+        t, w, t_wait, w_wait, dropped, covered = self._align.ready(np.concatenate(self._gt),
+                                                                   np.concatenate(self._gw))
         self.samples_dropped += dropped
-        t, w = t[keep], w[keep]
-        breaks = sorted({int(np.searchsorted(t, b, side='left')) for b in starts})
-        return t, w, [k for k in breaks if k < len(t)]
+        self._gt, self._gw = ([t_wait], [w_wait]) if len(t_wait) else ([], [])
+        self._n_buf = len(t_wait)
+        if not covered:
+            return t, w, []
+        t, w, breaks, dropped = self._align.gaps(t, w)
+        self.samples_dropped += dropped
+        return t, w, breaks
 
     def _test_adequacy(self, f: Fit, nv: np.ndarray, tv: np.ndarray) -> Adequacy:
         """The window tests of ``f`` on the current statistics
@@ -446,7 +345,7 @@ class RecursiveEstimator:
 
     def _gyro_dt(self) -> float:
         """Median recent gyro sample interval [s] (0 before two samples)."""
-        return self._g_dt            # kept by _gaps
+        return self._align.g_dt      # kept by the gap rule
 
     # -----------------------------------------------------------------------------------------
     def _gyro_var(self) -> np.ndarray:
@@ -462,7 +361,7 @@ class RecursiveEstimator:
 
     def _context(self) -> dict[str, Any]:
         """The noise model's stream figures for the statistics: intervals, white y noise."""
-        return {'torque_dt': self._tau_dt, 'gyro_dt': self._gyro_dt(),
+        return {'torque_dt': self._align.tau_dt, 'gyro_dt': self._gyro_dt(),
                 'white_y_cov': self._white_y_cov}
 
     def _stats(self, nv: np.ndarray, n_eff: float, gyro_scale: float = 1.0) -> SufficientStats:

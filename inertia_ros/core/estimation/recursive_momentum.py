@@ -370,7 +370,7 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
 
     def _torque_variance(self) -> np.ndarray | None:
         """The equivalent torque's white-noise variance (3,) [N^2 m^2], as the batch's."""
-        if self._walk_n == 0 or self._tau_dt <= 0:
+        if self._walk_n == 0 or self._align.tau_dt <= 0:
             return None
         share = self._share()
         cov = np.diag(self._h_noise.variance()) if self._h_noise.count >= 6 else np.zeros((3, 3))
@@ -378,7 +378,7 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
         var = np.zeros(3)
         for nv, dts in ((self._o_noise, self._o_dt), (self._tr_noise, self._m_dt)):
             if nv.count >= 6 and dts:
-                var = var + nv.variance() * float(np.median(dts)) / self._tau_dt
+                var = var + nv.variance() * float(np.median(dts)) / self._align.tau_dt
         g2 = self._gyro_var()
         var = var + self._walk_h @ g2 / self._walk_n
         var = var + share * np.einsum('ijk,jk->i', self._walk_w, cov) / self._walk_n
@@ -436,7 +436,7 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
         name = (est.model or 'full').removesuffix('+bias')
         if name not in ('full', 'diagonal', 'axisymmetric'):
             return est
-        span = (self._acc.t_last or 0.0) - (self._t0 or 0.0)
+        span = (self._acc.t_last or 0.0) - (self._align.t0 or 0.0)
         cached = self._prop_cache
         if cached is not None and cached[0] == est.model and self._fresh(cached[3], span):
             per, outer = cached[1], cached[2]
