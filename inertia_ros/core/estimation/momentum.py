@@ -38,7 +38,7 @@ from ..tensor import principal_axes, theta_to_matrix
 from .options import ALPHA, IDENTIFIABILITY_TOL
 
 __all__ = ['Momentum', 'Wheel', 'as_momentum', 'equivalent_torque', 'estimate_with_momentum',
-           'wheel_inputs', 'wheel_momentum', 'wheels_momentum']
+           'held_over', 'interval_torque', 'wheel_inputs', 'wheel_momentum', 'wheels_momentum']
 
 
 @dataclass(frozen=True)
@@ -294,24 +294,47 @@ def equivalent_torque(tg: np.ndarray, w: np.ndarray, t_h: np.ndarray, h: np.ndar
     grid = np.union1d(tg[inside], t_h[(t_h >= lo) & (t_h <= hi)])
     if len(grid) < 2:
         return grid, np.zeros((len(grid), 3)), inside
-    hg = _interp_h(t_h, h, grid, gaps)
     wg = np.column_stack([np.interp(grid, tg, w[:, c]) for c in range(3)])
-    c = np.cross(wg, hg)
-    dt = np.diff(grid)[:, None]
+    trg = None if tq_h is None else np.column_stack([np.interp(grid, t_h, tq_h[:, k])
+                                                     for k in range(3)])
     out = np.empty((len(grid), 3))
-    out[:-1] = -np.diff(hg, axis=0) / dt - 0.5 * (c[1:] + c[:-1])
+    out[:-1] = interval_torque(grid, wg, _interp_h(t_h, h, grid, gaps), trg)
     if len(ts):
-        if hold == 'zoh':
-            j = np.clip(np.searchsorted(ts, grid[:-1], side='right') - 1, 0, len(ts) - 1)
-            out[:-1] += tau[j]
-        else:
-            tq = np.column_stack([np.interp(grid, ts, tau[:, k]) for k in range(3)])
-            out[:-1] += 0.5 * (tq[1:] + tq[:-1])
-    if tq_h is not None:
-        tr = np.column_stack([np.interp(grid, t_h, tq_h[:, k]) for k in range(3)])
-        out[:-1] += 0.5 * (tr[1:] + tr[:-1])
+        out[:-1] += held_over(grid, ts, tau, hold)
     out[-1] = out[-2]
     return grid, out, inside
+
+
+def interval_torque(grid: np.ndarray, wg: np.ndarray, hg: np.ndarray,
+                    trg: np.ndarray | None = None) -> np.ndarray:
+    """The momentum input's held torque (G - 1, 3) [N m] over the grid intervals:
+    ``-dh/dt - trap(w x h) + trap(tr)``, the batch and online reduction alike.
+
+    Parameters
+    ----------
+    grid : ndarray, shape (G,)
+        Grid times [s].
+    wg, hg : ndarray, shape (G, 3)
+        Angular velocity [rad/s] and internal momentum [N m s] at the grid times.
+    trg : ndarray, shape (G, 3), optional
+        The momentum input's own torque at the grid times [N m] (linear between them).
+    """
+    c = np.cross(wg, hg)
+    out = -np.diff(hg, axis=0) / np.diff(grid)[:, None] - 0.5 * (c[1:] + c[:-1])
+    if trg is not None:
+        out += 0.5 * (trg[1:] + trg[:-1])
+    return out
+
+
+def held_over(grid: np.ndarray, ts: np.ndarray, tau: np.ndarray, hold: str) -> np.ndarray:
+    """The other torque (M >= 1 samples ``tau`` (M, 3) [N m] at ``ts`` [s]) over each grid
+    interval (G - 1, 3) [N m]: the sample holding at its start (``zoh``) or the trapezoid of
+    its linear interpolation (``linear``), the batch and online reduction alike."""
+    if hold == 'linear':
+        tq = np.column_stack([np.interp(grid, ts, tau[:, k]) for k in range(3)])
+        return 0.5 * (tq[1:] + tq[:-1])
+    j = np.clip(np.searchsorted(ts, grid[:-1], side='right') - 1, 0, len(ts) - 1)
+    return tau[j]
 
 
 def _interp_h(t_h: np.ndarray, h: np.ndarray, t: np.ndarray,

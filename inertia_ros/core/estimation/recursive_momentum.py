@@ -38,7 +38,7 @@ from ..tensor import theta_to_matrix
 from .align import gap_starts, hermite, run_slopes
 from .fit import fit_two_pass
 from .model import model_basis
-from .momentum import Momentum, _cross_matrices
+from .momentum import Momentum, _cross_matrices, held_over, interval_torque
 from .noise import StreamingNoise
 from .recursive import RecursiveEstimator
 from .result import InertiaEstimate
@@ -68,16 +68,6 @@ class _Buffer:
         if i > 0:
             self.t = self.t[i:]
             self.v = [a[:, i:] if a.ndim == 3 else a[i:] for a in self.v]
-
-
-def _interval_torque(grid: np.ndarray, wg: np.ndarray, hg: np.ndarray,
-                     trg: np.ndarray | None) -> np.ndarray:
-    """Held torque (G - 1, 3) over the grid intervals: ``-dh/dt - trap(w x h) + trap(tr)``."""
-    c = np.cross(wg, hg)
-    out = -np.diff(hg, axis=0) / np.diff(grid)[:, None] - 0.5 * (c[1:] + c[:-1])
-    if trg is not None:
-        out += 0.5 * (trg[1:] + trg[:-1])
-    return out
 
 
 class MomentumRecursiveEstimator(RecursiveEstimator):
@@ -295,7 +285,7 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
 
         def lin(y: np.ndarray) -> np.ndarray:
             return np.column_stack([np.interp(grid, tm, y[:, k]) for k in range(3)])
-        out = _interval_torque(grid, wg, hg, lin(tq) if has_tr else None)
+        out = interval_torque(grid, wg, hg, lin(tq) if has_tr else None)
         other = self._other_on(grid) if self.other_torque else None
         if other is not None:
             out = out + other
@@ -307,7 +297,7 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
         super().add_torque(grid[:-1], out)
         if np.any(fresh):
             super().add_gyro(t_in[fresh], w_in[fresh])
-        changes = [(est, _interval_torque(grid, wg, hermite(tm, dh[i], run_slopes(tm, dh[i],
+        changes = [(est, interval_torque(grid, wg, hermite(tm, dh[i], run_slopes(tm, dh[i],
                                                                               gaps), grid),
                                           lin(dtq[i]) if has_tr else None))
                    for i, est in enumerate(self._pert)]
@@ -333,13 +323,9 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
         self._cursor = None
 
     def _other_on(self, grid: np.ndarray) -> np.ndarray:
-        """The other torque over each grid interval (G - 1, 3): held or trapezoid."""
-        ts, tau = self._o.t, self._o.v[0]
-        if self.torque_hold == 'linear':
-            tq = np.column_stack([np.interp(grid, ts, tau[:, k]) for k in range(3)])
-            return 0.5 * (tq[1:] + tq[:-1])
-        j = np.clip(np.searchsorted(ts, grid[:-1], side='right') - 1, 0, len(ts) - 1)
-        return tau[j]
+        """The other torque over each grid interval (G - 1, 3): the batch rule
+        (:func:`.momentum.held_over`) with the other torque's hold."""
+        return held_over(grid, self._o.t, self._o.v[0], self.torque_hold)
 
     def _trim(self) -> None:
         """Drop the consumed samples (keeping what interpolation at the cursor needs)."""
