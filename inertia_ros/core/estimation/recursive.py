@@ -426,6 +426,5 @@ class RecursiveEstimator:
                               theta0).beta for s in (1.0, 1.0 + 1e-4)]
             return (b[1] - b[0]) / 1e-4
 
-        return self._schedule.conclude(fit, self.model, self.torque_bias, self.axis, self.policy,
-                                       diag, base, adequacy, gyro_sensitivity,
-                                       self.samples_used)
+        return self._schedule.decide(fit, self.model, self.torque_bias, self.axis, self.policy,
+                                     diag, base, adequacy, gyro_sensitivity, self.samples_used)

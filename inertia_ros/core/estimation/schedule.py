@@ -84,7 +84,7 @@ class Reselection:
         self.adequacy_left = self.every - 1
         return True
 
-    def conclude(self, fit: Any, model: str, torque_bias: str, axis: np.ndarray | None,
+    def decide(self, fit: Any, model: str, torque_bias: str, axis: np.ndarray | None,
                  policy: SelectionPolicy, diag: dict[str, Any], base: dict[str, Any],
                  adequacy: Any, sensitivity: Any, samples_used: int) -> InertiaEstimate:
         """Model selection (the last choice reused between re-selections) and the result
