@@ -38,7 +38,8 @@ from ..tensor import principal_axes, theta_to_matrix
 from .options import ALPHA, IDENTIFIABILITY_TOL
 
 __all__ = ['Momentum', 'Wheel', 'as_momentum', 'equivalent_torque', 'estimate_with_momentum',
-           'held_over', 'interval_torque', 'wheel_inputs', 'wheel_momentum', 'wheels_momentum']
+           'held_over', 'interval_torque', 'walk_sums', 'walk_variance', 'wheel_inputs',
+           'wheel_momentum', 'wheels_momentum']
 
 
 @dataclass(frozen=True)
@@ -393,11 +394,41 @@ def _noise_terms(tg: np.ndarray, w: np.ndarray, inside: np.ndarray, grid: np.nda
     gn = options.get('gyro_noise')
     g_std = (isotropy_floor(noise_std_from_differences(w[inside])) if gn is None
              else np.broadcast_to(np.asarray(gn, dtype=float), (3,)))
-    hx = _cross_matrices(_interp_h(mom.t, mom.h, grid))
-    walk = np.mean(np.einsum('nij,j,nij->ni', hx, g_std ** 2, hx), axis=0)
-    wx = _cross_matrices(np.column_stack([np.interp(grid, tg, w[:, c]) for c in range(3)]))
-    walk += share * np.mean(np.einsum('nij,jk,nik->ni', wx, mom.noise_cov, wx), axis=0)
+    sums = walk_sums(_interp_h(mom.t, mom.h, grid),
+                     np.column_stack([np.interp(grid, tg, w[:, c]) for c in range(3)]))
+    walk = walk_variance(*sums, g_std ** 2, mom.noise_cov, share)
     return np.sqrt(tn ** 2 + walk), share
+
+
+def walk_sums(hg: np.ndarray, wg: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
+    """Grid sums of the momentum input's torque-noise walks (batch and online alike).
+
+    Parameters
+    ----------
+    hg, wg : ndarray, shape (G, 3)
+        Internal momentum [N m s] and angular velocity [rad/s] at the grid times.
+
+    Returns
+    -------
+    H : ndarray, shape (3, 3)
+        ``sum_n [h_n]x_ij^2`` (the gyro noise ``n x h``).
+    W : ndarray, shape (3, 3, 3)
+        ``sum_n [w_n]x_ij [w_n]x_ik`` (the momentum noise ``w x e``).
+    n : int
+        Grid points summed.
+    """
+    hx = _cross_matrices(hg)
+    wx = _cross_matrices(wg)
+    return (np.einsum('nij,nij->ij', hx, hx), np.einsum('nij,nik->ijk', wx, wx), len(hg))
+
+
+def walk_variance(H: np.ndarray, W: np.ndarray, n: int, gyro_var: np.ndarray,
+                  h_cov: np.ndarray, share: float) -> np.ndarray:
+    """White torque-noise variance (3,) [N^2 m^2] of the ``w x h`` integral's noise from
+    :func:`walk_sums`: the gyro noise (variance ``gyro_var`` (3,) [rad^2/s^2]) as ``n x h``
+    and the momentum noise (covariance ``h_cov`` (3, 3), shared by ``share`` gyro samples)
+    as ``w x e``, each held over a grid interval."""
+    return (H @ gyro_var + share * np.einsum('ijk,jk->i', W, h_cov)) / n
 
 
 def estimate_with_momentum(t_gyro: Any, omega: Any, t_torque: Any, torque: Any,

@@ -38,7 +38,7 @@ from ..tensor import theta_to_matrix
 from .align import gap_starts, hermite, run_slopes
 from .fit import fit_two_pass
 from .model import model_basis
-from .momentum import Momentum, _cross_matrices, held_over, interval_torque
+from .momentum import Momentum, held_over, interval_torque, walk_sums, walk_variance
 from .noise import StreamingNoise
 from .recursive import RecursiveEstimator
 from .result import InertiaEstimate
@@ -341,11 +341,10 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
 
     def _walk(self, hg: np.ndarray, wg: np.ndarray) -> None:
         """Accumulate the grid sums of the ``n x h`` and ``w x e`` torque-noise walks."""
-        hx = _cross_matrices(hg)
-        wx = _cross_matrices(wg)
-        self._walk_h += np.einsum('nij,nij->ij', hx, hx)
-        self._walk_w += np.einsum('nij,nik->ijk', wx, wx)
-        self._walk_n += len(hg)
+        H, W, n = walk_sums(hg, wg)
+        self._walk_h += H
+        self._walk_w += W
+        self._walk_n += n
 
     # ------------------------------------------------------------------ noise and estimate
     def _share(self) -> float:
@@ -365,10 +364,8 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
         for nv, dts in ((self._o_noise, self._o_dt), (self._tr_noise, self._m_dt)):
             if nv.count >= 6 and dts:
                 var = var + nv.variance() * float(np.median(dts)) / self._align.tau_dt
-        g2 = self._gyro_var()
-        var = var + self._walk_h @ g2 / self._walk_n
-        var = var + share * np.einsum('ijk,jk->i', self._walk_w, cov) / self._walk_n
-        return var
+        return var + walk_variance(self._walk_h, self._walk_w, self._walk_n, self._gyro_var(),
+                                   cov, share)
 
     def estimate(self) -> InertiaEstimate:
         """The current estimate (see :meth:`.RecursiveEstimator.estimate`), with the momentum
