@@ -11,6 +11,7 @@ import yaml
 
 from conftest import ROOT
 from inertia_ros.core.estimation import RecursiveEstimator, estimate, regressors
+from inertia_ros.core.estimation.accumulator import OnlineStats
 from inertia_ros.core.estimation.noise import noise_std_from_differences
 from inertia_ros.core.inertia import principal_axes
 from inertia_ros.core.scene import Scene
@@ -39,13 +40,12 @@ def test_incremental_torque_walk_matches_definition(cuts):
     t_tau -= t_tau[0]
     t = np.sort(rng.uniform(1e-4, t_tau[-1], 600))
     V = rng.normal(size=(600, 13)) + np.arange(13) * 10.0
-    rec = RecursiveEstimator()
-    rec._ts = t_tau
-    rec._tau_nv.count = 1          # a torque stream has been seen
+    acc = OnlineStats(segment=10.0, window=None, forgetting=1.0)
+    acc.torque_seen = True         # a torque stream has been seen
     start = 0
     for stop in cuts:
-        rec._walk_add(t[start:stop], V[start:stop])
-        G, walk = rec._segment_walk()
+        acc.walk_add(t[start:stop], V[start:stop], t_tau)
+        G, walk = acc.segment_walk()
         ref = torque_walk_gram(t[:stop], V[:stop], t_tau)
         np.testing.assert_allclose(G, ref, rtol=1e-9, atol=1e-9 * np.abs(ref).max())
         assert walk == pytest.approx(stop * (t[stop - 1] - t[0]) / 6.0, rel=1e-12)

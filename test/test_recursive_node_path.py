@@ -98,7 +98,7 @@ def test_deferred_adequacy_reports_each_verdict_one_estimate_later(payload_chang
     est = RecursiveEstimator(**NODE)
     ref, tested = [], []
     for e in _feed(est, payload_change, on_estimate=lambda: tested.append(
-            est._adequacy_left == NODE['reselect_every'] - 1)):
+            est._schedule.adequacy_left == NODE['reselect_every'] - 1)):
         ref.append(e)
     dfr = _feed(RecursiveEstimator(defer_adequacy=True, **NODE), payload_change, refresh=True)
     verdict = [_verdict(e) for e in ref]
@@ -131,7 +131,7 @@ def test_deferred_test_without_refresh_runs_at_the_next_estimate(payload_change:
     for a, b in zip(ref, lazy, strict=True):
         np.testing.assert_array_equal(a.inertia, b.inertia)
     assert lazy[-1].status == 'model_mismatch'
-    assert est._adequacy_due is None or est._adequacy_due[0] == len(lazy)
+    assert est._schedule.due is None or est._schedule.due[0] == len(lazy)
 
 
 def test_refresh_without_a_deferred_test_does_nothing(record: Any) -> None:

@@ -29,6 +29,7 @@ import pytest
 from conftest import ROOT
 from inertia_ros.core.estimation import (
     RecursiveEstimator,
+    align,
     batch,
     estimate,
     homogeneous,
@@ -163,7 +164,8 @@ def test_batch_and_recursive_share_the_rules() -> None:
     """Both estimators use the same rule objects, not copies."""
     assert batch.is_torque_free is recursive.is_torque_free is homogeneous.is_torque_free
     assert batch.MIN_GYRO_SAMPLES == recursive.MIN_GYRO_SAMPLES == options.MIN_GYRO_SAMPLES
-    assert batch.GAP_FACTOR == recursive.GAP_FACTOR == options.GAP_FACTOR
+    # the online gap rule lives in align (OnlineAligner, and the momentum gap rule)
+    assert batch.GAP_FACTOR == align.GAP_FACTOR == options.GAP_FACTOR
     assert RecursiveEstimator().policy.alpha == options.ALPHA
     assert RecursiveEstimator().policy.identifiability_tol == options.IDENTIFIABILITY_TOL
 

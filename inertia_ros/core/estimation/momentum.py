@@ -38,7 +38,8 @@ from ..tensor import principal_axes, theta_to_matrix
 from .options import ALPHA, IDENTIFIABILITY_TOL
 
 __all__ = ['Momentum', 'Wheel', 'as_momentum', 'equivalent_torque', 'estimate_with_momentum',
-           'wheel_inputs', 'wheel_momentum', 'wheels_momentum']
+           'held_over', 'interval_torque', 'walk_sums', 'walk_variance', 'wheel_inputs',
+           'wheel_momentum', 'wheels_momentum']
 
 
 @dataclass(frozen=True)
@@ -273,49 +274,84 @@ def equivalent_torque(tg: np.ndarray, w: np.ndarray, t_h: np.ndarray, h: np.ndar
         ``grid[0]`` equals ``int tau dt - (h - h(grid[0])) - int w x h dt`` (trapezoid on the
         grid for ``w x h``; ``h`` and ``w`` linear between their samples).
     inside : ndarray of bool, shape (N,)
-        Gyro samples inside the coverage.
+        Gyro samples inside the coverage and outside the momentum gaps.
+
+    Notes
+    -----
+    A momentum interval over ``GAP_FACTOR`` nominal ones is a gap (:func:`.align.gap_starts`,
+    the online estimator's rule): the gyro samples strictly inside it are left out, the grid
+    spans it with one interval (a torque gap to the estimators, which start a new anchored
+    segment after it) and ``h`` is interpolated within each gap-free run only.
     """
+    from .align import gap_starts, inside_gaps
+
     lo, hi = max(tg[0], t_h[0]), min(tg[-1], t_h[-1])
     if len(ts):
         lo = max(lo, ts[0])
         end = ts[-1] + (float(np.median(np.diff(ts))) if hold == 'zoh' else 0.0)
         hi = min(hi, end)
-    inside = (tg >= lo) & (tg <= hi)
+    gaps = gap_starts(t_h)
+    inside = (tg >= lo) & (tg <= hi) & ~inside_gaps(t_h, gaps, tg)
     grid = np.union1d(tg[inside], t_h[(t_h >= lo) & (t_h <= hi)])
     if len(grid) < 2:
         return grid, np.zeros((len(grid), 3)), inside
-    hg = _interp_h(t_h, h, grid)
     wg = np.column_stack([np.interp(grid, tg, w[:, c]) for c in range(3)])
-    c = np.cross(wg, hg)
-    dt = np.diff(grid)[:, None]
+    trg = None if tq_h is None else np.column_stack([np.interp(grid, t_h, tq_h[:, k])
+                                                     for k in range(3)])
     out = np.empty((len(grid), 3))
-    out[:-1] = -np.diff(hg, axis=0) / dt - 0.5 * (c[1:] + c[:-1])
+    out[:-1] = interval_torque(grid, wg, _interp_h(t_h, h, grid, gaps), trg)
     if len(ts):
-        if hold == 'zoh':
-            j = np.clip(np.searchsorted(ts, grid[:-1], side='right') - 1, 0, len(ts) - 1)
-            out[:-1] += tau[j]
-        else:
-            tq = np.column_stack([np.interp(grid, ts, tau[:, k]) for k in range(3)])
-            out[:-1] += 0.5 * (tq[1:] + tq[:-1])
-    if tq_h is not None:
-        tr = np.column_stack([np.interp(grid, t_h, tq_h[:, k]) for k in range(3)])
-        out[:-1] += 0.5 * (tr[1:] + tr[:-1])
+        out[:-1] += held_over(grid, ts, tau, hold)
     out[-1] = out[-2]
     return grid, out, inside
 
 
-def _interp_h(t_h: np.ndarray, h: np.ndarray, t: np.ndarray) -> np.ndarray:
-    """``h`` at ``t`` by cubic Hermite interpolation (slopes by ``np.gradient``).
+def interval_torque(grid: np.ndarray, wg: np.ndarray, hg: np.ndarray,
+                    trg: np.ndarray | None = None) -> np.ndarray:
+    """The momentum input's held torque (G - 1, 3) [N m] over the grid intervals:
+    ``-dh/dt - trap(w x h) + trap(tr)``, the batch and online reduction alike.
+
+    Parameters
+    ----------
+    grid : ndarray, shape (G,)
+        Grid times [s].
+    wg, hg : ndarray, shape (G, 3)
+        Angular velocity [rad/s] and internal momentum [N m s] at the grid times.
+    trg : ndarray, shape (G, 3), optional
+        The momentum input's own torque at the grid times [N m] (linear between them).
+    """
+    c = np.cross(wg, hg)
+    out = -np.diff(hg, axis=0) / np.diff(grid)[:, None] - 0.5 * (c[1:] + c[:-1])
+    if trg is not None:
+        out += 0.5 * (trg[1:] + trg[:-1])
+    return out
+
+
+def held_over(grid: np.ndarray, ts: np.ndarray, tau: np.ndarray, hold: str) -> np.ndarray:
+    """The other torque (M >= 1 samples ``tau`` (M, 3) [N m] at ``ts`` [s]) over each grid
+    interval (G - 1, 3) [N m]: the sample holding at its start (``zoh``) or the trapezoid of
+    its linear interpolation (``linear``), the batch and online reduction alike."""
+    if hold == 'linear':
+        tq = np.column_stack([np.interp(grid, ts, tau[:, k]) for k in range(3)])
+        return 0.5 * (tq[1:] + tq[:-1])
+    j = np.clip(np.searchsorted(ts, grid[:-1], side='right') - 1, 0, len(ts) - 1)
+    return tau[j]
+
+
+def _interp_h(t_h: np.ndarray, h: np.ndarray, t: np.ndarray,
+              gaps: np.ndarray | None = None) -> np.ndarray:
+    """``h`` at ``t`` (inside ``t_h``) by cubic Hermite interpolation, slopes by
+    ``np.gradient`` within each gap-free run (:func:`.align.run_slopes`; the online rule).
 
     Linear interpolation would leave an error ``h'' dt^2 / 8`` between wheel samples that is
     coherent over the record (a bias of the tensor at 1e-5 relative for a 100 Hz JointState).
     """
+    from .align import gap_starts, hermite, run_slopes
+
     if len(t_h) < 3:
         return np.column_stack([np.interp(t, t_h, h[:, c]) for c in range(3)])
-    from scipy.interpolate import CubicHermiteSpline  # lazily: the online path needs numpy only
-
-    return CubicHermiteSpline(t_h, h, np.gradient(h, t_h, axis=0), axis=0,
-                              extrapolate=False)(t)
+    gaps = gap_starts(t_h) if gaps is None else gaps
+    return hermite(t_h, h, run_slopes(t_h, h, gaps), t)
 
 
 def _cross_matrices(v: np.ndarray) -> np.ndarray:
@@ -358,11 +394,41 @@ def _noise_terms(tg: np.ndarray, w: np.ndarray, inside: np.ndarray, grid: np.nda
     gn = options.get('gyro_noise')
     g_std = (isotropy_floor(noise_std_from_differences(w[inside])) if gn is None
              else np.broadcast_to(np.asarray(gn, dtype=float), (3,)))
-    hx = _cross_matrices(_interp_h(mom.t, mom.h, grid))
-    walk = np.mean(np.einsum('nij,j,nij->ni', hx, g_std ** 2, hx), axis=0)
-    wx = _cross_matrices(np.column_stack([np.interp(grid, tg, w[:, c]) for c in range(3)]))
-    walk += share * np.mean(np.einsum('nij,jk,nik->ni', wx, mom.noise_cov, wx), axis=0)
+    sums = walk_sums(_interp_h(mom.t, mom.h, grid),
+                     np.column_stack([np.interp(grid, tg, w[:, c]) for c in range(3)]))
+    walk = walk_variance(*sums, g_std ** 2, mom.noise_cov, share)
     return np.sqrt(tn ** 2 + walk), share
+
+
+def walk_sums(hg: np.ndarray, wg: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
+    """Grid sums of the momentum input's torque-noise walks (batch and online alike).
+
+    Parameters
+    ----------
+    hg, wg : ndarray, shape (G, 3)
+        Internal momentum [N m s] and angular velocity [rad/s] at the grid times.
+
+    Returns
+    -------
+    H : ndarray, shape (3, 3)
+        ``sum_n [h_n]x_ij^2`` (the gyro noise ``n x h``).
+    W : ndarray, shape (3, 3, 3)
+        ``sum_n [w_n]x_ij [w_n]x_ik`` (the momentum noise ``w x e``).
+    n : int
+        Grid points summed.
+    """
+    hx = _cross_matrices(hg)
+    wx = _cross_matrices(wg)
+    return (np.einsum('nij,nij->ij', hx, hx), np.einsum('nij,nik->ijk', wx, wx), len(hg))
+
+
+def walk_variance(H: np.ndarray, W: np.ndarray, n: int, gyro_var: np.ndarray,
+                  h_cov: np.ndarray, share: float) -> np.ndarray:
+    """White torque-noise variance (3,) [N^2 m^2] of the ``w x h`` integral's noise from
+    :func:`walk_sums`: the gyro noise (variance ``gyro_var`` (3,) [rad^2/s^2]) as ``n x h``
+    and the momentum noise (covariance ``h_cov`` (3, 3), shared by ``share`` gyro samples)
+    as ``w x e``, each held over a grid interval."""
+    return (H @ gyro_var + share * np.einsum('ijk,jk->i', W, h_cov)) / n
 
 
 def estimate_with_momentum(t_gyro: Any, omega: Any, t_torque: Any, torque: Any,
@@ -393,9 +459,15 @@ def estimate_with_momentum(t_gyro: Any, omega: Any, t_torque: Any, torque: Any,
     ts = as_times(t_torque, 't_torque')
     tau = as_samples(torque, len(ts), 'torque', 't_torque')
     from .options import BATCH_HOLDS, HOLDS, check_choice
+    from .selection import SelectionPolicy
 
     hold = options.pop('hold', HOLDS[0])
     check_choice('hold', hold, BATCH_HOLDS)
+    # the torque sensor's scale error scales the other torque only, never the momentum: it
+    # is propagated as one more uncertain input (:func:`_propagate`), not as a scale of y
+    scale = options.pop('torque_scale_std', 0.0)
+    SelectionPolicy(torque_scale_std=scale)           # validates
+    scale = float(scale) if len(ts) else 0.0
     hold = HOLDS[0] if hold not in HOLDS else hold   # of the other torque; the result is held
     grid, tq, inside = equivalent_torque(tg, w, mom.t, mom.h, ts, tau, hold, mom.torque)
     if int(np.sum(inside)) < 6 or len(grid) < 2:
@@ -414,8 +486,9 @@ def estimate_with_momentum(t_gyro: Any, omega: Any, t_torque: Any, torque: Any,
                           'about their stated std (the data resolve them better than stated)')
     res = replace(base, samples_dropped=base.samples_dropped + int(np.sum(~inside)),
                   diagnostics=diag)
-    if len(mom.h_std) and res.inertia is not None and np.all(np.isfinite(res.inertia)):
-        res = _propagate(res, tg[inside], w[inside], ts, tau, mom, hold, tn, options)
+    if (len(mom.h_std) or scale) and res.inertia is not None \
+            and np.all(np.isfinite(res.inertia)):
+        res = _propagate(res, tg[inside], w[inside], ts, tau, mom, hold, tn, options, scale)
     return res
 
 
@@ -450,9 +523,24 @@ def _estimate(tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.ndarray, *,
     return batch._maximum_likelihood(first, tg, w, ts, tau, HOLDS[0], axis, selection)
 
 
+def _changes(mom: Momentum, tau: np.ndarray, scale: float
+             ) -> list[tuple[str, np.ndarray, np.ndarray | None, np.ndarray]]:
+    """The inputs moved by one sigma each: ``(name, h, torque on the momentum stamps, other
+    torque)``; the torque scale (``scale`` > 0) moves the other torque only."""
+    out = []
+    dtq = mom.torque_std if mom.torque is not None else [None] * len(mom.names)
+    for name, dh, dt in zip(mom.names, mom.h_std, dtq, strict=True):
+        out.append((name, mom.h + dh, None if dt is None else mom.torque + dt, tau))
+    if scale:
+        out.append(('torque_scale', mom.h, mom.torque, tau * (1.0 + scale)))
+    return out
+
+
 def _propagate(res: Any, tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.ndarray,
-               mom: Momentum, hold: str, tn: np.ndarray, options: dict[str, Any]) -> Any:
-    """Add the one-sigma sensitivity of every reported quantity to each uncertain input."""
+               mom: Momentum, hold: str, tn: np.ndarray, options: dict[str, Any],
+               scale: float = 0.0) -> Any:
+    """Add the one-sigma sensitivity of every reported quantity to each uncertain input
+    (:func:`_changes`: wheel inertias, rotor coefficients, the torque scale)."""
 
     diag = dict(res.diagnostics)
     fixed = dict(options)
@@ -475,10 +563,8 @@ def _propagate(res: Any, tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.
     var_r = np.zeros((3, 3))
     var_a = np.zeros(3)
     per: dict[str, Any] = {}
-    dtq = mom.torque_std if mom.torque is not None else [None] * len(mom.names)
-    for name, dh, dt in zip(mom.names, mom.h_std, dtq, strict=True):
-        grid, tq, _ = equivalent_torque(tg, w, mom.t, mom.h + dh, ts, tau, hold,
-                                        None if dt is None else mom.torque + dt)
+    for name, h, tq_h, tau_p in _changes(mom, tau, scale):
+        grid, tq, _ = equivalent_torque(tg, w, mom.t, h, ts, tau_p, hold, tq_h)
         p = _estimate(tg, w, grid, tq, torque_noise=tn, **fixed)
         if p.inertia is None or ref.inertia is None:
             continue
@@ -511,6 +597,11 @@ def _propagate(res: Any, tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.
     diag['wheel_inertia'] = {'inputs': per, 'theta_std_added': np.sqrt(var6),
                              'rule': 'one-sigma change of the estimate per input, added in '
                                      'quadrature'}
+    if scale:
+        calib = dict(diag.get('calibration') or {'gyro_scale_std': 0.0})
+        calib.update(torque_scale_std=scale, torque_scale_applies_to='the torque stream only '
+                     "(not the momentum input): input 'torque_scale' of input_uncertainty")
+        diag['calibration'] = calib
     # the online estimator's name for the same record (wheel inertias, rotor coefficients)
     diag['input_uncertainty'] = diag['wheel_inertia']
     cov = None if res.covariance is None else np.asarray(res.covariance) + outer

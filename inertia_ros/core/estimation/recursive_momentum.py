@@ -35,11 +35,11 @@ from typing import Any
 import numpy as np
 
 from ..tensor import theta_to_matrix
+from .align import gap_starts, hermite, run_slopes
 from .fit import fit_two_pass
 from .model import model_basis
-from .momentum import Momentum, _cross_matrices
+from .momentum import Momentum, held_over, interval_torque, walk_sums, walk_variance
 from .noise import StreamingNoise
-from .options import GAP_FACTOR
 from .recursive import RecursiveEstimator
 from .result import InertiaEstimate
 from .uncertainty import principal_with_std, ratio_cov
@@ -70,26 +70,6 @@ class _Buffer:
             self.v = [a[:, i:] if a.ndim == 3 else a[i:] for a in self.v]
 
 
-def _hermite(t_h: np.ndarray, h: np.ndarray, slopes: np.ndarray, t: np.ndarray) -> np.ndarray:
-    """Cubic Hermite interpolation of ``h`` (K, 3) with ``slopes`` at ``t`` (inside t_h)."""
-    j = np.clip(np.searchsorted(t_h, t, side='right') - 1, 0, len(t_h) - 2)
-    dx = (t_h[j + 1] - t_h[j])[:, None]
-    u = (t - t_h[j])[:, None] / dx
-    h00, h10 = 2 * u ** 3 - 3 * u ** 2 + 1, u ** 3 - 2 * u ** 2 + u
-    h01, h11 = -2 * u ** 3 + 3 * u ** 2, u ** 3 - u ** 2
-    return h00 * h[j] + h10 * dx * slopes[j] + h01 * h[j + 1] + h11 * dx * slopes[j + 1]
-
-
-def _interval_torque(grid: np.ndarray, wg: np.ndarray, hg: np.ndarray,
-                     trg: np.ndarray | None) -> np.ndarray:
-    """Held torque (G - 1, 3) over the grid intervals: ``-dh/dt - trap(w x h) + trap(tr)``."""
-    c = np.cross(wg, hg)
-    out = -np.diff(hg, axis=0) / np.diff(grid)[:, None] - 0.5 * (c[1:] + c[:-1])
-    if trg is not None:
-        out += 0.5 * (trg[1:] + trg[:-1])
-    return out
-
-
 class MomentumRecursiveEstimator(RecursiveEstimator):
     """:class:`~.recursive.RecursiveEstimator` with internal momentum (wheels, rotors) input.
 
@@ -101,16 +81,32 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
     other_torque : bool
         True: another known torque arrives through :meth:`add_torque` and the equations wait
         for it; False: the momentum input is the only known torque.
+    hold : {'zoh', 'linear'}
+        Hold of the other torque between its samples (``torque_hold``).  The equivalent torque
+        fed to the :class:`~.recursive.RecursiveEstimator` is always held over its grid
+        intervals (``zoh``): the other torque's hold is applied once, when it is reduced.
     **kwargs
-        The options of :class:`~.recursive.RecursiveEstimator`.
+        The other options of :class:`~.recursive.RecursiveEstimator`.  ``torque_scale_std``
+        scales the other torque only, never the momentum: it is propagated as one more
+        uncertain input (``torque_scale``, fed the other torque times that std).
     """
 
     def __init__(self, names: Sequence[str] = (), other_torque: bool = True,
-                 **kwargs: Any) -> None:
+                 hold: str = 'zoh', **kwargs: Any) -> None:
+        from .options import HOLDS, check_choice
+        from .selection import SelectionPolicy
+
+        check_choice('hold', hold, HOLDS)
+        scale = kwargs.pop('torque_scale_std', 0.0)
+        SelectionPolicy(torque_scale_std=scale)           # validates
         self.names = tuple(names)
         self.other_torque = bool(other_torque)
-        self._kwargs = dict(kwargs)
-        super().__init__(**kwargs)
+        self.torque_hold = hold
+        self.torque_scale_std = float(scale) if self.other_torque else 0.0
+        # the equivalent torque is held over each grid interval: integrated as held, whatever
+        # the other torque's hold (which _other_on has applied already)
+        self._kwargs = dict(kwargs, hold=HOLDS[0])
+        super().__init__(**self._kwargs)
 
     def reset(self) -> None:
         """Forget everything (also the per-input sensitivity estimators)."""
@@ -121,6 +117,9 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
         self._o = _Buffer((3,))                       # other torque
         self._cursor: float | None = None             # start of the next grid interval [s]
         self._pert = [RecursiveEstimator(**self._kwargs) for _ in range(p)]
+        # the torque scale's sensitivity: fed the other torque times its std
+        self._scale_est = RecursiveEstimator(**self._kwargs) \
+            if getattr(self, 'torque_scale_std', 0.0) else None
         self._h_noise = StreamingNoise(floor=False)
         self._tr_noise = StreamingNoise(floor=False)
         self._o_noise = StreamingNoise(floor=False)
@@ -210,7 +209,7 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
         if self.other_torque:
             if len(self._o.t) == 0:
                 return None
-            hi = min(hi, float(self._o.t[-1]) if self.hold == 'linear' else np.inf)
+            hi = min(hi, float(self._o.t[-1]) if self.torque_hold == 'linear' else np.inf)
         return hi
 
     def _advance(self) -> None:
@@ -220,18 +219,21 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
             return
         if self._cursor is None and not self._start():
             return
-        c, hi = self._skip_gaps(float(self._cursor), hi)
-        tg, tm = self._g.t, self._m.t
-        grid = np.union1d(tg[(tg >= c) & (tg <= hi)], tm[(tm >= c) & (tm <= hi)])
-        grid = np.union1d([c], grid)
-        if self.other_torque and self.hold != 'linear':
-            # zero-order hold: interval [g_i, g_i+1) needs the torque sample at or before g_i
-            # to be the last one: a torque sample at or after g_i has arrived
-            grid = grid[:int(np.searchsorted(grid, self._o.t[-1], side='right')) + 1]
-            grid = grid[grid <= hi]
-        if len(grid) < 2:
-            return
-        self._emit(grid)
+        while True:                   # run by run: a block may reach past momentum gaps
+            c, end = self._skip_gaps(float(self._cursor), hi)
+            tg, tm = self._g.t, self._m.t
+            grid = np.union1d(tg[(tg >= c) & (tg <= end)], tm[(tm >= c) & (tm <= end)])
+            grid = np.union1d([c], grid)
+            if self.other_torque and self.torque_hold != 'linear':
+                # zero-order hold: interval [g_i, g_i+1) needs the torque sample at or before
+                # g_i to be the last one: a torque sample at or after g_i has arrived
+                grid = grid[:int(np.searchsorted(grid, self._o.t[-1], side='right')) + 1]
+                grid = grid[grid <= end]
+            if len(grid) < 2:
+                return
+            self._emit(grid)
+            if end >= hi:
+                return
 
     def _skip_gaps(self, c: float, hi: float) -> tuple[float, float]:
         """Momentum gaps (an interval over ``GAP_FACTOR`` nominal ones): nothing known of
@@ -239,11 +241,8 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
         dropped; the jump of the emitted torque stamps starts a new anchored segment, whose
         intercept takes the unknown change); the grid stops at the next gap.  Returns the
         cursor and the horizon."""
-        if len(self._m_dt) < 2:
-            return c, hi
         tm = self._m.t
-        big = np.flatnonzero(np.diff(tm) > GAP_FACTOR * float(np.median(self._m_dt)))
-        for i in big:
+        for i in self._momentum_gaps():
             if tm[i] <= c < tm[i + 1]:
                 skipped = (self._g.t > c) & (self._g.t < tm[i + 1])
                 self.samples_dropped += int(np.sum(skipped))
@@ -253,6 +252,13 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
             elif tm[i] >= c:
                 return c, min(hi, float(tm[i]))
         return c, hi
+
+    def _momentum_gaps(self) -> np.ndarray:
+        """Gaps of the buffered momentum samples (:func:`.align.gap_starts`, the batch rule,
+        on the nominal interval of the recent samples); none before two intervals."""
+        if len(self._m_dt) < 2:
+            return np.zeros(0, dtype=int)
+        return gap_starts(self._m.t, float(np.median(self._m_dt)))
 
     def _start(self) -> bool:
         """Set the first grid time (the batch's common coverage start); drop earlier gyro."""
@@ -271,17 +277,18 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
         """Feed the equivalent torque on ``grid`` (and the gyro samples it covers)."""
         tm = self._m.t
         h, tq, dh, dtq = self._m.v
-        slopes = np.gradient(h, tm, axis=0)
-        hg = _hermite(tm, h, slopes, grid)
+        gaps = self._momentum_gaps()
+        hg = hermite(tm, h, run_slopes(tm, h, gaps), grid)
         wg = np.column_stack([np.interp(grid, self._g.t, self._g.v[0][:, k])
                               for k in range(3)])
         has_tr = self._tr_noise.count > 0
 
         def lin(y: np.ndarray) -> np.ndarray:
             return np.column_stack([np.interp(grid, tm, y[:, k]) for k in range(3)])
-        out = _interval_torque(grid, wg, hg, lin(tq) if has_tr else None)
-        if self.other_torque:
-            out = out + self._other_on(grid)
+        out = interval_torque(grid, wg, hg, lin(tq) if has_tr else None)
+        other = self._other_on(grid) if self.other_torque else None
+        if other is not None:
+            out = out + other
         self._walk(hg[:-1], wg[:-1])
         gi = (self._g.t >= grid[0]) & (self._g.t <= grid[-1])
         t_in = self._g.t[gi]
@@ -290,10 +297,13 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
         super().add_torque(grid[:-1], out)
         if np.any(fresh):
             super().add_gyro(t_in[fresh], w_in[fresh])
-        for i, est in enumerate(self._pert):
-            dslopes = np.gradient(dh[i], tm, axis=0)
-            d = _interval_torque(grid, wg, _hermite(tm, dh[i], dslopes, grid),
-                                 lin(dtq[i]) if has_tr else None)
+        changes = [(est, interval_torque(grid, wg, hermite(tm, dh[i], run_slopes(tm, dh[i],
+                                                                              gaps), grid),
+                                          lin(dtq[i]) if has_tr else None))
+                   for i, est in enumerate(self._pert)]
+        if self._scale_est is not None and other is not None:
+            changes.append((self._scale_est, self.torque_scale_std * other))
+        for est, d in changes:
             est.add_torque(grid[:-1], d)
             if np.any(fresh):
                 est.add_gyro(t_in[fresh], w_in[fresh])
@@ -313,13 +323,9 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
         self._cursor = None
 
     def _other_on(self, grid: np.ndarray) -> np.ndarray:
-        """The other torque over each grid interval (G - 1, 3): held or trapezoid."""
-        ts, tau = self._o.t, self._o.v[0]
-        if self.hold == 'linear':
-            tq = np.column_stack([np.interp(grid, ts, tau[:, k]) for k in range(3)])
-            return 0.5 * (tq[1:] + tq[:-1])
-        j = np.clip(np.searchsorted(ts, grid[:-1], side='right') - 1, 0, len(ts) - 1)
-        return tau[j]
+        """The other torque over each grid interval (G - 1, 3): the batch rule
+        (:func:`.momentum.held_over`) with the other torque's hold."""
+        return held_over(grid, self._o.t, self._o.v[0], self.torque_hold)
 
     def _trim(self) -> None:
         """Drop the consumed samples (keeping what interpolation at the cursor needs)."""
@@ -335,11 +341,10 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
 
     def _walk(self, hg: np.ndarray, wg: np.ndarray) -> None:
         """Accumulate the grid sums of the ``n x h`` and ``w x e`` torque-noise walks."""
-        hx = _cross_matrices(hg)
-        wx = _cross_matrices(wg)
-        self._walk_h += np.einsum('nij,nij->ij', hx, hx)
-        self._walk_w += np.einsum('nij,nik->ijk', wx, wx)
-        self._walk_n += len(hg)
+        H, W, n = walk_sums(hg, wg)
+        self._walk_h += H
+        self._walk_w += W
+        self._walk_n += n
 
     # ------------------------------------------------------------------ noise and estimate
     def _share(self) -> float:
@@ -350,7 +355,7 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
 
     def _torque_variance(self) -> np.ndarray | None:
         """The equivalent torque's white-noise variance (3,) [N^2 m^2], as the batch's."""
-        if self._walk_n == 0 or self._tau_dt <= 0:
+        if self._walk_n == 0 or self._align.tau_dt <= 0:
             return None
         share = self._share()
         cov = np.diag(self._h_noise.variance()) if self._h_noise.count >= 6 else np.zeros((3, 3))
@@ -358,11 +363,9 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
         var = np.zeros(3)
         for nv, dts in ((self._o_noise, self._o_dt), (self._tr_noise, self._m_dt)):
             if nv.count >= 6 and dts:
-                var = var + nv.variance() * float(np.median(dts)) / self._tau_dt
-        g2 = self._gyro_var()
-        var = var + self._walk_h @ g2 / self._walk_n
-        var = var + share * np.einsum('ijk,jk->i', self._walk_w, cov) / self._walk_n
-        return var
+                var = var + nv.variance() * float(np.median(dts)) / self._align.tau_dt
+        return var + walk_variance(self._walk_h, self._walk_w, self._walk_n, self._gyro_var(),
+                                   cov, share)
 
     def estimate(self) -> InertiaEstimate:
         """The current estimate (see :meth:`.RecursiveEstimator.estimate`), with the momentum
@@ -376,7 +379,8 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
         if est.status == 'insufficient_data' and self.other_torque and len(self._o.t) == 0:
             diag['reason'] = ('no other torque sample yet: the momentum input waits for it '
                               '(build with other_torque=False when there is none)')
-        if self._pert and est.status in ('ok', 'model_mismatch') and est.theta is not None \
+        uncertain = bool(self._pert) or self._scale_est is not None
+        if uncertain and est.status in ('ok', 'model_mismatch') and est.theta is not None \
                 and np.all(np.isfinite(est.theta)):
             est = self._propagate(est)
         return est
@@ -393,10 +397,13 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
         basis = model_basis(name, self.axis)
         bias = bool(est.model and est.model.endswith('+bias'))
         nv = self._gyro_var()
-        n_eff = self._neffc + (self._w0 - self._w00 / self._w0 if self._w0 > 0 else 0.0)
+        n_eff = self._acc.n_eff()
         k = basis.shape[1]
         per, outer = {}, np.zeros((6, 6))
-        for nm, p in zip(self.names, self._pert, strict=True):
+        pairs = list(zip(self.names, self._pert, strict=True))
+        if self._scale_est is not None:
+            pairs.append(('torque_scale', self._scale_est))
+        for nm, p in pairs:
             p._process()
             p._white_y_cov = self._white_y_cov
             f = fit_two_pass(p._stats(nv, n_eff), basis, bias, nv, np.zeros(3), None, est.theta)
@@ -412,7 +419,7 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
         name = (est.model or 'full').removesuffix('+bias')
         if name not in ('full', 'diagonal', 'axisymmetric'):
             return est
-        span = (self._t_last or 0.0) - (self._t0 or 0.0)
+        span = (self._acc.t_last or 0.0) - (self._align.t0 or 0.0)
         cached = self._prop_cache
         if cached is not None and cached[0] == est.model and self._fresh(cached[3], span):
             per, outer = cached[1], cached[2]
@@ -427,6 +434,12 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
         diag['input_uncertainty'] = {
             'inputs': per, 'theta_std_added': np.sqrt(np.diag(outer)),
             'rule': 'linear sensitivity of the estimate to each input, added in quadrature'}
+        if self._scale_est is not None:
+            calib = dict(diag.get('calibration') or {'gyro_scale_std': 0.0})
+            calib.update(torque_scale_std=self.torque_scale_std,
+                         torque_scale_applies_to='the torque stream only (not the momentum '
+                         "input): input 'torque_scale' of input_uncertainty")
+            diag['calibration'] = calib
         return replace(est, covariance=cov6,
                        inertia_std=theta_to_matrix(np.sqrt(np.maximum(np.diag(cov6), 0.0)),
                                                    check_finite=False),

@@ -24,6 +24,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..tensor import THETA_COLS, THETA_ROWS, theta_to_matrix
+from .options import GAP_FACTOR
 
 __all__ = [
     'GYROSCOPIC_MAP',
@@ -260,6 +261,13 @@ def _scaled_derivative(t: np.ndarray, p: np.ndarray, lo: int, a: int, b: int,
         d[-1] = ends[1]
     h = np.empty(b - a)
     h[:] = t[a:b] - t[a - 1:b - 1] if a > 0 else np.r_[t[1] - t[0], t[1:b] - t[:b - 1]]
+    # the first sample after a gap (a step over GAP_FACTOR times the next one): its step is
+    # the next one, as for the samples after it; the gap's step would make its correction
+    # h^2/12 f' a lone outlier of its anchored segment (issue 26: 0.75 f' after a 3 s gap)
+    m = min(b, n - 1) - a
+    if m > 0:
+        h_next = t[a + 1:a + 1 + m] - t[a:a + m]
+        h[:m] = np.where(h[:m] > GAP_FACTOR * h_next, h_next, h[:m])
     d *= (h * h / 12.0)[:, None]
     return d
 

@@ -1,0 +1,325 @@
+"""The online estimator's accumulator of sufficient statistics: :class:`OnlineStats`.
+
+It owns its state (no estimator attribute is read): the exponentially weighted means and
+centred Gram matrices of the 13 per-sample variables ``v_b = [w, m, t, T]`` of the open
+anchored segment and the folded sums of the closed ones, the open segment's torque-noise
+sums (accumulated per torque interval in closed form, :meth:`OnlineStats.walk_add`), the
+closed segments kept apart for the adequacy test (:class:`.history.SegmentHistory`) and the
+decayed side sums the noise model needs (``sum tau^2``, ``sum w w'``).  Blocks are merged by
+the parallel update of Chan, Golub and LeVeque, so the statistics do not depend on how the
+streams were cut.  :class:`.recursive.RecursiveEstimator` aligns the streams into the
+variables and feeds them here; the fit reads the statistics back.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .adequacy import Adequacy, check_adequacy
+from .fit import Fit, fit_two_pass
+from .history import SegmentHistory, SegmentStats
+from .options import ADEQUACY_MIN_WINDOW_S, ADEQUACY_WINDOWS, MIN_EQUATIONS
+from .regressors import gram, lift
+from .statistics import SufficientStats
+
+__all__ = ['OnlineStats']
+
+
+class OnlineStats:
+    """Weighted, segment-centred statistics of the anchored equations, merged block by block.
+
+    Parameters
+    ----------
+    segment : float
+        Anchored-segment length [s].
+    window : float, optional
+        Memory time constant [s] (weights ``exp(-age / window)``); takes precedence over
+        ``forgetting``.
+    forgetting : float
+        Per-sample forgetting factor in (0, 1].
+
+    Attributes
+    ----------
+    C, Cc : ndarray, shape (13, 13)
+        Centred Gram of the open segment and the sum over the closed ones.
+    GPc : ndarray, shape (13, 13)
+        Closed segments' torque-noise Gram.
+    w0, w00, wc, w00c, neffc : float
+        Sum of weights and of squared weights (open; closed) and the closed effective count.
+    t_last : float or None
+        Time of the last merged equation [s].
+    """
+
+    def __init__(self, segment: float, window: float | None, forgetting: float) -> None:
+        self.segment = float(segment)
+        self.window = window
+        self.forgetting = float(forgetting)
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget everything."""
+        self.w0 = 0.0                   # sum of weights
+        self.w00 = 0.0                  # sum of squared weights
+        self.mean = np.zeros(13)          # open segment: weighted mean and centred Gram of V
+        self.C = np.zeros((13, 13))
+        self.Cc = np.zeros((13, 13))      # closed segments
+        self.wc = self.w00c = self.neffc = 0.0
+        self.seg_start: float | None = None
+        self.first_segment = True
+        self._walk_reset()
+        self.GPc = np.zeros((13, 13))        # closed segments' torque-noise Gram
+        self.walkc = 0.0
+        self.m2_sum = np.zeros((3, 3))   # (decayed) sum of w w' [rad^2/s^2] and its count
+        self.m2_n = 0.0
+        self.history = SegmentHistory()  # closed segments apart, for the adequacy test
+        self.clock = 0.0                 # decay clock: sum of log(decay factors)
+        self.tq_ss = np.zeros(3)        # (decayed) sum of squared torque [N^2 m^2]
+        self.tq_n = 0.0                 # and its (decayed) count
+        self.torque_seen = False        # a torque sample has been added (add_torque_power)
+        self.t_last: float | None = None
+
+    # ------------------------------------------------------------------ side sums
+    def add_torque_power(self, tau: np.ndarray) -> None:
+        """Add torque samples (n, 3) [N m] to the decayed ``sum tau^2`` (torque-free test)."""
+        self.tq_ss = self.tq_ss + np.einsum('ij,ij->j', tau, tau)
+        self.tq_n += len(tau)
+        self.torque_seen = self.torque_seen or len(tau) > 0
+
+    def add_motion(self, w: np.ndarray) -> None:
+        """Add gyro samples (n, 3) [rad/s] to the decayed ``sum w w'`` (gyroscopic walk)."""
+        self.m2_sum = self.m2_sum + w.T @ w
+        self.m2_n += len(w)
+
+    def torque_rms(self) -> np.ndarray:
+        """RMS (3,) of the merged torque [N m] (decayed as the weights)."""
+        return np.sqrt(self.tq_ss / max(self.tq_n, 1e-300))
+
+    def omega_m2(self) -> np.ndarray:
+        """``mean(w w')`` of the merged gyro samples [rad^2/s^2] (decayed as the weights)."""
+        return self.m2_sum / max(self.m2_n, 1e-300)
+
+    def n_eff(self) -> float:
+        """Effective number of equations after the per-segment intercepts."""
+        return self.neffc + (self.w0 - self.w00 / self.w0 if self.w0 > 0 else 0.0)
+
+    # ------------------------------------------------------------------ equations
+    def merge(self, t: np.ndarray, V: np.ndarray, ts: np.ndarray) -> None:
+        """Merge a block of equations ``V`` (n, 13) at ``t`` (n,) [s], closing anchored
+        segments at their boundaries; ``ts`` (M,) are the held torque's sample times [s]."""
+        while len(t):
+            if self.seg_start is None:
+                self.seg_start = float(t[0])
+            k = int(np.searchsorted(t, self.seg_start + self.segment, side='left'))
+            if k == 0:
+                self.close(float(t[0]))
+                continue
+            self._merge_piece(t[:k], V[:k], ts)
+            t, V = t[k:], V[k:]
+            if len(t):
+                self.close(float(t[0]))
+
+    def _merge_piece(self, t: np.ndarray, V: np.ndarray, ts: np.ndarray) -> None:
+        """Merge equations of one segment into the weighted centred statistics."""
+        n = len(t)
+        self.walk_add(t, V, ts)
+        if self.window:
+            wts = np.exp(-(t[-1] - t) / self.window)
+            # nothing merged yet: nothing to decay (the torque statistics gathered before the
+            # first merge must survive it)
+            old = float(np.exp(-(t[-1] - self.t_last) / self.window)) \
+                if self.t_last is not None else 1.0
+        else:
+            lam = self.forgetting
+            wts = lam ** np.arange(n - 1, -1, -1, dtype=float)
+            old = lam ** n
+        self.t_last = float(t[-1])
+        self.clock += math.log(max(old, 1e-300))
+        wb = float(np.sum(wts))
+        mb = wts @ V / wb
+        D = (V - mb[None]) * np.sqrt(wts)[:, None]
+        w_old = old * self.w0
+        total = w_old + wb
+        delta = mb - self.mean
+        self.C = old * self.C + gram(D) + (w_old * wb / total) * np.outer(delta, delta)
+        self.mean = self.mean + delta * (wb / total)
+        self.w0 = total
+        self.w00 = old * old * self.w00 + float(np.sum(wts * wts))
+        self.Cc = old * self.Cc
+        self.GPc = old * old * self.GPc
+        self.walkc *= old
+        self.tq_ss = old * self.tq_ss
+        self.tq_n *= old
+        self.m2_sum = old * self.m2_sum
+        self.m2_n *= old
+        self.wc *= old
+        self.w00c *= old * old
+        self.neffc *= old
+
+    def close(self, new_start: float) -> None:
+        """Fold the current segment's statistics into the closed ones; start a new one."""
+        if self.w0 > 0:
+            self.Cc = self.Cc + self.C
+            self.wc += self.w0
+            self.w00c += self.w00
+            self.neffc += self.w0 - self.w00 / self.w0
+            gp, walk = self.segment_walk()
+            self.GPc = self.GPc + gp
+            self.walkc += walk
+            self.history.add(self.open_segment(gp, walk))
+        self.w0 = self.w00 = 0.0
+        self.mean = np.zeros(13)
+        self.C = np.zeros((13, 13))
+        self._walk_reset()
+        self.first_segment = False
+        self.seg_start = new_start
+
+    def open_segment(self, gp: np.ndarray, walk: float) -> SegmentStats:
+        """The open segment's statistics as a :class:`SegmentStats` (at the current clock)."""
+        neff = self.w0 - self.w00 / self.w0 if self.w0 > 0 else 0.0
+        return SegmentStats(self.C.copy(), gp, walk, self.w0, self.w00, neff, self._wk_t0,
+                            self._wk_tl, self.clock)
+
+    def _walk_reset(self) -> None:
+        """Empty the open segment's torque-noise accumulators (see :meth:`walk_add`)."""
+        self._wk_s: float | None = None   # start of the open torque interval [s]
+        self._wk_ok = True                # a torque sample at or before the segment's start
+        self._wk_ntt = 0                  # torque samples of the segment up to the last gyro
+        self._wk_n = 0                    # gyro samples of the segment
+        self._wk_t0 = self._wk_tl = 0.0   # first and last gyro time of the segment [s]
+        self._wk_ref = np.zeros(13)       # reference row: variables are kept relative to it
+        self._wk_S = np.zeros(14)         # sum of x_b = [v_b - ref, 1]
+        self._wk_St = np.zeros(14)        # open interval: sum of (t_b - s_J) x_b
+        self._wk_h2 = 0.0                 # closed intervals: sum h_j^2, sum h_j Q_j,
+        self._wk_hQ = np.zeros(14)        # sum Q_j Q_j'  (Q_j = St_j - h_j F_j, 14 vectors)
+        self._wk_QQ = np.zeros((14, 14))
+
+    def walk_add(self, t: np.ndarray, V: np.ndarray, ts: np.ndarray) -> None:
+        """Accumulate the open segment's torque-noise statistics over new equations.
+
+        The segment's torque-noise sums (:func:`.statistics.torque_stats` on the segment-demeaned
+        variables) are ``P_j = [1 | -mean] R_j`` with ``R_j = sum_b o_j(b) x_b``,
+        ``o_j(b) = clip(t_b - s_j, 0, h_j)`` and ``x_b = [v_b - ref, 1]``.  Once torque interval
+        ``j`` is closed (a gyro sample at or after its end has arrived), ``R_j = h_j S + Q_j``
+        with the running segment sum ``S`` and a fixed ``Q_j``; so ``sum_j R_j R_j'`` needs only
+        ``sum h_j^2``, ``sum h_j Q_j`` and ``sum Q_j Q_j'`` of the closed intervals plus the open
+        one: O(new samples + new torque samples) per block, none per ``estimate()``.
+        """
+        n = len(t)
+        if self._wk_s is None:
+            i = int(np.searchsorted(ts, t[0], side='right')) - 1
+            if i < 0:                      # cannot happen: such gyro samples are dropped
+                self._wk_ok = False
+                i = 0
+            self._wk_s = float(ts[i])
+            # the first segment's torque list starts at the first torque sample, later ones
+            # at the last torque sample at or before their start
+            self._wk_ntt = i + 1 if self.first_segment else 1
+            self._wk_ref = V[0].copy()
+            self._wk_t0 = float(t[0])
+        X = np.empty((n, 14))
+        np.subtract(V, self._wk_ref[None], out=X[:, :13])
+        X[:, 13] = 1.0
+        lo = int(np.searchsorted(ts, self._wk_s, side='right'))
+        hi = int(np.searchsorted(ts, t[-1], side='right'))
+        b = ts[lo:hi]                      # torque samples starting new intervals
+        k = len(b)
+        if k == 0:
+            self._wk_St = self._wk_St + (t - self._wk_s) @ X
+        else:
+            bounds = np.concatenate([[self._wk_s], b])
+            first = np.searchsorted(t, bounds, side='left')
+            counts = np.diff(np.append(first, n))
+            nz = counts > 0
+            u = t - np.repeat(bounds, counts)
+            Sm = np.zeros((k + 1, 14))
+            St = np.zeros((k + 1, 14))
+            Sm[nz] = np.add.reduceat(X, first[nz], axis=0)
+            St[nz] = np.add.reduceat(X * u[:, None], first[nz], axis=0)
+            h = np.diff(bounds)
+            St[0] += self._wk_St
+            # every earlier sample precedes the end of the block's first interval
+            F = self._wk_S + np.cumsum(Sm[:k], axis=0)
+            Q = St[:k] - h[:, None] * F
+            self._wk_h2 += float(h @ h)
+            self._wk_hQ = self._wk_hQ + h @ Q
+            self._wk_QQ = self._wk_QQ + Q.T @ Q
+            self._wk_St = St[k]
+            self._wk_s = float(bounds[k])
+            self._wk_ntt += k
+        self._wk_S = self._wk_S + X.sum(axis=0)
+        self._wk_n += n
+        self._wk_tl = float(t[-1])
+
+    def segment_walk(self) -> tuple[np.ndarray, float]:
+        """Torque-noise Gram (13 x 13) and walk time of the open segment (as statistics)."""
+        if self._wk_n == 0 or not self.torque_seen or self._wk_ntt < 2 or not self._wk_ok:
+            return np.zeros((13, 13)), 0.0
+        S, hQ = self._wk_S, self._wk_hQ
+        RR = self._wk_h2 * np.outer(S, S) + np.outer(S, hQ) + np.outer(hQ, S) + self._wk_QQ \
+            + np.outer(self._wk_St, self._wk_St)
+        L = np.empty((13, 14))
+        L[:, :13] = np.eye(13)
+        L[:, 13] = -S[:13] / self._wk_n
+        G = L @ RR @ L.T
+        return 0.5 * (G + G.T), self._wk_n * (self._wk_tl - self._wk_t0) / 6.0
+
+    # ------------------------------------------------------------------ reading back
+    def stats(self, nv: np.ndarray, n_eff: float, walk_noise: bool, *, torque_dt: float,
+              gyro_dt: float, white_y_cov: np.ndarray | None,
+              gyro_scale: float = 1.0) -> SufficientStats:
+        """The weighted statistics of everything merged, in the batch estimator's form.
+
+        The gyro-noise correction of the squared-rate integrals, ``m_c -> m_c - sigma_c^2 s``,
+        is linear in the 13 variables (``K``) and applied here with the noise variance ``nv``
+        (3,) [rad^2/s^2].  ``walk_noise``: include the torque-noise Gram.  ``gyro_scale``
+        gives the statistics of a gyro read that many times larger (``w`` and the
+        squared-rate integrals scale exactly; for the gyro-scale sensitivity).  ``torque_dt``,
+        ``gyro_dt`` [s] and ``white_y_cov`` (3, 3) are the noise model's stream figures.
+        """
+        K = np.eye(13)
+        K[9, 3:6] = -nv
+        if gyro_scale != 1.0:
+            K = np.diag(np.r_[np.full(3, gyro_scale), np.full(6, gyro_scale ** 2),
+                              np.ones(4)]) @ K
+        C_all = lift(K.T @ (self.C + self.Cc) @ K)
+        gp, walk = self.segment_walk()
+        CP = lift(K.T @ (self.GPc + gp) @ K) if walk_noise else None
+        return SufficientStats(C_all, CP, int(round(self.w0 + self.wc)), int(round(n_eff)), 1,
+                               kind='anchored', eiv_var=nv, weighted=True,
+                               walk_time=self.walkc + walk, torque_dt=torque_dt,
+                               omega_m2=self.omega_m2(), gyro_dt=gyro_dt,
+                               white_y_cov=white_y_cov)
+
+    def window_test(self, f: Fit, nv: np.ndarray, tv: np.ndarray, *, torque_dt: float,
+                    gyro_dt: float, white_y_cov: np.ndarray | None) -> Adequacy:
+        """The adequacy tests of ``f``: its parameter set refitted on groups of segments.
+
+        Up to :data:`ADEQUACY_WINDOWS` consecutive groups of the kept segments (the open one
+        included), each fitted with the weights of ``f``'s tensor, as the batch estimator does
+        on time windows; ``nv``, ``tv`` (3,) the gyro and torque noise variances.
+        """
+        p, k = len(f.beta), f.basis.shape[1]
+        gp, walk = self.segment_walk()
+        # as the batch's windows, >= ADEQUACY_MIN_WINDOW_S (a 1 s open segment: chi2 ~2000)
+        groups = [g for g in self.history.groups(ADEQUACY_WINDOWS, self.open_segment(gp, walk),
+                                                 self.clock)
+                  if g.neff >= MIN_EQUATIONS and g.t1 - g.t0 >= ADEQUACY_MIN_WINDOW_S]
+        thetas, covs, mids = np.zeros((0, p)), np.zeros((0, p, p)), np.zeros(0)
+        if len(groups) >= 2:
+            K = np.eye(13)
+            K[9, 3:6] = -nv
+            theta0 = f.basis @ f.beta[:k]
+            fits = []
+            for g in groups:
+                st = SufficientStats(lift(K.T @ g.C @ K), lift(K.T @ g.GP @ K),
+                                     int(round(g.w0)), int(round(g.neff)), 1, kind='anchored',
+                                     eiv_var=nv, weighted=True, walk_time=g.walk,
+                                     torque_dt=torque_dt, omega_m2=self.omega_m2(),
+                                     gyro_dt=gyro_dt, white_y_cov=white_y_cov)
+                fk = fit_two_pass(st, f.basis, f.bias, nv, tv, None, theta0)
+                fits.append((fk.beta, fk.cov * (g.w00 / g.w0), 0.5 * (g.t0 + g.t1)))
+            thetas = np.array([x[0] for x in fits])
+            covs = np.array([x[1] for x in fits])
+            mids = np.array([x[2] for x in fits])
+        return check_adequacy(thetas, covs, mids, f.excess)

@@ -1,0 +1,112 @@
+"""When an online estimator re-runs model selection and the adequacy test: :class:`Reselection`.
+
+Model selection (``model`` or ``torque_bias`` ``'auto'``) and the window adequacy test cost
+several fits; the online estimators run them on every ``every``-th estimate and reuse their
+verdicts in between (one fit per estimate otherwise).  With ``defer`` a test estimate reports
+the previous adequacy verdict and leaves its own test to :meth:`Reselection.refresh` (the
+node calls it after publishing).  The schedule owns its state; the tests themselves are
+passed in as callables.
+"""
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from .adequacy import Adequacy
+from .assemble import conclude
+from .fit import Fit
+from .result import InertiaEstimate
+from .selection import SelectionPolicy
+
+__all__ = ['Reselection']
+
+#: The window adequacy test of a fit: ``test(f, gyro_var, torque_var)``.
+AdequacyTest = Callable[[Fit, np.ndarray, np.ndarray], Adequacy]
+
+
+class Reselection:
+    """The re-selection schedule of model selection and the adequacy test.
+
+    Parameters
+    ----------
+    every : int
+        Run the selection and the test on every ``every``-th estimate (>= 1).
+    defer : bool
+        Leave a test estimate's adequacy test to :meth:`refresh`.
+    """
+
+    def __init__(self, every: int, defer: bool) -> None:
+        if isinstance(every, bool) or int(every) != every or every < 1:
+            raise ValueError(f'reselect_every: must be an integer >= 1, got {every!r}')
+        self.every = int(every)
+        self.defer = bool(defer)
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget every verdict."""
+        self.adequacy: Adequacy | None = None   # last adequacy result, reused between tests
+        self.adequacy_left = 0
+        #: deferred adequacy test: (estimate serial, final fit, gyro and torque noise variances)
+        self.due: tuple[int, Fit, np.ndarray, np.ndarray] | None = None
+        self.estimates = 0               # estimate() calls (serial of the last one)
+        # model selection reused between re-selections: (torque_bias, model, its record)
+        self.selection: tuple[str, str, dict[str, Any]] | None = None
+        self.selection_left = 0
+
+    def tick(self) -> None:
+        """A new estimate begins."""
+        self.estimates += 1
+
+    def window_adequacy(self, f: Fit, nv: np.ndarray, tv: np.ndarray,
+                        test: AdequacyTest) -> Adequacy:
+        """The adequacy verdict for ``f``: ``test`` run every ``every`` estimates, reused in
+        between (with ``defer`` also at a test estimate, the test left to :meth:`refresh`)."""
+        if self.due is not None and self.due[0] != self.estimates:
+            self.due = None         # owed by an earlier estimate: test these data
+        elif self.adequacy is not None and self.adequacy_left > 0:
+            self.adequacy_left -= 1
+            return self.adequacy
+        elif self.defer and self.adequacy is not None:
+            self.due = (self.estimates, f, nv, tv)   # the last call's fit wins
+            return self.adequacy
+        self.adequacy = test(f, nv, tv)
+        self.adequacy_left = self.every - 1
+        return self.adequacy
+
+    def refresh(self, test: AdequacyTest) -> bool:
+        """Run the deferred adequacy test, if any; True when one ran."""
+        if self.due is None:
+            return False
+        (_, f, nv, tv), self.due = self.due, None
+        self.adequacy = test(f, nv, tv)
+        self.adequacy_left = self.every - 1
+        return True
+
+    def decide(self, fit: Any, model: str, torque_bias: str, axis: np.ndarray | None,
+                 policy: SelectionPolicy, diag: dict[str, Any], base: dict[str, Any],
+                 adequacy: Any, sensitivity: Any, samples_used: int) -> InertiaEstimate:
+        """Model selection (the last choice reused between re-selections) and the result
+        (:func:`.assemble.conclude`)."""
+        auto = model == 'auto' or torque_bias == 'auto'
+        if auto and self.selection is not None and self.selection_left > 0:
+            self.selection_left -= 1
+            bias, chosen, record = self.selection
+            est = conclude(fit, chosen, bias, axis, policy,
+                           dict(diag, warnings=list(diag['warnings'])), base, adequacy,
+                           sensitivity)
+            if est.status in ('ok', 'model_mismatch'):
+                est.diagnostics['model_selection'] = dict(record, reused=True)
+                return est
+        est = conclude(fit, model, torque_bias, axis, policy, diag, base, adequacy,
+                       sensitivity)
+        self.selection = None
+        if auto and est.status in ('ok', 'model_mismatch'):
+            record = dict(est.diagnostics.get('model_selection') or {},
+                          selected_at_samples=samples_used)
+            est.diagnostics['model_selection'] = record
+            self.selection = ('on' if est.model.endswith('+bias') else 'off',
+                              est.model.removesuffix('+bias'), record)
+            self.selection_left = self.every - 1
+        return est
