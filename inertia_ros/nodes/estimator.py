@@ -85,8 +85,8 @@ from inertia_ros.nodes.params import ParamSpec
 from inertia_ros.nodes.selection import (
     BATCH_DEFAULT_WINDOW,
     TRACKING_DEFAULT_WINDOW,
-    is_torque_free,
     make_estimator,
+    no_torque_topic,
     torque_free_estimator,
 )
 
@@ -127,7 +127,7 @@ class InertiaEstimatorNode(Node):
         self._lock = threading.RLock()
         self._actuators = self._load_actuators(cfg)
         # The subscriptions first: discovery starts now, before anything else is built.
-        self._torque_free = is_torque_free(cfg)
+        self._torque_free = no_torque_topic(cfg)
         self._make_inputs(cfg)
         self._feed = EstimatorFeed(cfg, self._actuators, self._admission, self.get_logger())
         self._resets = 0

@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 
 from ..scene import SceneError, TorqueComponent
-from ..tensor import MATRIX_INDEX, THETA_NAMES
+from ..tensor import MATRIX_INDEX, THETA_NAMES, matrix_to_theta
 
 __all__ = ['NEAR_DIAGONAL', 'Limits', 'Prior', 'Profile', 'Target', 'make_prior']
 
@@ -60,8 +60,8 @@ class Prior:
 
 
 def _theta(m: np.ndarray) -> np.ndarray:
-    """``[ixx, iyy, izz, ixy, ixz, iyz]`` of a (3, 3) tensor."""
-    return m[[0, 1, 2, 0, 0, 1], [0, 1, 2, 1, 2, 2]]
+    """``[ixx, iyy, izz, ixy, ixz, iyz]`` of a (3, 3) tensor (:func:`matrix_to_theta`)."""
+    return matrix_to_theta(m, check_finite=False)
 
 
 def _physical_problem(m: np.ndarray) -> str | None:

@@ -12,6 +12,9 @@ import numpy as np
 
 from .inputs import Limits, Prior, Profile, _theta
 
+#: Fewest command samples per period of a multisine's highest frequency.
+SAMPLES_PER_PERIOD = 5.0
+
 __all__ = ['corner_frequency', 'design_candidates', 'multisine', 'scene_dict',
            'standard_profiles']
 
@@ -105,7 +108,7 @@ def design_candidates(prior: Prior, lim: Limits, horizon: float, rate: float
                (0.3, 1, 0.0, False), (0.15, 2, 1.0, True)]
     for spread, n, decay, stagger in layouts:
         top = 3 * n if spread is None else (2 * n - 1) * (1 + 2 * spread)
-        hi, lo = rate / (5.0 * top), 1.0 / horizon
+        hi, lo = rate / (SAMPLES_PER_PERIOD * top), 1.0 / horizon
         if hi < lo:
             continue
         for f0 in sorted({float(np.clip(f_c * k, lo, hi)) for k in (0.25, 0.5, 1.0, 2.0, 4.0)}):
