@@ -323,8 +323,9 @@ def _interrupt(tmp_path: Path, after_workers_s: float, second_s: float | None
 
     logs = tmp_path / 'v1'
     logs.mkdir()
-    for i in range(40):  # more than 2 workers finish in the test's 4 s on a fast machine
-        shutil.copyfile(GOOD, logs / f'{i}.mcap')
+    shutil.copyfile(GOOD, logs / '0.mcap')
+    for i in range(1, 400):  # far more than 2 workers finish in the test's seconds, even
+        os.link(logs / '0.mcap', logs / f'{i}.mcap')   # when the machine is loaded
     p = subprocess.Popen([sys.executable, '-m', 'inertia_ros', 'fleet', str(logs), '--out',
                           str(tmp_path / 'r.csv'), '--workers', '2', '--no-progress'],
                          stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
