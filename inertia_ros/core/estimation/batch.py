@@ -251,11 +251,12 @@ def _auto_hold(run: Any, diag: dict[str, Any], torque_std: np.ndarray, n_gyro: i
     A held command (zero-order hold) and a torque that varies continuously between its
     samples (linear) give the same number of parameters and are not nested: a Vuong test on
     the per-window likelihood differences of the two whole-record fits decides
-    (:func:`_hold_window_rss`); when the data cannot tell, the held model, which ``ml``
-    refines, stays.  Torque-free data need no choice (``zoh``).  Records over
-    :data:`_HOLD_PREFIX_FROM` gyro samples are compared on their first
-    :data:`_SELECT_MAX_ROWS` (how the torque behaves between its samples is a property of its
-    source, not of the record length), and only the chosen hold runs on the whole record.
+    (:func:`_hold_window_rss`); when the likelihoods cannot tell, the adequacy tests may
+    (:func:`_hold_by_adequacy`), and otherwise the held model, which ``ml`` refines, stays.
+    Torque-free data need no choice (``zoh``).  Records over :data:`_HOLD_PREFIX_FROM` gyro
+    samples are compared on their first :data:`_SELECT_MAX_ROWS` (how the torque behaves
+    between its samples is a property of its source, not of the record length), and only
+    the chosen hold runs on the whole record.
     ``data``: ``(tg, w, ts, tau, gyro_var, torque_var)``, origin-shifted.
     """
     head = _SELECT_MAX_ROWS if n_gyro > _HOLD_PREFIX_FROM else None
