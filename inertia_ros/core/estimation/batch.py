@@ -322,7 +322,8 @@ def _hold_window_rss(results: dict[str, InertiaEstimate], data: tuple[np.ndarray
     hold's whole-record tensor and bias with one weight ``(I S_g I)^-1`` from the held fit's
     tensor (the same noise model for both).  Why not, when they cannot be compared.
     """
-    tg, w, ts, tau, gyro_var, torque_var = data
+    tg, w, ts, tau, gyro_var, _ = data
+    no_walk = np.zeros(3)              # only the Grams are needed, not the torque-noise sums
     if head is not None:
         tg, w = tg[:head], w[:head]
     coef = {}
@@ -347,8 +348,8 @@ def _hold_window_rss(results: dict[str, InertiaEstimate], data: tuple[np.ndarray
         cuts = np.linspace(0, len(eq.t), n_win + 1).astype(int)
         out = []
         for a, b in zip(cuts[:-1], cuts[1:], strict=True):
-            sub, (j0, j1) = window_raw(eq, int(a), int(b), ts, torque_var)
-            st = sufficient_stats(sub, None, ts[j0:j1], float(sub.t[-1]), torque_var)
+            sub, (j0, j1) = window_raw(eq, int(a), int(b), ts, no_walk)
+            st = sufficient_stats(sub, None, ts[j0:j1], float(sub.t[-1]), no_walk)
             out.append(float(c @ metric(st.C, W) @ c))
         rss[h] = np.array(out)
     return rss['zoh'], rss['linear']
