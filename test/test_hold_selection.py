@@ -1,8 +1,9 @@
 """``hold='auto'`` decides held against linear torque by evidence (issue 27, item 2).
 
 The rule (:func:`inertia_ros.core.estimation.selection.select_hold`): a Vuong test on the
-per-window likelihood differences of the two holds' fits; held (zoh) when the data cannot
-tell.  Records from the independent RK4 simulator :mod:`inertia_ros.bench.truth_sim` with the
+per-window likelihood differences of the two holds' fits at level ``HOLD_ALPHA``; when it
+cannot tell, linear if only the held fit fails the adequacy tests; else held (zoh).
+Records from the independent RK4 simulator :mod:`inertia_ros.bench.truth_sim` with the
 default scene's body and excitation (multisine of RMS 0.06 N m per axis, torque noise 2 % of
 it, 200 Hz gyro with 0.002 rad/s noise, 50 Hz torque), the applied torque either held between
 its samples (a command) or continuous (varying smoothly, nearly linearly, between them).
@@ -11,12 +12,15 @@ on 8 of 10 continuous records and the window test then said ``model_mismatch``.
 """
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 
 from inertia_ros.bench.truth_sim import TruthCase, simulate_truth
 from inertia_ros.core.estimation import estimate
-from inertia_ros.core.estimation.selection import select_hold
+from inertia_ros.core.estimation.batch import _hold_by_adequacy
+from inertia_ros.core.estimation.selection import HOLD_ALPHA, select_hold
 from inertia_ros.core.inertia import matrix_to_theta
 
 #: The default scene (config/scenes/default.yaml) on the reference simulator.
@@ -63,24 +67,32 @@ def test_t_tail_matches_scipy() -> None:
 
 
 def test_continuous_torque_picks_linear() -> None:
-    """Continuous torque, 20 s, 3 seeds, CLI defaults: linear chosen, status ok.
-
-    Seeds 0 and 2 by the likelihoods (p < 1e-3); on seed 1 they lean to linear (p ~ 4e-3)
-    without reaching the level, and the adequacy tests decide: the held fit fails them (the
-    window estimates disagree), the linear one passes.
-    """
-    by = []
+    """Continuous torque, 20 s, 3 seeds, CLI defaults: linear chosen by the likelihoods
+    (p < 0.01, the level being 0.05), status ok, max |z| < 4."""
     for e, z in _runs('continuous', range(3), 20.0):
         sel = e.diagnostics['hold_selection']
         assert sel['chosen'] == 'linear' == e.diagnostics['hold'], sel
-        assert sel['statistic'] > 0, sel
-        if sel['p_value'] >= 1e-3:
-            assert sel['adequacy'] == {'zoh_ok': False, 'linear_ok': True,
-                                       'rule': sel['adequacy']['rule']}, sel
-        by.append('likelihood' if sel['p_value'] < 1e-3 else 'adequacy')
+        assert sel['statistic'] > 0 and sel['p_value'] < 0.01 and sel['alpha'] == HOLD_ALPHA
+        assert 'adequacy' not in sel, sel
         assert e.status == 'ok', e.diagnostics.get('reason')
         assert np.max(np.abs(z)) < 4.0, z
-    assert by == ['likelihood', 'adequacy', 'likelihood'], by
+
+
+def test_adequacy_decides_when_the_likelihoods_cannot() -> None:
+    """Held fit inadequate and linear adequate: linear; both inadequate: the held result."""
+    def est(ok: bool) -> SimpleNamespace:
+        return SimpleNamespace(diagnostics={'adequacy': {'ok': ok}})
+
+    held = est(False)
+    for lin_ok, want in ((True, 'linear'), (False, 'zoh')):
+        lin = est(lin_ok)
+        record: dict = {}
+        chosen, got = _hold_by_adequacy(lambda *a, lin=lin, **k: lin, {'warnings': []},
+                                        {'linear': est(True)}, held, record)
+        assert chosen == want and got is (lin if lin_ok else held)
+        assert record['adequacy']['zoh_ok'] is False and record['adequacy']['linear_ok'] is lin_ok
+    adequate = est(True)           # the held fit passes: linear is not even run
+    assert _hold_by_adequacy(None, {'warnings': []}, {}, adequate, {}) == ('zoh', adequate)
 
 
 def test_held_torque_keeps_zoh_and_ml() -> None:

@@ -109,7 +109,7 @@ from .options import (
 )
 from .regressors import metric
 from .result import InertiaEstimate
-from .selection import SelectionPolicy, hold_rule, select_hold
+from .selection import HOLD_ALPHA, SelectionPolicy, hold_rule, select_hold
 from .statistics import sufficient_stats, window_raw
 from .uncertainty import principal_with_std
 
@@ -275,13 +275,13 @@ def _auto_hold(run: Any, diag: dict[str, Any], torque_std: np.ndarray, n_gyro: i
         'torque-free or noise-free torque: no choice')
     if isinstance(rss, str):
         chosen, record = 'zoh', {'statistic': None, 'p_value': None, 'reason': rss,
-                                 'rule': hold_rule(ALPHA)}
+                                 'rule': hold_rule(HOLD_ALPHA)}
     else:
-        chosen, record = select_hold(*rss, ALPHA)
+        chosen, record = select_hold(*rss, HOLD_ALPHA)
     est = results[chosen] if chosen == 'zoh' and head is None else run(
         chosen, dict(diag, warnings=list(diag['warnings'])),
         chosen=_segment_choice(results[chosen], head is not None))
-    if head is None and record.get('p_value') is not None and record['p_value'] >= ALPHA:
+    if head is None and record.get('p_value') is not None and record['p_value'] >= HOLD_ALPHA:
         chosen, est = _hold_by_adequacy(run, diag, results, est, record)
     est.diagnostics['hold'] = chosen
     est.diagnostics['hold_selection'] = {'requested': 'auto', 'residual_excess': excess,
