@@ -65,7 +65,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         'samples, integral beyond)')
     p.add_argument('--hold', choices=BATCH_HOLDS, default='auto',
                    help='torque between samples: zero-order hold, linear, or auto (both '
-                        'fitted, the one the noise model explains better kept; default)')
+                        'fitted, the one the data support by a likelihood test kept; default)')
     p.add_argument('--torque-scale-std', type=bounded(0.0, 0.5, ''), default=0.0,
                    metavar='R',
                    help='relative one-sigma uncertainty of the torque scale (0.02 = 2 %%), '

@@ -85,7 +85,7 @@ from .adequacy import Adequacy, check_adequacy
 from .assemble import conclude, status_only
 from .equations import Equations, build_equations
 from .filtered import equations_for
-from .fit import Fit, fit_two_pass
+from .fit import Fit, equation_weight, fit_two_pass
 from .homogeneous import is_torque_free, torque_free_checked
 from .model import model_basis, symmetry_axis
 from .noise import isotropy_floor, noise_std_from_differences
@@ -107,8 +107,9 @@ from .options import (
     TORQUE_BIAS,
     check_choice,
 )
+from .regressors import metric
 from .result import InertiaEstimate
-from .selection import SelectionPolicy
+from .selection import HOLD_ALPHA, SelectionPolicy, hold_rule, select_hold
 from .statistics import sufficient_stats, window_raw
 from .uncertainty import principal_with_std
 
@@ -120,6 +121,8 @@ _HOLD_PREFIX_FROM = 300_000                    # gyro samples from which holds a
                                                # the first _SELECT_MAX_ROWS only
 _SEGMENT_CANDIDATES = (5.0, 10.0, 20.0, 40.0)   # s, anchored-segment lengths tried
 _EIV_MAX_SHARE = 0.02                          # differentiated-gyro noise share tolerated
+_HOLD_WINDOWS = 16                             # windows of the hold comparison (at most)
+_HOLD_MIN_ROWS = 25                            # equations per window (at least)
 
 
 @nuisance_hook
@@ -237,21 +240,24 @@ def _estimate_direct(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray,
                                  torque_bias, axis, policy, d, white_y_cov, final, chosen)
     if hold != 'auto':
         return run(hold, diag)
-    return _auto_hold(run, diag, torque_std, len(tg))
+    return _auto_hold(run, diag, torque_std, len(tg), (tg - t_origin, w, ts - t_origin, tau,
+                                                        gyro_std ** 2, torque_std ** 2))
 
 
-def _auto_hold(run: Any, diag: dict[str, Any], torque_std: np.ndarray,
-               n_gyro: int) -> InertiaEstimate:
-    """``hold='auto'``: both holds, the one whose residuals the noise model explains better.
+def _auto_hold(run: Any, diag: dict[str, Any], torque_std: np.ndarray, n_gyro: int,
+               data: tuple[np.ndarray, ...]) -> InertiaEstimate:
+    """``hold='auto'``: both holds, the one the data support (:func:`.selection.select_hold`).
 
     A held command (zero-order hold) and a torque that varies continuously between its
-    samples (linear) give the same number of parameters, so the residual excess over the same
-    noise model compares them fairly; ``linear`` must win by 10 % (at low signal-to-noise the
-    two are alike and the held model, which ``ml`` refines, stays).  Torque-free data need no
-    choice (``zoh``).  Records over :data:`_HOLD_PREFIX_FROM` gyro samples are compared on
-    their first :data:`_SELECT_MAX_ROWS` (how the torque behaves between its samples is a
-    property of its source, not of the record length), and only the chosen hold runs on the
-    whole record.
+    samples (linear) give the same number of parameters and are not nested: a Vuong test on
+    the per-window likelihood differences of the two whole-record fits decides
+    (:func:`_hold_window_rss`); when the likelihoods cannot tell, the adequacy tests may
+    (:func:`_hold_by_adequacy`), and otherwise the held model, which ``ml`` refines, stays.
+    Torque-free data need no choice (``zoh``).  Records over :data:`_HOLD_PREFIX_FROM` gyro
+    samples are compared on their first :data:`_SELECT_MAX_ROWS` (how the torque behaves
+    between its samples is a property of its source, not of the record length), and only
+    the chosen hold runs on the whole record.
+    ``data``: ``(tg, w, ts, tau, gyro_var, torque_var)``, origin-shifted.
     """
     head = _SELECT_MAX_ROWS if n_gyro > _HOLD_PREFIX_FROM else None
     results = {}
@@ -265,18 +271,88 @@ def _auto_hold(run: Any, diag: dict[str, Any], torque_std: np.ndarray,
             break
     excess = {h: float(r.diagnostics.get('residual_excess', np.inf)) for h, r in
               results.items()}
-    # a held command is the usual case and the one ml refines: linear only when clearly better
-    chosen = 'linear' if excess.get('linear', np.inf) < 0.9 * excess['zoh'] else 'zoh'
+    rss = _hold_window_rss(results, data, head) if len(results) == 2 else (
+        'torque-free or noise-free torque: no choice')
+    if isinstance(rss, str):
+        chosen, record = 'zoh', {'statistic': None, 'p_value': None, 'reason': rss,
+                                 'rule': hold_rule(HOLD_ALPHA)}
+    else:
+        chosen, record = select_hold(*rss, HOLD_ALPHA)
     est = results[chosen] if chosen == 'zoh' and head is None else run(
         chosen, dict(diag, warnings=list(diag['warnings'])),
         chosen=_segment_choice(results[chosen], head is not None))
+    if head is None and record.get('p_value') is not None and record['p_value'] >= HOLD_ALPHA:
+        chosen, est = _hold_by_adequacy(run, diag, results, est, record)
     est.diagnostics['hold'] = chosen
-    est.diagnostics['hold_selection'] = {
-        'requested': 'auto', 'chosen': chosen, 'residual_excess': excess,
-        'rule': 'linear when its residual excess is at least 10 % below the held one'}
+    est.diagnostics['hold_selection'] = {'requested': 'auto', 'residual_excess': excess,
+                                         **record, 'chosen': chosen}
     if head is not None:
         est.diagnostics['hold_selection']['compared_on_gyro_samples'] = head
     return est
+
+
+def _hold_by_adequacy(run: Any, diag: dict[str, Any], results: dict[str, InertiaEstimate],
+                      held: InertiaEstimate, record: dict[str, Any]
+                      ) -> tuple[str, InertiaEstimate]:
+    """When the likelihoods cannot tell the holds apart: the adequacy tests may.
+
+    The held fit failing the adequacy tests (window consistency, residual excess) while the
+    linear one passes them is evidence the likelihood difference was too small to resolve:
+    then ``linear``, else the held result.  Noted in ``record``.
+    """
+    if held.diagnostics.get('adequacy', {}).get('ok', True):
+        return 'zoh', held
+    lin = run('linear', dict(diag, warnings=list(diag['warnings'])),
+              chosen=_segment_choice(results['linear'], False))
+    ok = bool(lin.diagnostics.get('adequacy', {}).get('ok', False))
+    record['adequacy'] = {'zoh_ok': False, 'linear_ok': ok,
+                          'rule': 'the likelihoods cannot tell: linear when the held fit fails '
+                                  'the adequacy tests and the linear one passes them'}
+    return ('linear', lin) if ok else ('zoh', held)
+
+
+def _hold_window_rss(results: dict[str, InertiaEstimate], data: tuple[np.ndarray, ...],
+                     head: int | None) -> tuple[np.ndarray, np.ndarray] | str:
+    """Weighted residual sums of squares (K,) per window of the two holds' fits.
+
+    The anchored (``integral``) equations of each hold on the gyro samples both cover, cut
+    into up to :data:`_HOLD_WINDOWS` consecutive windows of at least
+    :data:`_HOLD_MIN_ROWS` equations, each anchored on its own (its own initial momentum:
+    under the noise model the windows are independent).  Every window is evaluated at each
+    hold's whole-record tensor and bias with one weight ``(I S_g I)^-1`` from the held fit's
+    tensor (the same noise model for both).  Why not, when they cannot be compared.
+    """
+    tg, w, ts, tau, gyro_var, _ = data
+    no_walk = np.zeros(3)              # only the Grams are needed, not the torque-noise sums
+    if head is not None:
+        tg, w = tg[:head], w[:head]
+    coef = {}
+    for h, r in results.items():
+        theta = r.theta
+        if theta is None or not np.all(np.isfinite(theta)):
+            return (f'the {h} fit has no complete tensor ({r.status}, undetermined elements '
+                    'are null): the holds are not compared')
+        bias = np.zeros(3) if r.torque_bias is None else np.asarray(r.torque_bias, float)
+        coef[h] = np.concatenate([-theta, -bias, [1.0]])          # [psi, d, 1] -> residual
+    W = equation_weight(-coef['zoh'][:6], gyro_var)
+    mask, _ = _coverage(tg, ts, 'linear', {'warnings': []})       # inside both coverages
+    idx = np.flatnonzero(mask)
+    if len(idx) < 8 * _HOLD_MIN_ROWS:
+        return (f'{len(idx)} gyro samples are too few for 8 windows of {_HOLD_MIN_ROWS}: the '
+                'holds are not compared')
+    breaks = (np.diff(idx) > 1) | (np.diff(tg[idx]) > GAP_FACTOR * median(np.diff(tg)))
+    n_win = min(_HOLD_WINDOWS, len(idx) // _HOLD_MIN_ROWS)
+    rss = {}
+    for h, c in coef.items():
+        eq = build_equations('integral', tg, w, ts, tau, mask, breaks, h, gyro_var, None)
+        cuts = np.linspace(0, len(eq.t), n_win + 1).astype(int)
+        out = []
+        for a, b in zip(cuts[:-1], cuts[1:], strict=True):
+            sub, (j0, j1) = window_raw(eq, int(a), int(b), ts, no_walk)
+            st = sufficient_stats(sub, None, ts[j0:j1], float(sub.t[-1]), no_walk)
+            out.append(float(c @ metric(st.C, W) @ c))
+        rss[h] = np.array(out)
+    return rss['zoh'], rss['linear']
 
 
 def _segment_choice(est: InertiaEstimate | None, from_head: bool
