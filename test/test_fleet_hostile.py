@@ -120,6 +120,17 @@ def test_com_and_urdf_refused_in_one_line(tmp_path: Path, capsys: pytest.Capture
     assert in_process['runs'] == [] and sorted(os.listdir(tmp_path)) == []
 
 
+def test_topic_without_its_file_refused(tmp_path: Path, capsys: pytest.CaptureFixture,
+                                        in_process: dict) -> None:
+    """--wheel-topic / --rotor-topic without --wheels / --rotors is one line before any log
+    (it was passed to every log and did nothing there)."""
+    out = tmp_path / 'r.csv'
+    for opt, companion in (('--wheel-topic', '--wheels'), ('--rotor-topic', '--rotors')):
+        _refused(_fleet(capsys, str(GOOD), '--out', str(out), opt, '/js'), opt,
+                 f'only used with {companion} FILE')
+    assert in_process['runs'] == [] and sorted(os.listdir(tmp_path)) == []
+
+
 def test_workers_capped_at_the_cores(tmp_path: Path, capsys: pytest.CaptureFixture,
                                      in_process: dict) -> None:
     """--workers 1000 (or 10^30, a MemoryError before) starts one worker per core, and says
