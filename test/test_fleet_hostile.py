@@ -325,7 +325,7 @@ def _group(pgid: int) -> list[int]:
 
 def _interrupt(tmp_path: Path, after_workers_s: float, second_s: float | None
                ) -> tuple[int, str, float]:
-    """Run fleet on 40 logs with 2 worker processes in its own process group; Ctrl-C the
+    """Run fleet on 160 logs with 2 worker processes in its own process group; Ctrl-C the
     group ``after_workers_s`` after the worker processes appear (and again ``second_s``
     later); return the exit status, stderr and the seconds from the first Ctrl-C to exit."""
     import signal
@@ -334,8 +334,11 @@ def _interrupt(tmp_path: Path, after_workers_s: float, second_s: float | None
 
     logs = tmp_path / 'v1'
     logs.mkdir()
-    for i in range(40):  # more than 2 workers finish in the test's 4 s on a fast machine
-        shutil.copyfile(GOOD, logs / f'{i}.mcap')
+    # more than 2 workers finish in the test's 4 s on a fast machine (40 logs did at times:
+    # exit 0 before the Ctrl-C); hard links cost no space
+    shutil.copyfile(GOOD, logs / '0.mcap')
+    for i in range(1, 160):
+        os.link(logs / '0.mcap', logs / f'{i}.mcap')
     p = subprocess.Popen([sys.executable, '-m', 'inertia_ros', 'fleet', str(logs), '--out',
                           str(tmp_path / 'r.csv'), '--workers', '2', '--no-progress'],
                          stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
