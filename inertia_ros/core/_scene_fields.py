@@ -17,7 +17,7 @@ from inertia_ros.core._validate import show
 
 __all__ = ['MAX_ACTUATORS', 'MAX_ACTUATOR_SPEED', 'MAX_ACTUATOR_WORK', 'MAX_DROP_RATE',
            'MAX_DURATION', 'MAX_EVENTS', 'MAX_MAGNITUDE', 'MAX_NAME_CHARS', 'MAX_SUBSTEPS',
-           'MAX_TORQUE_DELAY', 'SceneError', 'too_many_substeps']
+           'MAX_MULTISINE_TERMS', 'MAX_TORQUE_DELAY', 'SceneError', 'too_many_substeps']
 
 
 class SceneError(ValueError):
@@ -27,6 +27,8 @@ class SceneError(ValueError):
 #: Largest number of samples (gyro + torque + command updates + JointState) a scene may ask
 #: for: about 40 s and 2 GiB to simulate and write (1.8 h at 200 + 50 + 50 Hz).
 MAX_EVENTS = 2e6
+#: Most multisine terms (command samples x frequencies x axes), each a sine evaluation.
+MAX_MULTISINE_TERMS = 20 * MAX_EVENTS
 #: Most RK4 substeps of the rigid-body integrator (plain floats, 4-13 us each).
 MAX_SUBSTEPS = 4e6
 #: Most RK4 substeps times wheels (or rotors) with actuators: their numpy right-hand side

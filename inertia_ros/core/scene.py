@@ -46,6 +46,7 @@ from inertia_ros.core._scene_fields import (  # noqa: F401  (re-exported for the
     MAX_DURATION,
     MAX_EVENTS,
     MAX_MAGNITUDE,
+    MAX_MULTISINE_TERMS,
     MAX_NAME_CHARS,
     MAX_SUBSTEPS,
     MAX_TORQUE_DELAY,
@@ -725,10 +726,10 @@ def _check_torque_sizes(scene: Scene, scale: float) -> None:
         span = min(c.end, scene.duration) - c.start
         if c.type == 'multisine':
             terms = n_cmd * c.params['n_freq'] * len(c.axes)
-            if terms > 20 * MAX_EVENTS * scale:
+            if terms > MAX_MULTISINE_TERMS * scale:
                 raise SceneError(f'torque[{i}].n_freq: {c.params["n_freq"]} frequencies on '
                                  f'{n_cmd:.3g} command samples make {terms:.3g} terms, more '
-                                 f'than the simulator allows ({20 * MAX_EVENTS * scale:.0e})')
+                                 f'than the simulator allows ({MAX_MULTISINE_TERMS * scale:.0e})')
         elif c.type in ('prbs', 'steps'):
             k = 'bit_time' if c.type == 'prbs' else 'period'
             if span / c.params[k] > MAX_EVENTS * scale:

@@ -85,9 +85,9 @@ from inertia_ros.nodes.params import ParamSpec
 from inertia_ros.nodes.selection import (
     BATCH_DEFAULT_WINDOW,
     TRACKING_DEFAULT_WINDOW,
-    is_torque_free,
     make_estimator,
     torque_free_estimator,
+    torque_topic_is_none,
 )
 
 __all__ = ['BATCH_DEFAULT_WINDOW', 'DIAGNOSTIC_TASK', 'NODE_NAME', 'PARAMETERS', 'STAMP_CONFIRM',
@@ -127,7 +127,7 @@ class InertiaEstimatorNode(Node):
         self._lock = threading.RLock()
         self._actuators = self._load_actuators(cfg)
         # The subscriptions first: discovery starts now, before anything else is built.
-        self._torque_free = is_torque_free(cfg)
+        self._torque_free = torque_topic_is_none(cfg)
         self._make_inputs(cfg)
         self._feed = EstimatorFeed(cfg, self._actuators, self._admission, self.get_logger())
         self._resets = 0

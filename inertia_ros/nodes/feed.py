@@ -17,10 +17,10 @@ from inertia_ros.core.estimation.result import InertiaEstimate
 from inertia_ros.core.estimation.windowed import OnlineEstimator
 from inertia_ros.nodes.admission import Admission
 from inertia_ros.nodes.selection import (
-    is_torque_free,
     make_estimator,
     reselect_every,
     torque_free_estimator,
+    torque_topic_is_none,
 )
 
 __all__ = ['EstimatorFeed']
@@ -49,7 +49,7 @@ class EstimatorFeed:
         self.cfg = cfg
         self.actuators = actuators
         self.admission = admission
-        self.torque_free = is_torque_free(cfg)
+        self.torque_free = torque_topic_is_none(cfg)
         self.factory = make_estimator(cfg, actuators)
         self.estimator: OnlineEstimator = self.factory()
         #: torque-free estimator fed while no torque message has arrived (zero torque)

@@ -14,14 +14,14 @@ from inertia_ros.core.estimation.recursive_momentum import MomentumRecursiveEsti
 from inertia_ros.core.estimation.tracking import TrackingEstimator
 from inertia_ros.core.estimation.windowed import BatchWindow, OnlineEstimator
 
-__all__ = ['BATCH_DEFAULT_WINDOW', 'TRACKING_DEFAULT_WINDOW', 'is_torque_free',
+__all__ = ['BATCH_DEFAULT_WINDOW', 'TRACKING_DEFAULT_WINDOW', 'torque_topic_is_none',
            'make_estimator', 'reselect_every', 'torque_free_estimator']
 
 BATCH_DEFAULT_WINDOW = 30.0  # s, batch re-solve when window = 0
 TRACKING_DEFAULT_WINDOW = 10.0  # s, tracking memory when window = 0
 
 
-def is_torque_free(cfg: dict[str, Any]) -> bool:
+def torque_topic_is_none(cfg: dict[str, Any]) -> bool:
     """Whether ``torque_topic`` is 'none' (no torque stream: torque-free estimation)."""
     return str(cfg['torque_topic']).strip().lower() == 'none'
 
@@ -81,10 +81,10 @@ def make_estimator(cfg: dict[str, Any], actuators: Any = None
         RecursiveEstimator(**kwargs)  # validates
         if actuators is not None:
             names = actuators.names
-            other = not is_torque_free(cfg)
+            other = not torque_topic_is_none(cfg)
             return lambda: MomentumRecursiveEstimator(names=names, other_torque=other, **kwargs)
         return lambda: RecursiveEstimator(**kwargs)
-    if cfg['method'] == 'tracking' and is_torque_free(cfg):
+    if cfg['method'] == 'tracking' and torque_topic_is_none(cfg):
         return torque_free_estimator(cfg)
     if cfg['method'] == 'tracking':
         kwargs = dict(window=float(cfg['window']) or TRACKING_DEFAULT_WINDOW,
