@@ -354,3 +354,19 @@ def test_no_input_is_an_output_even_with_force(tmp_path: Path,
         _refused(*_estimate(capsys, BAGS / 'wheels.mcap', '--wheels', spec, opt, target,
                             *extra, '--force'), opt, 'refusing to overwrite the --wheels file')
     assert spec.read_bytes() == before
+
+
+def test_options_without_their_companion_are_refused(tmp_path: Path,
+                                                     capsys: pytest.CaptureFixture) -> None:
+    """--mass, --com, --link without --urdf and --wheel-topic / --rotor-topic without
+    --wheels / --rotors did nothing and said nothing; now one line naming both, exit 2, no
+    report (and no file written)."""
+    cases = [(['--mass', '3'], '--urdf'), (['--com', '0', '0', '0.1'], '--urdf'),
+             (['--link', 'body'], '--urdf'), (['--wheel-topic', '/js'], '--wheels'),
+             (['--rotor-topic', '/js'], '--rotors')]
+    for extra, companion in cases:
+        _refused(*_estimate(capsys, DEFAULT_BAG, *extra, '-o', str(tmp_path / 'r.txt')),
+                 extra[0], f'only used with {companion} FILE')
+        assert not (tmp_path / 'r.txt').exists()
+    code, out, _ = _estimate(capsys, DEFAULT_BAG, '--link', 'base_link', '--format', 'json')
+    assert code == 0 and '"status"' in out       # the default, spelled out, is harmless

@@ -120,6 +120,17 @@ def test_com_and_urdf_refused_in_one_line(tmp_path: Path, capsys: pytest.Capture
     assert in_process['runs'] == [] and sorted(os.listdir(tmp_path)) == []
 
 
+def test_topic_without_its_file_refused(tmp_path: Path, capsys: pytest.CaptureFixture,
+                                        in_process: dict) -> None:
+    """--wheel-topic / --rotor-topic without --wheels / --rotors is one line before any log
+    (it was passed to every log and did nothing there)."""
+    out = tmp_path / 'r.csv'
+    for opt, companion in (('--wheel-topic', '--wheels'), ('--rotor-topic', '--rotors')):
+        _refused(_fleet(capsys, str(GOOD), '--out', str(out), opt, '/js'), opt,
+                 f'only used with {companion} FILE')
+    assert in_process['runs'] == [] and sorted(os.listdir(tmp_path)) == []
+
+
 def test_workers_capped_at_the_cores(tmp_path: Path, capsys: pytest.CaptureFixture,
                                      in_process: dict) -> None:
     """--workers 1000 (or 10^30, a MemoryError before) starts one worker per core, and says
@@ -314,7 +325,7 @@ def _group(pgid: int) -> list[int]:
 
 def _interrupt(tmp_path: Path, after_workers_s: float, second_s: float | None
                ) -> tuple[int, str, float]:
-    """Run fleet on 40 logs with 2 worker processes in its own process group; Ctrl-C the
+    """Run fleet on 400 logs with 2 worker processes in its own process group; Ctrl-C the
     group ``after_workers_s`` after the worker processes appear (and again ``second_s``
     later); return the exit status, stderr and the seconds from the first Ctrl-C to exit."""
     import signal

@@ -120,7 +120,11 @@ def test_hostile_actuator_file(name: str, tmp_path: Path) -> None:
 
 
 def test_yaml_reader_in_process(tmp_path: Path) -> None:
-    """The reader's limits, in-process and fast: every refusal names the file, in < 1 s."""
+    """The reader's limits, in-process and fast: every refusal names the file, in < 1 s.
+
+    The bound is on this process's CPU time: the wall time of a 0.2 s parse reached 3.8 s in
+    a whole-suite run on a loaded 2-core machine (Python 3.12), which says nothing about the
+    reader."""
     from inertia_ros.io.yaml_input import read_yaml
 
     cases = {'bomb': f'a: {bomb()}\n', 'deep': 'a: ' + '[' * 10_000 + ']' * 10_000 + '\n',
@@ -129,10 +133,10 @@ def test_yaml_reader_in_process(tmp_path: Path) -> None:
     for name, text in cases.items():
         p = tmp_path / f'{name}.yaml'
         p.write_text(text)
-        t0 = time.perf_counter()
+        t0 = time.process_time()
         with pytest.raises(ValueError) as err:
             read_yaml(p, 'scene')
-        assert time.perf_counter() - t0 < 1.0, name
+        assert time.process_time() - t0 < 1.0, name
         assert str(err.value).startswith(str(p)) and '\n' not in str(err.value), name
     ok = tmp_path / 'ok.yaml'
     ok.write_text('a: [1e-1, 2E+3, 5]\nb: &x {c: 1}\nd: *x\n')

@@ -1,6 +1,7 @@
 """read_log: topic discovery, header-stamp times, frames, cleaning counts, bags, damage."""
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import numpy as np
@@ -193,6 +194,19 @@ def test_unreadable_inputs(tmp_path: Path) -> None:
     (tmp_path / 'empty_dir').mkdir()
     with pytest.raises(LogError, match='holds no .mcap files'):
         read_log(tmp_path / 'empty_dir')
+
+
+def test_fifo_or_device_as_log_is_named_as_such(tmp_path: Path) -> None:
+    """A FIFO or a device given as the log is refused as what it is, not as a directory
+    without .mcap files (which ``estimate /dev/zero`` used to say), and never opened."""
+    fifo = tmp_path / 'pipe.mcap'
+    os.mkfifo(fifo)
+    for path in (fifo, Path('/dev/zero')):
+        with pytest.raises(LogError) as err:
+            read_log(path)
+        msg = str(err.value)
+        assert msg.startswith(f'{path}: not a regular file or directory'), msg
+        assert 'directory holds' not in msg, msg
 
 
 def test_messy_streams_are_cleaned_and_counted(tmp_path: Path) -> None:

@@ -301,6 +301,7 @@ def test_unparsable_argument_exits_2_without_traceback():
     assert code == 2 and 'Traceback' not in out, out
     assert "inertia_estimator: error: bad command-line arguments: Couldn't parse parameter " \
            "override rule: '-p publish_rate:='" in out, out
+    assert len(out.strip().splitlines()) == 1, out    # not rcl's "[ERROR] ... [rcl]" line too
 
 
 @pytest.mark.parametrize('module, args, until', [

@@ -192,6 +192,29 @@ def _inputs(args: argparse.Namespace) -> dict[Path, str]:
     return inputs
 
 
+def check_companions(args: argparse.Namespace) -> None:
+    """Refuse an option that does nothing without its companion (it used to be ignored).
+
+    ``--mass``, ``--com`` and ``--link`` only describe the ``--urdf`` body; ``--wheel-topic``
+    and ``--rotor-topic`` only name the stream of ``--wheels`` / ``--rotors``.
+
+    Raises
+    ------
+    UserError
+        One line naming the option and its companion.
+    """
+    pairs = (('--mass', args.mass is not None, '--urdf FILE'),
+             ('--com', tuple(args.com) != (0.0, 0.0, 0.0), '--urdf FILE'),
+             ('--link', args.link != 'base_link', '--urdf FILE'),
+             ('--wheel-topic', args.wheel_topic is not None, '--wheels FILE'),
+             ('--rotor-topic', args.rotor_topic is not None, '--rotors FILE'))
+    for opt, given, companion in pairs:
+        dest = companion.split()[0].removeprefix('--')
+        if given and getattr(args, dest) is None:
+            raise UserError(f'{opt}: only used with {companion}, which is not given; add '
+                            f'{companion} or leave {opt} out')
+
+
 def _check_outputs(args: argparse.Namespace) -> None:
     """Refuse, before any work, every output option that cannot or must not be written.
 
@@ -423,6 +446,7 @@ def _run(args: argparse.Namespace) -> int:
 
     if args.wheels is not None and args.rotors is not None:
         raise UserError('--wheels and --rotors: give one of them (one JointState input)')
+    check_companions(args)
     _check_outputs(args)
     if args.model == 'axisymmetric' and args.symmetry_axis is None:
         raise UserError('--model axisymmetric needs --symmetry-axis x|y|z')

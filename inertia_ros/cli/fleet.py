@@ -288,6 +288,9 @@ def _check_options(args: argparse.Namespace) -> None:
             and getattr(args, 'symmetry_axis', None) is None:
         raise UserError('--model axisymmetric needs --symmetry-axis x|y|z')
     _check_estimate_options(args)
+    from inertia_ros.cli.estimate import check_companions
+
+    check_companions(args)          # --wheel-topic without --wheels, ...
     _check_out(args.out)
     _check_report(args.report)
     if args.scheduler is not None:

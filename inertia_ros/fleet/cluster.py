@@ -22,6 +22,7 @@ from __future__ import annotations
 import contextlib
 import logging
 import multiprocessing
+import os
 import signal
 import socket
 import threading
@@ -142,6 +143,13 @@ def _start_local(distributed: Any, workers: int | None, processes: bool) -> tupl
     # Dask's own log only at CRITICAL: a worker stopped by Ctrl-C or at the end logs its
     # lost heartbeat with a traceback at ERROR; a log a worker cannot finish is a 'failed'
     # row with the error anyway
+    # silence_logs only quiets the worker process's 'distributed.nanny' logger: the rest of
+    # its 'distributed' log (e.g. "Batched Comm Closed" with a traceback at INFO when Ctrl-C
+    # comes during the start-up) follows dask's config, read from the environment when the
+    # spawned process imports distributed
+    key = 'DASK_LOGGING__DISTRIBUTED'
+    saved = os.environ.get(key)
+    os.environ[key] = 'critical'
     try:
         cluster = distributed.LocalCluster(n_workers=n, threads_per_worker=1,
                                            processes=processes, dashboard_address=None,
@@ -149,6 +157,11 @@ def _start_local(distributed: Any, workers: int | None, processes: bool) -> tupl
     except Exception as exc:
         raise ClusterError(f'cannot start a local Dask cluster of {n} workers '
                            f'({_first_line(exc)})') from None
+    finally:
+        if saved is None:
+            os.environ.pop(key, None)
+        else:
+            os.environ[key] = saved
     try:
         return cluster, distributed.Client(cluster)
     except Exception as exc:

@@ -138,6 +138,9 @@ def log_files(path: str | Path) -> list[Path]:
             raise LogError(f'{p}: a {p.suffix} file is read as part of its rosbag2 bag; pass '
                            f'the bag directory {p.parent} (with its metadata.yaml)')
         return [p]
+    if not p.is_dir():
+        raise LogError(f'{p}: not a regular file or directory (a FIFO, socket or device); give '
+                       'an .mcap file or a rosbag2 directory')
     info = _bag(p)
     if info is not None and info.files:
         present = [f for f in info.files if f.is_file()]

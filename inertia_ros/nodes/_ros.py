@@ -30,6 +30,28 @@ __all__ = ['PolledGroup', 'clock_qos', 'latched_qos', 'polled_subscription', 'ru
 PACKAGE = 'inertia_ros'
 
 
+def _init_holding_stderr(args: list[str] | None) -> None:
+    """``rclpy.init(args)``, with what rcl writes on stderr meanwhile held back: on failure
+    it is dropped (rcl's own "[ERROR] ... [rcl]: Failed to parse global arguments" would
+    precede the node's one-line error), on success it is written out unchanged."""
+    import os
+    import tempfile
+
+    sys.stderr.flush()
+    saved = os.dup(2)
+    with tempfile.TemporaryFile() as held:
+        os.dup2(held.fileno(), 2)
+        try:
+            rclpy.init(args=args)
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+        held.seek(0)
+        text = held.read()
+        if text:
+            os.write(2, text)
+
+
 def run_node(make_node: Callable[[], Node], name: str, args: list[str] | None = None,
              spin: Callable[[Node], None] = rclpy.spin) -> None:
     """Initialise rclpy, build the node, spin it, and shut down cleanly.
@@ -64,7 +86,7 @@ def run_node(make_node: Callable[[], Node], name: str, args: list[str] | None = 
         print(f'{name}: error: {problem}', file=sys.stderr)
         sys.exit(2)
     try:
-        rclpy.init(args=args)
+        _init_holding_stderr(args)
     except Exception as exc:  # rcl's RCLError for arguments it cannot parse
         text = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         text = text.removeprefix('failed to initialize rcl: ')
