@@ -64,8 +64,9 @@ def test_existing_output_refused_unless_force(opt: str, tmp_path: Path,
 
 def test_urdf_refusals_come_before_the_report(tmp_path: Path,
                                               capsys: pytest.CaptureFixture) -> None:
-    """--urdf into a missing directory, with a blank --link, or with control characters in
-    the link name (U+0001, U+001F, U+FFFE): one line, exit 2, and no report printed."""
+    """--urdf into a missing directory, with a blank --link, a 100 kB one, or with control
+    characters in the link name (U+0001, U+001F, U+FFFE): one line, exit 2, and no report
+    printed."""
     good = tmp_path / 'body.urdf'
     cases = [
         ([tmp_path / 'missing' / 'b.urdf', '--mass', '10'], ('--urdf', 'does not exist')),
@@ -75,6 +76,7 @@ def test_urdf_refusals_come_before_the_report(tmp_path: Path,
         ([good, '--mass', '10', '--link', 'a\x01b'], ('--link', 'U+0001')),
         ([good, '--mass', '10', '--link', 'a\x1fb'], ('--link', 'U+001F')),
         ([good, '--mass', '10', '--link', 'a\ufffeb'], ('--link', 'U+FFFE')),
+        ([good, '--mass', '10', '--link', 'l' * 100_000], ('--link', 'at most 256')),
     ]
     for extra, pieces in cases:
         _refused(*_estimate(capsys, DEFAULT_BAG, '--urdf', *extra), *pieces)

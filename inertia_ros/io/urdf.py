@@ -117,6 +117,10 @@ def _not_xml(ch: str) -> bool:
     return (o < 0x20 or 0x7F <= o <= 0x9F or 0xD800 <= o <= 0xDFFF or o in (0xFFFE, 0xFFFF))
 
 
+#: Longest link or robot name written (URDF readers and RViz labels expect short names).
+MAX_NAME_CHARS = 256
+
+
 def check_name(what: str, name: Any) -> str:
     """A URDF name (link, robot): non-blank text of printable characters.
 
@@ -135,7 +139,8 @@ def check_name(what: str, name: Any) -> str:
     Raises
     ------
     ValueError
-        One line: a blank name, or the first control character (``U+0001``, ``U+001F``,
+        One line: a blank name, one over :data:`MAX_NAME_CHARS` characters, or the first
+        control character (``U+0001``, ``U+001F``,
         ``U+FFFE``, a surrogate, ...) it holds, which well-formed XML cannot carry.
     """
     bad = next((ch for ch in name if _not_xml(ch)), None) if isinstance(name, str) else None
@@ -144,6 +149,9 @@ def check_name(what: str, name: Any) -> str:
                          'give a name of printable characters')
     if not isinstance(name, str) or not name.strip():
         raise ValueError(f'{what}: expected a non-empty name, got {name!r}')
+    if len(name) > MAX_NAME_CHARS:
+        raise ValueError(f'{what}: a name of at most {MAX_NAME_CHARS} characters is needed, got '
+                         f'{len(name)} ({name[:40]!r}...)')
     return name
 
 
