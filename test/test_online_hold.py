@@ -118,3 +118,27 @@ def test_windows_merge_under_one_anchor_but_not_across_a_gap() -> None:
     parts = [X[:25] - X[:25].mean(axis=0), X[25:50] - X[25:50].mean(axis=0)]
     np.testing.assert_allclose(hw.closed[0][2], sum(p.T @ p for p in parts), rtol=1e-10,
                                atol=1e-9)
+
+
+def test_node_estimator_defaults_are_ok_on_continuous_torque() -> None:
+    """The node's estimator with every parameter at its default (``hold: auto``), fed in
+    0.1 s updates with ``refresh()`` after each: continuous torque, seeds 0-2, ends ok with
+    linear and max |z| < 4 (the issue's "node, defaults" case)."""
+    from inertia_ros.nodes import params
+    from inertia_ros.nodes.selection import make_estimator
+
+    cfg = {name: spec.default for name, spec in params.ESTIMATOR.items()}
+    for rec in _records('continuous', range(3)):
+        est = make_estimator(cfg)()
+        edges = np.arange(0.0, rec.t_gyro[-1] + 0.1, 0.1)
+        gi = np.searchsorted(rec.t_gyro, edges, side='right')
+        ti = np.searchsorted(rec.t_torque, edges, side='right')
+        for k in range(1, len(edges)):
+            est.add_torque(rec.t_torque[ti[k - 1]:ti[k]], rec.torque[ti[k - 1]:ti[k]])
+            est.add_gyro(rec.t_gyro[gi[k - 1]:gi[k]], rec.omega[gi[k - 1]:gi[k]])
+            est.estimate()
+            est.refresh()
+        e = est.estimate()
+        assert e.status == 'ok' and e.diagnostics['hold'] == 'linear', e.diagnostics
+        z = (e.theta - matrix_to_theta(rec.inertia)) / e.theta_std
+        assert np.max(np.abs(z)) < 4.0, z
