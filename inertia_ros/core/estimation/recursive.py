@@ -30,7 +30,8 @@ statistics, as the batch estimator does.
 
 The two streams arrive asynchronously: gyro samples are buffered until torque covering them
 has arrived (a torque sample at or after the gyro time), then integrated exactly under the
-zero-order hold (or linear interpolation) of the torque samples.
+zero-order hold (or linear interpolation) of the torque samples; with ``hold='auto'`` both,
+into two accumulators, and the batch rule chooses between them (:mod:`.online_hold`).
 """
 from __future__ import annotations
 
