@@ -324,3 +324,17 @@ def test_simulator_takes_an_integer_rate(tmp_path):
                                               '-p', 'rate:=4', '-p', 'wait_for_subscribers:=0',
                                               '-p', 'exit_on_end:=true'])
     assert code == 0 and 'Traceback' not in out and 'at rate 4' in out, out
+
+
+def test_node_hold_default_is_auto_by_evidence() -> None:
+    """The estimator node's ``hold`` defaults to ``auto`` (issue 27 item 2): the recursive
+    estimator it builds chooses the hold by evidence; tracking and batch hold (``zoh``)."""
+    from inertia_ros.core.estimation.recursive import RecursiveEstimator
+    from inertia_ros.nodes.selection import make_estimator
+
+    assert params.ESTIMATOR['hold'].default == 'auto'
+    cfg = {name: spec.default for name, spec in params.ESTIMATOR.items()}
+    est = make_estimator(cfg)()
+    assert isinstance(est, RecursiveEstimator) and est.hold == 'auto'
+    assert make_estimator(dict(cfg, method='tracking'))().hold == 'zoh'
+    assert make_estimator(dict(cfg, method='batch'))().options['hold'] == 'zoh'

@@ -30,7 +30,7 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from inertia_ros.core.estimation.options import HOLDS, METHODS, MODELS, TORQUE_BIAS
+from inertia_ros.core.estimation.options import BATCH_HOLDS, METHODS, MODELS, TORQUE_BIAS
 from inertia_ros.core.estimation.windowed import ONLINE_METHODS
 
 __all__ = ['BAG_PLAYER', 'ESTIMATOR', 'EXCITER', 'NODE_TABLES', 'PLAYBACK', 'SCENE_SIMULATOR',
@@ -356,8 +356,10 @@ ESTIMATOR: dict[str, ParamSpec] = {
     'window': ParamSpec(0.0, 'recursive: memory time constant, weights decay as '
                         'exp(-age/window) [s], 0 = no decay; tracking: the same memory, 0 = '
                         '10 s; batch: sliding-window length [s], 0 = 30 s', 0.0, 86400.0),
-    'hold': ParamSpec('zoh', "torque between samples: 'zoh' (held) or 'linear'",
-                      choices=HOLDS),
+    'hold': ParamSpec('auto', "torque between samples: 'auto' (recursive: held or linear, "
+                      'chosen by evidence at each re-selection, the batch rule; tracking, '
+                      "batch and wheels/rotors: held), 'zoh' (held) or 'linear'",
+                      choices=BATCH_HOLDS),
     'torque_scale_std': ParamSpec(0.0, 'relative one-sigma uncertainty of the torque scale '
                                   '(0.02 = 2 %), added to every sigma [dimensionless]',
                                   0.0, 0.5),

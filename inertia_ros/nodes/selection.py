@@ -86,6 +86,8 @@ def make_estimator(cfg: dict[str, Any], actuators: Any = None
         return lambda: RecursiveEstimator(**kwargs)
     if cfg['method'] == 'tracking' and no_torque_topic(cfg):
         return torque_free_estimator(cfg)
+    # hold 'auto' is decided online by the recursive method; tracking and batch hold the torque
+    cfg = dict(cfg, hold='zoh') if cfg['hold'] == 'auto' else cfg
     if cfg['method'] == 'tracking':
         kwargs = dict(window=float(cfg['window']) or TRACKING_DEFAULT_WINDOW,
                       model=cfg['model'], torque_bias=cfg['torque_bias'], hold=cfg['hold'],

@@ -30,7 +30,8 @@ statistics, as the batch estimator does.
 
 The two streams arrive asynchronously: gyro samples are buffered until torque covering them
 has arrived (a torque sample at or after the gyro time), then integrated exactly under the
-zero-order hold (or linear interpolation) of the torque samples.
+zero-order hold (or linear interpolation) of the torque samples; with ``hold='auto'`` both,
+into two accumulators, and the batch rule chooses between them (:mod:`.online_hold`).
 """
 from __future__ import annotations
 
@@ -48,8 +49,10 @@ from .fit import Fit, fit_two_pass
 from .homogeneous import homogeneous_estimate, is_torque_free
 from .model import symmetry_axis as unit_axis
 from .noise import StreamingNoise
+from .online_hold import AutoHold
 from .options import (
     ALPHA,
+    BATCH_HOLDS,
     HOLDS,
     MIN_EQUATIONS,
     MIN_GYRO_SAMPLES,
@@ -82,8 +85,10 @@ class RecursiveEstimator:
     window : float, optional
         Memory time constant [s]: sample weights decay as ``exp(-age / window)``.  Takes
         precedence over ``forgetting``.
-    hold : {'zoh', 'linear'}
-        Torque between samples.
+    hold : {'zoh', 'linear', 'auto'}
+        Torque between samples; ``auto``: both holds' statistics are kept on the same rows
+        and the batch rule (:func:`.selection.select_hold`) chooses at each re-selection
+        (:mod:`.online_hold`), reported in ``diagnostics['hold_selection']``.
     symmetry_axis : {'x', 'y', 'z'} or array_like (3,), optional
         For the axisymmetric model.
     gyro_noise : float or array_like (3,), optional
@@ -130,7 +135,7 @@ class RecursiveEstimator:
             raise ValueError(f'forgetting: must be in (0, 1], got {forgetting!r}')
         if window is not None and not window > 0:
             raise ValueError(f'window: must be > 0 s, got {window!r}')
-        check_choice('hold', hold, HOLDS)
+        check_choice('hold', hold, BATCH_HOLDS)
         self.policy = SelectionPolicy(alpha, torque_scale_std=torque_scale_std,
                                       gyro_scale_std=gyro_scale_std)
         if segment is not None and not segment > 0:
@@ -166,8 +171,11 @@ class RecursiveEstimator:
         self._gt: list[np.ndarray] = []
         self._gw: list[np.ndarray] = []
         self._align = OnlineAligner()    # the held torque, intervals, monomial integral
-        # the statistics of the merged equations, owning their state
-        self._acc = OnlineStats(self.segment, self.window, self.forgetting)
+        # the statistics of the merged equations, owning their state (one per hold kept)
+        self._accs = {h: OnlineStats(self.segment, self.window, self.forgetting)
+                      for h in (HOLDS if self.hold == 'auto' else (self.hold,))}
+        self._auto = AutoHold() if self.hold == 'auto' else None
+        self._active = 'zoh' if self.hold == 'auto' else self.hold    # the hold estimated
         self._tau_var: np.ndarray | None = None
         self._schedule.reset()            # the re-selection schedule's verdicts
         self.gaps = 0                    # gaps that ended a segment holding data
@@ -280,20 +288,30 @@ class RecursiveEstimator:
             return
         if self._gyro_noise is None:
             self._gyro_nv.add(w)
-        self._acc.add_motion(w)                 # mean(w w'): the gyroscopic noise walk
-        V = self._align.variables(t, w, self.hold)       # [w, m, t, T] (n, 13)
+        held = 'zoh' if self._auto is not None else self.hold
+        V = self._align.variables(t, w, held)       # [w, m, t, T] (n, 13)
+        Vs = {held: V} if self._auto is None else self._auto.rows(self._align, t, V, breaks)
         # a gap starts a new anchored segment: the wrongly held torque and the trapezoid across
         # the gap shift T and M by constants, which the new segment's momentum absorbs
-        lo = 0
-        for k in breaks:
-            if k > lo:
-                self._acc.merge(t[lo:k], V[lo:k], self._align.ts)
-            self.gaps += self._acc.w0 > 0   # a break that ends a segment holding data
-            self._acc.close(float(t[k]))
-            lo = k
-        self._acc.merge(t[lo:], V[lo:], self._align.ts)
+        for h, acc in self._accs.items():
+            acc.add_motion(w)                 # mean(w w'): the gyroscopic noise walk
+            lo = 0
+            for k in breaks:
+                if k > lo:
+                    acc.merge(t[lo:k], Vs[h][lo:k], self._align.ts)
+                self.gaps += h == held and acc.w0 > 0   # a break ending a segment with data
+                acc.close(float(t[k]))
+                lo = k
+            acc.merge(t[lo:], Vs[h][lo:], self._align.ts)
         self.samples_used += len(t)
-        self._align.trim(float(t[-1]), self.hold)
+        if self._auto is not None:
+            self._auto.fold(self._align, float(t[-1]))
+        self._align.trim(float(t[-1]), held)
+
+    @property
+    def _acc(self) -> OnlineStats:
+        """The statistics of the hold estimated (the chosen one with ``hold='auto'``)."""
+        return self._accs[self._active]
 
     def _take_torque(self) -> None:
         """Move the pending torque samples into the held stream; update the torque noise."""
@@ -301,7 +319,8 @@ class RecursiveEstimator:
         new_tau = np.concatenate(self._ptau)
         self._pt, self._ptau = [], []
         self._align.take(new_t, new_tau)
-        self._acc.add_torque_power(new_tau)
+        for acc in self._accs.values():
+            acc.add_torque_power(new_tau)
         # the same robust estimator as batch, on the recent samples whatever the block size
         # (the variance itself is taken in estimate())
         self._tau_nv.add(new_tau)
@@ -369,6 +388,22 @@ class RecursiveEstimator:
         return self._acc.stats(nv, n_eff, self._tau_var is not None, gyro_scale=gyro_scale,
                                **self._context())
 
+    def _choose_hold(self, nv: np.ndarray, torque_free: bool, diag: dict[str, Any]) -> None:
+        """``hold='auto'``: the hold by the batch rule at each re-selection (reused between);
+        a change drops the verdicts of the other hold's statistics."""
+        assert self._auto is not None
+        due = (self._schedule.estimates - 1) % self.reselect_every == 0
+        tv = self._tau_var if self._tau_var is not None else np.zeros(3)
+        n_eff = self._acc.n_eff()
+        changed, diag['hold_selection'] = self._auto.select(
+            due, torque_free, lambda h: self._accs[h].stats(
+                nv, n_eff, self._tau_var is not None, **self._context()),
+            self.torque_bias != 'off', nv, tv, self._white_y_cov, self.samples_used)
+        if changed:
+            self._active = self._auto.chosen
+            self._schedule.reset_verdicts()
+        diag['hold'] = self._active
+
     def estimate(self) -> InertiaEstimate:
         """Current estimate from everything merged so far (flushes covered samples first).
 
@@ -400,6 +435,8 @@ class RecursiveEstimator:
         diag['torque_rms'] = torque_rms
         tq_std = np.sqrt(self._tau_var) if self._tau_var is not None else np.zeros(3)
         diag['torque_noise_std'] = tq_std
+        if self._auto is not None:
+            self._choose_hold(nv, is_torque_free(torque_rms, tq_std), diag)
         st = self._stats(nv, n_eff)
         # the meat of weighted sums scales by w^2 / w
         ratio = (self._acc.w00 + self._acc.w00c) / (self._acc.w0 + self._acc.wc)

@@ -81,8 +81,11 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
     other_torque : bool
         True: another known torque arrives through :meth:`add_torque` and the equations wait
         for it; False: the momentum input is the only known torque.
-    hold : {'zoh', 'linear'}
-        Hold of the other torque between its samples (``torque_hold``).  The equivalent torque
+    hold : {'zoh', 'linear', 'auto'}
+        Hold of the other torque between its samples (``torque_hold``); ``auto`` is held
+        (``zoh``): the holds are not compared here (the other torque reaches the statistics
+        only through the equivalent torque), which ``diagnostics['hold_selection']`` says.
+        The equivalent torque
         fed to the :class:`~.recursive.RecursiveEstimator` is always held over its grid
         intervals (``zoh``): the other torque's hold is applied once, when it is reduced.
     **kwargs
@@ -93,10 +96,12 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
 
     def __init__(self, names: Sequence[str] = (), other_torque: bool = True,
                  hold: str = 'zoh', **kwargs: Any) -> None:
-        from .options import HOLDS, check_choice
+        from .options import BATCH_HOLDS, HOLDS, check_choice
         from .selection import SelectionPolicy
 
-        check_choice('hold', hold, HOLDS)
+        check_choice('hold', hold, BATCH_HOLDS)
+        self._hold_auto = hold == 'auto'
+        hold = 'zoh' if hold == 'auto' else hold
         scale = kwargs.pop('torque_scale_std', 0.0)
         SelectionPolicy(torque_scale_std=scale)           # validates
         self.names = tuple(names)
@@ -376,6 +381,12 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
                             'h_noise_std': self._h_noise.std(),
                             'gyro_per_wheel_sample': self._share(),
                             'other_torque': self.other_torque}
+        if self._hold_auto:
+            diag['hold'] = 'zoh'
+            diag['hold_selection'] = {
+                'requested': 'auto', 'chosen': 'zoh', 'statistic': None, 'p_value': None,
+                'reason': 'wheels/rotors online: the holds of the other torque are not '
+                          'compared; held (zoh)'}
         if est.status == 'insufficient_data' and self.other_torque and len(self._o.t) == 0:
             diag['reason'] = ('no other torque sample yet: the momentum input waits for it '
                               '(build with other_torque=False when there is none)')

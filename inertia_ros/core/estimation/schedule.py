@@ -55,6 +55,12 @@ class Reselection:
         self.selection: tuple[str, str, dict[str, Any]] | None = None
         self.selection_left = 0
 
+    def reset_verdicts(self) -> None:
+        """Drop the reused selection and adequacy verdicts (the statistics they judged changed:
+        another hold); the serial count goes on."""
+        self.adequacy, self.adequacy_left, self.due = None, 0, None
+        self.selection, self.selection_left = None, 0
+
     def tick(self) -> None:
         """A new estimate begins."""
         self.estimates += 1

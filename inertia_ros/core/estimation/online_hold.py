@@ -1,0 +1,221 @@
+"""``hold='auto'`` for the online estimator: both holds' statistics on the same rows, one rule.
+
+:class:`~.recursive.RecursiveEstimator` with ``hold='auto'`` merges every row into two
+accumulators (:class:`.accumulator.OnlineStats`), one with the torque integral under the
+zero-order hold, one under linear interpolation (only the torque-integral columns ``T``
+differ).  For the decision it also keeps :class:`HoldWindows`: consecutive windows of rows,
+each anchored on its own (its own initial momentum), as centred Grams of the 16 variables
+``[w, m, t, T_zoh, T_linear]``.  At each re-selection :func:`choose_hold` fits each hold's
+whole statistics (the general model: full tensor, plus the bias unless it is off), evaluates
+every window's weighted residual sum of squares at each hold's fit under one noise model (the
+held fit's weight), and applies the batch rule, :func:`.selection.select_hold` at
+:data:`.selection.HOLD_ALPHA` (a Vuong test, not a margin).
+
+The windows cover the whole record, as the batch's do: they start at :data:`HOLD_MIN_ROWS`
+rows and, once more than :data:`HOLD_MAX_WINDOWS` are closed, neighbours are merged in pairs
+under one anchor (the parallel update of Chan, Golub and LeVeque) and the window length
+doubled; across a gap (a new anchored segment) the pair keeps both anchors (its residual sum
+is the sum of the two).  How
+the torque behaves between its samples is a property of its source, so the evidence is not
+forgotten with the tensor's ``window``.
+"""
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from .align import OnlineAligner
+from .fit import equation_weight, fit_two_pass
+from .regressors import cumulative_torque, gram, lift, metric
+from .selection import HOLD_ALPHA, hold_rule, select_hold
+
+__all__ = ['HOLD_MAX_WINDOWS', 'HOLD_MIN_ROWS', 'AutoHold', 'HoldWindows', 'choose_hold']
+
+#: Rows of a window at the start (the batch's ``_HOLD_MIN_ROWS``).
+HOLD_MIN_ROWS = 25
+#: Closed windows kept (the batch's ``_HOLD_WINDOWS``); beyond, neighbours are merged in
+#: pairs (8 to 16 windows compared).
+HOLD_MAX_WINDOWS = 16
+
+_ZOH = np.arange(13)
+_LIN = np.r_[np.arange(10), 13, 14, 15]
+
+
+def _pair(a: tuple[int, np.ndarray, np.ndarray, bool], b: tuple[int, np.ndarray, np.ndarray, bool]
+          ) -> tuple[int, np.ndarray, np.ndarray, bool]:
+    """Two neighbouring windows as one: one anchor, unless a gap is in or next to them (then
+    each keeps its anchors, for good: the flag stays)."""
+    (na, ma, Ca, gap), (nb, mb, Cb, gap_b) = a, b
+    n = na + nb
+    if gap or gap_b:            # separate anchors: the Grams add, the mean is only nominal
+        return n, (na * ma + nb * mb) / n, Ca + Cb, True
+    d = mb - ma
+    return n, ma + d * (nb / n), Ca + Cb + (na * nb / n) * np.outer(d, d), gap_b
+
+
+class HoldWindows:
+    """Centred Grams (16 x 16) of consecutive, separately anchored windows of rows."""
+
+    def __init__(self) -> None:
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget everything."""
+        self.rows = HOLD_MIN_ROWS             # rows per window now
+        #: closed windows: rows, mean (16,), centred Gram (16, 16), a gap after it
+        self.closed: list[tuple[int, np.ndarray, np.ndarray, bool]] = []
+        self._n = 0                           # open window: rows, mean, centred Gram
+        self._mean = np.zeros(16)
+        self._C = np.zeros((16, 16))
+
+    def cut(self) -> None:
+        """A gap or a segment boundary: the open window ends (its rows keep their anchor)."""
+        if self._n >= 2:
+            self._close()
+        if self.closed:
+            n, m, C, _ = self.closed[-1]
+            self.closed[-1] = (n, m, C, True)
+        self._n, self._mean, self._C = 0, np.zeros(16), np.zeros((16, 16))
+
+    def add(self, X: np.ndarray) -> None:
+        """Add rows ``X`` (n, 16) in time order (cut-invariant: windows close by row count)."""
+        while len(X):
+            k = min(len(X), self.rows - self._n)
+            piece, X = X[:k], X[k:]
+            m = piece.mean(axis=0)
+            D = piece - m[None]
+            n_old = self._n
+            delta = m - self._mean
+            self._C = self._C + gram(D) + (n_old * k / (n_old + k)) * np.outer(delta, delta)
+            self._mean = self._mean + delta * (k / (n_old + k))
+            self._n = n_old + k
+            if self._n >= self.rows:
+                self._close()
+                self._n, self._mean, self._C = 0, np.zeros(16), np.zeros((16, 16))
+
+    def _close(self) -> None:
+        """Keep the open window; sum neighbours in pairs beyond :data:`HOLD_MAX_WINDOWS`."""
+        self.closed.append((self._n, self._mean.copy(), self._C.copy(), False))
+        if len(self.closed) > HOLD_MAX_WINDOWS:
+            c = self.closed
+            self.closed = [_pair(c[i], c[i + 1]) for i in range(0, len(c) - 1, 2)] + (
+                [c[-1]] if len(c) % 2 else [])
+            self.rows *= 2
+
+    def rss(self, coef: dict[str, np.ndarray], W: np.ndarray, nv: np.ndarray
+            ) -> tuple[np.ndarray, np.ndarray]:
+        """Weighted residual sums of squares (K,) of each hold's coefficients per window.
+
+        ``coef[h]`` (10,) is ``[-theta, -bias, 1]`` of hold ``h``'s fit, ``W`` (3, 3) the
+        common equation weight and ``nv`` (3,) the gyro noise variance [rad^2/s^2] (the
+        squared-rate integrals' correction, as :meth:`.accumulator.OnlineStats.stats`).
+        """
+        K = np.eye(13)
+        K[9, 3:6] = -nv
+        out: dict[str, list[float]] = {'zoh': [], 'linear': []}
+        for _, _, C, _ in self.closed:
+            for h, cols in (('zoh', _ZOH), ('linear', _LIN)):
+                G = lift(K.T @ C[np.ix_(cols, cols)] @ K)
+                out[h].append(float(coef[h] @ metric(G, W) @ coef[h]))
+        return np.array(out['zoh']), np.array(out['linear'])
+
+
+def choose_hold(stats: dict[str, Any], windows: HoldWindows, bias: bool, nv: np.ndarray,
+                tv: np.ndarray, white_y_cov: np.ndarray | None) -> tuple[str, dict[str, Any]]:
+    """The hold the data support, by :func:`.selection.select_hold` (the batch rule).
+
+    Parameters
+    ----------
+    stats : dict
+        ``{'zoh': SufficientStats, 'linear': SufficientStats}`` of everything merged.
+    windows : HoldWindows
+        The same rows in separately anchored windows.
+    bias : bool
+        Fit the torque bias (the general model unless it is off).
+    nv, tv : numpy.ndarray, shape (3,)
+        Gyro [rad^2/s^2] and torque [N^2 m^2] white-noise variances.
+    white_y_cov : numpy.ndarray, shape (3, 3), optional
+        Other white noise in the equations' right-hand side.
+
+    Returns
+    -------
+    chosen : str
+        ``'zoh'`` or ``'linear'``.
+    record : dict
+        :func:`.selection.select_hold`'s record (``diagnostics['hold_selection']``).
+    """
+    coef = {}
+    for h, st in stats.items():
+        f = fit_two_pass(st, np.eye(6), bias, nv, tv)
+        theta = f.basis @ f.beta[:6]
+        if not np.all(np.isfinite(theta)):
+            return 'zoh', {'statistic': None, 'p_value': None, 'rule': hold_rule(HOLD_ALPHA),
+                           'reason': f'the {h} fit is not finite: the holds are not compared'}
+        d = f.beta[6:9] if bias else np.zeros(3)
+        coef[h] = np.concatenate([-theta, -d, [1.0]])
+    W = equation_weight(-coef['zoh'][:6], nv, white_y_cov)
+    rz, rl = windows.rss(coef, W, nv)
+    return select_hold(rz, rl, HOLD_ALPHA)
+
+
+class AutoHold:
+    """The linear side of ``hold='auto'`` and the choice: the linear torque integral's base,
+    the windows, and the last choice with its record (reused between re-selections)."""
+
+    def __init__(self) -> None:
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget everything."""
+        self.T_base = np.zeros(3)       # linear torque integral at the aligner's first sample
+        self.windows = HoldWindows()
+        self.chosen = 'zoh'
+        self.record: dict[str, Any] | None = None
+
+    def rows(self, align: OnlineAligner, t: np.ndarray, V: np.ndarray,
+             breaks: list[int]) -> dict[str, np.ndarray]:
+        """Both holds' variables (n, 13) of rows ``V`` (the held ones from ``align``) at
+        ``t`` (n,) [s]; the rows join the windows, which end at the ``breaks``."""
+        V_lin = V.copy()
+        V_lin[:, 10:13] = self.T_base + cumulative_torque(align.ts, align.tau, t, 'linear')
+        X = np.concatenate([V, V_lin[:, 10:13]], axis=1)
+        lo = 0
+        for k in [*breaks, len(t)]:
+            self.windows.add(X[lo:k])
+            if k < len(t):
+                self.windows.cut()
+            lo = k
+        return {'zoh': V, 'linear': V_lin}
+
+    def fold(self, align: OnlineAligner, t_last: float) -> None:
+        """Before ``align.trim(t_last)``: fold the linear integral it drops into the base."""
+        j = int(np.searchsorted(align.ts, t_last, side='right') - 1)
+        if j > 0:
+            self.T_base = self.T_base + cumulative_torque(align.ts, align.tau,
+                                                          align.ts[j:j + 1], 'linear')[0]
+
+    def select(self, due: bool, torque_free: bool, stats: Callable[[str], Any], bias: bool,
+               nv: np.ndarray, tv: np.ndarray, white_y_cov: np.ndarray | None,
+               samples: int) -> tuple[bool, dict[str, Any]]:
+        """Choose the hold when ``due`` (or never chosen), else reuse the last choice.
+
+        ``stats(h)`` gives hold ``h``'s statistics.  Returns whether the choice changed and
+        ``diagnostics['hold_selection']``.
+        """
+        before = self.chosen
+        reused = not due and self.record is not None
+        if not reused:
+            if torque_free:
+                self.chosen, rec = 'zoh', {'statistic': None, 'p_value': None,
+                                           'rule': hold_rule(HOLD_ALPHA),
+                                           'reason': 'torque-free data: no choice'}
+            else:
+                self.chosen, rec = choose_hold({h: stats(h) for h in ('zoh', 'linear')},
+                                               self.windows, bias, nv, tv, white_y_cov)
+            self.record = dict(rec, selected_at_samples=samples)
+        out = {'requested': 'auto', **(self.record or {}), 'chosen': self.chosen}
+        if reused:
+            out['reused'] = True
+        return self.chosen != before, out
