@@ -396,6 +396,9 @@ def estimate_with_momentum(t_gyro: Any, omega: Any, t_torque: Any, torque: Any,
 
     hold = options.pop('hold', HOLDS[0])
     check_choice('hold', hold, BATCH_HOLDS)
+    from .config import require
+    kind = 'wheels_torque' if len(ts) else ('rotors' if mom.torque is not None else 'wheels')
+    require('batch', kind, dict(options, hold=hold))
     hold = HOLDS[0] if hold not in HOLDS else hold   # of the other torque; the result is held
     grid, tq, inside = equivalent_torque(tg, w, mom.t, mom.h, ts, tau, hold, mom.torque)
     if int(np.sum(inside)) < 6 or len(grid) < 2:

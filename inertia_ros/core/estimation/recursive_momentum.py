@@ -107,6 +107,9 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
 
     def __init__(self, names: Sequence[str] = (), other_torque: bool = True,
                  **kwargs: Any) -> None:
+        from .config import require
+        require('recursive', 'wheels_torque' if other_torque else 'wheels',
+                dict({'model': 'full', 'torque_bias': False, 'hold': 'zoh'}, **kwargs))
         self.names = tuple(names)
         self.other_torque = bool(other_torque)
         self._kwargs = dict(kwargs)

@@ -53,6 +53,7 @@ import numpy as np
 
 from .._validate import as_noise_std, as_sample_block, require_after
 from .assemble import add_calibration, assemble, status_only
+from .config import require
 from .fit import Fit, solve_symmetric
 from .homogeneous import is_torque_free
 from .model import model_basis, parameter_names
@@ -61,11 +62,7 @@ from .noise import StreamingNoise, gyroscopic_walk_cov
 from .options import (
     ALPHA,
     GAP_FACTOR,
-    HOLDS,
     IDENTIFIABILITY_TOL,
-    MODELS,
-    TORQUE_BIAS,
-    check_choice,
 )
 from .regressors import cumulative_monomials, cumulative_torque, gyroscopic_matrix, momentum_matrix
 from .result import InertiaEstimate
@@ -187,6 +184,8 @@ class TrackingEstimator:
         Relative one-sigma scale uncertainties added to the covariance, as in the batch.
     alpha : float
         Test level (kept for the selection policy).
+    nuisance : str
+        Only ``'off'``: any other value is refused by :func:`.config.require` (one line).
     """
 
     def __init__(self, window: float = 10.0, model: str = 'full',
@@ -194,14 +193,14 @@ class TrackingEstimator:
                  gyro_noise: Any = None, block: float = 0.1, warmup: float | None = None,
                  change_level: float = 1e-6, change_inflation: float = 0.5,
                  torque_scale_std: float = 0.0, gyro_scale_std: float = 0.0,
-                 alpha: float = ALPHA) -> None:
+                 alpha: float = ALPHA, nuisance: Any = 'off') -> None:
+        opts = require('tracking', 'torque', dict(
+            model=model, torque_bias=torque_bias, hold=hold, symmetry_axis=symmetry_axis,
+            alpha=alpha, torque_scale_std=torque_scale_std, gyro_scale_std=gyro_scale_std,
+            nuisance=nuisance))
         if not (isinstance(window, (int, float)) and math.isfinite(window) and window > 0):
             raise ValueError(f'window: must be a positive number of seconds, got {window!r}')
-        check_choice('model', model, MODELS)
-        if isinstance(torque_bias, bool):
-            torque_bias = 'on' if torque_bias else 'off'
-        check_choice('torque_bias', torque_bias, TORQUE_BIAS)
-        check_choice('hold', hold, HOLDS)
+        torque_bias = opts.torque_bias
         if not block > 0:
             raise ValueError(f'block: must be > 0 s, got {block!r}')
         if warmup is not None and not warmup > 0:
