@@ -335,6 +335,23 @@ def test_adequacy_cells_match_the_table(mode, kind) -> None:
         assert all(s != 'model_mismatch' for s, _ in seen), seen
 
 
+@pytest.mark.parametrize('mode', ['batch', 'recursive', 'window'])
+def test_torque_free_found_from_the_data_names_the_unapplied_calibration(mode) -> None:
+    """Torque-free data with a noise-only torque stream (found torque-free from the data,
+    after the entry point's check): the stated calibration the table refuses for torque-free
+    input is named in the warnings with the table's line, not dropped silently."""
+    rec = records('torque_free')[0]
+    opts = dict(BASE, gyro_scale_std=SCALE_STD)
+    if mode == 'batch':
+        e = estimate(rec['tg'], rec['w'], rec['tt'], rec['tau'], method='integral', **opts)
+    else:
+        e = feed(make_online(mode, 'torque', opts), rec)
+    assert e.status == 'scale_unobservable'
+    line = refusal('recursive' if mode == 'recursive' else 'batch', 'torque_free',
+                   'gyro_scale_std')
+    assert line is not None and line in e.diagnostics['warnings'], e.diagnostics['warnings']
+
+
 def test_options_are_validated_once_with_one_line() -> None:
     """The options object names the field and value; bools are the on/off bias."""
     assert EstimatorOptions(torque_bias=True).torque_bias == 'on'

@@ -43,7 +43,7 @@ from .options import (
 )
 
 __all__ = ['CAPABILITIES', 'FEATURES', 'INPUTS', 'MODES', 'SUBSTITUTED', 'YES',
-           'EstimatorOptions', 'capability_table', 'refusal', 'require']
+           'EstimatorOptions', 'capability_table', 'refusal', 'require', 'unapplied']
 
 #: Estimation modes.
 MODES: tuple[str, ...] = ('batch', 'recursive', 'tracking', 'window')
@@ -248,6 +248,33 @@ def refusal(mode: str, input_kind: str, feature: str) -> str | None:
         return None
     what = 'input' if feature == 'input' else _LABELS[feature]
     return (f'{mode} mode, {input_kind} input: {what} is not supported; {cell}')
+
+
+def unapplied(mode: str, opts: Any) -> list[str]:
+    """The table's lines for the stated calibration a torque-free fit does not apply.
+
+    For torque-free data found from the data (a torque stream within its noise), after
+    :func:`require` has passed the options: the estimators put these lines in
+    ``diagnostics['warnings']`` instead of dropping the stated uncertainty silently.
+
+    Parameters
+    ----------
+    mode : str
+        One of :data:`MODES`.
+    opts : object
+        Anything with ``torque_scale_std`` and ``gyro_scale_std`` (relative, >= 0).
+
+    Returns
+    -------
+    list of str
+        One line per stated uncertainty the table refuses for torque-free input.
+    """
+    out = []
+    for name in ('torque_scale_std', 'gyro_scale_std'):
+        message = refusal(mode, 'torque_free', name)
+        if getattr(opts, name, 0.0) > 0 and message is not None:
+            out.append(message)
+    return out
 
 
 def require(mode: str, input_kind: str, opts: EstimatorOptions | Mapping[str, Any]

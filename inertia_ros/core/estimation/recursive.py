@@ -40,7 +40,7 @@ import numpy as np
 from .._validate import MAX_TIME_S, as_noise_std, as_sample_block, require_after
 from .adequacy import Adequacy, check_adequacy
 from .assemble import conclude, status_only
-from .config import require
+from .config import require, unapplied
 from .fit import Fit, fit_two_pass
 from .history import SegmentHistory, SegmentStats
 from .homogeneous import homogeneous_estimate, is_torque_free
@@ -746,6 +746,7 @@ class RecursiveEstimator:
         # the meat of weighted sums scales by w^2 / w
         ratio = (self._w00 + self._w00c) / (self._w0 + self._wc)
         if is_torque_free(torque_rms, tq_std):
+            diag['warnings'] += unapplied('recursive', self.policy)
             return homogeneous_estimate(st, nv, diag, base, cov_scale=ratio)
         tv = self._tau_var if self._tau_var is not None else np.zeros(3)
 
