@@ -352,6 +352,17 @@ def test_torque_free_found_from_the_data_names_the_unapplied_calibration(mode) -
     assert line is not None and line in e.diagnostics['warnings'], e.diagnostics['warnings']
 
 
+def test_tracking_states_its_substitutions() -> None:
+    """The tracker's ``runs as`` cells (model and torque_bias 'auto') are in its warnings."""
+    rec = records('torque')[0]
+    e = feed(TrackingEstimator(window=1000.0, model='auto', torque_bias='auto', hold='zoh'),
+             rec)
+    for feature in ('model_auto', 'torque_bias_auto'):
+        cell = CAPABILITIES['tracking'][feature]['torque']
+        assert any(w.endswith(cell) for w in e.diagnostics['warnings']), e.diagnostics
+    assert e.model == 'full' and e.torque_bias is None
+
+
 def test_options_are_validated_once_with_one_line() -> None:
     """The options object names the field and value; bools are the on/off bias."""
     assert EstimatorOptions(torque_bias=True).torque_bias == 'on'

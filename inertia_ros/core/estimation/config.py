@@ -43,7 +43,8 @@ from .options import (
 )
 
 __all__ = ['CAPABILITIES', 'FEATURES', 'INPUTS', 'MODES', 'SUBSTITUTED', 'YES',
-           'EstimatorOptions', 'capability_table', 'refusal', 'require', 'unapplied']
+           'EstimatorOptions', 'capability_table', 'refusal', 'require', 'substitutions',
+           'unapplied']
 
 #: Estimation modes.
 MODES: tuple[str, ...] = ('batch', 'recursive', 'tracking', 'window')
@@ -248,6 +249,29 @@ def refusal(mode: str, input_kind: str, feature: str) -> str | None:
         return None
     what = 'input' if feature == 'input' else _LABELS[feature]
     return (f'{mode} mode, {input_kind} input: {what} is not supported; {cell}')
+
+
+def substitutions(mode: str, input_kind: str, opts: EstimatorOptions) -> list[str]:
+    """The table's lines for the ``runs as`` cells the options ask for (for the warnings).
+
+    Parameters
+    ----------
+    mode, input_kind : str
+        One of :data:`MODES`, :data:`INPUTS`.
+    opts : EstimatorOptions
+        The validated options.
+
+    Returns
+    -------
+    list of str
+        ``'<mode> mode, <input> input: <feature> runs as ...'`` per substituted feature.
+    """
+    out = []
+    for feature in opts.features():
+        cell = CAPABILITIES[mode][feature][input_kind]
+        if cell.startswith(SUBSTITUTED):
+            out.append(f'{mode} mode, {input_kind} input: {_LABELS[feature]} {cell}')
+    return out
 
 
 def unapplied(mode: str, opts: Any) -> list[str]:

@@ -53,7 +53,7 @@ import numpy as np
 
 from .._validate import as_noise_std, as_sample_block, require_after
 from .assemble import add_calibration, assemble, status_only
-from .config import require
+from .config import require, substitutions
 from .fit import Fit, solve_symmetric
 from .homogeneous import is_torque_free
 from .model import model_basis, parameter_names
@@ -198,6 +198,7 @@ class TrackingEstimator:
             model=model, torque_bias=torque_bias, hold=hold, symmetry_axis=symmetry_axis,
             alpha=alpha, torque_scale_std=torque_scale_std, gyro_scale_std=gyro_scale_std,
             nuisance=nuisance))
+        self._substituted = substitutions('tracking', 'torque', opts)   # for the warnings
         if not (isinstance(window, (int, float)) and math.isfinite(window) and window > 0):
             raise ValueError(f'window: must be a positive number of seconds, got {window!r}')
         torque_bias = opts.torque_bias
@@ -703,7 +704,8 @@ class TrackingEstimator:
         base = dict(method='tracking', samples_used=self.samples_used,
                     samples_dropped=self.samples_dropped)
         nv = self._nv if self._nv is not None else np.zeros(3)
-        diag: dict[str, Any] = {'gyro_noise_std': np.sqrt(nv), 'warnings': [],
+        diag: dict[str, Any] = {'gyro_noise_std': np.sqrt(nv),
+                                'warnings': list(self._substituted),
                                 'memory_s': self.window, 'changes_detected': len(self.changes),
                                 'last_change_s': self.changes[-1] if self.changes else None,
                                 'innovation_excess': self._excess, 'updates': self.updates}
