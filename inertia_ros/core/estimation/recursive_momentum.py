@@ -93,10 +93,12 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
 
     def __init__(self, names: Sequence[str] = (), other_torque: bool = True,
                  hold: str = 'zoh', **kwargs: Any) -> None:
-        from .options import HOLDS, check_choice
+        from .config import require
+        from .options import HOLDS
         from .selection import SelectionPolicy
 
-        check_choice('hold', hold, HOLDS)
+        require('recursive', 'wheels_torque' if other_torque else 'wheels',
+                dict({'model': 'full', 'torque_bias': False}, **kwargs, hold=hold))
         scale = kwargs.pop('torque_scale_std', 0.0)
         SelectionPolicy(torque_scale_std=scale)           # validates
         self.names = tuple(names)
