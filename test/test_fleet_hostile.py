@@ -323,6 +323,13 @@ def _group(pgid: int) -> list[int]:
     return pids
 
 
+def _default_sigint() -> None:
+    """Ctrl-C as at a terminal: a test run started in the background (``make test &``, some
+    CI runners) hands its children SIGINT ignored, which fleet rightly keeps ignoring."""
+    import signal
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def _interrupt(tmp_path: Path, after_workers_s: float, second_s: float | None
                ) -> tuple[int, str, float]:
     """Run fleet on 400 logs with 2 worker processes in its own process group; Ctrl-C the
@@ -340,7 +347,7 @@ def _interrupt(tmp_path: Path, after_workers_s: float, second_s: float | None
     p = subprocess.Popen([sys.executable, '-m', 'inertia_ros', 'fleet', str(logs), '--out',
                           str(tmp_path / 'r.csv'), '--workers', '2', '--no-progress'],
                          stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
-                         start_new_session=True, cwd=ROOT)
+                         start_new_session=True, cwd=ROOT, preexec_fn=_default_sigint)
     try:
         deadline = time.monotonic() + 60
         while len(_group(p.pid)) < 4 and time.monotonic() < deadline:  # + tracker, 2 workers

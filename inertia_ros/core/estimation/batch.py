@@ -83,6 +83,7 @@ from .._validate import as_noise_std, as_samples, as_times, refuse_nanoseconds
 from ..tensor import check_physical, theta_to_matrix
 from .adequacy import Adequacy, check_adequacy
 from .assemble import conclude, status_only
+from .config import unapplied
 from .equations import Equations, build_equations
 from .filtered import equations_for
 from .fit import Fit, equation_weight, fit_two_pass
@@ -458,6 +459,7 @@ def _estimate_shifted(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray
     torque_rms = np.sqrt(np.mean(tau ** 2, axis=0)) if len(ts) else np.zeros(3)
     diag['torque_rms'] = torque_rms
     if is_torque_free(torque_rms, np.sqrt(torque_var)):
+        diag['warnings'] += unapplied('batch', policy)
         return _homogeneous(method, tg, w, ts, tau, mask, breaks, hold, gyro_var,
                             segment or 10.0, window, diag, base, policy)
     eq = equations_for(method, tg, w, ts, tau, mask, breaks, hold, gyro_var, window)

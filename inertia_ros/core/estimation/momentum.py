@@ -463,6 +463,9 @@ def estimate_with_momentum(t_gyro: Any, omega: Any, t_torque: Any, torque: Any,
 
     hold = options.pop('hold', HOLDS[0])
     check_choice('hold', hold, BATCH_HOLDS)
+    from .config import require
+    kind = 'wheels_torque' if len(ts) else ('rotors' if mom.torque is not None else 'wheels')
+    require('batch', kind, dict(options, hold=hold))
     # the torque sensor's scale error scales the other torque only, never the momentum: it
     # is propagated as one more uncertain input (:func:`_propagate`), not as a scale of y
     scale = options.pop('torque_scale_std', 0.0)

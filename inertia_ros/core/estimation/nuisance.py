@@ -580,11 +580,21 @@ def nuisance_hook(fn: Callable[..., InertiaEstimate]) -> Callable[..., InertiaEs
     @functools.wraps(fn)
     def wrapper(t_gyro: Any, omega: Any, t_torque: Any, torque: Any,
                 **kw: Any) -> InertiaEstimate:
+        from .config import require
+        require('batch', 'torque' if _count(t_torque) else 'torque_free', kw)
         request = check_nuisance(kw.get('nuisance', 'off'))
         if request == 'off':
             return fn(t_gyro, omega, t_torque, torque, **kw)
         return with_nuisance(fn, (t_gyro, omega, t_torque, torque), dict(kw, nuisance=request))
     return wrapper
+
+
+def _count(t: Any) -> int:
+    """Number of samples in a stamp array (1 for what is not a sequence: validated later)."""
+    try:
+        return len(t)
+    except TypeError:
+        return 1
 
 
 def with_nuisance(estimate_fn: Callable[..., InertiaEstimate], streams: tuple[Any, ...],

@@ -45,6 +45,7 @@ from .accumulator import OnlineStats
 from .adequacy import Adequacy
 from .align import OnlineAligner
 from .assemble import status_only
+from .config import require, unapplied
 from .fit import Fit, fit_two_pass
 from .homogeneous import homogeneous_estimate, is_torque_free
 from .model import symmetry_axis as unit_axis
@@ -52,13 +53,9 @@ from .noise import StreamingNoise
 from .online_hold import AutoHold
 from .options import (
     ALPHA,
-    BATCH_HOLDS,
     HOLDS,
     MIN_EQUATIONS,
     MIN_GYRO_SAMPLES,
-    MODELS,
-    TORQUE_BIAS,
-    check_choice,
 )
 from .result import InertiaEstimate
 from .schedule import Reselection
@@ -113,6 +110,8 @@ class RecursiveEstimator:
         leaves its own test to :meth:`refresh` (the node: after publishing), for the estimates
         that follow: each verdict one estimate later, the tensor unchanged.  The first test, and
         one not refreshed, run inside :meth:`estimate`.  Default False.
+    nuisance : str
+        Only ``'off'``: any other value is refused by :func:`.config.require` (one line).
     """
 
     #: White noise in the equations' right-hand side besides the gyro's (a momentum input's,
@@ -124,18 +123,17 @@ class RecursiveEstimator:
                  symmetry_axis: Any = None, gyro_noise: Any = None, alpha: float = ALPHA,
                  block: int = 256, segment: float | None = None,
                  reselect_every: int = 1, torque_scale_std: float = 0.0,
-                 gyro_scale_std: float = 0.0, defer_adequacy: bool = False) -> None:
-        check_choice('model', model, MODELS)
-        if isinstance(torque_bias, bool):
-            torque_bias = 'on' if torque_bias else 'off'
-        if torque_bias not in TORQUE_BIAS:
-            raise ValueError(f"torque_bias: must be a bool or 'auto'/'on'/'off', got "
-                             f'{torque_bias!r}')
+                 gyro_scale_std: float = 0.0, defer_adequacy: bool = False,
+                 nuisance: Any = 'off') -> None:
+        opts = require('recursive', 'torque', dict(
+            model=model, torque_bias=torque_bias, hold=hold, symmetry_axis=symmetry_axis,
+            alpha=alpha, torque_scale_std=torque_scale_std, gyro_scale_std=gyro_scale_std,
+            nuisance=nuisance))
+        torque_bias = opts.torque_bias
         if not (0.0 < forgetting <= 1.0):
             raise ValueError(f'forgetting: must be in (0, 1], got {forgetting!r}')
         if window is not None and not window > 0:
             raise ValueError(f'window: must be > 0 s, got {window!r}')
-        check_choice('hold', hold, BATCH_HOLDS)
         self.policy = SelectionPolicy(alpha, torque_scale_std=torque_scale_std,
                                       gyro_scale_std=gyro_scale_std)
         if segment is not None and not segment > 0:
@@ -152,8 +150,6 @@ class RecursiveEstimator:
         self.window = window
         self.hold = hold
         self.axis = unit_axis(symmetry_axis)
-        if model == 'axisymmetric' and self.axis is None:
-            raise ValueError("symmetry_axis: required for model='axisymmetric'")
         self.block = int(block)
         self._gyro_noise = None if gyro_noise is None else as_noise_std(gyro_noise,
                                                                           'gyro_noise')
@@ -441,6 +437,7 @@ class RecursiveEstimator:
         # the meat of weighted sums scales by w^2 / w
         ratio = (self._acc.w00 + self._acc.w00c) / (self._acc.w0 + self._acc.wc)
         if is_torque_free(torque_rms, tq_std):
+            diag['warnings'] += unapplied('recursive', self.policy)
             return homogeneous_estimate(st, nv, diag, base, cov_scale=ratio)
         tv = self._tau_var if self._tau_var is not None else np.zeros(3)
 

@@ -96,10 +96,12 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
 
     def __init__(self, names: Sequence[str] = (), other_torque: bool = True,
                  hold: str = 'zoh', **kwargs: Any) -> None:
-        from .options import BATCH_HOLDS, HOLDS, check_choice
+        from .config import require
+        from .options import HOLDS
         from .selection import SelectionPolicy
 
-        check_choice('hold', hold, BATCH_HOLDS)
+        require('recursive', 'wheels_torque' if other_torque else 'wheels',
+                dict({'model': 'full', 'torque_bias': False}, **kwargs, hold=hold))
         self._hold_auto = hold == 'auto'
         hold = 'zoh' if hold == 'auto' else hold
         scale = kwargs.pop('torque_scale_std', 0.0)

@@ -52,16 +52,13 @@ from typing import Any
 import numpy as np
 
 from .._validate import as_noise_std
+from .config import require, substitutions
 from .fit import solve_symmetric
 from .model import model_basis
 from .model import symmetry_axis as unit_axis
 from .noise import StreamingNoise, gyroscopic_walk_cov
 from .options import (
     ALPHA,
-    HOLDS,
-    MODELS,
-    TORQUE_BIAS,
-    check_choice,
 )
 from .regressors import cumulative_monomials, cumulative_torque, gyroscopic_matrix, momentum_matrix
 from .selection import SelectionPolicy
@@ -181,6 +178,8 @@ class TrackingEstimator(StreamInput, StateOutput):
         Relative one-sigma scale uncertainties added to the covariance, as in the batch.
     alpha : float
         Test level (kept for the selection policy).
+    nuisance : str
+        Only ``'off'``: any other value is refused by :func:`.config.require` (one line).
     """
 
     def __init__(self, window: float = 10.0, model: str = 'full',
@@ -188,14 +187,15 @@ class TrackingEstimator(StreamInput, StateOutput):
                  gyro_noise: Any = None, block: float = 0.1, warmup: float | None = None,
                  change_level: float = 1e-6, change_inflation: float = 0.5,
                  torque_scale_std: float = 0.0, gyro_scale_std: float = 0.0,
-                 alpha: float = ALPHA) -> None:
+                 alpha: float = ALPHA, nuisance: Any = 'off') -> None:
+        opts = require('tracking', 'torque', dict(
+            model=model, torque_bias=torque_bias, hold=hold, symmetry_axis=symmetry_axis,
+            alpha=alpha, torque_scale_std=torque_scale_std, gyro_scale_std=gyro_scale_std,
+            nuisance=nuisance))
+        self._substituted = substitutions('tracking', 'torque', opts)   # for the warnings
         if not (isinstance(window, (int, float)) and math.isfinite(window) and window > 0):
             raise ValueError(f'window: must be a positive number of seconds, got {window!r}')
-        check_choice('model', model, MODELS)
-        if isinstance(torque_bias, bool):
-            torque_bias = 'on' if torque_bias else 'off'
-        check_choice('torque_bias', torque_bias, TORQUE_BIAS)
-        check_choice('hold', hold, HOLDS)
+        torque_bias = opts.torque_bias
         if not block > 0:
             raise ValueError(f'block: must be > 0 s, got {block!r}')
         if warmup is not None and not warmup > 0:

@@ -93,7 +93,8 @@ class StateOutput:
         base = dict(method='tracking', samples_used=self.samples_used,
                     samples_dropped=self.samples_dropped)
         nv = self._nv if self._nv is not None else np.zeros(3)
-        diag: dict[str, Any] = {'gyro_noise_std': np.sqrt(nv), 'warnings': [],
+        diag: dict[str, Any] = {'gyro_noise_std': np.sqrt(nv),
+                                'warnings': list(self._substituted),
                                 'memory_s': self.window, 'changes_detected': len(self.changes),
                                 'last_change_s': self.changes[-1] if self.changes else None,
                                 'innovation_excess': self._excess, 'updates': self.updates}

@@ -18,7 +18,8 @@ from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
-from inertia_ros.core.estimation.options import HOLDS, METHODS, MODELS, TORQUE_BIAS, check_choice
+from inertia_ros.core.estimation.config import require
+from inertia_ros.core.estimation.options import METHODS, check_choice
 from inertia_ros.core.estimation.result import InertiaEstimate
 
 __all__ = ['ONLINE_METHODS', 'BatchWindow', 'OnlineEstimator']
@@ -67,9 +68,14 @@ class BatchWindow:
     torque_bias : str, optional
         One of :data:`~inertia_ros.core.estimation.options.TORQUE_BIAS`.
     hold : str, optional
-        One of :data:`~inertia_ros.core.estimation.options.HOLDS`.
+        One of :data:`~inertia_ros.core.estimation.options.BATCH_HOLDS` (``auto``: both,
+        as the batch estimator).
     symmetry_axis : {'x', 'y', 'z'} or None, optional
         Required for ``model='axisymmetric'``.
+    torque_scale_std, gyro_scale_std : float, optional
+        Stated relative scale uncertainties, as the batch estimator.
+    nuisance : 'auto', 'off' or list of str, optional
+        Sensor nuisance terms of every batch solve (as the batch estimator).
 
     Raises
     ------
@@ -81,22 +87,21 @@ class BatchWindow:
     def __init__(self, window: float, *, method: str = 'integral', model: str = 'full',
                  torque_bias: str = 'auto', hold: str = 'zoh',
                  symmetry_axis: str | None = None, torque_scale_std: float = 0.0,
-                 gyro_scale_std: float = 0.0) -> None:
+                 gyro_scale_std: float = 0.0, nuisance: Any = 'off') -> None:
         if not (isinstance(window, (int, float)) and np.isfinite(window) and window > 0):
             raise ValueError(f'window: must be a positive number of seconds, got {window!r}')
         check_choice('method', method, METHODS)
-        check_choice('model', model, MODELS)
-        check_choice('torque_bias', torque_bias, TORQUE_BIAS)
-        check_choice('hold', hold, HOLDS)
-        if model == 'axisymmetric' and symmetry_axis is None:
-            raise ValueError("symmetry_axis: required for model='axisymmetric'")
+        require('window', 'torque', dict(
+            model=model, torque_bias=torque_bias, hold=hold, symmetry_axis=symmetry_axis,
+            torque_scale_std=torque_scale_std, gyro_scale_std=gyro_scale_std, nuisance=nuisance))
         self.window = float(window)
         #: keyword arguments of every batch solve
         self.options: dict[str, Any] = dict(method=method, model=model,
                                             torque_bias=torque_bias, hold=hold,
                                             symmetry_axis=symmetry_axis,
                                             torque_scale_std=torque_scale_std,
-                                            gyro_scale_std=gyro_scale_std)
+                                            gyro_scale_std=gyro_scale_std,
+                                            nuisance=nuisance)
         self._g: list[tuple[np.ndarray, np.ndarray]] = []
         self._q: list[tuple[np.ndarray, np.ndarray]] = []
 
