@@ -28,6 +28,7 @@ import numpy as np
 
 from .align import OnlineAligner
 from .fit import equation_weight, fit_two_pass
+from .options import HOLDS
 from .regressors import cumulative_torque, gram, lift, metric
 from .selection import HOLD_ALPHA, hold_rule, select_hold
 
@@ -212,7 +213,7 @@ class AutoHold:
                                            'rule': hold_rule(HOLD_ALPHA),
                                            'reason': 'torque-free data: no choice'}
             else:
-                self.chosen, rec = choose_hold({h: stats(h) for h in ('zoh', 'linear')},
+                self.chosen, rec = choose_hold({h: stats(h) for h in HOLDS},
                                                self.windows, bias, nv, tv, white_y_cov)
             self.record = dict(rec, selected_at_samples=samples)
         out = {'requested': 'auto', **(self.record or {}), 'chosen': self.chosen}
