@@ -51,7 +51,49 @@ _NS = 1_000_000_000
 MATCH_SETTLE = 1.0
 
 
-class StreamPlayer:
+class PacedPlayer:
+    """What every player shares: the speed factor, the steady timer and the optional ``/clock``.
+
+    Subclasses set ``node``, ``rate``, ``_timer`` (None until started), ``_t0`` (the wall time
+    of data time 0, :func:`time.monotonic`), ``_publish_clock`` and ``_pub_clock``.
+    """
+
+    node: Node
+    rate: float
+    _t0: float
+    _timer: Any
+    _publish_clock: bool
+    _pub_clock: Any
+
+    @property
+    def publish_clock(self) -> bool:
+        """Whether ``/clock`` is published (the publisher is created when first needed)."""
+        return self._publish_clock
+
+    @publish_clock.setter
+    def publish_clock(self, on: bool) -> None:
+        self._publish_clock = bool(on)
+        if self._publish_clock and self._pub_clock is None:
+            self._pub_clock = self.node.create_publisher(ClockMsg, '/clock', clock_qos())
+
+    def set_rate(self, rate: float) -> None:
+        """Change the speed factor (> 0) without a jump in the data time."""
+        if not (rate > 0 and np.isfinite(rate)):
+            raise ValueError(f'rate must be a positive finite speed factor, got {rate!r}')
+        if getattr(self, '_timer', None) is not None:
+            now = time.monotonic()
+            self._t0 = now - (now - self._t0) * self.rate / rate
+        self.rate = float(rate)
+
+    def stop(self) -> None:
+        """Stop the timer (idempotent)."""
+        if self._timer is not None:
+            self._timer.cancel()
+            self.node.destroy_timer(self._timer)
+            self._timer = None
+
+
+class StreamPlayer(PacedPlayer):
     """Play gyro, torque and joint-speed arrays back with their original relative timing.
 
     Parameters
@@ -181,17 +223,6 @@ class StreamPlayer:
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
 
     @property
-    def publish_clock(self) -> bool:
-        """Whether ``/clock`` is published (the publisher is created when first needed)."""
-        return self._publish_clock
-
-    @publish_clock.setter
-    def publish_clock(self, on: bool) -> None:
-        self._publish_clock = bool(on)
-        if self._publish_clock and self._pub_clock is None:
-            self._pub_clock = self.node.create_publisher(ClockMsg, '/clock', clock_qos())
-
-    @property
     def clock_publisher(self) -> Any:
         """The ``/clock`` publisher, or None while ``publish_clock`` was never on."""
         return self._pub_clock
@@ -229,15 +260,6 @@ class StreamPlayer:
         """Time span of the data [s]."""
         return float(self._times[-1]) if self._times.size else 0.0
 
-    def set_rate(self, rate: float) -> None:
-        """Change the speed factor (> 0) without a jump in the data time."""
-        if not (rate > 0 and np.isfinite(rate)):
-            raise ValueError(f'rate must be a positive finite speed factor, got {rate!r}')
-        if getattr(self, '_timer', None) is not None:
-            now = time.monotonic()
-            self._t0 = now - (now - self._t0) * self.rate / rate
-        self.rate = float(rate)
-
     def start(self, epoch_ns: int) -> None:
         """Start playback now with stamps ``epoch_ns + t`` [ns]."""
         self.epoch_ns = int(epoch_ns)
@@ -246,13 +268,6 @@ class StreamPlayer:
         self._next_truth = 0
         self._timer = self.node.create_timer(self.tick, self._on_tick, clock=self._steady)
         self._on_tick()
-
-    def stop(self) -> None:
-        """Stop the timer (idempotent)."""
-        if self._timer is not None:
-            self._timer.cancel()
-            self.node.destroy_timer(self._timer)
-            self._timer = None
 
     def _on_tick(self) -> None:
         t_now = (time.monotonic() - self._t0) * self.rate

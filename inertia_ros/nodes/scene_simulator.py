@@ -45,8 +45,8 @@ from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import Imu
 
 from inertia_ros.nodes import messages, params
-from inertia_ros.nodes._ros import clock_qos, latched_qos, run_node, sensor_qos, share_path
-from inertia_ros.nodes.playback import PlaybackNode, spin_until_done
+from inertia_ros.nodes._ros import latched_qos, run_node, sensor_qos, share_path
+from inertia_ros.nodes.playback import PacedPlayer, PlaybackNode, spin_until_done
 
 NODE_NAME = 'scene_simulator'
 
@@ -113,7 +113,7 @@ class SceneSimulatorNode(PlaybackNode):
             f'{self.player.command_topic}, {scene.duration:g} s, seed {seed or scene.seed}')
 
 
-class ClosedLoopPlayer:
+class ClosedLoopPlayer(PacedPlayer):
     """Integrate a body under the commanded torque and publish its sensors in real time.
 
     Parameters
@@ -172,17 +172,6 @@ class ClosedLoopPlayer:
         self.epoch_ns = 0
 
     @property
-    def publish_clock(self) -> bool:
-        """Whether ``/clock`` is published."""
-        return self._publish_clock
-
-    @publish_clock.setter
-    def publish_clock(self, on: bool) -> None:
-        self._publish_clock = bool(on)
-        if self._publish_clock and self._pub_clock is None:
-            self._pub_clock = self.node.create_publisher(ClockMsg, '/clock', clock_qos())
-
-    @property
     def publishers(self) -> list[Any]:
         """The data publishers (gyro, torque)."""
         return [self._pub_gyro, self._pub_torque]
@@ -191,15 +180,6 @@ class ClosedLoopPlayer:
     def duration(self) -> float:
         """Length of the run [s]."""
         return self.body.duration
-
-    def set_rate(self, rate: float) -> None:
-        """Change the speed factor (> 0) without a jump in the data time."""
-        if not (rate > 0 and np.isfinite(rate)):
-            raise ValueError(f'rate must be a positive finite speed factor, got {rate!r}')
-        if getattr(self, '_timer', None) is not None:
-            now = time.monotonic()
-            self._t0 = now - (now - self._t0) * self.rate / rate
-        self.rate = float(rate)
 
     def _warn_once(self, key: str, text: str) -> None:
         if key not in self._warned:
@@ -227,12 +207,6 @@ class ClosedLoopPlayer:
             self.tick, self._on_tick, clock=Clock(clock_type=ClockType.STEADY_TIME))
         self._on_tick()
 
-    def stop(self) -> None:
-        """Stop the timer (idempotent)."""
-        if self._timer is not None:
-            self._timer.cancel()
-            self.node.destroy_timer(self._timer)
-            self._timer = None
 
     def _on_tick(self) -> None:
         t_now = (time.monotonic() - self._t0) * self.rate
