@@ -262,3 +262,54 @@ def test_online_equals_batch_with_wheels_and_torque_for_either_hold(hold: str) -
                     r, ws, torque=(r.t_torque, r.torque))
     assert b.status == 'ok' and o.status == 'ok', (b.status, o.status)
     np.testing.assert_array_less(np.abs(o.theta - b.theta), 0.1 * b.theta_std)
+
+
+def _wheels_and_commanded_torque(seed: int, command_rate: float):
+    """10 s at 100 Hz: the wheels plus a 0.05 N m multisine torque commanded at
+    ``command_rate`` (held between commands) and measured at 50 Hz: held between the
+    torque samples at 50 Hz, nearly continuous between them at 1 kHz."""
+    d = scene_dict(duration=10.0, gyro_rate=100.0)
+    d['torque'] = [{'type': 'multisine', 'amplitude': [0.05, 0.05, 0.05],
+                    'f_min': 0.2, 'f_max': 2.0}]
+    d['torque_sensor'] = {'rate': 50.0, 'noise_std': 1e-4}
+    d['command_rate'] = command_rate
+    sc = Scene.from_dict(d)
+    return sc, simulate(sc, seed)
+
+
+@pytest.mark.parametrize('command_rate, chosen', [(1000.0, 'linear'), (50.0, 'zoh')])
+def test_auto_hold_of_the_other_torque_follows_its_source(command_rate, chosen) -> None:
+    """Issue 26: wheels plus another torque with ``hold='auto'`` compare the other torque's
+    two reductions on the same rows by the batch rule (Vuong test at HOLD_ALPHA): a torque
+    continuous between its samples -> linear, a held one -> zoh (seeds 0-1, p < HOLD_ALPHA;
+    measured p <= 2e-5), and the estimate is the one of that hold given explicitly (rtol
+    1e-9), status ok, |z| < 4.  On f0eb6ad ``auto`` always held (zoh) without comparing."""
+    from inertia_ros.core.estimation.selection import HOLD_ALPHA
+
+    for seed in (0, 1):
+        sc, r = _wheels_and_commanded_torque(seed, command_rate)
+        ws = [Wheel(w.joint, w.axis, w.inertia) for w in sc.wheels.wheels]
+        auto, fixed = (feed_blocks(MomentumRecursiveEstimator(torque_bias=False, hold=h), r,
+                                   ws, torque=(r.t_torque, r.torque))
+                       for h in ('auto', chosen))
+        sel = auto.diagnostics['hold_selection']
+        assert sel['chosen'] == chosen == auto.diagnostics['hold'], sel
+        assert sel['p_value'] < HOLD_ALPHA and (sel['statistic'] > 0) == (chosen == 'linear')
+        assert auto.status == 'ok', auto.diagnostics.get('reason')
+        np.testing.assert_allclose(auto.theta, fixed.theta, rtol=1e-9)
+        z = (auto.theta - r.inertia[THETA_IDX]) / auto.theta_std
+        assert np.all(np.abs(z) < 4), z
+
+
+def test_auto_hold_without_another_torque_has_nothing_to_choose() -> None:
+    """Wheels alone: nothing is held, so ``hold='auto'`` is the held estimate (rtol 1e-12)
+    and ``hold_selection`` says why no comparison was made."""
+    sc = Scene.from_dict(scene_dict(duration=6.0, gyro_rate=100.0))
+    r = simulate(sc, 0)
+    ws = [Wheel(w.joint, w.axis, w.inertia) for w in sc.wheels.wheels]
+    auto, held = (feed_blocks(MomentumRecursiveEstimator(other_torque=False, torque_bias=False,
+                                                         hold=h), r, ws)
+                  for h in ('auto', 'zoh'))
+    assert auto.status == 'ok' and 'no other torque' in auto.diagnostics['hold_selection'][
+        'reason']
+    np.testing.assert_allclose(auto.theta, held.theta, rtol=1e-12)

@@ -118,6 +118,9 @@ class OnlineAligner:
     def __init__(self) -> None:
         self.ts = np.empty(0)
         self.tau = np.empty((0, 3))
+        #: a second torque on the same stamps (a momentum input's equivalent torque with the
+        #: other torque linear: :mod:`.online_hold`), or None
+        self.tau_alt: np.ndarray | None = None
         self.T_base = np.zeros(3)       # torque integral at self.ts[0]
         self.t0: float | None = None    # time origin of the bias column
         self.prev: tuple[float, np.ndarray] | None = None   # last processed gyro sample
@@ -128,10 +131,15 @@ class OnlineAligner:
         self.g_dt = 0.0                 # their median (0 before two samples)
         self.tq_last: float | None = None
 
-    def take(self, new_t: np.ndarray, new_tau: np.ndarray) -> None:
-        """Append torque samples ``new_tau`` (n, 3) [N m] at ``new_t`` (n,) [s]."""
+    def take(self, new_t: np.ndarray, new_tau: np.ndarray,
+             new_alt: np.ndarray | None = None) -> None:
+        """Append torque samples ``new_tau`` (n, 3) [N m] at ``new_t`` (n,) [s] (and those of
+        the second torque, ``new_alt`` (n, 3), when one is kept)."""
         self.ts = np.concatenate([self.ts, new_t])
         self.tau = np.concatenate([self.tau, new_tau])
+        if new_alt is not None:
+            old = self.tau_alt if self.tau_alt is not None else np.empty((0, 3))
+            self.tau_alt = np.concatenate([old, new_alt])
         edges = new_t if self.tq_last is None else np.concatenate([[self.tq_last], new_t])
         self.tq_dts = np.concatenate([self.tq_dts, np.diff(edges)])[-_DT_HISTORY:]
         self.tq_last = float(new_t[-1])
@@ -175,6 +183,8 @@ class OnlineAligner:
                                                           self.ts[j:j + 1], hold)[0]
             self.ts = self.ts[j:]
             self.tau = self.tau[j:]
+            if self.tau_alt is not None:
+                self.tau_alt = self.tau_alt[j:]
 
     def _monomials(self, t: np.ndarray, w: np.ndarray) -> np.ndarray:
         """Trapezoid integral (n, 6) of the monomials, continuing from the last sample."""

@@ -67,8 +67,6 @@ YES = 'yes'
 SUBSTITUTED = 'runs as '
 
 _ONLINE_HOLD = "use hold='zoh' or 'linear' (batch and recursive modes compare both)"
-_ONLINE_MOM_HOLD = (SUBSTITUTED + "hold='zoh' for the other torque (no comparison online "
-                    "with wheels or rotors yet); give 'zoh' or 'linear' explicitly")
 _NO_NUISANCE = 'nuisance terms are fitted by the batch estimator only; use batch mode'
 #: the momentum inputs without a torque stream: the torque sensor's scale has nothing to scale
 _TORQUE_SCALE_MOM = (SUBSTITUTED + 'torque_scale_std=0: no torque stream to scale (the '
@@ -124,8 +122,8 @@ CAPABILITIES: dict[str, dict[str, dict[str, str]]] = {
     'recursive': {
         'input': _row(),
         # both holds' statistics on the same rows, chosen by the batch rule (online_hold.py);
-        # the momentum inputs hold the other torque and say so in hold_selection
-        'hold_auto': _mom(_ONLINE_MOM_HOLD),
+        # with wheels/rotors the other torque's two reductions (nothing held without one)
+        'hold_auto': _row(),
         'hold_zoh': _row(), 'hold_linear': _row(),
         'model_auto': _row(), 'torque_bias_auto': _row(),
         'nuisance': _all(_NO_NUISANCE),

@@ -11,6 +11,11 @@ every window's weighted residual sum of squares at each hold's fit under one noi
 held fit's weight), and applies the batch rule, :func:`.selection.select_hold` at
 :data:`.selection.HOLD_ALPHA` (a Vuong test, not a margin).
 
+With wheels or rotors and another torque
+(:class:`.recursive_momentum.MomentumRecursiveEstimator`) the two sides are the momentum
+input's equivalent torque with the other torque held and with it linear, each held over the
+grid intervals (the second kept as ``OnlineAligner.tau_alt``, :func:`linear_integral`).
+
 The windows cover the whole record, as the batch's do: they start at :data:`HOLD_MIN_ROWS`
 rows and, once more than :data:`HOLD_MAX_WINDOWS` are closed, neighbours are merged in pairs
 under one anchor (the parallel update of Chan, Golub and LeVeque) and the window length
@@ -32,7 +37,8 @@ from .options import HOLDS
 from .regressors import cumulative_torque, gram, lift, metric
 from .selection import HOLD_ALPHA, hold_rule, select_hold
 
-__all__ = ['HOLD_MAX_WINDOWS', 'HOLD_MIN_ROWS', 'AutoHold', 'HoldWindows', 'choose_hold']
+__all__ = ['HOLD_MAX_WINDOWS', 'HOLD_MIN_ROWS', 'AutoHold', 'HoldWindows', 'choose_hold',
+           'linear_integral']
 
 #: Rows of a window at the start (the batch's ``_HOLD_MIN_ROWS``).
 HOLD_MIN_ROWS = 25
@@ -161,6 +167,17 @@ def choose_hold(stats: dict[str, Any], windows: HoldWindows, bias: bool, nv: np.
     return select_hold(rz, rl, HOLD_ALPHA)
 
 
+def linear_integral(align: OnlineAligner, t: np.ndarray) -> np.ndarray:
+    """The torque integral (n, 3) [N m s] of the linear side from ``align.ts[0]`` to ``t``
+    (n,) [s]: the torque stream linear between its samples, or, when the aligner keeps a
+    second torque (a momentum input's equivalent torque with the other torque linear, held
+    over the grid intervals: :class:`.recursive_momentum.MomentumRecursiveEstimator`), that
+    one held."""
+    if align.tau_alt is not None:
+        return cumulative_torque(align.ts, align.tau_alt, t, 'zoh')
+    return cumulative_torque(align.ts, align.tau, t, 'linear')
+
+
 class AutoHold:
     """The linear side of ``hold='auto'`` and the choice: the linear torque integral's base,
     the windows, and the last choice with its record (reused between re-selections)."""
@@ -180,7 +197,7 @@ class AutoHold:
         """Both holds' variables (n, 13) of rows ``V`` (the held ones from ``align``) at
         ``t`` (n,) [s]; the rows join the windows, which end at the ``breaks``."""
         V_lin = V.copy()
-        V_lin[:, 10:13] = self.T_base + cumulative_torque(align.ts, align.tau, t, 'linear')
+        V_lin[:, 10:13] = self.T_base + linear_integral(align, t)
         X = np.concatenate([V, V_lin[:, 10:13]], axis=1)
         lo = 0
         for k in [*breaks, len(t)]:
@@ -194,8 +211,7 @@ class AutoHold:
         """Before ``align.trim(t_last)``: fold the linear integral it drops into the base."""
         j = int(np.searchsorted(align.ts, t_last, side='right') - 1)
         if j > 0:
-            self.T_base = self.T_base + cumulative_torque(align.ts, align.tau,
-                                                          align.ts[j:j + 1], 'linear')[0]
+            self.T_base = self.T_base + linear_integral(align, align.ts[j:j + 1])[0]
 
     def select(self, due: bool, torque_free: bool, stats: Callable[[str], Any], bias: bool,
                nv: np.ndarray, tv: np.ndarray, white_y_cov: np.ndarray | None,

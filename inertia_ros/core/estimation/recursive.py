@@ -160,6 +160,7 @@ class RecursiveEstimator:
         """Forget everything (clock jump, new run)."""
         self._pt: list[np.ndarray] = []      # pending torque blocks
         self._ptau: list[np.ndarray] = []
+        self._palt: list[np.ndarray] = []    # pending second torque (OnlineAligner.tau_alt)
         self._single_t: list[float] = []
         self._single_w: list[Any] = []
         self._n_buf = 0                     # samples in self._gt
@@ -313,10 +314,11 @@ class RecursiveEstimator:
         """Move the pending torque samples into the held stream; update the torque noise."""
         new_t = np.concatenate(self._pt)
         new_tau = np.concatenate(self._ptau)
-        self._pt, self._ptau = [], []
-        self._align.take(new_t, new_tau)
-        for acc in self._accs.values():
-            acc.add_torque_power(new_tau)
+        alt = np.concatenate(self._palt) if self._palt else None
+        self._pt, self._ptau, self._palt = [], [], []
+        self._align.take(new_t, new_tau, alt)
+        for h, acc in self._accs.items():
+            acc.add_torque_power(alt if h == 'linear' and alt is not None else new_tau)
         # the same robust estimator as batch, on the recent samples whatever the block size
         # (the variance itself is taken in estimate())
         self._tau_nv.add(new_tau)

@@ -82,12 +82,14 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
         True: another known torque arrives through :meth:`add_torque` and the equations wait
         for it; False: the momentum input is the only known torque.
     hold : {'zoh', 'linear', 'auto'}
-        Hold of the other torque between its samples (``torque_hold``); ``auto`` is held
-        (``zoh``): the holds are not compared here (the other torque reaches the statistics
-        only through the equivalent torque), which ``diagnostics['hold_selection']`` says.
-        The equivalent torque
-        fed to the :class:`~.recursive.RecursiveEstimator` is always held over its grid
-        intervals (``zoh``): the other torque's hold is applied once, when it is reduced.
+        Hold of the other torque between its samples (``torque_hold``).  The equivalent
+        torque fed to the :class:`~.recursive.RecursiveEstimator` is always held over its
+        grid intervals: the other torque's hold is applied once, when it is reduced.
+        ``auto``: both reductions (the other torque held, and linear) on the same rows, as
+        the base estimator's two accumulators (:mod:`.online_hold`, the second as
+        ``OnlineAligner.tau_alt``), chosen by the batch rule (:func:`.selection.select_hold`)
+        in ``diagnostics['hold_selection']``; without another torque nothing is held (the
+        momentum is known at its samples), so there is nothing to choose.
     **kwargs
         The other options of :class:`~.recursive.RecursiveEstimator`.  ``torque_scale_std``
         scales the other torque only, never the momentum: it is propagated as one more
@@ -103,16 +105,15 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
         require('recursive', 'wheels_torque' if other_torque else 'wheels',
                 dict({'model': 'full', 'torque_bias': False}, **kwargs, hold=hold))
         self._hold_auto = hold == 'auto'
-        hold = 'zoh' if hold == 'auto' else hold
         scale = kwargs.pop('torque_scale_std', 0.0)
         SelectionPolicy(torque_scale_std=scale)           # validates
         self.names = tuple(names)
         self.other_torque = bool(other_torque)
-        self.torque_hold = hold
+        self.torque_hold = hold if self.other_torque else HOLDS[0]
         self.torque_scale_std = float(scale) if self.other_torque else 0.0
         # the equivalent torque is held over each grid interval: integrated as held, whatever
-        # the other torque's hold (which _other_on has applied already)
-        self._kwargs = dict(kwargs, hold=HOLDS[0])
+        # the other torque's hold (which _other_on has applied already); 'auto' keeps both
+        self._kwargs = dict(kwargs, hold='auto' if self.torque_hold == 'auto' else HOLDS[0])
         super().__init__(**self._kwargs)
 
     def reset(self) -> None:
@@ -123,7 +124,8 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
         self._m = _Buffer((3,), (3,), (p, 3), (p, 3))  # momentum: h, torque, dh, dtorque
         self._o = _Buffer((3,))                       # other torque
         self._cursor: float | None = None             # start of the next grid interval [s]
-        self._pert = [RecursiveEstimator(**self._kwargs) for _ in range(p)]
+        # the momentum's changes do not depend on the other torque's hold: held estimators
+        self._pert = [RecursiveEstimator(**dict(self._kwargs, hold='zoh')) for _ in range(p)]
         # the torque scale's sensitivity: fed the other torque times its std
         self._scale_est = RecursiveEstimator(**self._kwargs) \
             if getattr(self, 'torque_scale_std', 0.0) else None
@@ -216,7 +218,7 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
         if self.other_torque:
             if len(self._o.t) == 0:
                 return None
-            hi = min(hi, float(self._o.t[-1]) if self.torque_hold == 'linear' else np.inf)
+            hi = min(hi, float(self._o.t[-1]) if self.torque_hold != 'zoh' else np.inf)
         return hi
 
     def _advance(self) -> None:
@@ -292,16 +294,17 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
 
         def lin(y: np.ndarray) -> np.ndarray:
             return np.column_stack([np.interp(grid, tm, y[:, k]) for k in range(3)])
-        out = interval_torque(grid, wg, hg, lin(tq) if has_tr else None)
-        other = self._other_on(grid) if self.other_torque else None
-        if other is not None:
-            out = out + other
+        own = interval_torque(grid, wg, hg, lin(tq) if has_tr else None)
+        other, other_lin = self._other_on(grid) if self.other_torque else (None, None)
+        out = own if other is None else own + other
         self._walk(hg[:-1], wg[:-1])
         gi = (self._g.t >= grid[0]) & (self._g.t <= grid[-1])
         t_in = self._g.t[gi]
         w_in = self._g.v[0][gi]
         fresh = t_in > (self._last_t_in if self._last_t_in is not None else -np.inf)
         super().add_torque(grid[:-1], out)
+        if other_lin is not None:             # hold 'auto': the other torque linear too
+            self._palt.append(own + other_lin)
         if np.any(fresh):
             super().add_gyro(t_in[fresh], w_in[fresh])
         changes = [(est, interval_torque(grid, wg, hermite(tm, dh[i], run_slopes(tm, dh[i],
@@ -310,6 +313,8 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
                    for i, est in enumerate(self._pert)]
         if self._scale_est is not None and other is not None:
             changes.append((self._scale_est, self.torque_scale_std * other))
+            if other_lin is not None:
+                self._scale_est._palt.append(self.torque_scale_std * other_lin)
         for est, d in changes:
             est.add_torque(grid[:-1], d)
             if np.any(fresh):
@@ -329,10 +334,14 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
         buf.keep_from(drop)
         self._cursor = None
 
-    def _other_on(self, grid: np.ndarray) -> np.ndarray:
+    def _other_on(self, grid: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
         """The other torque over each grid interval (G - 1, 3): the batch rule
-        (:func:`.momentum.held_over`) with the other torque's hold."""
-        return held_over(grid, self._o.t, self._o.v[0], self.torque_hold)
+        (:func:`.momentum.held_over`) with the other torque's hold (``auto``: held), and
+        with ``hold='auto'`` also linear (else None)."""
+        o = (self._o.t, self._o.v[0])
+        if self.torque_hold != 'auto':
+            return held_over(grid, *o, self.torque_hold), None
+        return held_over(grid, *o, 'zoh'), held_over(grid, *o, 'linear')
 
     def _trim(self) -> None:
         """Drop the consumed samples (keeping what interpolation at the cursor needs)."""
@@ -383,12 +392,12 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
                             'h_noise_std': self._h_noise.std(),
                             'gyro_per_wheel_sample': self._share(),
                             'other_torque': self.other_torque}
-        if self._hold_auto:
+        if self._hold_auto and not self.other_torque:
             diag['hold'] = 'zoh'
             diag['hold_selection'] = {
                 'requested': 'auto', 'chosen': 'zoh', 'statistic': None, 'p_value': None,
-                'reason': 'wheels/rotors online: the holds of the other torque are not '
-                          'compared; held (zoh)'}
+                'reason': 'no other torque: the momentum input is not held (known at its '
+                          'samples), so there is no hold to choose'}
         if est.status == 'insufficient_data' and self.other_torque and len(self._o.t) == 0:
             diag['reason'] = ('no other torque sample yet: the momentum input waits for it '
                               '(build with other_torque=False when there is none)')
@@ -418,6 +427,8 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
             pairs.append(('torque_scale', self._scale_est))
         for nm, p in pairs:
             p._process()
+            if p._auto is not None:          # the torque scale's: the hold chosen
+                p._active = self._active
             p._white_y_cov = self._white_y_cov
             f = fit_two_pass(p._stats(nv, n_eff), basis, bias, nv, np.zeros(3), None, est.theta)
             d6 = np.nan_to_num(basis @ f.beta[:k])
@@ -439,23 +450,31 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
         else:
             per, outer = self._sensitivities(est, name)
             self._prop_cache = (est.model, per, outer, span)
-        cov6 = np.asarray(est.covariance) + outer
-        diag = dict(est.diagnostics)
-        theta = est.theta
-        moments, axes = principal_with_std(est.inertia, cov6, diag)
-        r_se = np.sqrt(np.maximum(np.diag(ratio_cov(theta, cov6)), 0.0))
-        diag['input_uncertainty'] = {
-            'inputs': per, 'theta_std_added': np.sqrt(np.diag(outer)),
-            'rule': 'linear sensitivity of the estimate to each input, added in quadrature'}
-        if self._scale_est is not None:
-            calib = dict(diag.get('calibration') or {'gyro_scale_std': 0.0})
-            calib.update(torque_scale_std=self.torque_scale_std,
-                         torque_scale_applies_to='the torque stream only (not the momentum '
-                         "input): input 'torque_scale' of input_uncertainty")
-            diag['calibration'] = calib
-        return replace(est, covariance=cov6,
-                       inertia_std=theta_to_matrix(np.sqrt(np.maximum(np.diag(cov6), 0.0)),
-                                                   check_finite=False),
-                       ratios_std=theta_to_matrix(r_se, check_finite=False),
-                       principal_moments=moments, principal_axes=axes, diagnostics=diag)
+        return _widened(est, per, outer, self.torque_scale_std if self._scale_est else None)
+
+
+def _widened(est: InertiaEstimate, per: dict[str, Any], outer: np.ndarray,
+             torque_scale_std: float | None) -> InertiaEstimate:
+    """``est`` with ``outer`` (6, 6), the sum of the uncertain inputs' ``d theta d theta'``
+    (``per``: each input's record), added to its covariance, and every standard error
+    derived from it; ``torque_scale_std`` (or None: not stated) recorded in
+    ``diagnostics['calibration']``."""
+    cov6 = np.asarray(est.covariance) + outer
+    diag = dict(est.diagnostics)
+    moments, axes = principal_with_std(est.inertia, cov6, diag)
+    r_se = np.sqrt(np.maximum(np.diag(ratio_cov(est.theta, cov6)), 0.0))
+    diag['input_uncertainty'] = {
+        'inputs': per, 'theta_std_added': np.sqrt(np.diag(outer)),
+        'rule': 'linear sensitivity of the estimate to each input, added in quadrature'}
+    if torque_scale_std is not None:
+        calib = dict(diag.get('calibration') or {'gyro_scale_std': 0.0})
+        calib.update(torque_scale_std=torque_scale_std,
+                     torque_scale_applies_to='the torque stream only (not the momentum '
+                     "input): input 'torque_scale' of input_uncertainty")
+        diag['calibration'] = calib
+    return replace(est, covariance=cov6,
+                   inertia_std=theta_to_matrix(np.sqrt(np.maximum(np.diag(cov6), 0.0)),
+                                               check_finite=False),
+                   ratios_std=theta_to_matrix(r_se, check_finite=False),
+                   principal_moments=moments, principal_axes=axes, diagnostics=diag)
 
