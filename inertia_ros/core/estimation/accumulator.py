@@ -277,11 +277,7 @@ class OnlineStats:
         squared-rate integrals scale exactly; for the gyro-scale sensitivity).  ``torque_dt``,
         ``gyro_dt`` [s] and ``white_y_cov`` (3, 3) are the noise model's stream figures.
         """
-        K = np.eye(13)
-        K[9, 3:6] = -nv
-        if gyro_scale != 1.0:
-            K = np.diag(np.r_[np.full(3, gyro_scale), np.full(6, gyro_scale ** 2),
-                              np.ones(4)]) @ K
+        K = _noise_map(nv, gyro_scale)
         C_all = lift(K.T @ (self.C + self.Cc) @ K)
         gp, walk = self.segment_walk()
         CP = lift(K.T @ (self.GPc + gp) @ K) if walk_noise else None
@@ -300,26 +296,55 @@ class OnlineStats:
         on time windows; ``nv``, ``tv`` (3,) the gyro and torque noise variances.
         """
         p, k = len(f.beta), f.basis.shape[1]
-        gp, walk = self.segment_walk()
-        # as the batch's windows, >= ADEQUACY_MIN_WINDOW_S (a 1 s open segment: chi2 ~2000)
-        groups = [g for g in self.history.groups(ADEQUACY_WINDOWS, self.open_segment(gp, walk),
-                                                 self.clock)
-                  if g.neff >= MIN_EQUATIONS and g.t1 - g.t0 >= ADEQUACY_MIN_WINDOW_S]
+        groups = self.group_stats(nv, torque_dt=torque_dt, gyro_dt=gyro_dt,
+                                  white_y_cov=white_y_cov)
         thetas, covs, mids = np.zeros((0, p)), np.zeros((0, p, p)), np.zeros(0)
         if len(groups) >= 2:
-            K = np.eye(13)
-            K[9, 3:6] = -nv
             theta0 = f.basis @ f.beta[:k]
             fits = []
-            for g in groups:
-                st = SufficientStats(lift(K.T @ g.C @ K), lift(K.T @ g.GP @ K),
-                                     int(round(g.w0)), int(round(g.neff)), 1, kind='anchored',
-                                     eiv_var=nv, weighted=True, walk_time=g.walk,
-                                     torque_dt=torque_dt, omega_m2=self.omega_m2(),
-                                     gyro_dt=gyro_dt, white_y_cov=white_y_cov)
+            for st, factor, mid in groups:
                 fk = fit_two_pass(st, f.basis, f.bias, nv, tv, None, theta0)
-                fits.append((fk.beta, fk.cov * (g.w00 / g.w0), 0.5 * (g.t0 + g.t1)))
+                fits.append((fk.beta, fk.cov * factor, mid))
             thetas = np.array([x[0] for x in fits])
             covs = np.array([x[1] for x in fits])
             mids = np.array([x[2] for x in fits])
         return check_adequacy(thetas, covs, mids, f.excess)
+
+    def group_stats(self, nv: np.ndarray, *, torque_dt: float, gyro_dt: float,
+                    white_y_cov: np.ndarray | None, gyro_scale: float = 1.0
+                    ) -> list[tuple[SufficientStats, float, float]]:
+        """The adequacy test's groups of the kept segments, as statistics.
+
+        Up to :data:`ADEQUACY_WINDOWS` consecutive groups (the open segment included), each
+        of at least :data:`ADEQUACY_MIN_WINDOW_S` and :data:`MIN_EQUATIONS`, as the batch's
+        windows (a 1 s open segment would give chi2 ~2000); arguments as :meth:`stats`.
+
+        Returns
+        -------
+        list of (SufficientStats, float, float)
+            Per group: its statistics, the factor ``w00 / w0`` of a fit's covariance (the
+            meat of weighted sums) and its middle time [s].
+        """
+        gp, walk = self.segment_walk()
+        groups = [g for g in self.history.groups(ADEQUACY_WINDOWS, self.open_segment(gp, walk),
+                                                 self.clock)
+                  if g.neff >= MIN_EQUATIONS and g.t1 - g.t0 >= ADEQUACY_MIN_WINDOW_S]
+        K = _noise_map(nv, gyro_scale)
+        return [(SufficientStats(lift(K.T @ g.C @ K), lift(K.T @ g.GP @ K), int(round(g.w0)),
+                                 int(round(g.neff)), 1, kind='anchored', eiv_var=nv,
+                                 weighted=True, walk_time=g.walk, torque_dt=torque_dt,
+                                 omega_m2=self.omega_m2(), gyro_dt=gyro_dt,
+                                 white_y_cov=white_y_cov), g.w00 / g.w0, 0.5 * (g.t0 + g.t1))
+                for g in groups]
+
+
+def _noise_map(nv: np.ndarray, gyro_scale: float = 1.0) -> np.ndarray:
+    """The linear map (13, 13) of the variables ``[w, m, t, T]`` applying the gyro-noise
+    correction ``m_c -> m_c - sigma_c^2 s`` (``nv`` (3,) [rad^2/s^2]) and, for
+    ``gyro_scale`` != 1, a gyro read that many times larger (``w`` and ``m`` scale)."""
+    K = np.eye(13)
+    K[9, 3:6] = -nv
+    if gyro_scale != 1.0:
+        K = np.diag(np.r_[np.full(3, gyro_scale), np.full(6, gyro_scale ** 2),
+                          np.ones(4)]) @ K
+    return K

@@ -94,12 +94,8 @@ def _mom(note: str, torque: str = YES, torque_free: str = YES) -> dict[str, str]
 
 _TF_TORQUE_SCALE = (SUBSTITUTED + 'torque_scale_std=0: a torque scale has no effect on '
                     'torque-free equations (diagnostics.calibration records it)')
-_TF_GYRO_ONLINE = ('the online torque-free fit does not propagate a stated gyro scale into '
-                   'ratios_std; use batch mode (or the node with method batch), which does')
 _TF_NUISANCE = (SUBSTITUTED + "nuisance='off': no torque stream to offset or filter "
                                '(diagnostics.nuisance.skipped says so)')
-_TF_ADEQ = ('the online torque-free fit reports scale_unobservable without an adequacy test; '
-            'use batch mode (window estimates compared)')
 
 #: ``CAPABILITIES[mode][feature][input]``: :data:`YES`, or the refusal's "what instead".
 CAPABILITIES: dict[str, dict[str, dict[str, str]]] = {
@@ -129,8 +125,7 @@ CAPABILITIES: dict[str, dict[str, dict[str, str]]] = {
         'nuisance': _all(_NO_NUISANCE),
         'torque_scale_std': _row(wheels=_TORQUE_SCALE_MOM, rotors=_TORQUE_SCALE_MOM,
                                  torque_free=_TF_TORQUE_SCALE),
-        'gyro_scale_std': _row(torque_free=_TF_GYRO_ONLINE),
-        'adequacy': _row(torque_free=_TF_ADEQ),
+        'gyro_scale_std': _row(), 'adequacy': _row(),
     },
     'tracking': {
         'input': _mom(_TRACK_INPUT, torque_free='the tracking filter needs torque for the '

@@ -4,7 +4,9 @@ With no torque Euler's equations are homogeneous in ``theta``: any multiple of t
 explains the motion.  :func:`is_torque_free` is the one rule that declares a record
 torque-free (batch and online); :func:`homogeneous_estimate` fits the ratios
 ``inertia / trace`` under ``trace = 1`` from the same statistics as the torque-driven fits;
-:func:`torque_free_stats` builds those statistics for a batch record.
+:func:`torque_free_stats` builds those statistics for a batch record.  Both estimators add
+the stated gyro scale and the window-consistency test (:class:`TorqueFreeChecks` on a batch
+record's equations, :class:`OnlineTorqueFreeChecks` on the recursive estimator's statistics).
 
 The covariance carries the same noise model as the torque-driven fits: the white gyro noise
 of each equation and the random walk that the integrated gyroscopic term ``int w x (I w)``
@@ -16,6 +18,7 @@ the white part and, being correlated in time, it does not average out.
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -41,8 +44,8 @@ from .uncertainty import axis_std, moment_std
 #: :func:`walk_grams`: the walk's cross Grams ``K`` and their cross Grams with the white part.
 WalkGrams = tuple[np.ndarray, np.ndarray]
 
-__all__ = ['TorqueFreeChecks', 'homogeneous_estimate', 'is_torque_free', 'torque_free_checked',
-           'torque_free_stats', 'walk_grams']
+__all__ = ['OnlineTorqueFreeChecks', 'TorqueFreeChecks', 'homogeneous_estimate',
+           'is_torque_free', 'torque_free_checked', 'torque_free_stats', 'walk_grams']
 
 #: The reason of every torque-free result (a mismatch's reason ends with it).
 REASON = 'no torque excitation: only ratios and principal axes are observable'
@@ -174,7 +177,7 @@ def walk_grams(V: np.ndarray, t: np.ndarray, omega: np.ndarray,
 def homogeneous_estimate(st: SufficientStats, gyro_var: np.ndarray, diag: dict[str, Any],
                          base: dict[str, Any], cov_scale: float = 1.0,
                          walk: WalkGrams | None = None,
-                         checks: TorqueFreeChecks | None = None) -> InertiaEstimate:
+                         checks: Checks | None = None) -> InertiaEstimate:
     """Torque-free data: the ratios ``inertia / trace`` with their standard errors, and axes.
 
     With no torque the equations are homogeneous, ``X6 theta = e``: ``theta`` is fitted
@@ -200,9 +203,10 @@ def homogeneous_estimate(st: SufficientStats, gyro_var: np.ndarray, diag: dict[s
     walk : tuple of ndarray, optional
         :func:`walk_grams` of the equations: the exact gyroscopic-walk covariance (without:
         the mean-rate form of the fit's noise model, as for the torque-driven fits).
-    checks : TorqueFreeChecks, optional
-        The equations and options of a batch record: the stated gyro-scale uncertainty is
-        added to the covariance and the adequacy tests run (:func:`torque_free_checked`).
+    checks : TorqueFreeChecks or OnlineTorqueFreeChecks, optional
+        The equations and options of a batch record (:func:`torque_free_checked`), or the
+        recursive estimator's statistics and options: the stated gyro-scale uncertainty is
+        added to the covariance and the adequacy tests run.
 
     Returns
     -------
@@ -326,7 +330,7 @@ def _fit_ratios(st: SufficientStats, gyro_var: np.ndarray, W: np.ndarray | None 
 
 def _ratios(st: SufficientStats, gyro_var: np.ndarray, diag: dict[str, Any],
             base: dict[str, Any], cov_scale: float,
-            walk: WalkGrams | None, checks: TorqueFreeChecks | None) -> InertiaEstimate:
+            walk: WalkGrams | None, checks: Checks | None) -> InertiaEstimate:
     """The ``scale_unobservable`` result: ``theta`` fitted under ``trace = 1`` (torque column
     of ``st`` already dropped), projected onto a physical tensor when needed; with
     ``checks``, the adequacy tests and the stated gyro-scale uncertainty."""
@@ -336,7 +340,7 @@ def _ratios(st: SufficientStats, gyro_var: np.ndarray, diag: dict[str, Any],
         cov = _walk_covariance(st, f, W, theta, gyro_var, walk, TRACE / 3.0)
     status = 'scale_unobservable'
     if checks is not None:
-        a = _window_adequacy(checks, f, W, gyro_var)
+        a = checks.adequacy(f, W, gyro_var)
         diag['adequacy'] = a.as_dict()
         if not a.ok:
             # as the torque paths: the sigma widened to the spread the windows show
@@ -388,6 +392,81 @@ class TorqueFreeChecks:
     gyro_scale_std: float = 0.0
     torque_scale_std: float = 0.0
 
+    def adequacy(self, f: Fit, W: np.ndarray, gyro_var: np.ndarray) -> Adequacy:
+        """The window test of the whole fit ``f`` (weight ``W``): :func:`_window_adequacy`."""
+        return _window_adequacy(self, f, W, gyro_var)
+
+    def scale_sensitivity(self, f: Fit, W: np.ndarray, gyro_var: np.ndarray) -> np.ndarray:
+        """``d beta / d g`` (5,) of ``f``: :func:`_scale_sensitivity` of the equations."""
+        return _scale_sensitivity(self.eq, self.segment, f, W, gyro_var)
+
+
+@dataclass(frozen=True)
+class OnlineTorqueFreeChecks:
+    """What the recursive estimator adds to the torque-free fit: the same two checks as a
+    batch record's (:class:`TorqueFreeChecks`) on its statistics.
+
+    The adequacy test's windows are the accumulator's groups of anchored segments (as for
+    its torque-driven fits, :meth:`.accumulator.OnlineStats.window_test`); the gyro-scale
+    sensitivity is the refit of the statistics of a gyro read ``1 + g`` times larger (the
+    13 variables scale exactly, so no sample is kept).
+
+    Attributes
+    ----------
+    stats : callable
+        ``stats(g)``: the statistics of everything merged, the gyro read ``g`` times larger.
+    groups : callable
+        ``groups(g)``: :meth:`.accumulator.OnlineStats.group_stats` with that gyro scale.
+    gyro_scale_std, torque_scale_std : float
+        Stated relative one-sigma scale uncertainties (the torque's is only recorded).
+    """
+
+    stats: Callable[[float], SufficientStats]
+    groups: Callable[[float], list[tuple[SufficientStats, float, float]]]
+    gyro_scale_std: float = 0.0
+    torque_scale_std: float = 0.0
+
+    def scale_sensitivity(self, f: Fit, W: np.ndarray, gyro_var: np.ndarray,
+                          step: float = 1e-4) -> np.ndarray:
+        """``d beta / d g`` (5,) of the whole fit ``f``: refit with ``W`` of the scaled
+        statistics (as :func:`_scale_sensitivity`)."""
+        fs, _, _ = _fit_ratios(_without_torque(self.stats(1.0 + step)), gyro_var, W)
+        return (fs.beta - f.beta) / step
+
+    def adequacy(self, f: Fit, W: np.ndarray, gyro_var: np.ndarray,
+                 step: float = 1e-4) -> Adequacy:
+        """The window test of ``f`` on the segment groups, as :func:`_window_adequacy`:
+        the ratios refitted on each group with ``W`` (covariance times the group's weight
+        factor), groups that do not single out the ratios left out, the stated gyro scale
+        profiled out (each group's sensitivity), the residual excess deciding nothing."""
+        p = f.beta.size
+        groups = self.groups(1.0)
+        scaled = self.groups(1.0 + step) if self.gyro_scale_std and len(groups) >= 2 else []
+        thetas, covs, mids, common = [], [], [], []
+        for i, (st, factor, mid) in enumerate(groups if len(groups) >= 2 else []):
+            st = _without_torque(st)
+            sep = _separation(st)
+            if sep is None or sep[0] < MIN_GAP:
+                continue
+            fk, _, _ = _fit_ratios(st, gyro_var, W)
+            if not 0.0 < fk.excess < np.inf:
+                continue
+            thetas.append(fk.beta)
+            covs.append(fk.cov * factor)
+            mids.append(mid)
+            if scaled:
+                fs, _, _ = _fit_ratios(_without_torque(scaled[i][0]), gyro_var, W)
+                common.append(self.gyro_scale_std * ((fs.beta - fk.beta) / step)[:, None])
+        if len(thetas) < 2:
+            return check_adequacy(np.zeros((0, p)), np.zeros((0, p, p)), np.zeros(0),
+                                  f.excess, max_excess=np.inf)
+        return check_adequacy(np.array(thetas), np.array(covs), np.array(mids), f.excess,
+                              max_excess=np.inf, common=np.array(common) if common else None)
+
+
+#: What the torque-free fit's checks need (a batch record's or the recursive estimator's).
+Checks = TorqueFreeChecks | OnlineTorqueFreeChecks
+
 
 def torque_free_checked(eq: Equations, t_gyro: np.ndarray, omega: np.ndarray,
                         segment: float | None, gyro_var: np.ndarray, diag: dict[str, Any],
@@ -421,7 +500,7 @@ def torque_free_checked(eq: Equations, t_gyro: np.ndarray, omega: np.ndarray,
     return homogeneous_estimate(st, gyro_var, diag, base, walk=walk, checks=checks)
 
 
-def _calibration(checks: TorqueFreeChecks, st: SufficientStats, f: Fit, W: np.ndarray,
+def _calibration(checks: Checks, st: SufficientStats, f: Fit, W: np.ndarray,
                  gyro_var: np.ndarray, diag: dict[str, Any],
                  step: float = 1e-4) -> np.ndarray:
     """Covariance (6, 6) of the ratios from the stated gyro-scale uncertainty.
@@ -438,7 +517,7 @@ def _calibration(checks: TorqueFreeChecks, st: SufficientStats, f: Fit, W: np.nd
     add = np.zeros((6, 6))
     how = None
     if gs:
-        J = TRACE_FREE @ _scale_sensitivity(checks.eq, checks.segment, f, W, gyro_var)
+        J = TRACE_FREE @ checks.scale_sensitivity(f, W, gyro_var)
         add = gs ** 2 * np.outer(J, J)
         how = 'refit of the gyro-scaled statistics'
     diag['calibration'] = {'torque_scale_std': ts, 'gyro_scale_std': gs,

@@ -47,7 +47,7 @@ from .align import OnlineAligner
 from .assemble import status_only
 from .config import require, unapplied
 from .fit import Fit, fit_two_pass
-from .homogeneous import homogeneous_estimate, is_torque_free
+from .homogeneous import OnlineTorqueFreeChecks, homogeneous_estimate, is_torque_free
 from .model import symmetry_axis as unit_axis
 from .noise import StreamingNoise
 from .online_hold import AutoHold
@@ -356,10 +356,6 @@ class RecursiveEstimator:
         """
         return self._schedule.refresh(self._test_adequacy)
 
-    def _omega_m2(self) -> np.ndarray:
-        """``mean(w w')`` of the merged gyro samples [rad^2/s^2] (decayed as the weights)."""
-        return self._acc.omega_m2()
-
     def _gyro_dt(self) -> float:
         """Median recent gyro sample interval [s] (0 before two samples)."""
         return self._align.g_dt      # kept by the gap rule
@@ -440,7 +436,11 @@ class RecursiveEstimator:
         ratio = (self._acc.w00 + self._acc.w00c) / (self._acc.w0 + self._acc.wc)
         if is_torque_free(torque_rms, tq_std):
             diag['warnings'] += unapplied('recursive', self.policy)
-            return homogeneous_estimate(st, nv, diag, base, cov_scale=ratio)
+            checks = OnlineTorqueFreeChecks(
+                lambda g: self._stats(nv, n_eff, g), lambda g: self._acc.group_stats(
+                    nv, gyro_scale=g, **self._context()), self.policy.gyro_scale_std,
+                self.policy.torque_scale_std)
+            return homogeneous_estimate(st, nv, diag, base, cov_scale=ratio, checks=checks)
         tv = self._tau_var if self._tau_var is not None else np.zeros(3)
 
         def fit(basis: np.ndarray, bias: bool, offset: np.ndarray | None = None,
