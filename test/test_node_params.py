@@ -328,7 +328,8 @@ def test_simulator_takes_an_integer_rate(tmp_path):
 
 def test_node_hold_default_is_auto_by_evidence() -> None:
     """The estimator node's ``hold`` defaults to ``auto`` (issue 27 item 2): the recursive
-    estimator it builds chooses the hold by evidence; tracking and batch hold (``zoh``)."""
+    estimator it builds chooses the hold by evidence, the tracker filters both holds until
+    that rule settles (issue 26), the batch window holds (``zoh``)."""
     from inertia_ros.core.estimation.recursive import RecursiveEstimator
     from inertia_ros.nodes.selection import make_estimator
 
@@ -336,5 +337,6 @@ def test_node_hold_default_is_auto_by_evidence() -> None:
     cfg = {name: spec.default for name, spec in params.ESTIMATOR.items()}
     est = make_estimator(cfg)()
     assert isinstance(est, RecursiveEstimator) and est.hold == 'auto'
-    assert make_estimator(dict(cfg, method='tracking'))().hold == 'zoh'
+    tracker = make_estimator(dict(cfg, method='tracking'))()
+    assert tracker._hold_auto and tracker._choice is not None
     assert make_estimator(dict(cfg, method='batch'))().options['hold'] == 'zoh'

@@ -356,9 +356,10 @@ ESTIMATOR: dict[str, ParamSpec] = {
     'window': ParamSpec(0.0, 'recursive: memory time constant, weights decay as '
                         'exp(-age/window) [s], 0 = no decay; tracking: the same memory, 0 = '
                         '10 s; batch: sliding-window length [s], 0 = 30 s', 0.0, 86400.0),
-    'hold': ParamSpec('auto', "torque between samples: 'auto' (recursive: held or linear, "
-                      'chosen by evidence at each re-selection, the batch rule; tracking, '
-                      "batch and wheels/rotors: held), 'zoh' (held) or 'linear'",
+    'hold': ParamSpec('auto', "torque between samples: 'auto' (recursive, also with "
+                      'wheels/rotors: held or linear, chosen by evidence at each '
+                      're-selection, the batch rule; tracking: both filtered until that rule '
+                      "settles; batch: held), 'zoh' (held) or 'linear'",
                       choices=BATCH_HOLDS),
     'torque_scale_std': ParamSpec(0.0, 'relative one-sigma uncertainty of the torque scale '
                                   '(0.02 = 2 %), added to every sigma [dimensionless]',

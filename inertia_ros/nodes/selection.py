@@ -86,14 +86,15 @@ def make_estimator(cfg: dict[str, Any], actuators: Any = None
         return lambda: RecursiveEstimator(**kwargs)
     if cfg['method'] == 'tracking' and no_torque_topic(cfg):
         return torque_free_estimator(cfg)
-    # hold 'auto' is decided online by the recursive method; tracking and batch hold the torque
-    cfg = dict(cfg, hold='zoh') if cfg['hold'] == 'auto' else cfg
     if cfg['method'] == 'tracking':
+        # hold 'auto': a twin filter until the batch rule settles (core tracking_hold)
         kwargs = dict(window=float(cfg['window']) or TRACKING_DEFAULT_WINDOW,
                       model=cfg['model'], torque_bias=cfg['torque_bias'], hold=cfg['hold'],
                       symmetry_axis=axis, **_calibration(cfg))
         TrackingEstimator(**kwargs)  # validates
         return lambda: TrackingEstimator(**kwargs)
+    # the batch window holds the torque: its re-solve at every update compares no holds
+    cfg = dict(cfg, hold='zoh') if cfg['hold'] == 'auto' else cfg
     window = float(cfg['window']) or BATCH_DEFAULT_WINDOW
     options = dict(method=cfg['batch_method'], model=cfg['model'],
                    torque_bias=cfg['torque_bias'], hold=cfg['hold'], symmetry_axis=axis,

@@ -66,7 +66,6 @@ YES = 'yes'
 #: Prefix of a cell run as something else (documented here, not refused: see the cell).
 SUBSTITUTED = 'runs as '
 
-_ONLINE_HOLD = "use hold='zoh' or 'linear' (batch and recursive modes compare both)"
 _NO_NUISANCE = 'nuisance terms are fitted by the batch estimator only; use batch mode'
 #: the momentum inputs without a torque stream: the torque sensor's scale has nothing to scale
 _TORQUE_SCALE_MOM = (SUBSTITUTED + 'torque_scale_std=0: no torque stream to scale (the '
@@ -130,7 +129,8 @@ CAPABILITIES: dict[str, dict[str, dict[str, str]]] = {
     'tracking': {
         'input': _mom(_TRACK_INPUT, torque_free='the tracking filter needs torque for the '
                                                 'scale; use recursive mode (ratios and axes)'),
-        'hold_auto': _all(_ONLINE_HOLD),
+        # a twin filter under the other hold until the batch rule decides (tracking_hold.py)
+        'hold_auto': _row(),
         'hold_zoh': _row(), 'hold_linear': _row(),
         # substituted today (the node's default torque_bias is 'auto'): to be refused once
         # the node passes an explicit choice to the tracker

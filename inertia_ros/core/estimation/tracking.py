@@ -61,7 +61,9 @@ from .options import (
     ALPHA,
 )
 from .regressors import cumulative_monomials, cumulative_torque, gyroscopic_matrix, momentum_matrix
+from .result import InertiaEstimate
 from .selection import SelectionPolicy
+from .tracking_hold import HoldChoice
 from .tracking_input import StreamInput
 from .tracking_output import EXCESS_TIME, StateOutput
 
@@ -158,8 +160,10 @@ class TrackingEstimator(StreamInput, StateOutput):
         Parameter set; ``auto`` tracks the full tensor.
     torque_bias : bool or {'auto', 'on', 'off'}
         Track a constant disturbance torque [N m] (``on``); ``auto`` and ``off`` do not.
-    hold : {'zoh', 'linear'}
-        Torque between samples.
+    hold : {'zoh', 'linear', 'auto'}
+        Torque between samples; ``auto``: a twin filter runs the other hold until the batch
+        rule (:func:`.selection.select_hold`) decides between them, then it is dropped
+        (:mod:`.tracking_hold`; ``diagnostics['hold_selection']``).
     symmetry_axis : {'x', 'y', 'z'} or array_like (3,), optional
         For the axisymmetric model.
     gyro_noise : float or array_like (3,), optional
@@ -188,6 +192,7 @@ class TrackingEstimator(StreamInput, StateOutput):
                  change_level: float = 1e-6, change_inflation: float = 0.5,
                  torque_scale_std: float = 0.0, gyro_scale_std: float = 0.0,
                  alpha: float = ALPHA, nuisance: Any = 'off') -> None:
+        config = {k: v for k, v in locals().items() if k not in ('self', 'hold')}
         opts = require('tracking', 'torque', dict(
             model=model, torque_bias=torque_bias, hold=hold, symmetry_axis=symmetry_axis,
             alpha=alpha, torque_scale_std=torque_scale_std, gyro_scale_std=gyro_scale_std,
@@ -209,7 +214,8 @@ class TrackingEstimator(StreamInput, StateOutput):
         self.window = float(window)
         self.model = 'full' if model == 'auto' else model
         self.torque_bias = torque_bias
-        self.hold = hold
+        self.hold = 'zoh' if hold == 'auto' else hold       # the filter's (auto: until locked)
+        self._hold_auto, self._config, self._hold_record = hold == 'auto', config, None
         self.axis = unit_axis(symmetry_axis)
         self.basis = model_basis(self.model, self.axis)
         self.k = self.basis.shape[1]
@@ -260,7 +266,41 @@ class TrackingEstimator(StreamInput, StateOutput):
         self._tdt = 0.0                     # nominal torque interval [s]
         self._walk = np.zeros((3, 3))       # momentum variance rate [N^2 m^2 s]
         self._B = np.zeros((self.k, self.k))  # gyro noise's own information per block
+        self._choice = HoldChoice(TrackingEstimator(**self._config, hold='linear'),
+                                  self.torque_bias, self._config['gyro_noise']) \
+            if self._hold_auto else None          # hold 'auto' not locked yet
         self._restart()
+
+    def add_gyro(self, t: Any, omega: Any) -> None:
+        """Add gyro samples (:meth:`.StreamInput.add_gyro`; the twin's too, hold 'auto')."""
+        super().add_gyro(t, omega)
+        if self._choice is not None:
+            self._choice.add_gyro(t, omega)
+
+    def add_torque(self, t: Any, tau: Any) -> None:
+        """Add torque samples (:meth:`.StreamInput.add_torque`; the twin's too)."""
+        super().add_torque(t, tau)
+        if self._choice is not None:
+            self._choice.add_torque(t, tau)
+
+    def estimate(self) -> InertiaEstimate:
+        """:meth:`.StateOutput.estimate`; with ``hold='auto'``, of the filter the batch rule
+        prefers, the other dropped once the choice is locked (:mod:`.tracking_hold`)."""
+        c = self._choice
+        if c is not None and c.decide(self._last_t_in):
+            record = dict(c.record or {}, locked=True)
+            if c.chosen == 'linear':             # the twin's state becomes this filter's
+                vars(self).update(vars(c.twin))
+            self._choice, self._hold_record, self._hold_auto = None, record, False
+        c = self._choice
+        est = StateOutput.estimate(c.twin if c is not None and c.chosen == 'linear' else self)
+        record = self._hold_record if c is None else dict(
+            c.record or {'requested': 'auto', 'chosen': 'zoh', 'reason': 'not judged yet'},
+            locked=False)
+        if record is not None:
+            est.diagnostics['hold_selection'] = record
+            est.diagnostics['hold'] = record['chosen']
+        return est
 
     def _restart(self) -> None:
         """Empty filter state: diffuse prior, no anchor."""
