@@ -340,3 +340,23 @@ def test_node_hold_default_is_auto_by_evidence() -> None:
     tracker = make_estimator(dict(cfg, method='tracking'))()
     assert tracker._hold_auto and tracker._choice is not None
     assert make_estimator(dict(cfg, method='batch'))().options['hold'] == 'zoh'
+
+
+def test_node_batch_method_takes_wheels() -> None:
+    """Issue 26: with a wheels file the node's ``method: batch`` builds a ``BatchWindow``
+    that takes the wheels' momentum (the batch momentum estimator at each re-solve), with
+    the other torque unless ``torque_topic`` is 'none'; ``method: tracking`` is one line.
+    On f0eb6ad ``batch`` was refused ("need method 'recursive'")."""
+    from inertia_ros.core.estimation.windowed import BatchWindow
+    from inertia_ros.io.rotors import load_actuators
+    from inertia_ros.nodes.selection import make_estimator
+
+    acts = load_actuators(ROOT / 'config' / 'wheels' / 'wheels.yaml', None)
+    cfg = {name: spec.default for name, spec in params.ESTIMATOR.items()}
+    cfg = dict(cfg, method='batch', wheels_file=str(ROOT / 'config' / 'wheels' / 'wheels.yaml'))
+    est = make_estimator(cfg, acts)()
+    assert isinstance(est, BatchWindow) and est.momentum and est.other_torque
+    alone = make_estimator(dict(cfg, torque_topic='none'), acts)()
+    assert alone.momentum and not alone.other_torque
+    with pytest.raises(ValueError, match="need method 'recursive' or 'batch'"):
+        make_estimator(dict(cfg, method='tracking'), acts)

@@ -51,7 +51,8 @@ def make_estimator(cfg: dict[str, Any], actuators: Any = None
     actuators : inertia_ros.io.rotors.ActuatorInput, optional
         Wheels or rotors on ``joint_states``: a
         :class:`~inertia_ros.core.estimation.recursive_momentum.MomentumRecursiveEstimator`
-        with their uncertain inputs (another torque only when ``torque_topic`` is not 'none').
+        with their uncertain inputs, or (``method='batch'``) a ``BatchWindow`` with
+        ``momentum=True`` (another torque only when ``torque_topic`` is not 'none').
 
     Returns
     -------
@@ -66,8 +67,9 @@ def make_estimator(cfg: dict[str, Any], actuators: Any = None
         From the core, naming the offending setting.
     """
     axis = cfg['symmetry_axis'] or None
-    if (cfg.get('wheels_file') or cfg.get('rotors_file')) and cfg['method'] != 'recursive':
-        raise ValueError("wheels_file / rotors_file need method 'recursive'")
+    if (cfg.get('wheels_file') or cfg.get('rotors_file')) and cfg['method'] == 'tracking':
+        raise ValueError("wheels_file / rotors_file need method 'recursive' or 'batch' (the "
+                         'tracking filter takes a torque stream only)')
     if cfg['method'] == 'recursive':
         # model selection ('auto') re-run about once a second, its choice reused in between:
         # the per-update cost (and so the latency) stays that of one fit
@@ -99,6 +101,8 @@ def make_estimator(cfg: dict[str, Any], actuators: Any = None
     options = dict(method=cfg['batch_method'], model=cfg['model'],
                    torque_bias=cfg['torque_bias'], hold=cfg['hold'], symmetry_axis=axis,
                    **_calibration(cfg))
+    if actuators is not None:       # each re-solve: the batch momentum estimator
+        options.update(momentum=True, other_torque=not no_torque_topic(cfg))
     BatchWindow(window, **options)  # validates
     return lambda: BatchWindow(window, **options)
 

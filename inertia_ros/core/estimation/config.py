@@ -96,18 +96,20 @@ _TF_TORQUE_SCALE = (SUBSTITUTED + 'torque_scale_std=0: a torque scale has no eff
 _TF_NUISANCE = (SUBSTITUTED + "nuisance='off': no torque stream to offset or filter "
                                '(diagnostics.nuisance.skipped says so)')
 
+_BATCH_MOM_HOLD = (SUBSTITUTED + "hold='zoh' for the other torque (no comparison); give "
+                   "'zoh' or 'linear' explicitly")
+_MOM_NUISANCE = "nuisance terms are fitted on a torque stream only; use nuisance='off' with "\
+    'wheels or rotors'
+
 #: ``CAPABILITIES[mode][feature][input]``: :data:`YES`, or the refusal's "what instead".
 CAPABILITIES: dict[str, dict[str, dict[str, str]]] = {
     'batch': {
         'input': _row(),
         # substituted today (the command line's default hold is 'auto' with --wheels too)
-        'hold_auto': _row(wheels_torque=SUBSTITUTED + "hold='zoh' for the other torque (no "
-                                        "comparison); give 'zoh' or 'linear' explicitly"),
+        'hold_auto': _row(wheels_torque=_BATCH_MOM_HOLD),
         'hold_zoh': _row(), 'hold_linear': _row(),
         'model_auto': _row(), 'torque_bias_auto': _row(),
-        'nuisance': _mom('nuisance terms are fitted on a torque stream only; use '
-                         "nuisance='off' with wheels or rotors",
-                         torque_free=_TF_NUISANCE),
+        'nuisance': _mom(_MOM_NUISANCE, torque_free=_TF_NUISANCE),
         # the torque sensor's scale: of the other torque only (issue 26 defect 4)
         'torque_scale_std': _row(wheels=_TORQUE_SCALE_MOM, rotors=_TORQUE_SCALE_MOM,
                                  torque_free=_TF_TORQUE_SCALE),
@@ -141,12 +143,16 @@ CAPABILITIES: dict[str, dict[str, dict[str, str]]] = {
         'nuisance': _all(_NO_NUISANCE),
         'torque_scale_std': _row(), 'gyro_scale_std': _row(), 'adequacy': _row(),
     },
+    # each re-solve is the batch estimator on the window (the momentum inputs: its
+    # estimate_with_momentum), so the cells are the batch ones
     'window': {
-        'input': _mom('the batch window takes a torque stream only; use recursive mode'),
-        'hold_auto': _row(), 'hold_zoh': _row(), 'hold_linear': _row(),
+        'input': _row(),
+        'hold_auto': _row(wheels_torque=_BATCH_MOM_HOLD),
+        'hold_zoh': _row(), 'hold_linear': _row(),
         'model_auto': _row(), 'torque_bias_auto': _row(),
-        'nuisance': _row(torque_free=_TF_NUISANCE),
-        'torque_scale_std': _row(torque_free=_TF_TORQUE_SCALE),
+        'nuisance': _mom(_MOM_NUISANCE, torque_free=_TF_NUISANCE),
+        'torque_scale_std': _row(wheels=_TORQUE_SCALE_MOM, rotors=_TORQUE_SCALE_MOM,
+                                 torque_free=_TF_TORQUE_SCALE),
         'gyro_scale_std': _row(), 'adequacy': _row(),
     },
 }

@@ -76,6 +76,13 @@ class BatchWindow:
         Stated relative scale uncertainties, as the batch estimator.
     nuisance : 'auto', 'off' or list of str, optional
         Sensor nuisance terms of every batch solve (as the batch estimator).
+    momentum : bool, optional
+        Wheels or rotors: blocks of their momentum input arrive through :meth:`add_momentum`
+        and every solve is :func:`.momentum.estimate_with_momentum` (the batch momentum
+        estimator) on the window.  Default False.
+    other_torque : bool, optional
+        With ``momentum``: another known torque arrives through :meth:`add_torque` (True,
+        default) or the momentum input is the only known torque (False).
 
     Raises
     ------
@@ -87,11 +94,14 @@ class BatchWindow:
     def __init__(self, window: float, *, method: str = 'integral', model: str = 'full',
                  torque_bias: str = 'auto', hold: str = 'zoh',
                  symmetry_axis: str | None = None, torque_scale_std: float = 0.0,
-                 gyro_scale_std: float = 0.0, nuisance: Any = 'off') -> None:
+                 gyro_scale_std: float = 0.0, nuisance: Any = 'off', momentum: bool = False,
+                 other_torque: bool = True) -> None:
         if not (isinstance(window, (int, float)) and np.isfinite(window) and window > 0):
             raise ValueError(f'window: must be a positive number of seconds, got {window!r}')
         check_choice('method', method, METHODS)
-        require('window', 'torque', dict(
+        self.momentum, self.other_torque = bool(momentum), bool(other_torque) or not momentum
+        kind = 'torque' if not momentum else 'wheels_torque' if other_torque else 'wheels'
+        require('window', kind, dict(
             model=model, torque_bias=torque_bias, hold=hold, symmetry_axis=symmetry_axis,
             torque_scale_std=torque_scale_std, gyro_scale_std=gyro_scale_std, nuisance=nuisance))
         self.window = float(window)
@@ -102,13 +112,22 @@ class BatchWindow:
                                             torque_scale_std=torque_scale_std,
                                             gyro_scale_std=gyro_scale_std,
                                             nuisance=nuisance)
-        self._g: list[tuple[np.ndarray, np.ndarray]] = []
-        self._q: list[tuple[np.ndarray, np.ndarray]] = []
+        self.reset()
 
     def reset(self) -> None:
         """Forget every buffered sample."""
-        self._g = []
-        self._q = []
+        self._g: list[tuple[np.ndarray, np.ndarray]] = []
+        self._q: list[tuple[np.ndarray, np.ndarray]] = []
+        self._m: list[Any] = []           # momentum blocks (.momentum.Momentum)
+
+    def add_momentum(self, m: Any) -> None:
+        """Buffer a block of the momentum input (a :class:`.momentum.Momentum`, as
+        :meth:`.recursive_momentum.MomentumRecursiveEstimator.add_momentum` takes)."""
+        if not self.momentum:
+            raise ValueError('momentum: this window was built without momentum=True (give it '
+                             'for wheels or rotors)')
+        if len(np.atleast_1d(m.t)):
+            self._m.append(m)
 
     def add_gyro(self, t: Any, omega: Any) -> None:
         """Buffer gyro samples ``t`` (n,) [s], ``omega`` (n, 3) [rad/s]."""
@@ -116,6 +135,9 @@ class BatchWindow:
 
     def add_torque(self, t: Any, tau: Any) -> None:
         """Buffer torque samples ``t`` (n,) [s], ``tau`` (n, 3) [N m]."""
+        if not self.other_torque:
+            raise ValueError('torque: this window was built with other_torque=False (the '
+                             'momentum input is the only known torque)')
         self._q.append((np.atleast_1d(t), np.atleast_2d(tau)))
 
     @staticmethod
@@ -137,10 +159,36 @@ class BatchWindow:
         ValueError
             From the batch estimator, when the window holds too little data.
         """
-        t_end = max((b[0][-1] for b in self._g + self._q if len(b[0])), default=0.0)
+        t_end = max([b[0][-1] for b in self._g + self._q if len(b[0])]
+                    + [float(np.atleast_1d(m.t)[-1]) for m in self._m], default=0.0)
         tg, w = self._trim(self._g, t_end - self.window)
         tq, q = self._trim(self._q, t_end - self.window)
         # imported here: the node loads this module, and the batch estimator pulls in scipy
+        if self.momentum:
+            from inertia_ros.core.estimation.momentum import estimate_with_momentum
+
+            opts = {k: v for k, v in self.options.items() if k != 'nuisance'}   # 'off' here
+            return estimate_with_momentum(tg, w, tq, q, self._trim_momentum(
+                t_end - self.window), **opts)
         from inertia_ros.core.estimation.batch import estimate as batch_estimate
 
         return batch_estimate(tg, w, tq, q, **self.options)
+
+    def _trim_momentum(self, t_min: float) -> Any:
+        """The momentum samples at or after ``t_min`` [s] as one block (replacing the
+        buffered ones); its noise left to the batch estimator (from ``h``)."""
+        from inertia_ros.core.estimation.momentum import Momentum
+
+        if not self._m:
+            raise ValueError('momentum: no wheel/rotor sample in the window yet')
+        ms = self._m
+        t = np.concatenate([np.atleast_1d(m.t) for m in ms])
+        keep = t >= t_min
+        torque = None if ms[0].torque is None else np.concatenate([m.torque for m in ms])[keep]
+        tq_std = None if ms[0].torque_std is None else \
+            np.concatenate([m.torque_std for m in ms], axis=1)[:, keep]
+        m = Momentum(t[keep], np.concatenate([m.h for m in ms])[keep],
+                     np.concatenate([m.h_std for m in ms], axis=1)[:, keep], ms[0].names,
+                     torque=torque, torque_std=tq_std)
+        self._m = [m] if len(m.t) else []
+        return m
