@@ -10,8 +10,9 @@ judged, and the same hold chosen significantly (p < HOLD_ALPHA) at every judgeme
 latest half of them (early judgements, on a tensor not yet settled and short windows, are
 unreliable: on the reference simulator's 0.06 N m multisine at 200/50 Hz, 2-5 s of data gave
 the wrong hold at p < 1e-4 in 2 of 4 records; the settled rule locked the right one in all
-four, at 14-28 s); or after :data:`DECIDE_S` of data, the rule's answer whatever its
-p-value (then the two holds agree within their noise).  Then
+four, at 14-18 s or, for one, by the 20 s cap); or after :data:`DECIDE_S` of data, the
+rule's answer whatever its p-value (then the two holds agree within their noise: the
+default scene's torque, commanded at the sensor rate, p = 0.3 at 30 s).  Then
 the losing filter and the judge are dropped, so the cost is that of one filter again.
 Until then the estimate is that of the filter the rule prefers so far
 (``diagnostics['hold_selection']['locked']`` False).  The judge fits one tensor over the
@@ -23,6 +24,10 @@ from __future__ import annotations
 import math
 from typing import Any
 
+import numpy as np
+
+from .homogeneous import is_torque_free
+from .options import MIN_EQUATIONS, MIN_GYRO_SAMPLES
 from .recursive import RecursiveEstimator
 from .selection import HOLD_ALPHA
 
@@ -31,7 +36,7 @@ __all__ = ['DECIDE_S', 'JUDGE_EVERY_S', 'MIN_S', 'HoldChoice']
 #: Data [s] judged before a choice may be locked.
 MIN_S = 10.0
 #: Data [s] after which the choice is locked even when not settled.
-DECIDE_S = 60.0
+DECIDE_S = 20.0
 #: Data [s] between two judgements (the rule's cost is that of a few small fits).
 JUDGE_EVERY_S = 1.0
 
@@ -80,15 +85,35 @@ class HoldChoice:
         if now is None or self._t0 is None:
             return False
         if now - self._at >= JUDGE_EVERY_S:
-            sel = self.judge.estimate().diagnostics.get('hold_selection')
+            sel = _judge(self.judge)
             if sel is not None and sel.get('statistic') is not None:
                 p = sel.get('p_value')
                 significant = p is not None and p < HOLD_ALPHA
                 same = self._since is not None and sel['chosen'] == self.chosen
                 self._since = (self._since if same else now) if significant else None
                 self.record, self.chosen, self._at = sel, sel['chosen'], now
+        if now - self._t0 >= DECIDE_S and self.record is None:     # never compared
+            self.record = {'requested': 'auto', 'chosen': 'zoh', 'statistic': None,
+                           'p_value': None, 'reason': f'no comparison in {DECIDE_S:g} s of '
+                           'data (torque-free or too little): held'}
+            return True
         if self.record is None:
             return False
         span = self._at - self._t0
         settled = self._since is not None and self._at - self._since >= 0.5 * span
         return (settled and span >= MIN_S) or span >= DECIDE_S
+
+
+def _judge(judge: RecursiveEstimator) -> dict[str, Any] | None:
+    """The judge's hold choice alone: what the torque covers merged, its noise levels, then
+    its ``hold='auto'`` selection (:meth:`.RecursiveEstimator._choose_hold`), the tensor's
+    fits and tests skipped (a fifth of the cost of its ``estimate()``); None with too
+    little data."""
+    judge._process()
+    if judge.samples_used < MIN_GYRO_SAMPLES or judge._acc.n_eff() < MIN_EQUATIONS:
+        return None
+    judge._tau_var = judge._torque_variance()
+    tq = np.sqrt(judge._tau_var) if judge._tau_var is not None else np.zeros(3)
+    diag: dict[str, Any] = {}
+    judge._choose_hold(judge._gyro_var(), is_torque_free(judge._acc.torque_rms(), tq), diag)
+    return diag.get('hold_selection')
