@@ -199,6 +199,8 @@ def test_online_stated_gyro_scale_and_gyro_bias(nominal_free):
     rad/s gyro bias is a model_mismatch by the window test on the segment groups (4 windows,
     sigma widened over 3x), the clean record is not.  On f0eb6ad the stated scale was
     refused (a warning, sigma unchanged) and the bias stayed scale_unobservable."""
+    from inertia_ros.core.estimation.recursive import RecursiveEstimator
+
     sim, t, w = nominal_free
     plain = _online_free(t, w * 1.05)
     assert np.max(np.abs(_ratio_z(plain, sim.inertia))) > 50
@@ -215,6 +217,15 @@ def test_online_stated_gyro_scale_and_gyro_bias(nominal_free):
     reason = biased.diagnostics['reason']
     assert 'window estimates disagree' in reason and 'gyro bias' in reason, reason
     assert np.all(biased.ratios_std.diagonal() > 3 * clean.ratios_std.diagonal())
+    # the node's schedule (reselect_every): the verdict and the sensitivity are computed on
+    # every 10th estimate and reused in between (the same sigma, the same status)
+    r = RecursiveEstimator(model='full', torque_bias='off', hold='zoh', reselect_every=10,
+                           gyro_scale_std=0.05)
+    r.add_torque(t, np.zeros((len(t), 3)))
+    r.add_gyro(t, w + np.array([0.01, 0.0, 0.0]))
+    first, again = r.estimate(), r.estimate()
+    assert first.status == again.status == 'model_mismatch'
+    np.testing.assert_array_equal(first.ratios_std, again.ratios_std)
 
 
 def test_online_torque_free_adequacy_no_false_alarms_and_stated_scale_calibrated():

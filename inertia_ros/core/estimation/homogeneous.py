@@ -419,19 +419,36 @@ class OnlineTorqueFreeChecks:
         ``groups(g)``: :meth:`.accumulator.OnlineStats.group_stats` with that gyro scale.
     gyro_scale_std, torque_scale_std : float
         Stated relative one-sigma scale uncertainties (the torque's is only recorded).
+    memo : dict, optional
+        The last computed test and sensitivity (the estimator's, kept between calls).
+    due : bool
+        Compute both now; False: reuse ``memo``'s when it has them (the estimator's
+        re-selection schedule: the node tests about once a second, as its torque fits).
     """
 
     stats: Callable[[float], SufficientStats]
     groups: Callable[[float], list[tuple[SufficientStats, float, float]]]
     gyro_scale_std: float = 0.0
     torque_scale_std: float = 0.0
+    memo: dict[str, Any] | None = None
+    due: bool = True
+
+    def _memo(self, key: str, compute: Callable[[], Any]) -> Any:
+        """``compute()``, or its value in :attr:`memo` when not :attr:`due`."""
+        if self.memo is None:
+            return compute()
+        if self.due or key not in self.memo:
+            self.memo[key] = compute()
+        return self.memo[key]
 
     def scale_sensitivity(self, f: Fit, W: np.ndarray, gyro_var: np.ndarray,
                           step: float = 1e-4) -> np.ndarray:
         """``d beta / d g`` (5,) of the whole fit ``f``: refit with ``W`` of the scaled
         statistics (as :func:`_scale_sensitivity`)."""
-        fs, _, _ = _fit_ratios(_without_torque(self.stats(1.0 + step)), gyro_var, W)
-        return (fs.beta - f.beta) / step
+        def compute() -> np.ndarray:
+            fs, _, _ = _fit_ratios(_without_torque(self.stats(1.0 + step)), gyro_var, W)
+            return (fs.beta - f.beta) / step
+        return self._memo('sensitivity', compute)
 
     def adequacy(self, f: Fit, W: np.ndarray, gyro_var: np.ndarray,
                  step: float = 1e-4) -> Adequacy:
@@ -439,6 +456,11 @@ class OnlineTorqueFreeChecks:
         the ratios refitted on each group with ``W`` (covariance times the group's weight
         factor), groups that do not single out the ratios left out, the stated gyro scale
         profiled out (each group's sensitivity), the residual excess deciding nothing."""
+        return self._memo('adequacy', lambda: self._adequacy(f, W, gyro_var, step))
+
+    def _adequacy(self, f: Fit, W: np.ndarray, gyro_var: np.ndarray,
+                  step: float) -> Adequacy:
+        """The test itself (see :meth:`adequacy`)."""
         p = f.beta.size
         groups = self.groups(1.0)
         scaled = self.groups(1.0 + step) if self.gyro_scale_std and len(groups) >= 2 else []

@@ -175,6 +175,7 @@ class RecursiveEstimator:
         self._active = 'zoh' if self.hold == 'auto' else self.hold    # the hold estimated
         self._tau_var: np.ndarray | None = None
         self._schedule.reset()            # the re-selection schedule's verdicts
+        self._tf_memo: dict[str, Any] = {}   # the torque-free checks' (OnlineTorqueFreeChecks)
         self.gaps = 0                    # gaps that ended a segment holding data
         self._last_t_in: float | None = None
         self._last_tau_in: float | None = None
@@ -439,7 +440,8 @@ class RecursiveEstimator:
             checks = OnlineTorqueFreeChecks(
                 lambda g: self._stats(nv, n_eff, g), lambda g: self._acc.group_stats(
                     nv, gyro_scale=g, **self._context()), self.policy.gyro_scale_std,
-                self.policy.torque_scale_std)
+                self.policy.torque_scale_std, self._tf_memo,
+                (self._schedule.estimates - 1) % self.reselect_every == 0)
             return homogeneous_estimate(st, nv, diag, base, cov_scale=ratio, checks=checks)
         tv = self._tau_var if self._tau_var is not None else np.zeros(3)
 
