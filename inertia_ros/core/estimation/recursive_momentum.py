@@ -138,7 +138,7 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
         self._walk_w = np.zeros((3, 3, 3))       # sum over the grid of [w]x_ij [w]x_ik
         self._walk_n = 0
         self.momentum_samples = 0
-        # (model, per-input record, sum d theta d theta', data span [s] when computed)
+        # (model and hold, per-input record, sum d theta d theta', data span [s] when computed)
         self._prop_cache: tuple[str | None, dict[str, Any], np.ndarray, float] | None = None
 
     # ------------------------------------------------------------------ input
@@ -438,18 +438,19 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
 
     def _propagate(self, est: InertiaEstimate) -> InertiaEstimate:
         """Add ``sum d theta d theta'`` of the uncertain inputs to the covariance (the
-        sensitivities reused while the parameter set stays and the data grew by under 5 %,
-        :meth:`_fresh`)."""
+        sensitivities reused while the parameter set and the hold stay and the data grew by
+        under 5 %, :meth:`_fresh`)."""
         name = (est.model or 'full').removesuffix('+bias')
         if name not in ('full', 'diagonal', 'axisymmetric'):
             return est
         span = (self._acc.t_last or 0.0) - (self._align.t0 or 0.0)
         cached = self._prop_cache
-        if cached is not None and cached[0] == est.model and self._fresh(cached[3], span):
+        key = f'{est.model} {self._active}'        # the parameter set and the hold estimated
+        if cached is not None and cached[0] == key and self._fresh(cached[3], span):
             per, outer = cached[1], cached[2]
         else:
             per, outer = self._sensitivities(est, name)
-            self._prop_cache = (est.model, per, outer, span)
+            self._prop_cache = (key, per, outer, span)
         return _widened(est, per, outer, self.torque_scale_std if self._scale_est else None)
 
 
