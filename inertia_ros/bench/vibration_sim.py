@@ -84,19 +84,30 @@ def _speed_profile(rng: np.random.Generator, s0: float, depth: float):
     return s, sdot
 
 
-def _integrate(I: np.ndarray, w0: np.ndarray, t: np.ndarray, torque, h, hdot) -> np.ndarray:
-    """Body rate at ``t`` from ``d/dt (I w + h) + w x (I w + h) = torque``."""
+def _integrate(I: np.ndarray, w0: np.ndarray, t: np.ndarray, torque, h, hdot,
+               breaks: np.ndarray | None = None) -> np.ndarray:
+    """Body rate at ``t`` from ``d/dt (I w + h) + w x (I w + h) = torque``, integrated
+    piecewise between ``breaks`` (where the torque jumps) so that every piece is smooth."""
     from scipy.integrate import solve_ivp
 
     Iinv = np.linalg.inv(I)
+    edges = np.unique(np.r_[t[0], [] if breaks is None else breaks, t[-1]])
+    edges = edges[(edges >= t[0]) & (edges <= t[-1])]
+    out = np.empty((len(t), 3))
+    w = np.asarray(w0, dtype=float)
+    for a, b in zip(edges[:-1], edges[1:], strict=True):
+        tq = torque(0.5 * (a + b))       # held over the piece
 
-    def rhs(tt, w):
-        hh = h(tt)
-        return Iinv @ (torque(tt) - hdot(tt) - np.cross(w, I @ w + hh))
+        def rhs(tt, ww, tq=tq):
+            hh = h(tt)
+            return Iinv @ (tq - hdot(tt) - np.cross(ww, I @ ww + hh))
 
-    sol = solve_ivp(rhs, (t[0], t[-1]), w0, method='DOP853', t_eval=t, rtol=1e-11,
-                    atol=1e-12, max_step=1e-3)
-    return sol.y.T
+        sel = np.flatnonzero((t >= a) & (t <= b))
+        sol = solve_ivp(rhs, (a, b), w, method='DOP853', t_eval=t[sel], rtol=1e-11,
+                        atol=1e-12, dense_output=True)
+        out[sel] = sol.y.T
+        w = sol.sol(b)
+    return out
 
 
 def _sensor(rng: np.random.Generator, t: np.ndarray, w: np.ndarray, phase: np.ndarray,
@@ -130,7 +141,8 @@ def _sensor(rng: np.random.Generator, t: np.ndarray, w: np.ndarray, phase: np.nd
 
 def wheel_throw(seed: int, *, duration: float = 1.5, gyro_rate: float = 1000.0,
                 speed_rate: float = 200.0, wheel_hz: float = 45.0,
-                line: float = 0.08, harmonic: float = 0.03) -> VibrationRecord:
+                line: float = 0.08, harmonic: float = 0.03, clean: bool = False
+                ) -> VibrationRecord:
     """A torque-free throw of a body with a speed-varied flywheel (see the module docstring).
 
     Parameters
@@ -145,6 +157,8 @@ def wheel_throw(seed: int, *, duration: float = 1.5, gyro_rate: float = 1000.0,
         Mean wheel rotation frequency [Hz].
     line, harmonic : float
         Amplitude of the imbalance line and its second harmonic in the gyro [rad/s].
+    clean : bool
+        A model-conforming gyro instead: the true rate plus white noise only.
     """
     rng = np.random.default_rng(seed)
     I = THROW_INERTIA
@@ -155,13 +169,14 @@ def wheel_throw(seed: int, *, duration: float = 1.5, gyro_rate: float = 1000.0,
     fine = np.arange(0.0, duration + 1e-12, 1.0 / 10_000.0)
     w0 = rng.normal(0.0, 4.0, 3)
     w = _integrate(I, w0, fine, lambda tt: np.zeros(3), lambda tt: J * s(tt) * axis,
-                   lambda tt: J * sdot(tt) * axis)
+                   lambda tt: J * sdot(tt) * axis, np.arange(0.0, duration, 0.25))
     step = int(round(10_000.0 / gyro_rate))
     tg = fine[::step]
     phase = np.cumsum(s(fine)) / 10_000.0
-    omega = _sensor(rng, tg, w[::step], phase[::step], axis, line=line, harmonic=harmonic,
-                    mode_hz=160.0, mode_std=0.02, band_hz=250.0, white=0.004,
-                    colored=0.002)
+    omega = (w[::step] + 0.004 * rng.standard_normal((len(tg), 3)) if clean else
+             _sensor(rng, tg, w[::step], phase[::step], axis, line=line, harmonic=harmonic,
+                     mode_hz=160.0, mode_std=0.02, band_hz=250.0, white=0.004,
+                     colored=0.002))
     tsp = np.arange(0.0, duration + 1e-12, 1.0 / speed_rate)
     speed = (s(tsp) + rng.normal(0.0, 0.5, len(tsp)))[:, None]
     return VibrationRecord(I, tg, omega, np.zeros(0), np.zeros((0, 3)), tsp, speed, axis, J,
@@ -170,7 +185,8 @@ def wheel_throw(seed: int, *, duration: float = 1.5, gyro_rate: float = 1000.0,
 
 def torque_record(seed: int, *, duration: float = 3.0, gyro_rate: float = 500.0,
                   torque_rate: float = 100.0, motor_hz: float = 35.0,
-                  line: float = 0.05, harmonic: float = 0.02) -> VibrationRecord:
+                  line: float = 0.05, harmonic: float = 0.02, clean: bool = False
+                  ) -> VibrationRecord:
     """A body driven by a known held torque command, with a motor's vibration line.
 
     Parameters
@@ -185,6 +201,8 @@ def torque_record(seed: int, *, duration: float = 3.0, gyro_rate: float = 500.0,
         Rotation frequency of the motor whose imbalance the gyro sees [Hz].
     line, harmonic : float
         Line amplitudes [rad/s].
+    clean : bool
+        A model-conforming gyro instead: the true rate plus white noise only.
     """
     rng = np.random.default_rng(seed)
     I = np.diag([0.8, 1.0, 1.3]) + np.array([[0, 0.03, -0.02], [0.03, 0, 0.01],
@@ -200,14 +218,15 @@ def torque_record(seed: int, *, duration: float = 3.0, gyro_rate: float = 500.0,
 
     fine = np.arange(0.0, duration + 1e-12, 1.0 / 10_000.0)
     w0 = rng.normal(0.0, 1.0, 3)
-    w = _integrate(I, w0, fine, torque, lambda tt: np.zeros(3), lambda tt: np.zeros(3))
+    w = _integrate(I, w0, fine, torque, lambda tt: np.zeros(3), lambda tt: np.zeros(3), ts)
     step = int(round(10_000.0 / gyro_rate))
     tg = fine[::step]
     axis = np.array([0.0, 0.0, 1.0])
     phase = 2 * np.pi * motor_hz * fine
-    omega = _sensor(rng, tg, w[::step], phase[::step], axis, line=line, harmonic=harmonic,
-                    mode_hz=110.0, mode_std=0.01, band_hz=150.0, white=0.003,
-                    colored=0.0015)
+    omega = (w[::step] + 0.003 * rng.standard_normal((len(tg), 3)) if clean else
+             _sensor(rng, tg, w[::step], phase[::step], axis, line=line, harmonic=harmonic,
+                     mode_hz=110.0, mode_std=0.01, band_hz=150.0, white=0.003,
+                     colored=0.0015))
     tsp = np.arange(0.0, duration + 1e-12, 0.01)
     speed = np.full((len(tsp), 1), 2 * np.pi * motor_hz) + rng.normal(0.0, 0.5, (len(tsp), 1))
     return VibrationRecord(I, tg, omega, ts, tau, tsp, speed, axis, 0.0, motor_hz)

@@ -13,14 +13,18 @@ lowest line keeps only the rigid-body motion.  On data the model does describe, 
    gyro noise (``I n_b``) above the slow random walk of the integrated torque noise when the
    model holds.  Its spectrum (Welch, :func:`residual_spectrum`) is searched from
    ``20 / span`` (a usable cutoff's band edge) for lines (bins far above their neighbourhood)
-   and excess power (bins far above the conforming shape: the white floor plus a ``1 / f^2``
-   walk scaled to the lowest searched bins),
+   and excess power: a conforming residual spectrum never rises with frequency (white floors
+   of the gyro and the wheel speeds, ``1 / f^2`` walks of the integrated noises, each ending
+   at its sensor's band), so a bin far above the lowest smoothed level below it is excess,
    with thresholds from the Welch estimate's own chi-square spread (:func:`spectral_evidence`).
 2. **Band.**  The band edge is the lowest line or excess found, and the lowest rotation line
-   of the wheels or rotors when their speeds are known (``rotation_hz``); the filter cutoff is
-   half of it (a fourth-order Butterworth is 24 dB down there).  A cutoff below ``10 / span``
-   (too few periods for the filtered method's covariance) is not usable; one too low for the
-   motion loses information, which the candidates' predicted variances show.
+   of the wheels or rotors when their speeds are known (``rotation_hz``).  The filter cutoff
+   is at most half of it (a fourth-order Butterworth is 24 dB down there), and lower where
+   the gyro's error needs more: the highest cutoff at which it is at most 1/16 of the filtered
+   method's own errors-in-variables limit (0.2 %) of the band-limited derivative's power
+   (:func:`needed_cutoff`; a strong line is a regressor error whose share shrinks the fit).
+   It is at least ``10 / span`` (the filtered method's covariance needs that many periods);
+   a cutoff too low for the motion loses information, which the predicted variances show.
 3. **Candidates and one rule.**  Without spectral evidence the choice is today's (``ml`` up
    to :data:`.options.ML_AUTO_MAX_SAMPLES` gyro samples, else ``integral``): the rule below
    would not change it, and the result is then bit-identical to it.  With evidence the
@@ -43,6 +47,7 @@ from typing import Any
 
 import numpy as np
 
+from .filtered import MAX_NOISE_SHARE as _MAX_NOISE_SHARE
 from .options import ML_AUTO_MAX_SAMPLES
 
 __all__ = ['DEFAULT_RULE', 'choose', 'lowest_rotation_hz', 'residual_spectrum',
@@ -55,6 +60,11 @@ _RULE = ('fewest failed tests (adequacy: status ok; whiteness of the residual sp
 _FALSE_ALARM = 1e-3          # chance that a model-conforming spectrum shows a line or excess
 _EDGE_TO_CUTOFF = 0.5        # filter cutoff / band edge
 _MIN_PERIODS = 10.0          # the record spans at least this many 1 / cutoff
+_ORDER = 4                   # the filtered method's Butterworth order
+#: Largest gyro-error share of the filtered regressor at the chosen cutoff.  The fit shrinks
+#: by about 4x the share (measured on inertia_ros.bench.vibration_sim records, white noise
+#: only: 0.36 % share, 1.3 % error): 1/16 of the filtered method's limit keeps it <= 0.05 %
+_LEAK_SHARE = _MAX_NOISE_SHARE / 16
 _SPINNING_HZ = 1.0           # a wheel or rotor slower than this has no line
 
 
@@ -173,9 +183,11 @@ def spectral_evidence(f: np.ndarray, psd: np.ndarray, segments: int, span: float
     -------
     dict
         ``lines_hz`` (peaks above their neighbourhood), ``excess_from_hz`` (the first bin far
-        above the conforming shape, or None), ``floor`` (the
-        floor's density), ``searched_from_hz``, ``threshold`` (bin / reference ratio that
-        counts), ``edge_hz`` (the lowest of them, or None) and ``found`` (bool).
+        above the lowest smoothed level below it, or None), ``floor`` (the white floor's density),
+        ``searched_from_hz``, ``threshold`` (bin / reference ratio that counts), ``edge_hz``
+        (the lowest of them, or None), ``found`` (bool) and ``noise`` (``f`` and the
+        residual density, the floor below the search: the regressor error of
+        :func:`needed_cutoff`; not for the report).
     """
     from scipy import ndimage
 
@@ -188,19 +200,70 @@ def spectral_evidence(f: np.ndarray, psd: np.ndarray, segments: int, span: float
     fb, pb = f[sel], psd[sel]
     thr = _threshold(segments, len(pb))
     floor = float(np.percentile(pb, 20.0))
-    # the model-conforming shape: the white floor plus the integrated noises' random walk
-    # (1 / f^2), scaled to the lowest searched bins (the smallest, so excess there stays out)
-    walk = float(np.min(np.clip(pb[:3] - floor, 0.0, None) * fb[:3] ** 2))
-    model = floor + walk / fb ** 2
-    local = ndimage.median_filter(pb, size=9, mode='nearest')
-    peak = (pb > thr * local) & (pb >= np.r_[0, pb[:-1]]) & (pb >= np.r_[pb[1:], 0])
+    # a model-conforming residual spectrum never rises with frequency: white floors (gyro,
+    # wheel speeds) and 1 / f^2 walks (integrated torque noise), each ending at its sensor's
+    # band; a line or a resonance is a rise above the lowest (smoothed) level below it
+    smooth = ndimage.median_filter(pb, size=9, mode='nearest')
+    model = np.minimum.accumulate(smooth)
+    peak = (pb > thr * smooth) & (pb >= np.r_[0, pb[:-1]]) & (pb >= np.r_[pb[1:], 0])
     far = pb > 2.0 * thr * model
     lines = [float(x) for x in fb[peak & far]]
     excess = float(fb[np.argmax(far)]) if np.any(far) else None
     edges = [x for x in [*lines[:1], excess] if x is not None]
+    # below the search the residual is the integrated noises' walk, not a regressor error
     out.update(lines_hz=lines, excess_from_hz=excess, floor=floor, threshold=thr,
-               edge_hz=min(edges) if edges else None, found=bool(edges))
+               edge_hz=min(edges) if edges else None, found=bool(edges),
+               noise=(f, np.where(f >= lo, psd, floor)))
     return out
+
+
+def needed_cutoff(noise: tuple[np.ndarray, np.ndarray], start: float, lowest: float,
+                  tg: np.ndarray, w: np.ndarray, scale: float) -> tuple[float, float]:
+    """The highest cutoff at which the gyro's error (noise, lines, coloured noise) is at
+    most ``_LEAK_SHARE`` of the filtered regressor's power (errors in variables).
+
+    The momentum residual's density over the tensor scale squared is the gyro's error
+    density ``E``; through the filtered method's band-limited differentiator ``s H`` it
+    gives ``sum E_k df |H(f_k)|^2 (2 pi f_k)^2`` in the ``s H w`` regressor, whose power
+    is that of the filtered gyro.  Cutoffs from ``start`` down by factors of 0.85 to
+    ``lowest`` are tried.
+
+    Parameters
+    ----------
+    noise : (f (F,), density (F,))
+        From :func:`spectral_evidence` [Hz], [N^2 m^2 s^2 / Hz].
+    start, lowest : float
+        Highest and lowest cutoff tried [Hz].
+    tg, w : ndarray, shape (N,), (N, 3)
+        Gyro stamps [s] and rates [rad/s].
+    scale : float
+        Tensor scale (mean principal moment) [kg m^2].
+
+    Returns
+    -------
+    cutoff : float
+        [Hz]; ``lowest`` when none qualifies.
+    share : float
+        The leaked share of the regressor power at that cutoff.
+    """
+    from scipy import signal
+
+    from .filtered import filter_coefficients
+
+    fk, ek = noise
+    df = float(fk[1] - fk[0]) if len(fk) > 1 else 1.0
+    gyro_excess = ek * df / max(scale, 1e-300) ** 2 * (2 * np.pi * fk) ** 2
+    dt = float(np.median(np.diff(tg)))
+    fc, share = max(start, lowest), np.inf
+    while True:
+        b, a = filter_coefficients(fc, dt)
+        reg = signal.lfilter(b, a, w - w[0], axis=0)[int(2.0 / (fc * dt)):]
+        power = float(np.sum(np.mean(reg ** 2, axis=0))) if len(reg) else 0.0
+        leak = float(np.sum(gyro_excess / (1.0 + (fk / fc) ** (2 * _ORDER))))
+        share = leak / power if power > 0 else np.inf
+        if share <= _LEAK_SHARE or fc <= lowest:
+            return fc, share
+        fc = max(0.85 * fc, lowest)
 
 
 def _relative_variance(res: Any) -> float:
@@ -278,13 +341,18 @@ def _evidence(first: Any, data: tuple[np.ndarray, ...], hold: str,
     edges = [x for x in (ev['edge_hz'], rotation_hz) if x is not None]
     if ev['found'] and edges:
         edge = min(edges)
-        cutoff = _EDGE_TO_CUTOFF * edge
         ev['edge_hz'] = edge
-        if _MIN_PERIODS / span <= cutoff < 0.5 * f[-1]:
+        lowest = _MIN_PERIODS / span
+        cutoff, share = needed_cutoff(ev['noise'], _EDGE_TO_CUTOFF * edge, lowest, tg, w,
+                                      float(np.trace(first.inertia)) / 3.0)
+        ev['leakage_share'] = share
+        if share > _LEAK_SHARE:
+            ev['reason'] = (f'even the lowest usable cutoff {lowest:.4g} Hz ({_MIN_PERIODS:g} '
+                            f'/ span) leaves {100 * share:.3g} % of the regressor power as '
+                            'excess')
+        if cutoff < 0.5 * f[-1]:
             ev['cutoff_hz'] = cutoff
-        else:
-            ev['reason'] = (f'band edge {edge:.4g} Hz leaves no usable filter band (cutoff '
-                            f'{cutoff:.4g} Hz below {_MIN_PERIODS:g} / span)')
+    ev.pop('noise', None)
     return ev
 
 
