@@ -138,8 +138,6 @@ def residual_spectrum(tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.nda
     segments : int
         Welch segments averaged (the estimate's chi-square spread: ``2 segments`` dof).
     """
-    from scipy import signal  # lazily: scipy.signal costs ~0.8 s to import
-
     inside = (tg >= ts[0]) & (tg <= ts[-1]) if len(ts) >= 2 else np.ones(len(tg), bool)
     t, wi = tg[inside], w[inside]
     gyro = np.cross(wi, wi @ inertia.T)
@@ -151,19 +149,38 @@ def residual_spectrum(tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.nda
     fs = 1.0 / float(np.median(np.diff(t)))
     nper = int(2 ** np.floor(np.log2(max(len(t) / 4.0, 16.0))))
     nper = min(nper, 1024)
-    f, p = signal.welch(r, fs=fs, nperseg=nper, detrend='linear', axis=0)
-    segments = max(1, 2 * len(t) // nper - 1)          # half-overlapping segments
-    return f, np.sum(p, axis=1), segments
+    f, p, segments = _welch(r, fs, nper)
+    return f, p, segments
+
+
+def _welch(x: np.ndarray, fs: float, nper: int) -> tuple[np.ndarray, np.ndarray, int]:
+    """Welch's one-sided density of ``x`` (n, 3) summed over the columns: Hann windows of
+    ``nper`` samples, half overlapping, each linearly detrended (as ``scipy.signal.welch``
+    with ``detrend='linear'``, without its ~1 s import on the default path)."""
+    step = nper // 2
+    starts = np.arange(0, len(x) - nper + 1, step)
+    win = np.hanning(nper + 1)[:-1] if nper > 1 else np.ones(1)   # periodic Hann
+    u = np.arange(nper) - 0.5 * (nper - 1)
+    acc = np.zeros(nper // 2 + 1)
+    for s0 in starts:
+        seg = x[s0:s0 + nper]
+        seg = seg - seg.mean(axis=0) - np.outer(u, u @ seg / (u @ u))
+        acc += np.sum(np.abs(np.fft.rfft(seg * win[:, None], axis=0)) ** 2, axis=1)
+    p = acc / (len(starts) * fs * float(win @ win))
+    p[1:-1] *= 2.0                       # one-sided (nper even)
+    return np.fft.rfftfreq(nper, 1.0 / fs), p, len(starts)
 
 
 def _threshold(segments: int, bins: int) -> float:
     """How far above its reference a Welch bin may lie by chance (all ``bins`` together at
     :data:`_FALSE_ALARM`): the chi-square quantile of ``2 segments`` (x3 axes) dof, over
     its mean."""
-    from scipy import stats
+    from statistics import NormalDist
 
     dof = 2 * 3 * segments
-    return float(stats.chi2.ppf(1.0 - _FALSE_ALARM / max(bins, 1), dof) / dof)
+    z = NormalDist().inv_cdf(1.0 - _FALSE_ALARM / max(bins, 1))
+    # Wilson-Hilferty: the chi-square quantile over its dof without scipy.stats' import
+    return float((1.0 - 2.0 / (9 * dof) + z * np.sqrt(2.0 / (9 * dof))) ** 3)
 
 
 def spectral_evidence(f: np.ndarray, psd: np.ndarray, segments: int, span: float
@@ -189,8 +206,6 @@ def spectral_evidence(f: np.ndarray, psd: np.ndarray, segments: int, span: float
         residual density, the floor below the search: the regressor error of
         :func:`needed_cutoff`; not for the report).
     """
-    from scipy import ndimage
-
     lo = _MIN_PERIODS / (_EDGE_TO_CUTOFF * span)
     sel = (f >= lo) & (f <= 0.9 * f[-1])
     out: dict[str, Any] = {'searched_from_hz': lo, 'lines_hz': [], 'excess_from_hz': None,
@@ -203,7 +218,8 @@ def spectral_evidence(f: np.ndarray, psd: np.ndarray, segments: int, span: float
     # a model-conforming residual spectrum never rises with frequency: white floors (gyro,
     # wheel speeds) and 1 / f^2 walks (integrated torque noise), each ending at its sensor's
     # band; a line or a resonance is a rise above the lowest (smoothed) level below it
-    smooth = ndimage.median_filter(pb, size=9, mode='nearest')
+    padded = np.pad(pb, 4, mode='edge')
+    smooth = np.median(np.lib.stride_tricks.sliding_window_view(padded, 9), axis=1)
     model = np.minimum.accumulate(smooth)
     peak = (pb > thr * smooth) & (pb >= np.r_[0, pb[:-1]]) & (pb >= np.r_[pb[1:], 0])
     far = pb > 2.0 * thr * model
