@@ -230,3 +230,61 @@ def torque_record(seed: int, *, duration: float = 3.0, gyro_rate: float = 500.0,
     tsp = np.arange(0.0, duration + 1e-12, 0.01)
     speed = np.full((len(tsp), 1), 2 * np.pi * motor_hz) + rng.normal(0.0, 0.5, (len(tsp), 1))
     return VibrationRecord(I, tg, omega, ts, tau, tsp, speed, axis, 0.0, motor_hz)
+
+
+def _estimates(kind: str, seed: int) -> tuple[VibrationRecord, dict[str, object]]:
+    """One record and its estimates by auto, ml and filtered at hand-set cutoffs."""
+    from inertia_ros.core.estimation.batch import estimate
+    from inertia_ros.core.estimation.method_choice import lowest_rotation_hz
+    from inertia_ros.core.estimation.momentum import (
+        Wheel,
+        estimate_with_momentum,
+        wheels_momentum,
+    )
+
+    r = wheel_throw(seed) if kind == 'throw' else torque_record(seed)
+    if kind == 'throw':
+        mom = wheels_momentum(r.t_speed, r.speed, [Wheel('fly', r.wheel_axis, r.wheel_inertia)])
+
+        def run(**kw: object) -> object:
+            return estimate_with_momentum(r.t_gyro, r.omega, r.t_torque, r.torque, mom, **kw)
+        auto = run(rotation_hz=lowest_rotation_hz(r.speed))
+    else:
+        def run(**kw: object) -> object:
+            return estimate(r.t_gyro, r.omega, r.t_torque, r.torque, **kw)
+        auto = run()
+    out = {'auto': auto, 'ml': run(method='ml')}
+    for k in (2, 4, 6):
+        out[f'filtered line/{k}'] = run(method='filtered', window=k / r.line_hz)
+    return r, out
+
+
+def summary(kind: str, seeds: range) -> list[str]:
+    """Median error, share of principal moments within 3 sigma, ok count and ok with error
+    over 10 % per method over ``seeds`` of one scenario (``'throw'`` or ``'torque'``)."""
+    rows: dict[str, list[tuple[float, np.ndarray, str]]] = {}
+    for seed in seeds:
+        r, res = _estimates(kind, seed)
+        for name, e in res.items():
+            if e.inertia is None or e.principal_moments is None:
+                rows.setdefault(name, []).append((np.inf, np.full(3, np.inf), e.status))
+                continue
+            err = 100 * np.linalg.norm(e.inertia - r.inertia) / np.linalg.norm(r.inertia)
+            z = ((np.asarray(e.principal_moments) - np.linalg.eigvalsh(r.inertia))
+                 / np.asarray(e.diagnostics['principal_moments_std']))
+            rows.setdefault(name, []).append((err, np.abs(z), e.status))
+    lines = [f'{kind} ({len(seeds)} seeds): method | median error % | within 3 sigma % | ok | '
+             'ok with error > 10 %']
+    for name, v in rows.items():
+        errs = np.array([x[0] for x in v])
+        zs = np.concatenate([x[1] for x in v])
+        ok = [x[2] == 'ok' for x in v]
+        bad = sum(1 for x in v if x[2] == 'ok' and x[0] > 10)
+        lines.append(f'  {name:18s} | {np.median(errs):6.2f} | {100 * np.mean(zs < 3):5.0f} | '
+                     f'{sum(ok)}/{len(v)} | {bad}')
+    return lines
+
+
+if __name__ == '__main__':
+    for kind in ('throw', 'torque'):
+        print('\n'.join(summary(kind, range(10))))
