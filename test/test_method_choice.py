@@ -203,3 +203,18 @@ def test_faults_are_not_taken_for_vibration() -> None:
             assert not auto.diagnostics['method_selection']['evidence']['found']
             assert auto.method == ml.method and auto.status == ml.status
             np.testing.assert_array_equal(auto.inertia, ml.inertia)
+
+
+def test_node_batch_window_auto_uses_the_same_choice() -> None:
+    """The node's ``method: batch`` with ``batch_method: auto`` solves its window with the
+    same choice: filtered below the motor line on a vibrating torque record."""
+    from inertia_ros.core.estimation.windowed import BatchWindow
+
+    r = torque_record(2)
+    win = BatchWindow(10.0, method='auto', model='full', hold='zoh')
+    win.add_gyro(r.t_gyro, r.omega)
+    win.add_torque(r.t_torque, r.torque)
+    e = win.estimate()
+    assert e.method == 'filtered' and e.diagnostics['method_selection']['chosen'] == 'filtered'
+    assert e.status == 'ok'
+    assert np.linalg.norm(e.inertia - r.inertia) / np.linalg.norm(r.inertia) < 0.05
