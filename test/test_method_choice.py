@@ -71,7 +71,7 @@ def _check_auto(auto, hand, records):
 def test_flywheel_throws_auto_beats_the_hand_set_band() -> None:
     """Ten 1.5 s flywheel throws: auto (the wheel's speeds giving the rotation line) against
     filtered at half the lowest rotation frequency, the expert's setting (measured: auto
-    median 0.52 %, 100 % within 3 sigma, all ok; hand 0.72 %; ml 4.7 %, 30 %)."""
+    median 0.41 %, 100 % within 3 sigma, all ok; hand 0.72 %; ml 4.7 %, 30 %)."""
     records = [wheel_throw(s) for s in SEEDS]
     auto = [_throw_run(r, rotation_hz=lowest_rotation_hz(r.speed)) for r in records]
     hand = [[_throw_run(r, method='filtered', window=2.0 / r.line_hz) for r in records]]
@@ -87,7 +87,7 @@ def test_flywheel_throws_auto_beats_the_hand_set_band() -> None:
 def test_torque_records_auto_from_the_spectrum_alone() -> None:
     """Ten 3 s torque-driven records with a motor line at 35 Hz, no speeds given: the band
     comes from the residual spectrum.  Auto against the best of three hand-set cutoffs (1/2,
-    1/4, 1/6 of the line; measured: auto 2.0 %, the best hand 2.5 %, 1/2 of the line 32 %)."""
+    1/4, 1/6 of the line; measured: auto 1.5 %, the best hand 2.9 %, 1/2 of the line 32 %)."""
     records = [torque_record(s) for s in SEEDS]
     auto = [_torque_run(r) for r in records]
     hand = [[_torque_run(r, method='filtered', window=k / r.line_hz) for r in records]
@@ -218,3 +218,19 @@ def test_node_batch_window_auto_uses_the_same_choice() -> None:
     assert e.method == 'filtered' and e.diagnostics['method_selection']['chosen'] == 'filtered'
     assert e.status == 'ok'
     assert np.linalg.norm(e.inertia - r.inertia) / np.linalg.norm(r.inertia) < 0.05
+
+
+@pytest.mark.slow
+def test_short_throws_no_ok_far_off() -> None:
+    """Eight 0.5 s throws (the short end of a hand throw, about 15 rotation periods): auto is
+    never ok with an error over 10 %, and where it is ok its median error is no worse than
+    the hand-set filtered's where that is ok (measured: 1.3 % against 2.2 %)."""
+    records = [wheel_throw(s, duration=0.5) for s in range(8)]
+    auto = [_throw_run(r, rotation_hz=lowest_rotation_hz(r.speed)) for r in records]
+    hand = [_throw_run(r, method='filtered', window=2.0 / r.line_hz) for r in records]
+    e_auto, _, st_auto = _score(auto, records)
+    e_hand, _, st_hand = _score(hand, records)
+    assert not any(s == 'ok' and e > 10.0 for s, e in zip(st_auto, e_auto, strict=True))
+    ok_auto = [e for s, e in zip(st_auto, e_auto, strict=True) if s == 'ok']
+    ok_hand = [e for s, e in zip(st_hand, e_hand, strict=True) if s == 'ok']
+    assert len(ok_auto) >= 5 and np.median(ok_auto) <= np.median(ok_hand)

@@ -12,7 +12,7 @@ lowest line keeps only the rigid-body motion.  On data the model does describe, 
    momentum-equation residual ``r_b = I w_b + int w x I w dt - int tau dt - d t_b`` is white
    gyro noise (``I n_b``) above the slow random walk of the integrated torque noise when the
    model holds.  Its spectrum (Welch, :func:`residual_spectrum`) is searched from
-   ``20 / span`` (a usable cutoff's band edge) for lines (bins far above their neighbourhood)
+   ``10 / span`` (a usable cutoff's band edge) for lines (bins far above their neighbourhood)
    and excess power: a conforming residual spectrum never rises with frequency (white floors
    of the gyro and the wheel speeds, ``1 / f^2`` walks of the integrated noises, each ending
    at its sensor's band), so a bin far above the lowest smoothed level below it is excess,
@@ -23,17 +23,21 @@ lowest line keeps only the rigid-body motion.  On data the model does describe, 
    the gyro's error needs more: the highest cutoff at which it is at most 1/16 of the filtered
    method's own errors-in-variables limit (0.2 %) of the band-limited derivative's power
    (:func:`needed_cutoff`; a strong line is a regressor error whose share shrinks the fit).
-   It is at least ``10 / span`` (the filtered method's covariance needs that many periods);
-   a cutoff too low for the motion loses information, which the predicted variances show.
+   It is at least ``5 / span`` (the filtered method's covariance needs periods: a hand-set
+   cutoff of 7.8 periods on 0.5 s throws kept its sigma true); a cutoff too low for the
+   motion loses information, which the predicted variances show.
 3. **Candidates and one rule.**  Without spectral evidence the choice is today's (``ml`` up
    to :data:`.options.ML_AUTO_MAX_SAMPLES` gyro samples, else ``integral``): the rule below
-   would not change it, and the result is then bit-identical to it.  With evidence the
-   candidates are ``integral``, ``ml`` (up to that many samples) and ``filtered`` at the
-   band; each fails the tests it fails: its adequacy tests (status ``ok`` or not) and the
-   spectral whiteness test in its own band (the evidence counts against ``integral`` and
-   ``ml``, whose band is the whole spectrum, not against ``filtered`` below the edge).  The
-   candidate with the fewest failed tests wins; among equals the smallest predicted relative
-   variance of the tensor (``trace(cov) / scale^2``).  No fixed margin.
+   would not change it, and the result is then bit-identical to it.  A known rotation line
+   counts as a suspect (candidates compared, no whiteness failure) when the integral fit is
+   ``model_mismatch`` though the spectrum shows nothing (a record too short to resolve it).
+   With evidence the candidates are ``integral``, ``ml`` (up to that many samples) and
+   ``filtered`` at the band; each fails the tests it fails: its adequacy tests (status
+   ``ok`` or not) and the spectral whiteness test in its own band (the evidence counts
+   against ``integral`` and ``ml``, whose band is the whole spectrum, not against
+   ``filtered`` below the edge).  The candidate with the fewest failed tests wins; among
+   equals the smallest predicted relative variance of the tensor (``trace(cov) /
+   scale^2``).  No fixed margin.
 
 The record, in ``diagnostics['method_selection']``: ``requested``, ``chosen``, ``rule`` (as
 before), and ``evidence`` (the lines, the excess, the floor, the band edge and cutoff, the
@@ -59,7 +63,7 @@ _RULE = ('fewest failed tests (adequacy: status ok; whiteness of the residual sp
          "candidate's band), then the smallest predicted relative variance")
 _FALSE_ALARM = 1e-3          # chance that a model-conforming spectrum shows a line or excess
 _EDGE_TO_CUTOFF = 0.5        # filter cutoff / band edge
-_MIN_PERIODS = 10.0          # the record spans at least this many 1 / cutoff
+_MIN_PERIODS = 5.0           # the record spans at least this many 1 / cutoff
 _ORDER = 4                   # the filtered method's Butterworth order
 #: Largest gyro-error share of the filtered regressor at the chosen cutoff.  The fit shrinks
 #: by about 4x the share (measured on inertia_ros.bench.vibration_sim records, white noise
@@ -322,7 +326,7 @@ def choose(first: Any, data: tuple[np.ndarray, ...], hold: str, n_gyro: int,
     sel: dict[str, Any] = {'requested': 'auto', 'chosen': default, 'rule': DEFAULT_RULE}
     ev = _evidence(first, data, hold, rotation_hz)
     sel['evidence'] = ev
-    if not ev['found'] or ev['cutoff_hz'] is None:
+    if ev['cutoff_hz'] is None:
         res = refine(first) if default == 'ml' else first
         return _with(res, sel)
     cands = {'integral': first}
@@ -332,7 +336,7 @@ def choose(first: Any, data: tuple[np.ndarray, ...], hold: str, n_gyro: int,
     table: dict[str, Any] = {}
     for name, res in cands.items():
         failed = [] if res.status == 'ok' else [f'adequacy ({res.status})']
-        if name != 'filtered':          # the filtered band ends below the edge
+        if name != 'filtered' and ev['found']:   # the filtered band ends below the edge
             failed.append(f'whiteness: lines or excess from {ev["edge_hz"]:.4g} Hz')
         table[name] = {'status': res.status, 'method': res.method, 'failed': failed,
                        'relative_variance': _relative_variance(res)}
@@ -355,7 +359,9 @@ def _evidence(first: Any, data: tuple[np.ndarray, ...], hold: str,
                                     first.torque_bias, hold)
     ev.update(spectral_evidence(f, psd, seg, span))
     edges = [x for x in (ev['edge_hz'], rotation_hz) if x is not None]
-    if ev['found'] and edges:
+    # a known rotation line is a suspect when the integral fit fails its adequacy tests,
+    # though the (short) record's spectrum does not resolve it
+    if edges and (ev['found'] or first.status == 'model_mismatch'):
         edge = min(edges)
         ev['edge_hz'] = edge
         lowest = _MIN_PERIODS / span
