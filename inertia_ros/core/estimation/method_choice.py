@@ -86,8 +86,11 @@ def lowest_rotation_hz(speed: Any) -> float | None:
         Over the joints whose median speed is above 1 Hz: the smallest 2nd percentile of
         ``|speed| / 2 pi``; None when no joint spins.
     """
-    s = np.abs(np.asarray(speed, dtype=float).reshape(len(np.asarray(speed)), -1)) / (2 * np.pi)
-    s = s[:, np.all(np.isfinite(s), axis=0)] if s.size else s
+    s = np.asarray(speed, dtype=float)
+    if not s.size:
+        return None
+    s = np.abs(s.reshape(len(s), -1)) / (2 * np.pi)
+    s = s[:, np.all(np.isfinite(s), axis=0)]
     if not s.size:
         return None
     spinning = np.median(s, axis=0) > _SPINNING_HZ
@@ -352,8 +355,10 @@ def _evidence(first: Any, data: tuple[np.ndarray, ...], hold: str,
     span = float(tg[-1] - tg[0])
     ev: dict[str, Any] = {'rotation_hz': rotation_hz, 'found': False, 'edge_hz': None,
                           'cutoff_hz': None}
-    if first.inertia is None or not np.all(np.isfinite(first.inertia)) or len(tg) < 64:
-        ev['reason'] = 'no integral tensor to take the residual of'
+    inside = np.count_nonzero((tg >= ts[0]) & (tg <= ts[-1])) if len(ts) >= 2 else len(tg)
+    if first.inertia is None or not np.all(np.isfinite(first.inertia)) or inside < 64:
+        ev['reason'] = ('no integral tensor to take the residual of' if inside >= 64 else
+                        f'{inside} gyro samples in the torque coverage: too few for a spectrum')
         return ev
     f, psd, seg = residual_spectrum(tg, w, ts, tau, np.asarray(first.inertia),
                                     first.torque_bias, hold)
