@@ -355,6 +355,7 @@ def _estimate_wheels(args: argparse.Namespace, log: Any) -> Any:
     """``--wheels`` / ``--rotors``: the wheels' (rotors') momentum and the rotors' torque from
     the JointState topic enter the momentum form
     (:func:`inertia_ros.core.estimation.momentum.estimate_with_momentum`)."""
+    from inertia_ros.core.estimation.method_choice import lowest_rotation_hz
     from inertia_ros.core.estimation.momentum import estimate_with_momentum
 
     kind = 'wheels' if args.wheels is not None else 'rotors'
@@ -367,9 +368,11 @@ def _estimate_wheels(args: argparse.Namespace, log: Any) -> Any:
     args.wheel_info = {'file': str(act.file), 'topic': js.topic, 'samples': int(js.t.size),
                        'dropped': int(js.counts.dropped), 'joints': act.joints, 'kind': kind}
     args.momentum = mom                                    # for --plot
+    # the lowest rotation line of the spinning joints: method auto's band edge
+    options = dict(_estimator_options(args), rotation_hz=lowest_rotation_hz(js.values))
     try:
         return estimate_with_momentum(log.omega.t, log.omega.values, log.torque.t,
-                                      log.torque.values, mom, **_estimator_options(args))
+                                      log.torque.values, mom, **options)
     except ValueError as exc:
         raise UserError(f'{args.path}: cannot estimate: {_first_line(exc)}') from None
 

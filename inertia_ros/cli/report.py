@@ -191,6 +191,7 @@ def _header_lines(report: dict) -> list[str]:
     lines.append(f'  method {report["method"]}, model {report["model"]}; '
                  f'{report["samples"]["used"]} gyro samples in the equations, '
                  f'{report["samples"]["dropped"]} left out; {s["windows"]} window(s)')
+    lines += method_choice_lines(report['diagnostics'].get('method_selection'))
     lines += ['', f'status: {report["status"]} - {STATUS_TEXT.get(report["status"], "")}']
     return lines + _reason_lines(report)
 
@@ -198,6 +199,31 @@ def _header_lines(report: dict) -> list[str]:
 #: Causes in a model_mismatch reason that a sensor nuisance term may explain.
 _NUISANCE_CAUSES = ('gyro bias', 'unmodelled torque', 'correlated sensor noise',
                     'window estimates disagree')
+
+
+def method_choice_lines(sel: dict | None) -> list[str]:
+    """What ``--method auto`` chose and why (:mod:`inertia_ros.core.estimation.method_choice`):
+    one line when the residual spectrum showed nothing, else the evidence and each candidate."""
+    if not sel or sel.get('requested') != 'auto':
+        return []
+    ev = sel.get('evidence') or {}
+    if not ev.get('found'):
+        why = ev.get('reason') or 'no line or excess power in the residual spectrum'
+        return [f'  method auto: {sel["chosen"]} ({why}; {sel["rule"]})']
+    def hz(x: float | None) -> str:
+        return 'n/a' if x is None else f'{x:.4g} Hz'
+
+    lines = ', '.join(hz(f) for f in ev.get('lines_hz', [])[:4]) or 'none'
+    head = (f'  method auto: {sel["chosen"]}; residual spectrum: lines {lines}, excess from '
+            f'{hz(ev.get("excess_from_hz"))}; band edge {hz(ev.get("edge_hz"))}'
+            + (f' (rotation line {hz(ev["rotation_hz"])})' if ev.get('rotation_hz') else '')
+            + f', filter cutoff {hz(ev.get("cutoff_hz"))}')
+    out = [head] + ([f'    {ev["reason"]}'] if ev.get('reason') else [])
+    for name, c in (sel.get('candidates') or {}).items():
+        failed = '; '.join(c['failed']) or 'passed'
+        out.append(f'    {name:9s} {c["status"]:16s} predicted relative variance '
+                   f'{c["relative_variance"]:.3g}; tests: {failed}')
+    return out + [f'    rule: {sel["rule"]}']
 
 
 def remedy(report: dict) -> str | None:

@@ -12,8 +12,11 @@ Methods (:data:`METHODS`), all built from :mod:`.regressors`:
 ``auto`` (default)
     ``ml`` for records of up to :data:`ML_AUTO_MAX_SAMPLES` gyro samples, ``integral`` for
     longer ones (``ml`` costs about 6x ``integral`` on a 60 s, 200 Hz record and more on
-    long ones, where ``integral``'s error is already small).  The result's ``method`` names
-    the one used and ``diagnostics['method_selection']`` says why.
+    long ones, where ``integral``'s error is already small); ``filtered`` below the lowest
+    line when the integral fit's residual spectrum shows lines or excess high-frequency power
+    (vibration, a spinning part's imbalance) and the candidates' tests favour it
+    (:mod:`.method_choice`).  The result's ``method`` names the one used and
+    ``diagnostics['method_selection']`` says why.
 ``integral``
     Momentum form anchored per segment.  For every gyro sample ``b`` of a segment,
     ``I w_b + int_{t0}^{t_b} w x (I w) dt - d t_b - h0 = int_{t0}^{t_b} tau dt``, with the
@@ -133,7 +136,8 @@ def estimate(t_gyro: Any, omega: Any, t_torque: Any, torque: Any, *,
              gyro_noise: Any = None, torque_noise: Any = None, segment: float | None = None,
              window: float | None = None, identifiability_tol: float = IDENTIFIABILITY_TOL,
              physical: bool = True, torque_scale_std: float = 0.0,
-             gyro_scale_std: float = 0.0, nuisance: Any = 'off') -> InertiaEstimate:
+             gyro_scale_std: float = 0.0, nuisance: Any = 'off', rotation_hz: float | None = None
+             ) -> InertiaEstimate:
     """Estimate the inertia tensor from gyro and torque samples (Euler's equations).
 
     Parameters
@@ -145,7 +149,7 @@ def estimate(t_gyro: Any, omega: Any, t_torque: Any, torque: Any, *,
     torque : array_like, shape (M, 3)
         Known applied torque about the centre of mass, body axes [N m].
     method : str
-        One of :data:`METHODS` (auto: ml to :data:`ML_AUTO_MAX_SAMPLES` samples, else integral).
+        One of :data:`METHODS` (``auto``: :mod:`.method_choice`).
     model : {'auto', 'full', 'diagonal', 'axisymmetric'}
         Parameter set; ``auto`` picks the smallest the data supports (Wald tests at ``alpha``;
         ``axisymmetric`` is only a candidate when ``symmetry_axis`` is given).
@@ -174,6 +178,8 @@ def estimate(t_gyro: Any, omega: Any, t_torque: Any, torque: Any, *,
         1 %; default 0): invisible in the data, so stated (``diagnostics['calibration']``).
     nuisance : 'auto', 'off' or list of str
         Sensor nuisance terms, applied by :func:`.nuisance.nuisance_hook` (default ``off``).
+    rotation_hz : float, optional
+        Lowest rotation frequency of spinning parts [Hz] (``auto``: :mod:`.method_choice`).
 
     Returns
     -------
@@ -188,25 +194,44 @@ def estimate(t_gyro: Any, omega: Any, t_torque: Any, torque: Any, *,
     tg = as_times(t_gyro, 't_gyro')
     w = as_samples(omega, len(tg), 'omega', 't_gyro')
     ts = as_times(t_torque, 't_torque')
-    for t, name in ((tg, 't_gyro'), (ts, 't_torque')):
-        refuse_nanoseconds(t, name)
+    _ = [refuse_nanoseconds(t, name) for t, name in ((tg, 't_gyro'), (ts, 't_torque'))]
     tau = as_samples(torque, len(ts), 'torque', 't_torque')
     policy, axis = _check_options(method, model, torque_bias, hold, symmetry_axis,
                                   SelectionPolicy(alpha, identifiability_tol, physical,
                                                   torque_scale_std, gyro_scale_std))
     _check_counts(tg, ts)
-    selection = None
-    if method == 'auto':
-        method = 'ml' if len(tg) <= ML_AUTO_MAX_SAMPLES else 'integral'
-        selection = {'requested': 'auto', 'chosen': method,
-                     'rule': f'ml up to {ML_AUTO_MAX_SAMPLES} gyro samples, integral beyond'}
+    if method == 'auto':      # the formulation and band by evidence (:mod:`.method_choice`)
+        return _auto_method(tg, w, ts, tau, hold, gyro_noise, torque_noise, segment, window,
+                            model, torque_bias, axis, policy, rotation_hz)
     if method == 'ml':
         first = _estimate_direct('integral', tg, w, ts, tau, hold, gyro_noise, torque_noise,
                                  segment, window, model, torque_bias, axis, policy, None)
         return _maximum_likelihood(first, tg, w, ts, tau,
-                                   first.diagnostics.get('hold', hold), axis, selection)
+                                   first.diagnostics.get('hold', hold), axis, None)
     return _estimate_direct(method, tg, w, ts, tau, hold, gyro_noise, torque_noise, segment,
-                            window, model, torque_bias, axis, policy, selection)
+                            window, model, torque_bias, axis, policy, None)
+
+
+def _auto_method(tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.ndarray, hold: str,
+                 gyro_noise: Any, torque_noise: Any, segment: float | None,
+                 window: float | None, model: str, torque_bias: str, axis: np.ndarray | None,
+                 policy: SelectionPolicy, rotation_hz: float | None,
+                 white_y_cov: np.ndarray | None = None) -> InertiaEstimate:
+    """``method='auto'``: :func:`.method_choice.choose` on the ``integral`` estimate, with
+    ``ml`` and ``filtered`` (cutoff ``1 / window`` when ``window`` is given) as candidates."""
+    from .method_choice import choose
+
+    first = _estimate_direct('integral', tg, w, ts, tau, hold, gyro_noise, torque_noise,
+                             segment, window, model, torque_bias, axis, policy, None,
+                             white_y_cov)
+    used = first.diagnostics.get('hold', hold)
+    return choose(
+        first, (tg, w, ts, tau), used, len(tg),
+        lambda f: _refine(f, tg, w, ts, tau, used, axis),
+        lambda fc: _estimate_direct('filtered', tg, w, ts, tau, used, gyro_noise, torque_noise,
+                                    None, window or 1.0 / fc, model, torque_bias, axis, policy,
+                                    None, white_y_cov),
+        rotation_hz)
 
 
 def _estimate_direct(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray,

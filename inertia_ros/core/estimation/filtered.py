@@ -46,12 +46,13 @@ import numpy as np
 
 from .equations import Equations, build_equations, integral_equations
 
-__all__ = ['FILTER_DIVISORS', 'equations_for', 'filter_coefficients', 'filtered_equations']
+__all__ = ['FILTER_DIVISORS', 'MAX_NOISE_SHARE', 'equations_for', 'filter_coefficients',
+           'filtered_equations']
 
 #: Candidate cutoffs: the gyro rate divided by these (``window`` not given).
 FILTER_DIVISORS: tuple[int, ...] = (8, 16, 32, 64, 128, 256, 512, 1024, 2048, 4096, 8192)
 _ORDER = 4                   # Butterworth order
-_MAX_NOISE_SHARE = 0.002     # largest gyro-noise share of the s H w regressor chosen by default
+MAX_NOISE_SHARE = 0.002      # largest gyro-noise share of the s H w regressor chosen by default
 _HAC_PERIODS = 1.0           # Newey-West lag [1 / fc]
 _KEEP_PER_PERIOD = 16.0      # kept equations per 1 / fc (at least)
 _SELECT_MAX_ROWS = 200_000   # gyro samples used by the cutoff search
@@ -142,7 +143,7 @@ def _choose(base: Equations, dt: float, gyro_var: np.ndarray) -> tuple[float, di
         eq = _build(sub, fc, dt, gyro_var)
         share = eq.info['filtered_noise_share']
         shares[f'{fc:.6g}'] = share
-        if len(eq.t) < 3 * (6 + 3) or share > _MAX_NOISE_SHARE:
+        if len(eq.t) < 3 * (6 + 3) or share > MAX_NOISE_SHARE:
             continue
         # (the Newey-West covariance of these equations needs no torque-noise model)
         st = sufficient_stats(eq, None, np.zeros(0), 0.0, np.zeros(3))
@@ -153,7 +154,7 @@ def _choose(base: Equations, dt: float, gyro_var: np.ndarray) -> tuple[float, di
         if score < best_score:
             best, best_score = fc, score
     rule = ('minimum predicted relative variance of theta among the cutoffs whose regressor '
-            f'noise share is <= {100 * _MAX_NOISE_SHARE:g} %')
+            f'noise share is <= {100 * MAX_NOISE_SHARE:g} %')
     if best is None:
         # every candidate too noisy: the lowest cutoff (the shared errors-in-variables rule
         # of the batch estimator judges it by its regressor_noise_share)

@@ -501,11 +501,12 @@ def _estimate(tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.ndarray, *,
               gyro_noise: Any = None, torque_noise: Any = None, segment: float | None = None,
               window: float | None = None, identifiability_tol: float = IDENTIFIABILITY_TOL,
               physical: bool = True, torque_scale_std: float = 0.0,
-              gyro_scale_std: float = 0.0) -> Any:
+              gyro_scale_std: float = 0.0, rotation_hz: float | None = None) -> Any:
     """:func:`.batch.estimate` on the equivalent held torque, with ``white_y_cov`` (the same
-    dispatch: method choice, ``integral`` then the ``ml`` refinement)."""
+    dispatch: method choice, ``integral`` then the ``ml`` refinement; ``rotation_hz``: the
+    wheels' or rotors' lowest rotation line for ``method='auto'``, :mod:`.method_choice`)."""
     from . import batch
-    from .options import HOLDS, ML_AUTO_MAX_SAMPLES
+    from .options import HOLDS
     from .selection import SelectionPolicy
 
     policy, axis = batch._check_options(
@@ -513,10 +514,10 @@ def _estimate(tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.ndarray, *,
         SelectionPolicy(alpha, identifiability_tol, physical, torque_scale_std, gyro_scale_std))
     batch._check_counts(tg, ts)
     selection = None
-    if method == 'auto':
-        method = 'ml' if len(tg) <= ML_AUTO_MAX_SAMPLES else 'integral'
-        selection = {'requested': 'auto', 'chosen': method,
-                     'rule': f'ml up to {ML_AUTO_MAX_SAMPLES} gyro samples, integral beyond'}
+    if method == 'auto':        # method_choice's hook (helper 'method'): batch's auto branch
+        return batch._auto_method(tg, w, ts, tau, HOLDS[0], gyro_noise, torque_noise, segment,
+                                  window, model, torque_bias, axis, policy, rotation_hz,
+                                  white_y_cov)
     first = batch._estimate_direct('integral' if method == 'ml' else method, tg, w, ts, tau,
                                    HOLDS[0], gyro_noise, torque_noise, segment, window, model,
                                    torque_bias, axis, policy,
@@ -553,6 +554,8 @@ def _propagate(res: Any, tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.
                  gyro_noise=diag.get('gyro_noise_std'))
     if diag.get('segment_s') is not None:
         fixed['segment'] = diag['segment_s']
+    if diag.get('filter_cutoff_hz'):    # the same band (helper 'method': auto may pick it)
+        fixed['window'] = 1.0 / float(diag['filter_cutoff_hz'])
     if fixed['model'] not in ('full', 'diagonal', 'axisymmetric'):
         return res
     if res.method == 'ml':      # the same linear response without the refinement's cost
