@@ -108,7 +108,7 @@ from .options import (
     TORQUE_BIAS,
     check_choice,
 )
-from .regressors import metric
+from .regressors import VARIABLE_MAP
 from .result import InertiaEstimate
 from .selection import HOLD_ALPHA, SelectionPolicy, hold_rule, select_hold
 from .statistics import sufficient_stats, window_raw
@@ -230,15 +230,18 @@ def _estimate_direct(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray,
         diag['method_selection'] = selection
 
     def run(h: str, d: dict[str, Any], head: int | None = None, final: bool = True,
-            chosen: tuple[float | None, dict[str, Any]] | None = None) -> InertiaEstimate:
+            chosen: tuple[float | None, dict[str, Any]] | None = None,
+            shared: dict[str, Any] | None = None) -> InertiaEstimate:
         """The estimate with hold ``h`` (on the first ``head`` gyro samples when given;
         without the adequacy tests, which do not change the residual excess, unless
-        ``final``; with the segment length ``chosen`` by an earlier run when given)."""
+        ``final``; with the segment length ``chosen`` by an earlier run when given; the
+        equations shared with the other hold's run through ``shared``)."""
         n = len(tg) if head is None else head
         m = len(ts) if head is None else int(np.searchsorted(ts, tg[n - 1], side='right')) + 1
         return _estimate_shifted(method, tg[:n] - t_origin, w[:n], ts[:m] - t_origin, tau[:m],
                                  h, gyro_std ** 2, torque_std ** 2, segment, window, model,
-                                 torque_bias, axis, policy, d, white_y_cov, final, chosen)
+                                 torque_bias, axis, policy, d, white_y_cov, final, chosen,
+                                 shared)
     if hold != 'auto':
         return run(hold, diag)
     return _auto_hold(run, diag, torque_std, len(tg), (tg - t_origin, w, ts - t_origin, tau,
@@ -262,18 +265,20 @@ def _auto_hold(run: Any, diag: dict[str, Any], torque_std: np.ndarray, n_gyro: i
     """
     head = _SELECT_MAX_ROWS if n_gyro > _HOLD_PREFIX_FROM else None
     results = {}
+    shared: dict[str, Any] = {}          # the runs' equations (see _shared_equations)
     for h in HOLDS:
         d = dict(diag, warnings=list(diag['warnings']))
         # the held result is the usual answer: complete; the linear one only when chosen, and
         # at the held one's segment length (the same segmentation compares the holds fairly)
         results[h] = run(h, d, head, final=h == 'zoh' and head is None,
-                         chosen=_segment_choice(results.get('zoh'), False))
+                         chosen=_segment_choice(results.get('zoh'), False), shared=shared)
         if h == 'zoh' and (results[h].model == 'homogeneous' or not np.any(torque_std > 0)):
             break
     excess = {h: float(r.diagnostics.get('residual_excess', np.inf)) for h, r in
               results.items()}
-    rss = _hold_window_rss(results, data, head) if len(results) == 2 else (
+    rss = _hold_window_rss(results, data, head, shared) if len(results) == 2 else (
         'torque-free or noise-free torque: no choice')
+    shared.clear()                       # (the equations' memory, before another run)
     if isinstance(rss, str):
         chosen, record = 'zoh', {'statistic': None, 'p_value': None, 'reason': rss,
                                  'rule': hold_rule(HOLD_ALPHA)}
@@ -313,7 +318,8 @@ def _hold_by_adequacy(run: Any, diag: dict[str, Any], results: dict[str, Inertia
 
 
 def _hold_window_rss(results: dict[str, InertiaEstimate], data: tuple[np.ndarray, ...],
-                     head: int | None) -> tuple[np.ndarray, np.ndarray] | str:
+                     head: int | None, shared: dict[str, Any] | None = None
+                     ) -> tuple[np.ndarray, np.ndarray] | str:
     """Weighted residual sums of squares (K,) per window of the two holds' fits.
 
     The anchored (``integral``) equations of each hold on the gyro samples both cover, cut
@@ -321,10 +327,12 @@ def _hold_window_rss(results: dict[str, InertiaEstimate], data: tuple[np.ndarray
     :data:`_HOLD_MIN_ROWS` equations, each anchored on its own (its own initial momentum:
     under the noise model the windows are independent).  Every window is evaluated at each
     hold's whole-record tensor and bias with one weight ``(I S_g I)^-1`` from the held fit's
-    tensor (the same noise model for both).  Why not, when they cannot be compared.
+    tensor (the same noise model for both).  The equations are the runs' own (``shared``,
+    see :func:`_shared_equations`) when they cover these samples, else built again; the sums
+    come from the per-equation residuals (:func:`_segment_rss`).  Why not, when they cannot
+    be compared.
     """
     tg, w, ts, tau, gyro_var, _ = data
-    no_walk = np.zeros(3)              # only the Grams are needed, not the torque-noise sums
     if head is not None:
         tg, w = tg[:head], w[:head]
     coef = {}
@@ -343,17 +351,71 @@ def _hold_window_rss(results: dict[str, InertiaEstimate], data: tuple[np.ndarray
                 'holds are not compared')
     breaks = (np.diff(idx) > 1) | (np.diff(tg[idx]) > GAP_FACTOR * median(np.diff(tg)))
     n_win = min(_HOLD_WINDOWS, len(idx) // _HOLD_MIN_ROWS)
+    cuts = np.linspace(0, len(idx), n_win + 1).astype(int)
+    # every window anchored on its own, and again after every gap inside it
+    starts = np.union1d(cuts[:-1], np.flatnonzero(breaks) + 1)
+    runs = {} if shared is None else shared.get('eqs', {})
     rss = {}
     for h, c in coef.items():
-        eq = build_equations('integral', tg, w, ts, tau, mask, breaks, h, gyro_var, None)
-        cuts = np.linspace(0, len(eq.t), n_win + 1).astype(int)
-        out = []
-        for a, b in zip(cuts[:-1], cuts[1:], strict=True):
-            sub, (j0, j1) = window_raw(eq, int(a), int(b), ts, no_walk)
-            st = sufficient_stats(sub, None, ts[j0:j1], float(sub.t[-1]), no_walk)
-            out.append(float(c @ metric(st.C, W) @ c))
-        rss[h] = np.array(out)
+        own = runs.get(h)
+        if (own is not None and own[2].weighted and len(own[0]) == len(tg)
+                and _is_prefix(idx, own[1])):   # an integral run's (not integral_ls')
+            V = own[2].V[:len(idx)]              # (centred: a constant, cancelled)
+        else:
+            V = build_equations('integral', tg, w, ts, tau, mask, breaks, h, gyro_var,
+                                None).V
+        seg = _segment_rss(V, starts, c, W)
+        rss[h] = np.add.reduceat(seg, np.searchsorted(starts, cuts[:-1]))
     return rss['zoh'], rss['linear']
+
+
+def _segment_rss(V: np.ndarray, starts: np.ndarray, c: np.ndarray, W: np.ndarray
+                 ) -> np.ndarray:
+    """``sum_b (e_b - mean_s e)' W (e_b - mean_s e)`` per segment, shape (len(starts),).
+
+    ``e_b = A_b c`` (3,) is the residual of equation ``b`` (its 13 variables ``V`` (n, 13)
+    through :data:`.regressors.VARIABLE_MAP`), ``W`` (3, 3) the weight; segment ``s`` holds the
+    rows ``starts[s]:starts[s + 1]`` (the last to the end) and loses its mean (its initial
+    momentum).  The same sums as ``c' sum_b A_b' W A_b c`` of the demeaned blocks' Gram,
+    without forming a Gram per segment.
+    """
+    e = V @ np.tensordot(VARIABLE_MAP, c, axes=([2], [0]))          # (n, 3)
+    counts = np.diff(np.append(starts, len(V)))
+    e -= np.repeat(np.add.reduceat(e, starts, axis=0) / counts[:, None], counts, axis=0)
+    q = np.einsum('bi,bi->b', e @ W, e)             # (a 3-operand einsum: 5x the time)
+    return np.add.reduceat(q, starts)
+
+
+def _is_prefix(idx: np.ndarray, longer: np.ndarray) -> bool:
+    """``idx`` is the start of ``longer`` (both increasing int arrays)."""
+    return len(idx) <= len(longer) and np.array_equal(idx, longer[:len(idx)])
+
+
+def _shared_equations(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray,
+                      tau: np.ndarray, mask: np.ndarray, breaks: np.ndarray, hold: str,
+                      gyro_var: np.ndarray, window: float | None,
+                      shared: dict[str, Any] | None) -> Equations:
+    """:func:`.filtered.equations_for`, sharing work between the runs of ``hold='auto'``.
+
+    The anchored equations' regressor columns ``[w, m, s]`` do not depend on the torque's
+    hold: the first run keeps a copy of them (before any statistics centre its ``V``) and a
+    later run on the same samples, or on their start (the linear hold's coverage ends at the
+    last torque sample, the held one's a torque period later), only integrates its torque.
+    Every run's equations stay in ``shared['eqs']`` for :func:`_hold_window_rss`.  The same
+    numbers as a fresh build, bit for bit.
+    """
+    if shared is None or method not in ('integral', 'integral_ls'):
+        return equations_for(method, tg, w, ts, tau, mask, breaks, hold, gyro_var, window)
+    idx = np.flatnonzero(mask)
+    reg = shared.get('regressors')
+    key = (method, len(tg))
+    reg = reg[:len(idx)] if (reg is not None and shared.get('key') == key
+                             and _is_prefix(idx, shared['idx'])) else None
+    eq = build_equations(method, tg, w, ts, tau, mask, breaks, hold, gyro_var, window, reg)
+    if reg is None:
+        shared.update(key=key, idx=idx, regressors=eq.V[:, :10].copy())
+    shared.setdefault('eqs', {})[hold] = (tg, idx, eq)
+    return eq
 
 
 def _segment_choice(est: InertiaEstimate | None, from_head: bool
@@ -439,12 +501,13 @@ def _estimate_shifted(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray
                       diag: dict[str, Any],
                       white_y_cov: np.ndarray | None = None,
                       final: bool = True,
-                      chosen: tuple[float | None, dict[str, Any]] | None = None
-                      ) -> InertiaEstimate:
+                      chosen: tuple[float | None, dict[str, Any]] | None = None,
+                      shared: dict[str, Any] | None = None) -> InertiaEstimate:
     """Every method but ``ml`` on validated, origin-shifted data: coverage, rules, fit.
 
     ``final=False`` leaves out the adequacy tests (a result only compared, not reported);
-    ``chosen``: the segment length and its selection record from an earlier run.
+    ``chosen``: the segment length and its selection record from an earlier run; ``shared``:
+    the equations of the other hold's run (:func:`_shared_equations`).
     """
     mask, tau_end = _coverage(tg, ts, hold, diag)
     used = int(np.sum(mask))
@@ -462,7 +525,8 @@ def _estimate_shifted(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray
         diag['warnings'] += unapplied('batch', policy)
         return _homogeneous(method, tg, w, ts, tau, mask, breaks, hold, gyro_var,
                             segment or 10.0, window, diag, base, policy)
-    eq = equations_for(method, tg, w, ts, tau, mask, breaks, hold, gyro_var, window)
+    eq = _shared_equations(method, tg, w, ts, tau, mask, breaks, hold, gyro_var, window,
+                           shared)
     wm = w[mask]
     eq.motion = (wm.T @ wm / len(wm), med_g)          # gyroscopic noise walk (fit meat)
     eq.white_y_cov = white_y_cov                      # a momentum input's wheel noise
