@@ -84,7 +84,7 @@ from ..tensor import check_physical, theta_to_matrix
 from .adequacy import Adequacy, check_adequacy
 from .assemble import conclude, status_only
 from .config import unapplied
-from .equations import Equations, build_equations
+from .equations import Equations, build_equations, is_prefix, shared_integral_equations
 from .filtered import equations_for
 from .fit import Fit, equation_weight, fit_two_pass
 from .homogeneous import is_torque_free, torque_free_checked
@@ -108,10 +108,9 @@ from .options import (
     TORQUE_BIAS,
     check_choice,
 )
-from .regressors import VARIABLE_MAP
 from .result import InertiaEstimate
 from .selection import HOLD_ALPHA, SelectionPolicy, hold_rule, select_hold
-from .statistics import sufficient_stats, window_raw
+from .statistics import segment_rss, sufficient_stats, window_raw
 from .uncertainty import principal_with_std
 
 __all__ = ['BATCH_HOLDS', 'METHODS', 'ML_AUTO_MAX_SAMPLES', 'MODELS', 'TORQUE_BIAS', 'estimate',
@@ -265,7 +264,7 @@ def _auto_hold(run: Any, diag: dict[str, Any], torque_std: np.ndarray, n_gyro: i
     """
     head = _SELECT_MAX_ROWS if n_gyro > _HOLD_PREFIX_FROM else None
     results = {}
-    shared: dict[str, Any] = {}          # the runs' equations (see _shared_equations)
+    shared: dict[str, Any] = {}          # the runs' equations (shared_integral_equations)
     for h in HOLDS:
         d = dict(diag, warnings=list(diag['warnings']))
         # the held result is the usual answer: complete; the linear one only when chosen, and
@@ -327,10 +326,10 @@ def _hold_window_rss(results: dict[str, InertiaEstimate], data: tuple[np.ndarray
     :data:`_HOLD_MIN_ROWS` equations, each anchored on its own (its own initial momentum:
     under the noise model the windows are independent).  Every window is evaluated at each
     hold's whole-record tensor and bias with one weight ``(I S_g I)^-1`` from the held fit's
-    tensor (the same noise model for both).  The equations are the runs' own (``shared``,
-    see :func:`_shared_equations`) when they cover these samples, else built again; the sums
-    come from the per-equation residuals (:func:`_segment_rss`).  Why not, when they cannot
-    be compared.
+    tensor (the same noise model for both).  The equations are the runs' own (``shared``:
+    :func:`.equations.shared_integral_equations`) when they cover these samples, else built
+    again; the sums come from the per-equation residuals (:func:`.statistics.segment_rss`).
+    Why not, when they cannot be compared.
     """
     tg, w, ts, tau, gyro_var, _ = data
     if head is not None:
@@ -359,63 +358,14 @@ def _hold_window_rss(results: dict[str, InertiaEstimate], data: tuple[np.ndarray
     for h, c in coef.items():
         own = runs.get(h)
         if (own is not None and own[2].weighted and len(own[0]) == len(tg)
-                and _is_prefix(idx, own[1])):   # an integral run's (not integral_ls')
+                and is_prefix(idx, own[1])):   # an integral run's (not integral_ls')
             V = own[2].V[:len(idx)]              # (centred: a constant, cancelled)
         else:
             V = build_equations('integral', tg, w, ts, tau, mask, breaks, h, gyro_var,
                                 None).V
-        seg = _segment_rss(V, starts, c, W)
+        seg = segment_rss(V, starts, c, W)
         rss[h] = np.add.reduceat(seg, np.searchsorted(starts, cuts[:-1]))
     return rss['zoh'], rss['linear']
-
-
-def _segment_rss(V: np.ndarray, starts: np.ndarray, c: np.ndarray, W: np.ndarray
-                 ) -> np.ndarray:
-    """``sum_b (e_b - mean_s e)' W (e_b - mean_s e)`` per segment, shape (len(starts),).
-
-    ``e_b = A_b c`` (3,) is the residual of equation ``b`` (its 13 variables ``V`` (n, 13)
-    through :data:`.regressors.VARIABLE_MAP`), ``W`` (3, 3) the weight; segment ``s`` holds the
-    rows ``starts[s]:starts[s + 1]`` (the last to the end) and loses its mean (its initial
-    momentum).  The same sums as ``c' sum_b A_b' W A_b c`` of the demeaned blocks' Gram,
-    without forming a Gram per segment.
-    """
-    e = V @ np.tensordot(VARIABLE_MAP, c, axes=([2], [0]))          # (n, 3)
-    counts = np.diff(np.append(starts, len(V)))
-    e -= np.repeat(np.add.reduceat(e, starts, axis=0) / counts[:, None], counts, axis=0)
-    q = np.einsum('bi,bi->b', e @ W, e)             # (a 3-operand einsum: 5x the time)
-    return np.add.reduceat(q, starts)
-
-
-def _is_prefix(idx: np.ndarray, longer: np.ndarray) -> bool:
-    """``idx`` is the start of ``longer`` (both increasing int arrays)."""
-    return len(idx) <= len(longer) and np.array_equal(idx, longer[:len(idx)])
-
-
-def _shared_equations(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray,
-                      tau: np.ndarray, mask: np.ndarray, breaks: np.ndarray, hold: str,
-                      gyro_var: np.ndarray, window: float | None,
-                      shared: dict[str, Any] | None) -> Equations:
-    """:func:`.filtered.equations_for`, sharing work between the runs of ``hold='auto'``.
-
-    The anchored equations' regressor columns ``[w, m, s]`` do not depend on the torque's
-    hold: the first run keeps a copy of them (before any statistics centre its ``V``) and a
-    later run on the same samples, or on their start (the linear hold's coverage ends at the
-    last torque sample, the held one's a torque period later), only integrates its torque.
-    Every run's equations stay in ``shared['eqs']`` for :func:`_hold_window_rss`.  The same
-    numbers as a fresh build, bit for bit.
-    """
-    if shared is None or method not in ('integral', 'integral_ls'):
-        return equations_for(method, tg, w, ts, tau, mask, breaks, hold, gyro_var, window)
-    idx = np.flatnonzero(mask)
-    reg = shared.get('regressors')
-    key = (method, len(tg))
-    reg = reg[:len(idx)] if (reg is not None and shared.get('key') == key
-                             and _is_prefix(idx, shared['idx'])) else None
-    eq = build_equations(method, tg, w, ts, tau, mask, breaks, hold, gyro_var, window, reg)
-    if reg is None:
-        shared.update(key=key, idx=idx, regressors=eq.V[:, :10].copy())
-    shared.setdefault('eqs', {})[hold] = (tg, idx, eq)
-    return eq
 
 
 def _segment_choice(est: InertiaEstimate | None, from_head: bool
@@ -507,7 +457,7 @@ def _estimate_shifted(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray
 
     ``final=False`` leaves out the adequacy tests (a result only compared, not reported);
     ``chosen``: the segment length and its selection record from an earlier run; ``shared``:
-    the equations of the other hold's run (:func:`_shared_equations`).
+    the equations of the other hold's run (:func:`.equations.shared_integral_equations`).
     """
     mask, tau_end = _coverage(tg, ts, hold, diag)
     used = int(np.sum(mask))
@@ -525,8 +475,10 @@ def _estimate_shifted(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray
         diag['warnings'] += unapplied('batch', policy)
         return _homogeneous(method, tg, w, ts, tau, mask, breaks, hold, gyro_var,
                             segment or 10.0, window, diag, base, policy)
-    eq = _shared_equations(method, tg, w, ts, tau, mask, breaks, hold, gyro_var, window,
-                           shared)
+    eq = (equations_for(method, tg, w, ts, tau, mask, breaks, hold, gyro_var, window)
+          if shared is None or method not in ('integral', 'integral_ls') else
+          shared_integral_equations(method, tg, w, ts, tau, mask, breaks, hold, gyro_var,
+                                    shared))
     wm = w[mask]
     eq.motion = (wm.T @ wm / len(wm), med_g)          # gyroscopic noise walk (fit meat)
     eq.white_y_cov = white_y_cov                      # a momentum input's wheel noise
@@ -534,21 +486,14 @@ def _estimate_shifted(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray
     early = _equation_rules(eq, method, diag, base)
     if early is not None:
         return early
-    if eq.kind == 'anchored' and segment is None:
-        segment, diag['segment_selection'] = chosen if chosen is not None else _choose_segment(
-            eq, ts, tau_end, gyro_var, torque_var, torque_bias != 'off')
-    st = sufficient_stats(eq, segment, ts, tau_end, torque_var)
+    segment, st, fit = _statistics(eq, segment, chosen, ts, tau_end, gyro_var, torque_var,
+                                   torque_bias != 'off', diag)
     if eq.kind == 'anchored':
         diag['segments'] = st.n_seg
         diag['segment_s'] = segment
         if st.n_eff < MIN_EQUATIONS:
             diag['reason'] = f'{st.n_eff} equations are too few for the parameters'
             return status_only('insufficient_data', diag, base)
-
-    def fit(basis: np.ndarray, bias: bool, offset: np.ndarray | None = None,
-            theta0: np.ndarray | None = None) -> Fit:
-        """Fit one parameter set on the statistics (weights from ``theta0`` when given)."""
-        return fit_two_pass(st, basis, bias, gyro_var, torque_var, offset, theta0)
 
     def adequacy(f: Fit, chosen: str) -> Adequacy:
         """The model-adequacy tests of the final fit (window consistency, residual excess).
@@ -568,6 +513,38 @@ def _estimate_shifted(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray
 
     return conclude(fit, model, torque_bias, axis, policy, diag, base,
                     adequacy if final else None, gyro_sensitivity)
+
+
+def _statistics(eq: Equations, segment: float | None,
+                chosen: tuple[float | None, dict[str, Any]] | None, ts: np.ndarray,
+                tau_end: float, gyro_var: np.ndarray, torque_var: np.ndarray, bias: bool,
+                diag: dict[str, Any]) -> tuple[float | None, Any, Any]:
+    """The segment length (given, ``chosen`` earlier or searched), the statistics and the fit
+    function ``fit(basis, bias, offset=None, theta0=None) -> Fit`` on them.
+
+    The search's statistics and general-model fit of the chosen length are the ones the
+    estimate needs first (the same calls on the same equations): taken, not computed again.
+    """
+    tried: dict[Any, tuple[Any, Fit]] = {}
+    if eq.kind == 'anchored' and segment is None:
+        segment, diag['segment_selection'] = chosen if chosen is not None else _choose_segment(
+            eq, ts, tau_end, gyro_var, torque_var, bias, tried)
+    st, first = tried.pop(segment, (None, None))
+    tried.clear()
+    if st is None:
+        st = sufficient_stats(eq, segment, ts, tau_end, torque_var)
+    once = [first]
+
+    def fit(basis: np.ndarray, bias: bool, offset: np.ndarray | None = None,
+            theta0: np.ndarray | None = None) -> Fit:
+        """Fit one parameter set on the statistics (weights from ``theta0`` when given)."""
+        f = once[0]
+        if (f is not None and offset is None and theta0 is None and bias == f.bias
+                and basis.shape == (6, 6) and np.array_equal(basis, np.eye(6))):
+            once[0] = None
+            return f
+        return fit_two_pass(st, basis, bias, gyro_var, torque_var, offset, theta0)
+    return segment, st, fit
 
 
 def _gyro_sensitivity(eq: Equations, segment: float | None, ts: np.ndarray, tau_end: float,
@@ -650,7 +627,9 @@ def _equation_rules(eq: Equations, method: str, diag: dict[str, Any],
 
 
 def _choose_segment(eq: Equations, ts: np.ndarray, tau_end: float, gyro_var: np.ndarray,
-                    torque_var: np.ndarray, bias: bool) -> tuple[float | None, dict[str, Any]]:
+                    torque_var: np.ndarray, bias: bool,
+                    tried: dict[Any, tuple[Any, Fit]] | None = None
+                    ) -> tuple[float | None, dict[str, Any]]:
     """Anchored-segment length that minimises the predicted relative variance of the tensor.
 
     Short segments lose the information in slow motion and leave more errors-in-variables
@@ -658,7 +637,8 @@ def _choose_segment(eq: Equations, ts: np.ndarray, tau_end: float, gyro_var: np.
     evaluated with the calibrated covariance of the full model; all candidates share the raw
     statistics (see :func:`.statistics.sufficient_stats`), so the search costs little.  Long
     records are searched on their first ``_SELECT_MAX_ROWS`` equations (the optimum depends on
-    the dynamics, not on the record length).
+    the dynamics, not on the record length).  ``tried`` receives every candidate's statistics
+    and general-model fit (``{segment: (stats, fit)}``) when the whole record was searched.
     """
     if len(eq.t) > _SELECT_MAX_ROWS:
         sub = eq.head(_SELECT_MAX_ROWS)
@@ -676,6 +656,8 @@ def _choose_segment(eq: Equations, ts: np.ndarray, tau_end: float, gyro_var: np.
         if st.n_eff < 3 * (6 + 3):
             continue
         f = fit_two_pass(st, np.eye(6), bias, gyro_var, torque_var)
+        if tried is not None and sub is eq:
+            tried[cand] = (st, f)
         scale = float(np.mean(np.abs(f.beta[:3])))
         score = float(np.trace(f.cov[:6, :6])) / scale ** 2 if scale > 0 else np.inf
         scores['whole' if cand is None else f'{cand:g}'] = score

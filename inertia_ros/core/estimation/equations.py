@@ -22,7 +22,7 @@ from .._numeric import median
 from .regressors import blocks, cumulative_monomials, cumulative_torque, monomials, variables
 
 __all__ = ['Equations', 'build_equations', 'differential_equations', 'integral_equations',
-           'segment_starts', 'sliding_equations']
+           'is_prefix', 'segment_starts', 'shared_integral_equations', 'sliding_equations']
 
 
 @dataclass
@@ -321,3 +321,34 @@ def build_equations(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray,
     if method == 'integral_sliding':
         return sliding_equations(tg, w, ts, tau, idx, breaks, hold, window)
     return differential_equations(method, tg, w, ts, tau, idx, hold, gyro_var, window)
+
+
+def is_prefix(idx: np.ndarray, longer: np.ndarray) -> bool:
+    """``idx`` is the start of ``longer`` (both increasing int arrays)."""
+    return len(idx) <= len(longer) and np.array_equal(idx, longer[:len(idx)])
+
+
+def shared_integral_equations(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray,
+                              tau: np.ndarray, mask: np.ndarray, breaks: np.ndarray,
+                              hold: str, gyro_var: np.ndarray,
+                              shared: dict[str, Any]) -> Equations:
+    """:func:`build_equations` of ``integral`` or ``integral_ls``, sharing work between the
+    runs of one ``hold='auto'`` estimate through ``shared`` (a dict, empty at first).
+
+    The regressor columns ``[w, m, s]`` do not depend on the torque's hold: the first run
+    keeps a copy of them (before any statistics centre its ``V``) and a later run on the same
+    gyro samples, or on their start (the linear hold's coverage ends at the last torque
+    sample, the held one's a torque period later), only integrates its torque.  The same
+    numbers as a fresh build, bit for bit.  Every run's equations stay in
+    ``shared['eqs'][hold]`` as ``(tg, idx, Equations)`` (the hold comparison's windows).
+    """
+    idx = np.flatnonzero(mask)
+    reg = shared.get('regressors')
+    key = (method, len(tg))
+    reg = reg[:len(idx)] if (reg is not None and shared.get('key') == key
+                             and is_prefix(idx, shared['idx'])) else None
+    eq = build_equations(method, tg, w, ts, tau, mask, breaks, hold, gyro_var, None, reg)
+    if reg is None:
+        shared.update(key=key, idx=idx, regressors=eq.V[:, :10].copy())
+    shared.setdefault('eqs', {})[hold] = (tg, idx, eq)
+    return eq

@@ -15,10 +15,10 @@ import numpy as np
 
 from .._numeric import median
 from .equations import Equations, segment_starts
-from .regressors import N_REGRESSOR_VARIABLES, gram, lift
+from .regressors import N_REGRESSOR_VARIABLES, VARIABLE_MAP, gram, lift
 
-__all__ = ['SufficientStats', 'range_sums', 'shared_raw', 'sufficient_stats', 'torque_stats',
-           'window_raw']
+__all__ = ['SufficientStats', 'range_sums', 'segment_rss', 'shared_raw', 'sufficient_stats',
+           'torque_stats', 'window_raw']
 
 _NREG = N_REGRESSOR_VARIABLES
 
@@ -373,3 +373,20 @@ def sufficient_stats(eq: Equations, segment: float | None, t_tau: np.ndarray, ta
     return SufficientStats(C, CP, n, n - len(starts), len(starts), eq.kind, eq.eiv_var,
                            eq.weighted, eq.hac_lag, None, walk_time=float(np.sum(ns * dur)) / 6.0,
                            torque_dt=tdt, omega_m2=m2, gyro_dt=gdt, white_y_cov=eq.white_y_cov)
+
+
+def segment_rss(V: np.ndarray, starts: np.ndarray, c: np.ndarray, W: np.ndarray) -> np.ndarray:
+    """``sum_b (e_b - mean_s e)' W (e_b - mean_s e)`` per segment, shape (len(starts),).
+
+    ``e_b = A_b c`` (3,) is the residual of equation ``b`` (its 13 variables ``V`` (n, 13)
+    through :data:`.regressors.VARIABLE_MAP`, ``c`` (10,) the coefficients ``[-psi, -d, 1]``),
+    ``W`` (3, 3) the weight; segment ``s`` holds the rows ``starts[s]:starts[s + 1]`` (the last
+    to the end; ``starts[0] = 0``, increasing) and loses its mean (its initial momentum).  The
+    same sums as ``c' sum_b A_b' W A_b c`` of the segment-demeaned blocks' Gram, without a
+    Gram per segment (and without its cancellation).
+    """
+    e = V @ np.tensordot(VARIABLE_MAP, c, axes=([2], [0]))          # (n, 3)
+    counts = np.diff(np.append(starts, len(V)))
+    e -= np.repeat(np.add.reduceat(e, starts, axis=0) / counts[:, None], counts, axis=0)
+    q = np.einsum('bi,bi->b', e @ W, e)             # (a 3-operand einsum: 5x the time)
+    return np.add.reduceat(q, starts)
