@@ -326,9 +326,9 @@ def _demeaned_torque_gram(raw: dict[str, Any], starts: np.ndarray, m: np.ndarray
             # evaluation serves both ends
             z, q = ZQ(np.append(k0, k1[-1]))
             z0, q0, z1, q1 = z[:-1], q[:-1], z[1:], q[1:]
-        else:
-            z0, q0 = ZQ(k0)
-            z1, q1 = ZQ(k1)
+        else:                         # both ends in one evaluation (the same numbers)
+            z, q = ZQ(np.concatenate((k0, k1)))
+            z0, q0, z1, q1 = z[:b - a], q[:b - a], z[b - a:], q[b - a:]
         X = P[a:b] - h_all[a:b, None] * (total - z1)
         X -= q1 - q0
         X += s_all[a:b, None] * (z1 - z0)
