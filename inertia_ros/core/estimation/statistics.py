@@ -385,8 +385,21 @@ def segment_rss(V: np.ndarray, starts: np.ndarray, c: np.ndarray, W: np.ndarray)
     same sums as ``c' sum_b A_b' W A_b c`` of the segment-demeaned blocks' Gram, without a
     Gram per segment (and without its cancellation).
     """
-    e = V @ np.tensordot(VARIABLE_MAP, c, axes=([2], [0]))          # (n, 3)
-    counts = np.diff(np.append(starts, len(V)))
+    R = np.ascontiguousarray(np.tensordot(VARIABLE_MAP, c, axes=([2], [0])))    # (13, 3)
+    n = len(V)
+    e = np.empty((n, 3))
+    # thin products in blocks: one (100 000, 13) x (13, 3) product wakes the BLAS threads,
+    # which on a loaded machine cost 10-100 ms of waiting where the work takes 0.5 ms
+    for a in range(0, n, _THIN_BLOCK):
+        np.matmul(V[a:a + _THIN_BLOCK], R, out=e[a:a + _THIN_BLOCK])
+    counts = np.diff(np.append(starts, n))
     e -= np.repeat(np.add.reduceat(e, starts, axis=0) / counts[:, None], counts, axis=0)
-    q = np.einsum('bi,bi->b', e @ W, e)             # (a 3-operand einsum: 5x the time)
+    eW = np.empty((n, 3))
+    for a in range(0, n, _THIN_BLOCK):
+        np.matmul(e[a:a + _THIN_BLOCK], W, out=eW[a:a + _THIN_BLOCK])
+    q = np.einsum('bi,bi->b', eW, e)                # (a 3-operand einsum: 5x the time)
     return np.add.reduceat(q, starts)
+
+
+#: Rows per product of :func:`segment_rss` (small enough for the BLAS to stay on one thread).
+_THIN_BLOCK = 4096
