@@ -352,7 +352,8 @@ def _hold_window_rss(results: dict[str, InertiaEstimate], data: tuple[np.ndarray
     n_win = min(_HOLD_WINDOWS, len(idx) // _HOLD_MIN_ROWS)
     cuts = np.linspace(0, len(idx), n_win + 1).astype(int)
     # every window anchored on its own, and again after every gap inside it
-    starts = np.union1d(cuts[:-1], np.flatnonzero(breaks) + 1)
+    starts = np.sort(np.concatenate((cuts[:-1], np.flatnonzero(breaks) + 1)))
+    starts = starts[np.r_[True, np.diff(starts) > 0]]          # (np.union1d loads numpy.ma)
     runs = {} if shared is None else shared.get('eqs', {})
     rss = {}
     for h, c in coef.items():
