@@ -29,7 +29,6 @@ import re
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
-from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
@@ -192,6 +191,10 @@ def urdf_document(inertia: Any, mass: float, com: Sequence[float] = (0.0, 0.0, 0
         As :func:`urdf_inertial`, or a ``link`` / ``robot`` name that is blank or holds a
         control character (:func:`check_name`).
     """
+    # lazily: xml.sax.saxutils imports urllib.request (http.client, ssl, email), ~20 ms of
+    # every estimate command's start-up that writes no URDF
+    from xml.sax.saxutils import quoteattr
+
     for what, name in (('link', link), ('robot', robot)):
         check_name(what, name)
     block = urdf_inertial(inertia, mass, com, indent='    ')

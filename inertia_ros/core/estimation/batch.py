@@ -87,7 +87,7 @@ from ..tensor import check_physical, theta_to_matrix
 from .adequacy import Adequacy, check_adequacy
 from .assemble import conclude, status_only
 from .config import unapplied
-from .equations import Equations, build_equations
+from .equations import Equations, build_equations, is_prefix, shared_integral_equations
 from .filtered import equations_for
 from .fit import Fit, equation_weight, fit_two_pass
 from .homogeneous import is_torque_free, torque_free_checked
@@ -111,10 +111,9 @@ from .options import (
     TORQUE_BIAS,
     check_choice,
 )
-from .regressors import metric
 from .result import InertiaEstimate
 from .selection import HOLD_ALPHA, SelectionPolicy, hold_rule, select_hold
-from .statistics import sufficient_stats, window_raw
+from .statistics import segment_rss, sufficient_stats, window_raw
 from .uncertainty import principal_with_std
 
 __all__ = ['BATCH_HOLDS', 'METHODS', 'ML_AUTO_MAX_SAMPLES', 'MODELS', 'TORQUE_BIAS', 'estimate',
@@ -255,15 +254,18 @@ def _estimate_direct(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray,
         diag['method_selection'] = selection
 
     def run(h: str, d: dict[str, Any], head: int | None = None, final: bool = True,
-            chosen: tuple[float | None, dict[str, Any]] | None = None) -> InertiaEstimate:
+            chosen: tuple[float | None, dict[str, Any]] | None = None,
+            shared: dict[str, Any] | None = None) -> InertiaEstimate:
         """The estimate with hold ``h`` (on the first ``head`` gyro samples when given;
         without the adequacy tests, which do not change the residual excess, unless
-        ``final``; with the segment length ``chosen`` by an earlier run when given)."""
+        ``final``; with the segment length ``chosen`` by an earlier run when given; the
+        equations shared with the other hold's run through ``shared``)."""
         n = len(tg) if head is None else head
         m = len(ts) if head is None else int(np.searchsorted(ts, tg[n - 1], side='right')) + 1
         return _estimate_shifted(method, tg[:n] - t_origin, w[:n], ts[:m] - t_origin, tau[:m],
                                  h, gyro_std ** 2, torque_std ** 2, segment, window, model,
-                                 torque_bias, axis, policy, d, white_y_cov, final, chosen)
+                                 torque_bias, axis, policy, d, white_y_cov, final, chosen,
+                                 shared)
     if hold != 'auto':
         return run(hold, diag)
     return _auto_hold(run, diag, torque_std, len(tg), (tg - t_origin, w, ts - t_origin, tau,
@@ -287,18 +289,20 @@ def _auto_hold(run: Any, diag: dict[str, Any], torque_std: np.ndarray, n_gyro: i
     """
     head = _SELECT_MAX_ROWS if n_gyro > _HOLD_PREFIX_FROM else None
     results = {}
+    shared: dict[str, Any] = {}          # the runs' equations (shared_integral_equations)
     for h in HOLDS:
         d = dict(diag, warnings=list(diag['warnings']))
         # the held result is the usual answer: complete; the linear one only when chosen, and
         # at the held one's segment length (the same segmentation compares the holds fairly)
         results[h] = run(h, d, head, final=h == 'zoh' and head is None,
-                         chosen=_segment_choice(results.get('zoh'), False))
+                         chosen=_segment_choice(results.get('zoh'), False), shared=shared)
         if h == 'zoh' and (results[h].model == 'homogeneous' or not np.any(torque_std > 0)):
             break
     excess = {h: float(r.diagnostics.get('residual_excess', np.inf)) for h, r in
               results.items()}
-    rss = _hold_window_rss(results, data, head) if len(results) == 2 else (
+    rss = _hold_window_rss(results, data, head, shared) if len(results) == 2 else (
         'torque-free or noise-free torque: no choice')
+    shared.clear()                       # (the equations' memory, before another run)
     if isinstance(rss, str):
         chosen, record = 'zoh', {'statistic': None, 'p_value': None, 'reason': rss,
                                  'rule': hold_rule(HOLD_ALPHA)}
@@ -338,7 +342,8 @@ def _hold_by_adequacy(run: Any, diag: dict[str, Any], results: dict[str, Inertia
 
 
 def _hold_window_rss(results: dict[str, InertiaEstimate], data: tuple[np.ndarray, ...],
-                     head: int | None) -> tuple[np.ndarray, np.ndarray] | str:
+                     head: int | None, shared: dict[str, Any] | None = None
+                     ) -> tuple[np.ndarray, np.ndarray] | str:
     """Weighted residual sums of squares (K,) per window of the two holds' fits.
 
     The anchored (``integral``) equations of each hold on the gyro samples both cover, cut
@@ -346,10 +351,12 @@ def _hold_window_rss(results: dict[str, InertiaEstimate], data: tuple[np.ndarray
     :data:`_HOLD_MIN_ROWS` equations, each anchored on its own (its own initial momentum:
     under the noise model the windows are independent).  Every window is evaluated at each
     hold's whole-record tensor and bias with one weight ``(I S_g I)^-1`` from the held fit's
-    tensor (the same noise model for both).  Why not, when they cannot be compared.
+    tensor (the same noise model for both).  The equations are the runs' own (``shared``:
+    :func:`.equations.shared_integral_equations`) when they cover these samples, else built
+    again; the sums come from the per-equation residuals (:func:`.statistics.segment_rss`).
+    Why not, when they cannot be compared.
     """
     tg, w, ts, tau, gyro_var, _ = data
-    no_walk = np.zeros(3)              # only the Grams are needed, not the torque-noise sums
     if head is not None:
         tg, w = tg[:head], w[:head]
     coef = {}
@@ -368,16 +375,22 @@ def _hold_window_rss(results: dict[str, InertiaEstimate], data: tuple[np.ndarray
                 'holds are not compared')
     breaks = (np.diff(idx) > 1) | (np.diff(tg[idx]) > GAP_FACTOR * median(np.diff(tg)))
     n_win = min(_HOLD_WINDOWS, len(idx) // _HOLD_MIN_ROWS)
+    cuts = np.linspace(0, len(idx), n_win + 1).astype(int)
+    # every window anchored on its own, and again after every gap inside it
+    starts = np.sort(np.concatenate((cuts[:-1], np.flatnonzero(breaks) + 1)))
+    starts = starts[np.r_[True, np.diff(starts) > 0]]          # (np.union1d loads numpy.ma)
+    runs = {} if shared is None else shared.get('eqs', {})
     rss = {}
     for h, c in coef.items():
-        eq = build_equations('integral', tg, w, ts, tau, mask, breaks, h, gyro_var, None)
-        cuts = np.linspace(0, len(eq.t), n_win + 1).astype(int)
-        out = []
-        for a, b in zip(cuts[:-1], cuts[1:], strict=True):
-            sub, (j0, j1) = window_raw(eq, int(a), int(b), ts, no_walk)
-            st = sufficient_stats(sub, None, ts[j0:j1], float(sub.t[-1]), no_walk)
-            out.append(float(c @ metric(st.C, W) @ c))
-        rss[h] = np.array(out)
+        own = runs.get(h)
+        if (own is not None and own[2].weighted and len(own[0]) == len(tg)
+                and is_prefix(idx, own[1])):   # an integral run's (not integral_ls')
+            V = own[2].V[:len(idx)]              # (centred: a constant, cancelled)
+        else:
+            V = build_equations('integral', tg, w, ts, tau, mask, breaks, h, gyro_var,
+                                None).V
+        seg = segment_rss(V, starts, c, W)
+        rss[h] = np.add.reduceat(seg, np.searchsorted(starts, cuts[:-1]))
     return rss['zoh'], rss['linear']
 
 
@@ -464,12 +477,13 @@ def _estimate_shifted(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray
                       diag: dict[str, Any],
                       white_y_cov: np.ndarray | None = None,
                       final: bool = True,
-                      chosen: tuple[float | None, dict[str, Any]] | None = None
-                      ) -> InertiaEstimate:
+                      chosen: tuple[float | None, dict[str, Any]] | None = None,
+                      shared: dict[str, Any] | None = None) -> InertiaEstimate:
     """Every method but ``ml`` on validated, origin-shifted data: coverage, rules, fit.
 
     ``final=False`` leaves out the adequacy tests (a result only compared, not reported);
-    ``chosen``: the segment length and its selection record from an earlier run.
+    ``chosen``: the segment length and its selection record from an earlier run; ``shared``:
+    the equations of the other hold's run (:func:`.equations.shared_integral_equations`).
     """
     mask, tau_end = _coverage(tg, ts, hold, diag)
     used = int(np.sum(mask))
@@ -487,7 +501,10 @@ def _estimate_shifted(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray
         diag['warnings'] += unapplied('batch', policy)
         return _homogeneous(method, tg, w, ts, tau, mask, breaks, hold, gyro_var,
                             segment or 10.0, window, diag, base, policy)
-    eq = equations_for(method, tg, w, ts, tau, mask, breaks, hold, gyro_var, window)
+    eq = (equations_for(method, tg, w, ts, tau, mask, breaks, hold, gyro_var, window)
+          if shared is None or method not in ('integral', 'integral_ls') else
+          shared_integral_equations(method, tg, w, ts, tau, mask, breaks, hold, gyro_var,
+                                    shared))
     wm = w[mask]
     eq.motion = (wm.T @ wm / len(wm), med_g)          # gyroscopic noise walk (fit meat)
     eq.white_y_cov = white_y_cov                      # a momentum input's wheel noise
@@ -495,21 +512,14 @@ def _estimate_shifted(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray
     early = _equation_rules(eq, method, diag, base)
     if early is not None:
         return early
-    if eq.kind == 'anchored' and segment is None:
-        segment, diag['segment_selection'] = chosen if chosen is not None else _choose_segment(
-            eq, ts, tau_end, gyro_var, torque_var, torque_bias != 'off')
-    st = sufficient_stats(eq, segment, ts, tau_end, torque_var)
+    segment, st, fit = _statistics(eq, segment, chosen, ts, tau_end, gyro_var, torque_var,
+                                   torque_bias != 'off', diag)
     if eq.kind == 'anchored':
         diag['segments'] = st.n_seg
         diag['segment_s'] = segment
         if st.n_eff < MIN_EQUATIONS:
             diag['reason'] = f'{st.n_eff} equations are too few for the parameters'
             return status_only('insufficient_data', diag, base)
-
-    def fit(basis: np.ndarray, bias: bool, offset: np.ndarray | None = None,
-            theta0: np.ndarray | None = None) -> Fit:
-        """Fit one parameter set on the statistics (weights from ``theta0`` when given)."""
-        return fit_two_pass(st, basis, bias, gyro_var, torque_var, offset, theta0)
 
     def adequacy(f: Fit, chosen: str) -> Adequacy:
         """The model-adequacy tests of the final fit (window consistency, residual excess).
@@ -529,6 +539,38 @@ def _estimate_shifted(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray
 
     return conclude(fit, model, torque_bias, axis, policy, diag, base,
                     adequacy if final else None, gyro_sensitivity)
+
+
+def _statistics(eq: Equations, segment: float | None,
+                chosen: tuple[float | None, dict[str, Any]] | None, ts: np.ndarray,
+                tau_end: float, gyro_var: np.ndarray, torque_var: np.ndarray, bias: bool,
+                diag: dict[str, Any]) -> tuple[float | None, Any, Any]:
+    """The segment length (given, ``chosen`` earlier or searched), the statistics and the fit
+    function ``fit(basis, bias, offset=None, theta0=None) -> Fit`` on them.
+
+    The search's statistics and general-model fit of the chosen length are the ones the
+    estimate needs first (the same calls on the same equations): taken, not computed again.
+    """
+    tried: dict[Any, tuple[Any, Fit]] = {}
+    if eq.kind == 'anchored' and segment is None:
+        segment, diag['segment_selection'] = chosen if chosen is not None else _choose_segment(
+            eq, ts, tau_end, gyro_var, torque_var, bias, tried)
+    st, first = tried.pop(segment, (None, None))
+    tried.clear()
+    if st is None:
+        st = sufficient_stats(eq, segment, ts, tau_end, torque_var)
+    once = [first]
+
+    def fit(basis: np.ndarray, bias: bool, offset: np.ndarray | None = None,
+            theta0: np.ndarray | None = None) -> Fit:
+        """Fit one parameter set on the statistics (weights from ``theta0`` when given)."""
+        f = once[0]
+        if (f is not None and offset is None and theta0 is None and bias == f.bias
+                and basis.shape == (6, 6) and np.array_equal(basis, np.eye(6))):
+            once[0] = None
+            return f
+        return fit_two_pass(st, basis, bias, gyro_var, torque_var, offset, theta0)
+    return segment, st, fit
 
 
 def _gyro_sensitivity(eq: Equations, segment: float | None, ts: np.ndarray, tau_end: float,
@@ -611,7 +653,9 @@ def _equation_rules(eq: Equations, method: str, diag: dict[str, Any],
 
 
 def _choose_segment(eq: Equations, ts: np.ndarray, tau_end: float, gyro_var: np.ndarray,
-                    torque_var: np.ndarray, bias: bool) -> tuple[float | None, dict[str, Any]]:
+                    torque_var: np.ndarray, bias: bool,
+                    tried: dict[Any, tuple[Any, Fit]] | None = None
+                    ) -> tuple[float | None, dict[str, Any]]:
     """Anchored-segment length that minimises the predicted relative variance of the tensor.
 
     Short segments lose the information in slow motion and leave more errors-in-variables
@@ -619,7 +663,8 @@ def _choose_segment(eq: Equations, ts: np.ndarray, tau_end: float, gyro_var: np.
     evaluated with the calibrated covariance of the full model; all candidates share the raw
     statistics (see :func:`.statistics.sufficient_stats`), so the search costs little.  Long
     records are searched on their first ``_SELECT_MAX_ROWS`` equations (the optimum depends on
-    the dynamics, not on the record length).
+    the dynamics, not on the record length).  ``tried`` receives every candidate's statistics
+    and general-model fit (``{segment: (stats, fit)}``) when the whole record was searched.
     """
     if len(eq.t) > _SELECT_MAX_ROWS:
         sub = eq.head(_SELECT_MAX_ROWS)
@@ -637,6 +682,8 @@ def _choose_segment(eq: Equations, ts: np.ndarray, tau_end: float, gyro_var: np.
         if st.n_eff < 3 * (6 + 3):
             continue
         f = fit_two_pass(st, np.eye(6), bias, gyro_var, torque_var)
+        if tried is not None and sub is eq:
+            tried[cand] = (st, f)
         scale = float(np.mean(np.abs(f.beta[:3])))
         score = float(np.trace(f.cov[:6, :6])) / scale ** 2 if scale > 0 else np.inf
         scores['whole' if cand is None else f'{cand:g}'] = score

@@ -22,7 +22,7 @@ from .._numeric import median
 from .regressors import blocks, cumulative_monomials, cumulative_torque, monomials, variables
 
 __all__ = ['Equations', 'build_equations', 'differential_equations', 'integral_equations',
-           'segment_starts', 'sliding_equations']
+           'is_prefix', 'segment_starts', 'shared_integral_equations', 'sliding_equations']
 
 
 @dataclass
@@ -129,7 +129,8 @@ def segment_starts(t: np.ndarray, keep_break: np.ndarray, max_len: float | None)
 
 def integral_equations(tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.ndarray,
                        idx: slice | np.ndarray, breaks: np.ndarray, hold: str,
-                       gyro_var: np.ndarray | None) -> Equations:
+                       gyro_var: np.ndarray | None,
+                       regressors: np.ndarray | None = None) -> Equations:
     """Anchored momentum equations of the gyro samples ``idx``.
 
     ``I w_b + int w x (I w) dt - d t_b - h0 = int tau dt`` from the start of the record
@@ -151,26 +152,35 @@ def integral_equations(tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.nd
         Torque between samples.
     gyro_var : ndarray, shape (3,), optional
         Gyro white-noise variance [rad^2/s^2].
+    regressors : ndarray, shape (n, 10), optional
+        The first 10 columns ``[w, m, s]`` of the same rows from an earlier call with the same
+        ``tg, w, idx, breaks, gyro_var`` (they do not depend on the torque or its hold): only
+        the torque integrals are computed (``hold='auto'`` builds both holds' equations).
     """
     rows = _as_range(idx, len(tg))
     sel = idx if rows is None else rows      # a contiguous run as a slice: copies, no gathers
     t = tg[sel]
     # the 13 variables written into one array (as :func:`.regressors.variables` stacks them)
     V = np.empty((len(t), 13))
-    V[:, :3] = w[sel]
-    if rows is not None:          # the usual case: integrated and written in cache-sized blocks
-        cumulative_monomials(tg, w, gyro_var, rows=rows, out=V[:, 3:9])
+    lo = 10 if regressors is not None else 3           # first column to re-anchor
+    if regressors is not None:
+        V[:, :10] = regressors
     else:
-        V[:, 3:9] = cumulative_monomials(tg, w, gyro_var)[idx]
-    np.subtract(t, t[0], out=V[:, 9])
+        V[:, :3] = w[sel]
+        if rows is not None:      # the usual case: integrated and written in cache-sized blocks
+            cumulative_monomials(tg, w, gyro_var, rows=rows, out=V[:, 3:9])
+        else:
+            V[:, 3:9] = cumulative_monomials(tg, w, gyro_var)[idx]
+        np.subtract(t, t[0], out=V[:, 9])
     cumulative_torque(ts, tau, t, hold, out=V[:, 10:])
     starts = np.flatnonzero(np.r_[True, breaks])
     if len(starts) > 1:
         # re-anchor the integrals at every forced segment start: nothing integrates across a
         # gap (the trapezoid and the held torque over it are constants of the new segment,
-        # and a day-long gap would otherwise leave large offsets to cancel)
+        # and a day-long gap would otherwise leave large offsets to cancel); column by column,
+        # so the given regressors are already re-anchored
         first = np.repeat(starts, np.diff(np.r_[starts, len(t)]))
-        V[:, 3:] -= V[first, 3:]
+        V[:, lo:] -= V[first, lo:]
     return Equations(V, t, breaks, 'anchored', eiv_var=gyro_var,
                      weighted=gyro_var is not None)
 
@@ -271,7 +281,8 @@ def differential_equations(method: str, tg: np.ndarray, w: np.ndarray, ts: np.nd
 
 def build_equations(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray,
                     tau: np.ndarray, mask: np.ndarray, breaks: np.ndarray, hold: str,
-                    gyro_var: np.ndarray, window: float | None) -> Equations:
+                    gyro_var: np.ndarray, window: float | None,
+                    regressors: np.ndarray | None = None) -> Equations:
     """Equations of ``method`` from the gyro samples selected by ``mask`` (N,) bool.
 
     Parameters
@@ -291,6 +302,9 @@ def build_equations(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray,
         Gyro white-noise variance [rad^2/s^2].
     window : float, optional
         Window [s] of ``integral_sliding`` and ``differential_sg``.
+    regressors : ndarray, shape (n, 10), optional
+        ``integral`` and ``integral_ls``: the regressor columns of these rows from an earlier
+        build (see :func:`integral_equations`).
 
     Returns
     -------
@@ -303,7 +317,38 @@ def build_equations(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray,
         idx = slice(int(idx[0]), int(idx[-1]) + 1)
     if method in ('integral', 'integral_ls'):
         return integral_equations(tg, w, ts, tau, idx, breaks, hold,
-                                  gyro_var if method == 'integral' else None)
+                                  gyro_var if method == 'integral' else None, regressors)
     if method == 'integral_sliding':
         return sliding_equations(tg, w, ts, tau, idx, breaks, hold, window)
     return differential_equations(method, tg, w, ts, tau, idx, hold, gyro_var, window)
+
+
+def is_prefix(idx: np.ndarray, longer: np.ndarray) -> bool:
+    """``idx`` is the start of ``longer`` (both increasing int arrays)."""
+    return len(idx) <= len(longer) and np.array_equal(idx, longer[:len(idx)])
+
+
+def shared_integral_equations(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray,
+                              tau: np.ndarray, mask: np.ndarray, breaks: np.ndarray,
+                              hold: str, gyro_var: np.ndarray,
+                              shared: dict[str, Any]) -> Equations:
+    """:func:`build_equations` of ``integral`` or ``integral_ls``, sharing work between the
+    runs of one ``hold='auto'`` estimate through ``shared`` (a dict, empty at first).
+
+    The regressor columns ``[w, m, s]`` do not depend on the torque's hold: the first run
+    keeps a copy of them (before any statistics centre its ``V``) and a later run on the same
+    gyro samples, or on their start (the linear hold's coverage ends at the last torque
+    sample, the held one's a torque period later), only integrates its torque.  The same
+    numbers as a fresh build, bit for bit.  Every run's equations stay in
+    ``shared['eqs'][hold]`` as ``(tg, idx, Equations)`` (the hold comparison's windows).
+    """
+    idx = np.flatnonzero(mask)
+    reg = shared.get('regressors')
+    key = (method, len(tg))
+    reg = reg[:len(idx)] if (reg is not None and shared.get('key') == key
+                             and is_prefix(idx, shared['idx'])) else None
+    eq = build_equations(method, tg, w, ts, tau, mask, breaks, hold, gyro_var, None, reg)
+    if reg is None:
+        shared.update(key=key, idx=idx, regressors=eq.V[:, :10].copy())
+    shared.setdefault('eqs', {})[hold] = (tg, idx, eq)
+    return eq

@@ -97,16 +97,20 @@ def _events(tg: np.ndarray, s: np.ndarray, t_end: float
     a flat index ``(N,)`` into ``(M, K)``.
     """
     M = len(s)
-    j = np.searchsorted(s, tg, side='right') - 1
-    first = np.searchsorted(j, np.arange(M), side='left')
+    j = np.searchsorted(s, tg, side='right') - 1          # sorted, >= 0
+    counts = np.bincount(j, minlength=M)
+    first = np.zeros(M, dtype=np.intp)
+    np.cumsum(counts[:-1], out=first[1:])                  # each interval's first sample
     col = np.arange(len(tg)) - first[j]
-    K = int(np.bincount(j, minlength=M).max())
+    K = int(counts.max())
     h = np.append(s[1:], t_end) - s
+    slot = j * K + col
     U = np.ones((M, K))
-    U[j, col] = (tg - s[j]) / np.where(h[j] > 0, h[j], 1.0)
+    hj = h[j]
+    U.reshape(-1)[slot] = (tg - s[j]) / np.where(hj > 0, hj, 1.0)
     valid = np.zeros((M, K), dtype=bool)
-    valid[j, col] = True
-    return h, _hermite(U, h), valid, j * K + col
+    valid.reshape(-1)[slot] = True
+    return h, _hermite(U, h), valid, slot
 
 
 def _hermite(U: np.ndarray, h: np.ndarray) -> np.ndarray:
@@ -379,6 +383,8 @@ class _Linear:
     """
 
     Xc: np.ndarray
+    X6: np.ndarray             # (M, 3 + 3 K, 6) Xc's path columns, contiguous
+    Xf: np.ndarray             # (M (3 + 3 K), npar) Xc's parameter columns, contiguous
     Pinv: np.ndarray           # (M, 3, 3) inverse torque-noise input matrices
     Zpsi: np.ndarray           # (M, K, 3, 3) torque-noise input at the gyro slots
     cb: np.ndarray             # banded Cholesky factor of the path block
@@ -423,13 +429,13 @@ def _full_pass(pb: _Problem, beta: np.ndarray, d: np.ndarray, r: np.ndarray
     Zk2[..., 3:6] = 0.0          # the slot's nu_j columns are all in Zpsi R (eliminated nu_j)
     Xc = np.empty((M, 3 + 3 * K, 6 + npar))                 # written in place, no copies
     np.multiply(R, pb.swt[:, None], out=Xc[:, :3])
-    rows = Xc[:, 3:]
-    np.matmul(Zpsi, R, out=rows)
+    rows = Zpsi @ R                        # contiguous, then one strided write into Xc
     rows += Zk2
-    rows *= pb.swg.reshape(M, 3 * K, 1)
+    np.multiply(rows, pb.swg.reshape(M, 3 * K, 1), out=Xc[:, 3:])
     Zpsi = Zpsi.reshape(M, K, 3, 3)
-    Gm = Xc[..., :6].transpose(0, 2, 1) @ Xc                   # (M, 6, 6 + npar)
-    Xf = Xc[..., 6:].reshape(-1, npar)
+    X6 = np.ascontiguousarray(Xc[..., :6])
+    Gm = X6.transpose(0, 2, 1) @ Xc                             # (M, 6, 6 + npar)
+    Xf = Xc[..., 6:].reshape(-1, npar)                          # (a copy: contiguous)
     D = np.zeros((M + 1, 3, 3))
     D[:-1] += Gm[:, :3, :3]
     D[1:] += Gm[:, 3:6, 3:6]
@@ -437,13 +443,17 @@ def _full_pass(pb: _Problem, beta: np.ndarray, d: np.ndarray, r: np.ndarray
     Dp[:-1] += Gm[:, :3, 6:]
     Dp[1:] += Gm[:, 3:6, 6:]
     try:
-        cb = linalg.cholesky_banded(_banded(D, Gm[:, :3, 3:6]), lower=False)
+        cb = linalg.cholesky_banded(_banded(D, Gm[:, :3, 3:6]), lower=False,
+                                    check_finite=False)
+        if not np.all(np.isfinite(cb)):
+            raise linalg.LinAlgError
     except linalg.LinAlgError:
         raise _PassError('the path normal equations are not positive definite') from None
     Dpf = Dp.reshape(3 * (M + 1), npar)
-    X1 = linalg.cho_solve_banded((cb, False), Dpf)
+    X1 = linalg.cho_solve_banded((cb, False), Dpf, check_finite=False)
     F = Xf.T @ Xf - Dpf.T @ X1
-    lin = _Linear(Xc, Pinv, Zpsi, cb, Dpf, X1, _inverse_information(0.5 * (F + F.T)))
+    lin = _Linear(Xc, X6, Xf, Pinv, Zpsi, cb, Dpf, X1,
+                  _inverse_information(0.5 * (F + F.T)))
     dp, delta, excess = _step(pb, lin, wk, w1, r)
     return dp, delta, excess, lin
 
@@ -467,17 +477,18 @@ def _step(pb: _Problem, lin: _Linear, wk: np.ndarray, w1: np.ndarray, r: np.ndar
     from scipy import linalg  # lazily: 0.14 s of start-up the integral path never needs
     M = pb.M
     pz = (lin.Pinv @ (w1 - r[1:])[..., None])[..., 0]           # prior targets (M, 3)
-    gz = np.einsum('mkij,mj->mki', lin.Zpsi, pz)                 # gyro targets (M, K, 3)
+    K = lin.Zpsi.shape[1]
+    gz = (lin.Zpsi.reshape(M, 3 * K, 3) @ pz[..., None]).reshape(M, K, 3)   # gyro targets
     gz += pb.Y
     gz -= wk
     Xz = np.concatenate([pz * pb.swt, (gz * pb.swg).reshape(M, -1)], axis=1)
-    Gz = np.einsum('mr,mrc->mc', Xz, lin.Xc[..., :6])             # (M, 6)
+    Gz = (Xz[:, None] @ lin.X6)[:, 0]                             # (M, 6)
     bd = np.zeros((M + 1, 3))
     bd[:-1] += Gz[:, :3]
     bd[1:] += Gz[:, 3:6]
     bd = bd.ravel()
-    bp = Xz.ravel() @ lin.Xc[..., 6:].reshape(-1, pb.npar)
-    X0 = linalg.cho_solve_banded((lin.cb, False), bd)
+    bp = Xz.ravel() @ lin.Xf
+    X0 = linalg.cho_solve_banded((lin.cb, False), bd, check_finite=False)
     dp = lin.cov @ (bp - lin.Dpf.T @ X0)
     delta = X0 - lin.X1 @ dp
     rss = float(np.sum(Xz * Xz)) - float(bd @ delta) - float(bp @ dp)

@@ -67,16 +67,25 @@ def noise_std_from_differences(x: np.ndarray, orders: tuple[int, ...] = (2, 3, 4
     """
     x = np.asarray(x, dtype=float)[:max_samples]
     best = np.full(x.shape[1], np.inf)
-    d = x
+    d = np.ascontiguousarray(x.T)            # one row per column: contiguous partitions
     for k in range(1, max(orders, default=0) + 1):
-        if len(d) < 2:
+        if d.shape[1] < 2:
             break
-        d = d[1:] - d[:-1]                            # the k-th difference, as np.diff(x, k)
+        d = d[:, 1:] - d[:, :-1]                      # the k-th difference, as np.diff(x, k)
         if k in orders and len(x) >= k + 2:
-            mad = median_rows(np.abs(d - median_rows(d)[None]))
+            mad = _row_medians(np.abs(d - _row_medians(d)[:, None]))
             best = np.minimum(best, 1.4826 * mad / math.sqrt(math.comb(2 * k, k)))
     best[~np.isfinite(best)] = 0.0
     return best
+
+
+def _row_medians(d: np.ndarray) -> np.ndarray:
+    """:func:`median_rows` of ``d.T`` for a C-contiguous ``d`` (c, n): the same numbers, the
+    partition along contiguous rows (a tenth less time than along the columns of ``d.T``)."""
+    n = d.shape[1]
+    lo, hi = (n - 1) // 2, n // 2
+    p = np.partition(d, [lo, hi], axis=1)            # (a kth list, as median_rows: ties)
+    return p[:, lo] if hi == lo else (p[:, lo] + p[:, hi]) / 2.0
 
 
 class StreamingNoise:
