@@ -16,10 +16,12 @@ import pytest
 from inertia_ros.core import excitation as ex
 from inertia_ros.core.excitation.design import information_at, simulated_peak_rate
 from inertia_ros.core.excitation.replan import (
+    Continuation,
     Replan,
     Replanner,
     ReplanSettings,
     design_next,
+    predict_omega,
     prior_from_estimate,
     schedule_torque,
 )
@@ -127,3 +129,24 @@ def test_replanner_bookkeeping():
 def test_bad_settings_are_refused(kw):
     with pytest.raises(ValueError, match='replan'):
         ReplanSettings(**kw)
+
+
+def test_the_rate_at_the_start_of_a_new_profile_is_predicted():
+    """Constant torque on a spherical body from rest: ``omega = tau t / I`` (1e-9); the
+    continuation reads the running schedule from its offset on."""
+    at = lambda t: np.array([0.1, -0.2, 0.3]) * (t >= 2.0)          # noqa: E731
+    w = predict_omega(Continuation(at, 2.0), 2.0 * np.eye(3), np.zeros(3), 1.5, 50.0)
+    np.testing.assert_allclose(w, [0.075, -0.15, 0.225], atol=1e-9)
+    assert np.all(Continuation(at, 0.0).torque(np.array([0.0, 1.9])) == 0.0)
+
+
+def test_a_replan_that_ends_after_its_start_time_is_not_used():
+    book = Replanner(ReplanSettings(period=5.0))
+    t_swap = book.started(5.0)
+    assert t_swap == pytest.approx(6.0)                    # the first lead: 1 s
+    new = Replan(ex.multisine(0.1, 1, 0.0, True), {'f0': 0.1}, 0.008, 0.02, 'new profile')
+    assert not book.finished(6.5, new)                     # it took 1.5 s: late
+    assert book.late == 1 and book.switches == 0 and 'late' in book.last_reason
+    assert book.lead == pytest.approx(2.25)                # 1.5 x its computing time
+    assert book.started(10.0) == pytest.approx(12.25)
+    assert book.finished(11.0, new) and book.switches == 1

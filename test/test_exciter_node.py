@@ -329,8 +329,8 @@ def test_closed_loop_player_applies_valid_commands_only(exciter_node, tmp_path):
 
 def test_node_replans_from_the_estimate_and_swaps_its_schedule(exciter_node):
     """With an estimate at hand and one re-plan period of excitation behind, a re-plan runs
-    (in a thread) and its profile replaces the scene's; a re-plan is never started after a
-    stop."""
+    (in a thread) and its profile replaces the scene's at the time it was designed for (the
+    rate predicted then); a re-plan is never started after a stop."""
     from geometry_msgs.msg import QuaternionStamped, Vector3Stamped
 
     from inertia_ros.nodes.messages import covariance_msg
@@ -347,13 +347,15 @@ def test_node_replans_from_the_estimate_and_swaps_its_schedule(exciter_node):
     node._on_covariance(covariance_msg(np.diag([0.9 ** 2, 1.0, 1.2 ** 2, 0, 0, 0]) * 1e-4))
     book = node._replan[0]
     end = time.monotonic() + 30.0
-    while book.replans == 0 and time.monotonic() < end:
+    while node.schedule is old and time.monotonic() < end:
         node.rules.on_gyro(node.now_s(), np.zeros(3))
         node.rules.on_sigma(node.now_s(), 0.01)
         node._on_tick()
         time.sleep(0.02)
     assert book.replans == 1 and book.failures == 0, book.last_reason
     assert book.switches == 1 and node.schedule is not old
+    assert node._sched_t0 == pytest.approx(book.t_swap)     # started when designed for
+    assert book.t_swap - book.t_last >= 0.5
     assert node.schedule.span == pytest.approx(4.0)
     assert np.abs(node.schedule.torque).max() <= 0.1 + 1e-12
     assert book.design['f0'] > 0

@@ -46,10 +46,12 @@ from std_msgs.msg import Float64MultiArray
 
 from inertia_ros.core.excitation.inputs import Limits, Target
 from inertia_ros.core.excitation.replan import (
+    Continuation,
     Replan,
     Replanner,
     ReplanSettings,
     design_next,
+    predict_omega,
     schedule_torque,
 )
 from inertia_ros.core.exciter_rules import (
@@ -66,6 +68,8 @@ NODE_NAME = 'exciter'
 DIAGNOSTIC_TASK = 'excitation'
 #: Share of max_rate a re-planned profile may reach (the rules hold zero at max_rate).
 REPLAN_RATE_SHARE = 0.85
+#: Share of max_rate the running profile may reach on the estimate and still be kept.
+KEEP_RATE_SHARE = 0.95
 _LEVELS = {'waiting': DiagnosticStatus.OK, 'exciting': DiagnosticStatus.OK,
            'holding': DiagnosticStatus.WARN}
 
@@ -127,6 +131,7 @@ class ExciterNode(Node):
         self._sched_t0: float | None = None      # start of the running schedule (None: t_start)
         self._replan_lock = threading.Lock()
         self._replan_out: tuple[float, Replan | None, str] | None = None
+        self._pending: tuple[float, TorqueSchedule] | None = None   # (start, schedule)
         self._moments: np.ndarray | None = None
         self._axes: np.ndarray | None = None
         self._resets: int | None = None
@@ -236,31 +241,40 @@ class ExciterNode(Node):
     # ------------------------------------------------------------------ re-planning
     def _replan_step(self, now: float) -> None:
         """Start a re-plan from the current estimate when one is due (in a thread: the
-        commands go on meanwhile); swap the schedule when a finished one says so."""
+        commands go on meanwhile); a new profile starts at the time it was designed for."""
         if self._replan is None:
             return
         book, lim, target, seed = self._replan
         with self._replan_lock:
             done, self._replan_out = self._replan_out, None
         if done is not None:
-            t_new, outcome, error = done
-            if book.finished(now, outcome, error) and not self.rules.stopped:
-                t, torque = schedule_torque(outcome.profile, book.settings.horizon,
+            if book.finished(now, done[1], done[2]) and not self.rules.stopped:
+                t, torque = schedule_torque(done[1].profile, book.settings.horizon,
                                             1.0 / self.limits.command_period, seed)
-                self.schedule, self._sched_t0 = TorqueSchedule(t, torque), now
+                self._pending = (book.t_swap, TorqueSchedule(t, torque))
             self.get_logger().info(f're-plan {book.replans}: {book.last_reason}')
+        if self._pending is not None and now >= self._pending[0]:
+            self._sched_t0, self.schedule = self._pending
+            self._pending = None
         have = self._cov is not None and self._moments is not None and self._axes is not None
-        if not book.due(now, self.rules.t_start, have, self.rules.stopped):
+        if self._pending is not None or not book.due(now, self.rules.t_start, have,
+                                                     self.rules.stopped):
             return
-        book.started(now)
+        t_swap = book.started(now)
         inertia = self.rules.inertia.copy()
         cov, omega = self._cov.copy(), self.rules.m.omega.copy()
+        t0 = self.rules.t_start if self._sched_t0 is None else self._sched_t0
+        at, offset = self.schedule.at, now - t0
         model = 'diagonal' if not np.any(cov[3:, :]) and not np.any(cov[:, 3:]) else 'full'
 
         def work() -> None:
             try:
-                out = (now, design_next(inertia, cov, omega, lim, target, model,
-                                        book.settings, book.design, seed), '')
+                w = predict_omega(Continuation(at, offset), inertia, omega, t_swap - now,
+                                  lim.torque_rate)
+                out = (now, design_next(inertia, cov, w, lim, target, model, book.settings,
+                                        book.design, seed,
+                                        Continuation(at, offset + t_swap - now),
+                                        self.limits.max_rate * KEEP_RATE_SHARE), '')
             except (ValueError, np.linalg.LinAlgError) as exc:
                 out = (now, None, str(exc).splitlines()[0] if str(exc) else repr(exc))
             with self._replan_lock:

@@ -23,6 +23,7 @@ from typing import Any
 
 import numpy as np
 
+from ..simulation import integrate_rigid_body
 from ..tensor import matrix_to_theta
 from .design import (
     _DIAG_KEEP,
@@ -30,19 +31,22 @@ from .design import (
     _grid,
     enforce_limits,
     information_at,
+    peak_rate,
     targeted_rel_std,
     theta_covariance,
 )
 from .inputs import Limits, Prior, Profile, Target, make_prior
 from .profiles import _from, corner_frequency
 
-__all__ = ['Replan', 'ReplanSettings', 'Replanner', 'design_next', 'prior_from_estimate',
-           'schedule_torque']
+__all__ = ['Continuation', 'Replan', 'ReplanSettings', 'Replanner', 'design_next',
+           'predict_omega', 'prior_from_estimate', 'schedule_torque']
 
 #: Base frequencies tried, as multiples of the estimate's corner frequency.
 F0_FACTORS = (0.5, 0.71, 1.0, 1.41, 2.0)
 #: Layouts tried: (spread, tones per axis, decay, stagger) as in :func:`.profiles.multisine`.
-LAYOUTS = ((None, 1, 0.0, True), (0.15, 1, 0.0, True), (None, 3, 1.0, True))
+LAYOUTS = ((None, 1, 0.0, True), (0.15, 1, 0.0, True), (0.3, 1, 0.0, False))
+#: Shortest lead [s] between the start of a re-plan and the start of its profile.
+MIN_LEAD = 0.5
 #: Largest share of ``max_rate`` taken as the initial rate of a re-plan.
 OMEGA0_SHARE = 0.9
 
@@ -64,7 +68,7 @@ class ReplanSettings:
 
     period: float = 5.0
     horizon: float = 10.0
-    min_gain: float = 0.05
+    min_gain: float = 0.1
 
     def __post_init__(self) -> None:
         for name in ('period', 'horizon'):
@@ -156,7 +160,8 @@ def _candidates(prior: Prior, lim: Limits, horizon: float, rate: float,
 
 def design_next(inertia: np.ndarray, cov: np.ndarray, omega: np.ndarray, lim: Limits,
                 target: Target, model: str, settings: ReplanSettings,
-                current: dict[str, Any] | None = None, seed: int = 0) -> Replan:
+                current: dict[str, Any] | None = None, seed: int = 0,
+                running: Any = None, keep_rate: float | None = None) -> Replan:
     """Design the next ``settings.horizon`` seconds from the current estimate.
 
     Parameters
@@ -180,6 +185,14 @@ def design_next(inertia: np.ndarray, cov: np.ndarray, omega: np.ndarray, lim: Li
         it by ``settings.min_gain`` to replace it.
     seed : int
         Seed of the profile draws.
+    running : object, optional
+        The running profile's continuation from now: ``running.torque(t, duration, seed)``
+        gives the torque (M, 3) [N m] it will command at ``t`` (M,) [s] from now.  It is
+        scored as it is (not rescaled) and is the profile to beat; when its simulated body
+        rate from ``omega`` would exceed ``keep_rate`` it cannot be kept.  Without it, the
+        running design is ``current`` limited anew.
+    keep_rate : float, optional
+        Body rate [rad/s] the running profile may reach (default ``lim.max_rate``).
 
     Returns
     -------
@@ -209,14 +222,69 @@ def design_next(inertia: np.ndarray, cov: np.ndarray, omega: np.ndarray, lim: Li
         F = information_at(prof, prior.inertia, lim, h, [h], rate, seed)[0]
         scored.append((_criterion(F + past, prior.inertia, target, model), i, par, prof))
     best = min(scored, key=lambda s: (s[0], s[1]))
-    kept = scored[0][0] if current else math.inf
-    if current and not best[0] < (1.0 - settings.min_gain) * kept:
+    kept, why = _keep_score(running, prior, lim, target, model, h, rate, seed, past,
+                            lim.max_rate if keep_rate is None else keep_rate)
+    if running is None and current:
+        kept, why = scored[0][0], ''
+    if math.isfinite(kept) and not best[0] < (1.0 - settings.min_gain) * kept:
         return Replan(None, {}, kept, now, f'kept the running profile (predicted '
                       f'{100 * kept:.3g} % in {h:g} s; best new {100 * best[0]:.3g} %)')
     par = best[2]
     return Replan(best[3], dict(par), best[0], now,
                   f"new profile f0 {par['f0']:.3g} Hz, {par['n_per_axis']}/axis: predicted "
-                  f'{100 * best[0]:.3g} % in {h:g} s (now {100 * now:.3g} %)')
+                  f'{100 * best[0]:.3g} % in {h:g} s (now {100 * now:.3g} %){why}')
+
+
+def _keep_score(running: Any, prior: Prior, lim: Limits, target: Target, model: str,
+                h: float, rate: float, seed: int, past: np.ndarray, keep_rate: float
+                ) -> tuple[float, str]:
+    """The running continuation's predicted criterion after ``h`` s (inf when there is none
+    or it would cross ``keep_rate``) and a note for the reason line."""
+    if running is None:
+        return math.inf, ''
+    pk = peak_rate(running, [prior.inertia], lim, h, lim.torque_rate, seed)
+    F = information_at(running, prior.inertia, lim, h, [h], rate, seed)[0]
+    crit = _criterion(F + past, prior.inertia, target, model)
+    if pk > keep_rate:
+        return math.inf, (f'; the running one would reach {pk:.3g} rad/s on the estimate '
+                          f'(> {keep_rate:.3g})')
+    return crit, f'; the running one {100 * crit:.3g} %'
+
+
+class Continuation:
+    """A running torque schedule from a point on: ``torque(t, duration, seed)`` (the
+    :class:`Profile` call) gives ``at(offset + t_i)`` for each ``t_i``.
+
+    Parameters
+    ----------
+    at : callable
+        ``at(t)`` -> torque (3,) [N m] of the running schedule at its time ``t`` [s].
+    offset : float
+        Schedule time [s] of "now".
+    """
+
+    def __init__(self, at: Any, offset: float) -> None:
+        self._at, self.offset = at, float(offset)
+
+    def torque(self, t: np.ndarray, duration: float = 0.0, seed: int = 0) -> np.ndarray:
+        """Torque (M, 3) [N m] at ``t`` (M,) [s] from now (``duration``, ``seed`` unused)."""
+        return np.array([self._at(self.offset + float(x)) for x in np.asarray(t)]
+                        ).reshape(-1, 3)
+
+
+def predict_omega(running: Any, inertia: np.ndarray, omega: np.ndarray, lead: float,
+                  rate: float) -> np.ndarray:
+    """Body rate (3,) [rad/s] ``lead`` s from now under the running continuation
+    (:class:`Continuation`) from ``omega`` (3,) [rad/s], on the tensor ``inertia`` (3, 3)
+    [kg m^2], torque held at ``rate`` [Hz]."""
+    t = _grid(lead, rate)
+    if t[-1] < lead - 1e-9:
+        t = np.append(t, lead)
+    if t.size < 2:
+        return np.asarray(omega, dtype=float).copy()
+    w, _ = integrate_rigid_body(t, running.torque(t[:-1]), inertia,
+                                np.asarray(omega, dtype=float))
+    return w[-1]
 
 
 def schedule_torque(profile: Profile, duration: float, command_rate: float, seed: int = 0
@@ -248,6 +316,9 @@ class Replanner:
     last_reason: str = ''
     predicted: float = math.nan
     failures: int = 0
+    late: int = 0
+    lead: float = 1.0
+    t_swap: float = math.inf
     history: list[tuple[float, str]] = field(default_factory=list)
 
     def due(self, t: float, t_start: float | None, have_estimate: bool, stopped: bool) -> bool:
@@ -258,15 +329,29 @@ class Replanner:
         since = t_start if self.t_last is None else self.t_last
         return t - since >= self.settings.period
 
-    def started(self, t: float) -> None:
-        """A re-plan started at ``t``."""
+    def started(self, t: float) -> float:
+        """A re-plan started at ``t`` [s]; returns the time [s] at which its profile is to
+        start (``t + lead``: the design starts from the rate predicted for then)."""
         self.busy, self.t_last = True, float(t)
+        self.t_swap = float(t) + self.lead
+        return self.t_swap
 
     def finished(self, t: float, outcome: Replan | None, error: str = '') -> bool:
         """A re-plan ended at ``t`` with ``outcome`` (or failed with ``error``); True when the
-        running profile is to be replaced by ``outcome.profile``."""
+        running profile is to be replaced by ``outcome.profile`` at :attr:`t_swap` (False
+        when the re-plan ended after that: it came from a rate that is gone).  The lead of
+        the next re-plan is 1.5 times this one's computing time (at least ``MIN_LEAD``)."""
         self.busy = False
         self.replans += 1
+        took = float(t) - (self.t_last if self.t_last is not None else float(t))
+        late = float(t) > self.t_swap
+        self.lead = min(max(MIN_LEAD, 1.5 * took), self.settings.period)
+        if outcome is not None and outcome.profile is not None and late:
+            self.late += 1
+            self.last_reason = (f'late: took {took:.3g} s, past its start (lead now '
+                                f'{self.lead:.3g} s)')
+            self.history.append((float(t), self.last_reason))
+            return False
         if outcome is None:
             self.failures += 1
             self.last_reason = f're-plan failed: {error}'
@@ -284,6 +369,6 @@ class Replanner:
     def values(self) -> dict[str, str]:
         """Key/values for /diagnostics."""
         return {'replans': str(self.replans), 'replan_switches': str(self.switches),
-                'replan_failures': str(self.failures),
+                'replan_failures': str(self.failures), 'replan_late': str(self.late),
                 'replan_predicted_rel_sigma': f'{self.predicted:.6g}',
                 'replan_last': self.last_reason}
