@@ -57,6 +57,8 @@ def _args() -> argparse.Namespace:
     p.add_argument('--max-rate', type=float, default=0.15)
     p.add_argument('--max-slew', type=float, default=0.5)
     p.add_argument('--target', type=float, default=0.002)
+    p.add_argument('--truth-scale', type=float, default=1.0,
+                   help='the true body is this times the draw (a wrong prior: 2 = twice)')
     p.add_argument('--timeout', type=float, default=60.0)
     p.add_argument('--replan-period', type=float, default=5.0)
     p.add_argument('--estimator-param', action='append', default=[],
@@ -81,7 +83,8 @@ def _scenes(a: argparse.Namespace, tmp: Path) -> tuple[Path, list[np.ndarray], d
     path = tmp / 'planned.yaml'
     path.write_text(yaml.safe_dump(d, sort_keys=False))
     seeds = range(a.first_seed, a.first_seed + a.seeds)
-    bodies = [sc.inertia if s == 0 else prior.bodies(2, 1000 + s)[1] for s in seeds]
+    bodies = [a.truth_scale * (sc.inertia if s == 0 else prior.bodies(2, 1000 + s)[1])
+              for s in seeds]
     info = {'predicted_time_to_target': pl.time_to_target, 'model': pl.model,
             'design': pl.design, 'duration': d['duration']}
     return path, bodies, info
