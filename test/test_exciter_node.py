@@ -362,3 +362,70 @@ def test_node_replans_from_the_estimate_and_swaps_its_schedule(exciter_node):
     node.rules.stop('timeout')
     node._on_tick()
     assert not book.due(node.now_s() + 100.0, node.rules.t_start, True, node.rules.stopped)
+
+
+@pytest.mark.slow
+def test_closed_loop_replans_for_a_body_twice_the_prior(listener, tmp_path):
+    """Three processes; the simulated body is twice the exciter's prior (the scene's profile
+    at 0.05 N m uses a fraction of the rate limit on it): the exciter re-plans from the live
+    estimate, switches to a new profile at least once, stops at the target, and keeps the
+    torque within max_torque and the body rate within 1.05 max_rate."""
+    import yaml
+
+    from inertia_ros.cli.demo import stop_processes
+
+    exe, rec = listener
+    for v in rec.values():
+        v.clear()
+    scene = yaml.safe_load((SCENES / 'default.yaml').read_text())
+    scene['torque'][0]['amplitude'] = 0.05
+    prior = tmp_path / 'prior.yaml'
+    prior.write_text(yaml.safe_dump(scene))
+    scene['body']['inertia'] = [2.0 * v for v in scene['body']['inertia']]
+    truth = tmp_path / 'truth.yaml'
+    truth.write_text(yaml.safe_dump(scene))
+    max_torque, max_rate = 0.1, 0.15
+    py = sys.executable
+    cmds = {
+        'est': [py, '-m', 'inertia_ros.inertia_estimator_node', '--ros-args',
+                '--params-file', str(ROOT / 'config' / 'inertia_estimator.yaml')],
+        'exc': [py, '-m', 'inertia_ros.exciter_node', '--ros-args', '-p', f'scene:={prior}',
+                '-p', f'max_torque:={max_torque}', '-p', 'max_slew:=0.5',
+                '-p', f'max_rate:={max_rate}', '-p', 'target_rel_std:=0.003',
+                '-p', 'timeout:=50.0', '-p', 'replan_period:=2.0'],
+        'sim': [py, '-m', 'inertia_ros.scene_simulator_node', '--ros-args',
+                '-p', f'scene:={truth}', '-p', 'command_topic:=torque_command',
+                '-p', 'wait_for_subscribers:=1'],
+    }
+    procs, logs = [], []
+    try:
+        for name, cmd in cmds.items():
+            logs.append(open(tmp_path / f'{name}.log', 'w'))
+            procs.append(subprocess.Popen(cmd, env=_env(), stdout=logs[-1],
+                                          stderr=subprocess.STDOUT))
+        end, stopped_at = time.monotonic() + 70.0, None
+        while time.monotonic() < end:
+            exe.spin_once(timeout_sec=0.05)
+            if stopped_at is None and any(s.values[0].value == 'stopped'
+                                          for s in _exciter_statuses(rec)):
+                stopped_at = time.monotonic()
+            if stopped_at is not None and time.monotonic() - stopped_at > 2.0:
+                break
+    finally:
+        stop_processes(procs)
+        for log in logs:
+            log.close()
+    text = ''.join((tmp_path / f'{n}.log').read_text()[-2500:] for n in cmds)
+    assert stopped_at is not None, 'the exciter never stopped\n' + text
+    final = [s for s in _exciter_statuses(rec) if s.values[0].value == 'stopped'][-1]
+    values = {kv.key: kv.value for kv in final.values}
+    assert values['stop_reason'] == 'target_reached', (values, text)
+    assert int(values['replan_switches']) >= 1, (values, text)
+    torque = np.array([[m.wrench.torque.x, m.wrench.torque.y, m.wrench.torque.z]
+                       for m in rec['cmd']])
+    assert np.abs(torque).max() <= max_torque + 1e-12
+    assert np.all(torque[-1] == 0.0)
+    omega = np.array([[m.angular_velocity.x, m.angular_velocity.y, m.angular_velocity.z]
+                      for m in rec['imu']])
+    rate = np.convolve(np.linalg.norm(omega, axis=1), np.ones(9) / 9, mode='valid')
+    assert rate.max() <= 1.05 * max_rate
