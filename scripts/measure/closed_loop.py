@@ -63,6 +63,9 @@ def _args() -> argparse.Namespace:
     p.add_argument('--replan-period', type=float, default=5.0)
     p.add_argument('--estimator-param', action='append', default=[],
                    help="extra estimator parameter 'name:=value' (repeatable)")
+    p.add_argument('--sim-rate', type=float, default=1.0,
+                   help='simulator speed (< 1: slower than real time, with /clock and '
+                        'use_sim_time in the estimator and the exciter: slack on a busy machine)')
     p.add_argument('--out', default='')
     return p.parse_args()
 
@@ -129,18 +132,22 @@ class Listener:
 def _commands(a: argparse.Namespace, planned: Path, truth_scene: Path, seed: int
               ) -> dict[str, list[str]]:
     py = sys.executable
+    clock = [] if a.sim_rate == 1.0 else ['-p', 'use_sim_time:=true']
+    sim_clock = [] if a.sim_rate == 1.0 else ['-p', f'rate:={a.sim_rate}',
+                                               '-p', 'publish_clock:=true']
     return {
         'est': [py, '-m', 'inertia_ros.inertia_estimator_node', '--ros-args',
                 '--params-file', str(ROOT / 'config' / 'inertia_estimator.yaml')]
-        + [x for kv in a.estimator_param for x in ('-p', kv)],
+        + [x for kv in a.estimator_param for x in ('-p', kv)] + clock,
         'exc': [py, '-m', 'inertia_ros.exciter_node', '--ros-args',
                 '-p', f'scene:={planned}', '-p', f'max_torque:={a.max_torque}',
                 '-p', f'max_slew:={a.max_slew}', '-p', f'max_rate:={a.max_rate}',
                 '-p', f'target_rel_std:={a.target}', '-p', f'timeout:={a.timeout}',
-                '-p', f'replan_period:={a.replan_period}', '-p', 'exit_on_stop:=true'],
+                '-p', f'replan_period:={a.replan_period}', '-p', 'exit_on_stop:=true'] + clock,
         'sim': [py, '-m', 'inertia_ros.scene_simulator_node', '--ros-args',
                 '-p', f'scene:={truth_scene}', '-p', f'seed:={seed + 1}',
-                '-p', 'command_topic:=torque_command', '-p', 'wait_for_subscribers:=1'],
+                '-p', 'command_topic:=torque_command', '-p', 'wait_for_subscribers:=1']
+        + sim_clock,
     }
 
 
@@ -201,7 +208,7 @@ def run_one(a: argparse.Namespace, planned: Path, truth: np.ndarray, seed: int, 
             logs.append(open(tmp / f'{name}_{seed}.log', 'w'))
             procs.append(subprocess.Popen(cmd, env=env, stdout=logs[-1],
                                           stderr=subprocess.STDOUT))
-        end = t0 + a.timeout + 40.0
+        end = t0 + a.timeout / a.sim_rate + 40.0
         while time.monotonic() < end:
             lis.exe.spin_once(timeout_sec=0.05)
             t_stop = lis.stopped_at()
