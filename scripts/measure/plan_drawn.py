@@ -7,7 +7,8 @@ plan_vs_standard.py (the scene's sensors, its profile's peak torque per axis, 1.
 simulated peak rate; target = the principal sigma the scene's own profile reaches).  One plan
 serves every seed.  Per seed the true body is a draw from the prior, and on it:
 
-* the time to target of the designed profile and of every standard profile at the same limits
+* the time to target of the designed profile and of the standard profiles at the same limits
+  that come close on the prior value (sines, random and Schroeder multisines)
   (each scaled to the rate limit on the prior bodies, as the plan does), from the Cramer-Rao
   curve on the true body at 60 times (the criterion of a multisine falls unevenly: on the
   plan's 14 times the crossing moves by up to 10 % with the grid);
@@ -29,6 +30,7 @@ from inertia_ros.core.simulation import simulate
 from inertia_ros.io.scene_file import load_scene
 
 FRACTIONS = np.array([0.5, 0.7, 0.85, 1.0, 1.2, 1.5])
+CONTENDERS = ('sines', 'random multisine', 'schroeder multisine')
 
 
 def setup(name: str):
@@ -82,7 +84,9 @@ def main() -> None:
     a = ap.parse_args()
     sc, lim, prior, target = setup(a.scene)
     p = ex.plan(prior, lim, target, n_bodies=3, seed=0)
-    stds = ex.standard_profiles(lim.max_torque)
+    # constant, chirp and PRBS are 3.6x slower or never reach the target on the prior value:
+    # only the three that come close are timed on each body
+    stds = [s for s in ex.standard_profiles(lim.max_torque) if s.name in CONTENDERS]
     t_end = target.max_duration
     print(f'{a.scene}: target {100 * target.rel_std:.3g} %, model {p.model}, predicted '
           f'{p.time_to_target:.1f} s on the prior value', flush=True)
