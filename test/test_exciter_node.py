@@ -429,3 +429,15 @@ def test_closed_loop_replans_for_a_body_twice_the_prior(listener, tmp_path):
                       for m in rec['imu']])
     rate = np.convolve(np.linalg.norm(omega, axis=1), np.ones(9) / 9, mode='valid')
     assert rate.max() <= 1.05 * max_rate
+
+
+def test_replan_period_zero_commands_the_scene_profile_throughout(exciter_node):
+    """``replan_period`` 0: no re-planner, the scene's schedule stays, no re-plan keys."""
+    node = exciter_node(replan_period=0.0)
+    old = node.schedule
+    node.rules.on_gyro(node.now_s(), np.zeros(3))
+    node._cov = np.eye(6) * 1e-6
+    node._moments, node._axes = np.array([0.9, 1.0, 1.2]), np.eye(3)
+    for _ in range(3):
+        node._on_tick()
+    assert node._replan is None and node.schedule is old and node.commands == 3
