@@ -325,3 +325,119 @@ def test_closed_loop_player_applies_valid_commands_only(exciter_node, tmp_path):
         player.stop()
     finally:
         node.destroy_node()
+
+
+def test_node_replans_from_the_estimate_and_swaps_its_schedule(exciter_node):
+    """With an estimate at hand and one re-plan period of excitation behind, a re-plan runs
+    (in a thread) and its profile replaces the scene's at the time it was designed for (the
+    rate predicted then); a re-plan is never started after a stop."""
+    from geometry_msgs.msg import QuaternionStamped, Vector3Stamped
+
+    from inertia_ros.nodes.messages import covariance_msg
+
+    node = exciter_node(target_rel_std=0.001, replan_period=0.5, replan_horizon=4.0,
+                        max_rate=0.3)
+    old = node.schedule
+    node.rules.on_gyro(node.now_s(), np.zeros(3))
+    node._on_tick()
+    node._on_moments(Vector3Stamped(vector=messages_vec(0.9, 1.0, 1.2)))
+    q = QuaternionStamped()
+    q.quaternion.w = 1.0
+    node._on_axes(q)
+    node._on_covariance(covariance_msg(np.diag([0.9 ** 2, 1.0, 1.2 ** 2, 0, 0, 0]) * 1e-4))
+    book = node._replan[0]
+    end = time.monotonic() + 30.0
+    while node.schedule is old and time.monotonic() < end:
+        node.rules.on_gyro(node.now_s(), np.zeros(3))
+        node.rules.on_sigma(node.now_s(), 0.01)
+        node._on_tick()
+        time.sleep(0.02)
+    assert book.replans == 1 and book.failures == 0, book.last_reason
+    assert book.switches == 1 and node.schedule is not old
+    assert node._sched_t0 == pytest.approx(book.t_swap)     # started when designed for
+    assert book.t_swap - book.t_last >= 0.5
+    assert node.schedule.span == pytest.approx(4.0)
+    assert np.abs(node.schedule.torque).max() <= 0.1 + 1e-12
+    assert book.design['f0'] > 0
+    node.rules.stop('timeout')
+    node._on_tick()
+    assert not book.due(node.now_s() + 100.0, node.rules.t_start, True, node.rules.stopped)
+
+
+@pytest.mark.slow
+def test_closed_loop_replans_for_a_body_twice_the_prior(listener, tmp_path):
+    """Three processes; the simulated body is twice the exciter's prior (the scene's profile
+    at 0.05 N m uses a fraction of the rate limit on it): the exciter re-plans from the live
+    estimate, switches to a new profile at least once, stops at the target, and keeps the
+    torque within max_torque and the body rate within 1.05 max_rate."""
+    import yaml
+
+    from inertia_ros.cli.demo import stop_processes
+
+    exe, rec = listener
+    for v in rec.values():
+        v.clear()
+    scene = yaml.safe_load((SCENES / 'default.yaml').read_text())
+    scene['torque'][0]['amplitude'] = 0.05
+    prior = tmp_path / 'prior.yaml'
+    prior.write_text(yaml.safe_dump(scene))
+    scene['body']['inertia'] = [2.0 * v for v in scene['body']['inertia']]
+    truth = tmp_path / 'truth.yaml'
+    truth.write_text(yaml.safe_dump(scene))
+    max_torque, max_rate = 0.1, 0.15
+    py = sys.executable
+    cmds = {
+        'est': [py, '-m', 'inertia_ros.inertia_estimator_node', '--ros-args',
+                '--params-file', str(ROOT / 'config' / 'inertia_estimator.yaml')],
+        'exc': [py, '-m', 'inertia_ros.exciter_node', '--ros-args', '-p', f'scene:={prior}',
+                '-p', f'max_torque:={max_torque}', '-p', 'max_slew:=0.5',
+                '-p', f'max_rate:={max_rate}', '-p', 'target_rel_std:=0.003',
+                '-p', 'timeout:=50.0', '-p', 'replan_period:=2.0'],
+        'sim': [py, '-m', 'inertia_ros.scene_simulator_node', '--ros-args',
+                '-p', f'scene:={truth}', '-p', 'command_topic:=torque_command',
+                '-p', 'wait_for_subscribers:=1'],
+    }
+    procs, logs = [], []
+    try:
+        for name, cmd in cmds.items():
+            logs.append(open(tmp_path / f'{name}.log', 'w'))
+            procs.append(subprocess.Popen(cmd, env=_env(), stdout=logs[-1],
+                                          stderr=subprocess.STDOUT))
+        end, stopped_at = time.monotonic() + 70.0, None
+        while time.monotonic() < end:
+            exe.spin_once(timeout_sec=0.05)
+            if stopped_at is None and any(s.values[0].value == 'stopped'
+                                          for s in _exciter_statuses(rec)):
+                stopped_at = time.monotonic()
+            if stopped_at is not None and time.monotonic() - stopped_at > 2.0:
+                break
+    finally:
+        stop_processes(procs)
+        for log in logs:
+            log.close()
+    text = ''.join((tmp_path / f'{n}.log').read_text()[-2500:] for n in cmds)
+    assert stopped_at is not None, 'the exciter never stopped\n' + text
+    final = [s for s in _exciter_statuses(rec) if s.values[0].value == 'stopped'][-1]
+    values = {kv.key: kv.value for kv in final.values}
+    assert values['stop_reason'] == 'target_reached', (values, text)
+    assert int(values['replan_switches']) >= 1, (values, text)
+    torque = np.array([[m.wrench.torque.x, m.wrench.torque.y, m.wrench.torque.z]
+                       for m in rec['cmd']])
+    assert np.abs(torque).max() <= max_torque + 1e-12
+    assert np.all(torque[-1] == 0.0)
+    omega = np.array([[m.angular_velocity.x, m.angular_velocity.y, m.angular_velocity.z]
+                      for m in rec['imu']])
+    rate = np.convolve(np.linalg.norm(omega, axis=1), np.ones(9) / 9, mode='valid')
+    assert rate.max() <= 1.05 * max_rate
+
+
+def test_replan_period_zero_commands_the_scene_profile_throughout(exciter_node):
+    """``replan_period`` 0: no re-planner, the scene's schedule stays, no re-plan keys."""
+    node = exciter_node(replan_period=0.0)
+    old = node.schedule
+    node.rules.on_gyro(node.now_s(), np.zeros(3))
+    node._cov = np.eye(6) * 1e-6
+    node._moments, node._axes = np.array([0.9, 1.0, 1.2]), np.eye(3)
+    for _ in range(3):
+        node._on_tick()
+    assert node._replan is None and node.schedule is old and node.commands == 3

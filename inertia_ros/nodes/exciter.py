@@ -17,6 +17,13 @@ Subscribes
     rate prediction;
     ``/diagnostics``: the estimator's ``resets`` count (an increase stops the exciter).
 
+Re-planning (``replan_period`` > 0): every ``replan_period`` s of excitation, once the
+estimator's tensor and covariance are at hand, a thread designs the next ``replan_horizon`` s
+from the current estimate as the prior
+(:func:`inertia_ros.core.excitation.replan.design_next`); the running profile is replaced
+when the new one is predicted better.  The diagnostics carry ``replans``,
+``replan_switches``, ``replan_failures``, ``replan_predicted_rel_sigma`` and ``replan_last``.
+
 The rules (limits, holds, stops) are :class:`inertia_ros.core.exciter_rules.ExciterRules`;
 the profile is the ``scene``'s torque components on its command grid
 (:class:`~inertia_ros.core.exciter_rules.TorqueSchedule`).  Times are the node clock's: run
@@ -24,6 +31,7 @@ with ``use_sim_time`` when the simulator plays at a rate other than 1 with ``pub
 """
 from __future__ import annotations
 
+import threading
 import time
 from typing import Any
 
@@ -36,6 +44,16 @@ from rclpy.node import Node
 from sensor_msgs.msg import Imu
 from std_msgs.msg import Float64MultiArray
 
+from inertia_ros.core.excitation.inputs import Limits, Target
+from inertia_ros.core.excitation.replan import (
+    Continuation,
+    Replan,
+    Replanner,
+    ReplanSettings,
+    design_next,
+    predict_omega,
+    schedule_torque,
+)
 from inertia_ros.core.exciter_rules import (
     ExciterLimits,
     ExciterRules,
@@ -48,6 +66,10 @@ from inertia_ros.nodes.diagnostics import diagnostic_array, status_name
 
 NODE_NAME = 'exciter'
 DIAGNOSTIC_TASK = 'excitation'
+#: Share of max_rate a re-planned profile may reach (the rules hold zero at max_rate).
+REPLAN_RATE_SHARE = 0.85
+#: Share of max_rate the running profile may reach on the estimate and still be kept.
+KEEP_RATE_SHARE = 0.95
 _LEVELS = {'waiting': DiagnosticStatus.OK, 'exciting': DiagnosticStatus.OK,
            'holding': DiagnosticStatus.WARN}
 
@@ -89,6 +111,7 @@ class ExciterNode(Node):
             rate_margin=cfg['rate_margin'], rate_hysteresis=cfg['rate_hysteresis'],
             stall_window=cfg['stall_window'])
         self.rules = ExciterRules(self.limits, scene.inertia)
+        self._replan = _replan_setup(cfg, scene)
         self.frame_id = cfg['frame_id'] or scene.gyro.frame_id
         self.exit_on_stop = cfg['exit_on_stop']
         est = cfg['estimator'].rstrip('/') or '/inertia_estimator'
@@ -104,6 +127,11 @@ class ExciterNode(Node):
         self.create_subscription(QuaternionStamped, f'{est}/principal_axes',
                                  self._on_axes, 10)
         self.create_subscription(DiagnosticArray, '/diagnostics', self._on_diagnostics, 10)
+        self._cov: np.ndarray | None = None
+        self._sched_t0: float | None = None      # start of the running schedule (None: t_start)
+        self._replan_lock = threading.Lock()
+        self._replan_out: tuple[float, Replan | None, str] | None = None
+        self._pending: tuple[float, TorqueSchedule] | None = None   # (start, schedule)
         self._moments: np.ndarray | None = None
         self._axes: np.ndarray | None = None
         self._resets: int | None = None
@@ -167,6 +195,7 @@ class ExciterNode(Node):
         if self._moments is not None and self._axes is not None:
             rel = float(np.max(principal_rel_std(cov, self._moments, self._axes)))
             self.rel_std = rel
+            self._cov = cov
         self.rules.on_sigma(self.now_s(), rel)
 
     def _on_diagnostics(self, msg: DiagnosticArray) -> None:
@@ -190,7 +219,8 @@ class ExciterNode(Node):
                 self.done = True
             return
         now = self.now_s()
-        t0 = self.rules.t_start
+        self._replan_step(now)
+        t0 = self.rules.t_start if self._sched_t0 is None else self._sched_t0
         cmd = self.rules.step(now, self.schedule.at(0.0 if t0 is None else now - t0))
         if cmd.state != 'waiting':
             self._publish(cmd.torque)
@@ -208,6 +238,50 @@ class ExciterNode(Node):
             self._publish_diagnostics()
         self.state, self.reason = cmd.state, cmd.reason
 
+    # ------------------------------------------------------------------ re-planning
+    def _replan_step(self, now: float) -> None:
+        """Start a re-plan from the current estimate when one is due (in a thread: the
+        commands go on meanwhile); a new profile starts at the time it was designed for."""
+        if self._replan is None:
+            return
+        book, lim, target, seed = self._replan
+        with self._replan_lock:
+            done, self._replan_out = self._replan_out, None
+        if done is not None:
+            if book.finished(now, done[1], done[2]) and not self.rules.stopped:
+                t, torque = schedule_torque(done[1].profile, book.settings.horizon,
+                                            1.0 / self.limits.command_period, seed)
+                self._pending = (book.t_swap, TorqueSchedule(t, torque))
+            self.get_logger().info(f're-plan {book.replans}: {book.last_reason}')
+        if self._pending is not None and now >= self._pending[0]:
+            self._sched_t0, self.schedule = self._pending
+            self._pending = None
+        have = self._cov is not None and self._moments is not None and self._axes is not None
+        if self._pending is not None or not book.due(now, self.rules.t_start, have,
+                                                     self.rules.stopped):
+            return
+        t_swap = book.started(now)
+        inertia = self.rules.inertia.copy()
+        cov, omega = self._cov.copy(), self.rules.m.omega.copy()
+        t0 = self.rules.t_start if self._sched_t0 is None else self._sched_t0
+        at, offset = self.schedule.at, now - t0
+        model = 'diagonal' if not np.any(cov[3:, :]) and not np.any(cov[:, 3:]) else 'full'
+
+        def work() -> None:
+            try:
+                w = predict_omega(Continuation(at, offset), inertia, omega, t_swap - now,
+                                  lim.torque_rate)
+                out = (now, design_next(inertia, cov, w, lim, target, model, book.settings,
+                                        book.design, seed,
+                                        Continuation(at, offset + t_swap - now),
+                                        self.limits.max_rate * KEEP_RATE_SHARE), '')
+            except (ValueError, np.linalg.LinAlgError) as exc:
+                out = (now, None, str(exc).splitlines()[0] if str(exc) else repr(exc))
+            with self._replan_lock:
+                self._replan_out = out
+
+        threading.Thread(target=work, name='exciter-replan', daemon=True).start()
+
     def _publish(self, torque: np.ndarray) -> None:
         self.pub_cmd.publish(messages.wrench_msg(self.get_clock().now().nanoseconds, torque,
                                                  self.frame_id))
@@ -224,7 +298,8 @@ class ExciterNode(Node):
                   'relative_sigma': f'{self.rel_std:.6g}',
                   'target_rel_std': f'{self.limits.target_rel_std:g}',
                   'commands': str(self.commands),
-                  'max_commanded_torque': f'{self.max_commanded:.6g}'}
+                  'max_commanded_torque': f'{self.max_commanded:.6g}',
+                  **({} if self._replan is None else self._replan[0].values())}
         status = DiagnosticStatus(
             level=level, name=status_name(self.get_name(), DIAGNOSTIC_TASK),
             hardware_id=self.get_name(),
@@ -232,6 +307,22 @@ class ExciterNode(Node):
             values=[KeyValue(key=k, value=v) for k, v in values.items()])
         self.pub_diag.publish(diagnostic_array([status],
                                                self.get_clock().now().nanoseconds))
+
+
+def _replan_setup(cfg: dict[str, Any], scene: Any
+                  ) -> tuple[Replanner, Limits, Target, int] | None:
+    """The re-planner, the design's limits (the exciter's torque and rate limits, the
+    scene's sensors) and target, or None when ``replan_period`` is 0."""
+    if cfg['replan_period'] <= 0.0:
+        return None
+    lim = Limits(max_torque=(cfg['max_torque'],) * 3,
+                 max_rate=REPLAN_RATE_SHARE * cfg['max_rate'],
+                 gyro_rate=scene.gyro.rate, torque_rate=cfg['rate'],
+                 gyro_noise=scene.gyro.noise_std, torque_noise=scene.torque_sensor.noise_std,
+                 torque_noise_rel=scene.torque_sensor.noise_rel)
+    settings = ReplanSettings(period=cfg['replan_period'], horizon=cfg['replan_horizon'])
+    target = Target(rel_std=cfg['target_rel_std'], max_duration=cfg['timeout'])
+    return Replanner(settings), lim, target, int(scene.seed)
 
 
 def spin_until_done(node: ExciterNode) -> None:

@@ -471,6 +471,11 @@ EXCITER: dict[str, ParamSpec] = {
     'stall_window': ParamSpec(20.0, 'stop when the relative sigma fell less than 2 % over '
                               'this window [s]', 0.1, 86400.0, read_only=True),
     'rate': ParamSpec(50.0, 'command rate [Hz]', 1.0, 1000.0, read_only=True),
+    'replan_period': ParamSpec(5.0, 're-plan the profile from the current estimate every this '
+                               'many seconds; 0 = command the scene profile throughout [s]',
+                               0.0, 3600.0, read_only=True),
+    'replan_horizon': ParamSpec(10.0, 'length of each re-planned profile [s]', 0.5, 3600.0,
+                                read_only=True),
     'exit_on_stop': ParamSpec(False, 'exit the process 2 s after the final zero command',
                               read_only=True),
 }
