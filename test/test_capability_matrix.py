@@ -197,9 +197,6 @@ _GYRO_SCALE_WHEELS = ('a gyro scale error of +-1 stated sigma (2 %) on wheel dat
                       'seeds although the sigma covers the error: ')
 #: supported cells that fail the accuracy / z check today (issue 26 findings; measured)
 KNOWN = {
-    ('batch', 'wheels', 'gyro_scale_std'): _GYRO_SCALE_WHEELS + 'error 1.25 %, RMS z 1.22',
-    ('batch', 'wheels_torque', 'gyro_scale_std'): _GYRO_SCALE_WHEELS
-    + 'error 1.22 %, RMS z 1.13',
     ('recursive', 'wheels', 'gyro_scale_std'): _GYRO_SCALE_WHEELS + 'error 1.34 %, RMS z 0.82',
     ('recursive', 'wheels_torque', 'gyro_scale_std'): _GYRO_SCALE_WHEELS
     + 'error 1.36 %, RMS z 0.75',

@@ -34,7 +34,6 @@ from typing import Any
 
 import numpy as np
 
-from ..tensor import principal_axes, theta_to_matrix
 from .options import ALPHA, IDENTIFIABILITY_TOL
 
 __all__ = ['Momentum', 'Wheel', 'as_momentum', 'equivalent_torque', 'estimate_with_momentum',
@@ -443,13 +442,15 @@ def estimate_with_momentum(t_gyro: Any, omega: Any, t_torque: Any, torque: Any,
         Internal angular momentum in the gyro frame [N m s] on the gyro's clock.
     **options
         The keyword options of :func:`.batch.estimate`.  ``torque_noise`` is the other
-        torque's noise (default: from its samples; 0 when there is none).
+        torque's noise (default: from its samples; 0 when there is none).  The stated
+        ``gyro_scale_std`` and ``torque_scale_std`` are stated inputs like the wheel
+        inertias (:func:`.stated.propagate`).
 
     Returns
     -------
     InertiaEstimate
-        ``diagnostics['momentum']`` records the input; ``diagnostics['wheel_inertia']`` the
-        propagated input uncertainty.
+        ``diagnostics['momentum']`` records the input; ``diagnostics['input_uncertainty']``
+        (also ``diagnostics['wheel_inertia']``) the stated inputs' profile and propagation.
     """
     from .._validate import as_samples, as_times
 
@@ -466,10 +467,12 @@ def estimate_with_momentum(t_gyro: Any, omega: Any, t_torque: Any, torque: Any,
     from .config import require
     kind = 'wheels_torque' if len(ts) else ('rotors' if mom.torque is not None else 'wheels')
     require('batch', kind, dict(options, hold=hold))
-    # the torque sensor's scale error scales the other torque only, never the momentum: it
-    # is propagated as one more uncertain input (:func:`_propagate`), not as a scale of y
+    # the torque sensor's scale error scales the other torque only, never the momentum; the
+    # gyro's scales the measured rate in both sides, w x h included: both are stated inputs
+    # (:func:`.stated.propagate`), not scales of y
     scale = options.pop('torque_scale_std', 0.0)
-    SelectionPolicy(torque_scale_std=scale)           # validates
+    gscale = options.pop('gyro_scale_std', 0.0)
+    SelectionPolicy(torque_scale_std=scale, gyro_scale_std=gscale)           # validates
     scale = float(scale) if len(ts) else 0.0
     hold = HOLDS[0] if hold not in HOLDS else hold   # of the other torque; the result is held
     grid, tq, inside = equivalent_torque(tg, w, mom.t, mom.h, ts, tau, hold, mom.torque)
@@ -478,20 +481,24 @@ def estimate_with_momentum(t_gyro: Any, omega: Any, t_torque: Any, torque: Any,
                          f'{int(np.sum(inside))} gyro samples of [{tg[0]:.6g}, {tg[-1]:.6g}] s '
                          '(and of the torque, if any); the streams must overlap')
     tn, share = _noise_terms(tg, w, inside, grid, mom, ts, tau, options)
-    base = _estimate(tg[inside], w[inside], grid, tq, torque_noise=tn, **options)
     info = {'samples': len(mom.t), 'h_rms': np.sqrt(np.mean(mom.h ** 2, axis=0)),
             'h_noise_std': np.sqrt(np.diag(mom.noise_cov)), 'gyro_per_wheel_sample': share,
             'gyro_samples_outside': int(np.sum(~inside))}
-    diag = dict(base.diagnostics)
-    diag['momentum'] = info
-    if base.status == 'model_mismatch' and len(mom.h_std) and 'reason' in diag:
-        diag['reason'] = (f"{diag['reason']}; or wheel inertias / rotor coefficients off by "
-                          'about their stated std (the data resolve them better than stated)')
-    res = replace(base, samples_dropped=base.samples_dropped + int(np.sum(~inside)),
-                  diagnostics=diag)
-    if (len(mom.h_std) or scale) and res.inertia is not None \
+
+    def run(wi: np.ndarray, grid_i: np.ndarray, tq_i: np.ndarray, **opts: Any) -> Any:
+        """The estimate on the inside gyro samples ``wi`` and an equivalent torque."""
+        base = _estimate(tg[inside], wi, grid_i, tq_i, torque_noise=tn, **opts)
+        diag = dict(base.diagnostics, momentum=info)
+        return replace(base, samples_dropped=base.samples_dropped + int(np.sum(~inside)),
+                       diagnostics=diag)
+
+    from .stated import Stated, propagate
+
+    res = run(w[inside], grid, tq, **options)
+    if (len(mom.h_std) or scale or gscale) and res.inertia is not None \
             and np.all(np.isfinite(res.inertia)):
-        res = _propagate(res, tg[inside], w[inside], ts, tau, mom, hold, tn, options, scale)
+        res = propagate(res, run, Stated(tg[inside], w[inside], ts, tau, mom, hold, scale,
+                                          gscale), options)
     return res
 
 
@@ -526,87 +533,3 @@ def _estimate(tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.ndarray, *,
     return batch._maximum_likelihood(first, tg, w, ts, tau, HOLDS[0], axis, selection)
 
 
-def _changes(mom: Momentum, tau: np.ndarray, scale: float
-             ) -> list[tuple[str, np.ndarray, np.ndarray | None, np.ndarray]]:
-    """The inputs moved by one sigma each: ``(name, h, torque on the momentum stamps, other
-    torque)``; the torque scale (``scale`` > 0) moves the other torque only."""
-    out = []
-    dtq = mom.torque_std if mom.torque is not None else [None] * len(mom.names)
-    for name, dh, dt in zip(mom.names, mom.h_std, dtq, strict=True):
-        out.append((name, mom.h + dh, None if dt is None else mom.torque + dt, tau))
-    if scale:
-        out.append(('torque_scale', mom.h, mom.torque, tau * (1.0 + scale)))
-    return out
-
-
-def _propagate(res: Any, tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.ndarray,
-               mom: Momentum, hold: str, tn: np.ndarray, options: dict[str, Any],
-               scale: float = 0.0) -> Any:
-    """Add the one-sigma sensitivity of every reported quantity to each uncertain input
-    (:func:`_changes`: wheel inertias, rotor coefficients, the torque scale)."""
-
-    diag = dict(res.diagnostics)
-    fixed = dict(options)
-    fixed.update(method='integral' if res.method == 'ml' else res.method,
-                 model=res.model.removesuffix('+bias'),
-                 torque_bias='on' if res.model.endswith('+bias') else 'off',
-                 gyro_noise=diag.get('gyro_noise_std'))
-    if diag.get('segment_s') is not None:
-        fixed['segment'] = diag['segment_s']
-    if fixed['model'] not in ('full', 'diagonal', 'axisymmetric'):
-        return res
-    if res.method == 'ml':      # the same linear response without the refinement's cost
-        ref = _estimate(tg, w, *equivalent_torque(tg, w, mom.t, mom.h, ts, tau, hold,
-                                                  mom.torque)[:2], torque_noise=tn, **fixed)
-    else:
-        ref = res
-    var6 = np.zeros(6)
-    outer = np.zeros((6, 6))
-    var_m = np.zeros(3)
-    var_r = np.zeros((3, 3))
-    var_a = np.zeros(3)
-    per: dict[str, Any] = {}
-    for name, h, tq_h, tau_p in _changes(mom, tau, scale):
-        grid, tq, _ = equivalent_torque(tg, w, mom.t, h, ts, tau_p, hold, tq_h)
-        p = _estimate(tg, w, grid, tq, torque_noise=tn, **fixed)
-        if p.inertia is None or ref.inertia is None:
-            continue
-        d6 = np.nan_to_num(p.theta - ref.theta)
-        var6 += d6 ** 2
-        outer += np.outer(d6, d6)
-        per[name] = {'theta_change': d6}
-        I0, I1 = ref.inertia, p.inertia
-        if np.all(np.isfinite(I0)) and np.all(np.isfinite(I1)):
-            m0, a0 = principal_axes(I0)
-            m1, a1 = principal_axes(I1)
-            var_m += (m1 - m0) ** 2
-            var_r += (I1 / np.trace(I1) - I0 / np.trace(I0)) ** 2
-            cosang = np.clip(np.abs(np.sum(a0 * a1, axis=0)), 0.0, 1.0)
-            var_a += np.arccos(cosang) ** 2
-    std6 = np.nan_to_num(res.theta_std) if res.theta_std is not None else np.zeros(6)
-    new_std = np.sqrt(std6 ** 2 + var6)
-    nan = ~np.isfinite(res.theta_std) if res.theta_std is not None else np.zeros(6, bool)
-    new_std[nan] = np.nan
-    inertia_std = theta_to_matrix(new_std, check_finite=False)
-    ratios_std = res.ratios_std
-    if ratios_std is not None:
-        ratios_std = np.sqrt(np.asarray(ratios_std) ** 2 + var_r)
-    if 'principal_moments_std' in diag:
-        diag['principal_moments_std'] = np.sqrt(np.asarray(diag['principal_moments_std']) ** 2
-                                                 + var_m)
-    if 'principal_axes_std' in diag:
-        diag['principal_axes_std'] = np.sqrt(np.asarray(diag['principal_axes_std']) ** 2
-                                             + var_a)
-    diag['wheel_inertia'] = {'inputs': per, 'theta_std_added': np.sqrt(var6),
-                             'rule': 'one-sigma change of the estimate per input, added in '
-                                     'quadrature'}
-    if scale:
-        calib = dict(diag.get('calibration') or {'gyro_scale_std': 0.0})
-        calib.update(torque_scale_std=scale, torque_scale_applies_to='the torque stream only '
-                     "(not the momentum input): input 'torque_scale' of input_uncertainty")
-        diag['calibration'] = calib
-    # the online estimator's name for the same record (wheel inertias, rotor coefficients)
-    diag['input_uncertainty'] = diag['wheel_inertia']
-    cov = None if res.covariance is None else np.asarray(res.covariance) + outer
-    return replace(res, inertia_std=inertia_std, ratios_std=ratios_std, covariance=cov,
-                   diagnostics=diag)
