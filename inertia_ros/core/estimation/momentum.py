@@ -21,11 +21,12 @@ differences, scaled by the gyro samples per wheel sample that share it), and the
 ``n x h`` and the wheel noise ``w x e`` in the ``w x h`` integral as white torque noise
 (the anchored model's torque random walk).
 
-The uncertainty of the wheel inertias ``J_k`` (an input, like a scale factor) is propagated
-by the sensitivity of the estimate to each ``J_k``: the estimate is repeated with ``J_k``
-moved by one sigma (the same method, model, bias, noise levels and segments), and the change
-of every reported quantity is added in quadrature to its standard error
-(``diagnostics['wheel_inertia']``, also as ``diagnostics['input_uncertainty']``).
+The stated uncertainties of the input (each wheel's ``J_k``, each rotor's ``k_f``, ``k_m``,
+``J``, the gyro and torque-sensor scales) are profiled under their prior by
+:func:`.stated.propagate`: the known impulse's sensitivity to each is fitted with the tensor,
+the data are corrected by the posterior mean and re-estimated, and the posterior's effect on
+every reported quantity is added to its standard error (``diagnostics['input_uncertainty']``,
+also ``diagnostics['wheel_inertia']``).
 """
 from __future__ import annotations
 
