@@ -107,9 +107,7 @@ _TF_ADEQ = ('the online torque-free fit reports scale_unobservable without an ad
 CAPABILITIES: dict[str, dict[str, dict[str, str]]] = {
     'batch': {
         'input': _row(),
-        # substituted today (the command line's default hold is 'auto' with --wheels too)
-        'hold_auto': _row(wheels_torque=SUBSTITUTED + "hold='zoh' for the other torque (no "
-                                        "comparison); give 'zoh' or 'linear' explicitly"),
+        'hold_auto': _row(),
         'hold_zoh': _row(), 'hold_linear': _row(),
         'model_auto': _row(), 'torque_bias_auto': _row(),
         'nuisance': _mom('nuisance terms are fitted on a torque stream only; use '

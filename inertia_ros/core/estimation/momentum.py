@@ -475,6 +475,7 @@ def estimate_with_momentum(t_gyro: Any, omega: Any, t_torque: Any, torque: Any,
     gscale = options.pop('gyro_scale_std', 0.0)
     SelectionPolicy(torque_scale_std=scale, gyro_scale_std=gscale)           # validates
     scale = float(scale) if len(ts) else 0.0
+    auto = hold == 'auto' and len(ts) > 0            # the holds of the other torque compared
     hold = HOLDS[0] if hold not in HOLDS else hold   # of the other torque; the result is held
     grid, tq, inside = equivalent_torque(tg, w, mom.t, mom.h, ts, tau, hold, mom.torque)
     if int(np.sum(inside)) < 6 or len(grid) < 2:
@@ -496,6 +497,8 @@ def estimate_with_momentum(t_gyro: Any, omega: Any, t_torque: Any, torque: Any,
     from .stated import Stated, propagate
 
     res = run(w[inside], grid, tq, **options)
+    if auto:
+        res, hold = _hold_auto(res, run, tg[inside], w[inside], mom, ts, tau, options)
     if (len(mom.h_std) or scale or gscale) and res.inertia is not None \
             and np.all(np.isfinite(res.inertia)):
         res = propagate(res, run, Stated(tg[inside], w[inside], ts, tau, mom, hold, scale,
@@ -534,3 +537,73 @@ def _estimate(tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.ndarray, *,
     return batch._maximum_likelihood(first, tg, w, ts, tau, HOLDS[0], axis, selection)
 
 
+def _hold_auto(held: Any, run: Any, tg: np.ndarray, w: np.ndarray, mom: Momentum,
+               ts: np.ndarray, tau: np.ndarray, options: dict[str, Any]) -> tuple[Any, str]:
+    """``hold='auto'`` with another torque: the held and the linear other torque compared by
+    the batch's evidence rule (:func:`.selection.select_hold`, a Vuong test on per-window
+    likelihoods of the two whole-record fits, same weights), held when it cannot tell.
+
+    ``held`` is the estimate with the held other torque; ``tg``, ``w`` the gyro samples inside
+    its coverage.  Returns the chosen estimate (``diagnostics['hold_selection']``) and hold.
+    """
+    from .selection import HOLD_ALPHA, select_hold
+
+    grid, tq, inside = equivalent_torque(tg, w, mom.t, mom.h, ts, tau, 'linear', mom.torque)
+    both = inside                          # the linear coverage lies inside the held one
+    opts = dict(options)
+    if held.diagnostics.get('segment_s') is not None and 'segment' not in opts:
+        opts['segment'] = held.diagnostics['segment_s']       # the same segmentation
+    lin = run(w, grid, tq, **opts) if int(np.sum(both)) >= 6 else None
+    results = {'zoh': held, 'linear': lin}
+    rss = _hold_rss(results, tg[both], w[both], mom, ts, tau)
+    if isinstance(rss, str):
+        chosen, record = 'zoh', {'statistic': None, 'p_value': None, 'reason': rss}
+    else:
+        chosen, record = select_hold(*rss, HOLD_ALPHA)
+    est = results[chosen]
+    diag = dict(est.diagnostics, hold=chosen)
+    diag['hold_selection'] = {'requested': 'auto', **record, 'chosen': chosen,
+                              'compared': 'the other torque held or linear, momentum the same'}
+    return replace(est, diagnostics=diag), chosen
+
+
+def _hold_rss(results: dict[str, Any], tg: np.ndarray, w: np.ndarray, mom: Momentum,
+              ts: np.ndarray, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray] | str:
+    """Weighted residual sums (K,) per window of each hold's anchored equations at its own
+    whole-record tensor and bias (one weight, from the held fit): the batch's
+    :func:`.batch._hold_window_rss` on the equivalent torques.  Why not, when not."""
+    from .batch import _HOLD_MIN_ROWS, _HOLD_WINDOWS
+    from .equations import build_equations
+    from .fit import equation_weight
+    from .options import GAP_FACTOR
+    from .regressors import metric
+    from .statistics import sufficient_stats, window_raw
+
+    coef = {}
+    for h, r in results.items():
+        if r is None or r.theta is None or not np.all(np.isfinite(r.theta)):
+            return f'the {h} fit has no complete tensor: the holds are not compared'
+        bias = np.zeros(3) if r.torque_bias is None else np.asarray(r.torque_bias, float)
+        coef[h] = np.concatenate([-r.theta, -bias, [1.0]])
+    if len(tg) < 8 * _HOLD_MIN_ROWS:
+        return f'{len(tg)} gyro samples are too few for 8 windows: the holds are not compared'
+    gv = np.asarray(results['zoh'].diagnostics['gyro_noise_std'], dtype=float) ** 2
+    W = equation_weight(-coef['zoh'][:6], gv)
+    t0 = float(tg[0])
+    breaks = np.diff(tg) > GAP_FACTOR * float(np.median(np.diff(tg)))
+    n_win = min(_HOLD_WINDOWS, len(tg) // _HOLD_MIN_ROWS)
+    no_walk = np.zeros(3)
+    out = {}
+    for h, c in coef.items():
+        grid, tq, _ = equivalent_torque(tg, w, mom.t, mom.h, ts, tau, h, mom.torque)
+        g = grid - t0
+        eq = build_equations('integral', tg - t0, w, g, tq, np.ones(len(tg), bool), breaks,
+                             'zoh', gv, None)
+        cuts = np.linspace(0, len(eq.t), n_win + 1).astype(int)
+        rss = []
+        for a, b in zip(cuts[:-1], cuts[1:], strict=True):
+            sub, (j0, j1) = window_raw(eq, int(a), int(b), g, no_walk)
+            st = sufficient_stats(sub, None, g[j0:j1], float(sub.t[-1]), no_walk)
+            rss.append(float(c @ metric(st.C, W) @ c))
+        out[h] = np.array(rss)
+    return out['zoh'], out['linear']
