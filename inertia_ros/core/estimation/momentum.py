@@ -496,14 +496,28 @@ def estimate_with_momentum(t_gyro: Any, omega: Any, t_torque: Any, torque: Any,
 
     from .stated import Stated, propagate
 
-    res = run(w[inside], grid, tq, **options)
+    stated = bool(len(mom.h_std) or scale or gscale)
+    # with stated inputs this estimate only centres their profile: the final one runs on the
+    # corrected inputs (:func:`.stated.propagate`), so the ml refinement is left to it
+    first = dict(options, method='integral') if stated and \
+        options.get('method', 'auto') in ('auto', 'ml') else options
+    res = run(w[inside], grid, tq, **first)
     if auto:
-        res, hold = _hold_auto(res, run, tg[inside], w[inside], mom, ts, tau, options)
-    if (len(mom.h_std) or scale or gscale) and res.inertia is not None \
-            and np.all(np.isfinite(res.inertia)):
-        res = propagate(res, run, Stated(tg[inside], w[inside], ts, tau, mom, hold, scale,
-                                          gscale), options)
-    return res
+        res, hold = _hold_auto(res, run, tg[inside], w[inside], mom, ts, tau, first)
+    st = Stated(tg[inside], w[inside], ts, tau, mom, hold, scale, gscale)
+    if stated and res.inertia is not None and np.all(np.isfinite(res.inertia)):
+        return propagate(res, run, st, options)
+    return res if first is options else _rerun(res, run, st, options)
+
+
+def _rerun(res: Any, run: Any, st: Any, options: dict[str, Any]) -> Any:
+    """The estimate with the requested ``options`` after all (no profile), with the hold
+    chosen for ``res`` (:class:`.stated.Stated` ``st``: the data and that hold)."""
+    out = run(*st.torque(np.zeros(len(st.names))), **options)
+    for key in ('hold', 'hold_selection'):
+        if key in res.diagnostics:
+            out.diagnostics[key] = res.diagnostics[key]
+    return out
 
 
 def _estimate(tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.ndarray, *,

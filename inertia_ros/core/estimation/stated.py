@@ -269,20 +269,28 @@ def _profile(res: Any, st: Stated) -> tuple[np.ndarray, np.ndarray]:
     m = st.mom
     sm = replace(st, mom=replace(m, h_std=_smooth(m.t, m.h_std), torque_std=None
                                  if m.torque_std is None else _smooth(m.t, m.torque_std)))
-    # enough intervals to estimate the noise scale besides the 6 + 3 + q unknowns
     # intervals of at least _MIN_INTERVAL_S (the motion inside one must stand out of the gyro
     # noise), as many as the unknowns need when the record allows
     ends = intervals(t, min(max(_PER_UNKNOWN * (9 + q), 20), int(t[-1] / _MIN_INTERVAL_S),
                             len(t) // 10))
     gv = res.diagnostics.get('gyro_noise_std')
     gv = None if gv is None else np.asarray(gv, dtype=float) ** 2
-    for _ in range(_STEPS):                # Gauss-Newton: the gyro scale is not linear
+    scale_dir = _scale_direction(st)
+    # the known inputs' columns are exact (the impulse is linear in them): computed once;
+    # the gyro scale's (the rate in both sides) is re-linearised at each Gauss-Newton step
+    lin = q - bool(st.gscale)
+    e_0 = error(u, sm)
+    C = np.zeros((len(t), 3, q))
+    for j in range(lin):
+        C[:, :, j] = (error(_DU * np.eye(q)[j], sm) - e_0) / _DU
+    for _ in range(_STEPS if st.gscale else 2):     # linear: the 2nd rescales the noise
         w0, grid0, tq0 = st.torque(u)
-        e0 = error(u, sm)
-        C = np.stack([(error(u + _DU * d, sm) - e0) / _DU for d in np.eye(q)], axis=2)
+        if st.gscale:
+            d = np.eye(q)[-1] * _DU
+            C[:, :, -1] = (error(u + d, sm) - error(u, sm)) / _DU
         new, cov, _ = profile_inputs(t, lhs_columns(t, w0),
                                      cumulative_impulse(grid0 - st.tg[0], tq0, t), C, ends,
-                                     res.model.endswith('+bias'), u, gv, _scale_direction(st))
+                                     res.model.endswith('+bias'), u, gv, scale_dir)
         done = np.all(np.abs(new - u) <= 0.01 * np.sqrt(np.maximum(np.diag(cov), 1e-30)))
         u = new
         if done:
@@ -363,6 +371,9 @@ def propagate(res: Any, run: Any, st: Stated, options: dict[str, Any]) -> Any:
     names = st.names
     u_hat, cov_u = _profile(res, st)
     out = run(*st.torque(u_hat), **options)
+    for key in ('hold', 'hold_selection'):          # the other torque's hold, chosen before
+        if key in res.diagnostics:
+            out.diagnostics[key] = res.diagnostics[key]
     fixed = _fixed(out, options) if out.inertia is not None \
         and np.all(np.isfinite(out.inertia)) else None
     if fixed is None:
