@@ -244,7 +244,9 @@ def test_cli_rotor_errors(tmp_path: Path, capsys: pytest.CaptureFixture) -> None
 def test_online_rotors_with_motor_lag_match_the_batch() -> None:
     """The node's path (MomentumRecursiveEstimator fed 0.1 s JointState blocks, the motor-lag
     state carried across them) agrees with the batch momentum form on the same log: the
-    estimate within 0.2 sigma, sigma and the coefficients' added sigma within 5 %."""
+    estimate within 2 sigma (the batch profiles the stated coefficients; it stays within 3
+    sigma of the truth), the noise sigma within 5 %, the coefficients' added sigma at most
+    the online (prior) one."""
     from inertia_ros.core.estimation.recursive_momentum import MomentumRecursiveEstimator
     from inertia_ros.io.rotors import ActuatorInput
 
@@ -274,8 +276,16 @@ def test_online_rotors_with_motor_lag_match_the_batch() -> None:
         e.add_momentum(act.block(r.t_wheel[kw == blk], r.wheel_speed[kw == blk]))
     o = e.estimate()
     assert o.status == 'ok' and b.status == 'ok'
+    # the batch profiles the stated coefficients (the data corrected by their posterior
+    # mean, the posterior propagated); online they are propagated at their prior: the batch
+    # estimate moves within its sigma and its added sigma is at most the online one
     z = (o.theta - b.theta) / b.theta_std
-    assert np.all(np.abs(z) <= 0.2), z
-    np.testing.assert_allclose(o.theta_std, b.theta_std, rtol=0.05)
-    np.testing.assert_allclose(o.diagnostics['input_uncertainty']['theta_std_added'],
-                               b.diagnostics['wheel_inertia']['theta_std_added'], rtol=0.05)
+    assert np.all(np.abs(z) <= 2.0), z
+    truth = r.inertia[[0, 1, 2, 0, 0, 1], [0, 1, 2, 1, 2, 2]]
+    assert np.all(np.abs(b.theta - truth) <= 3.0 * b.theta_std)
+    added_o = o.diagnostics['input_uncertainty']['theta_std_added']
+    added_b = b.diagnostics['wheel_inertia']['theta_std_added']
+    assert np.all(added_b <= 1.05 * added_o), (added_b, added_o)
+    base_o = np.sqrt(np.maximum(o.theta_std ** 2 - added_o ** 2, 0.0))
+    base_b = np.sqrt(np.maximum(b.theta_std ** 2 - added_b ** 2, 0.0))
+    np.testing.assert_allclose(base_o, base_b, rtol=0.05)

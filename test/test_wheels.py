@@ -180,7 +180,8 @@ def test_wheel_input_calibrated_and_as_good_as_torque_input() -> None:
 
 
 def test_wheel_inertia_std_is_propagated() -> None:
-    """The wheel-inertia sigma widens the tensor's sigma by the estimate's sensitivity."""
+    """The wheel-inertia sigma widens the tensor's sigma by the estimate's sensitivity times
+    the inertias' posterior (their common scale at its prior)."""
     sc = Scene.from_dict(scene_dict(duration=4.0, gyro_rate=100.0))
     r = simulate(sc, 1)
     base = [Wheel(w.joint, w.axis, w.inertia) for w in sc.wheels.wheels]
@@ -189,11 +190,15 @@ def test_wheel_inertia_std_is_propagated() -> None:
                                wheels_momentum(r.t_wheel, r.wheel_speed, base), method='integral')
     b = estimate_with_momentum(r.t_gyro, r.omega, [], np.zeros((0, 3)),
                                wheels_momentum(r.t_wheel, r.wheel_speed, unc), method='integral')
-    np.testing.assert_allclose(a.theta, b.theta, rtol=1e-12)
+    # the stated inertias profiled (the data hold the exact ones): the estimate moves by the
+    # inertias' posterior mean (about its sigma at most), its sigma never below the exact one
+    assert np.all(np.abs(b.theta - a.theta) <= 1.5 * b.theta_std), (b.theta - a.theta)
+    assert np.all(np.abs(b.theta - r.inertia[THETA_IDX]) <= 3 * b.theta_std)
     added = b.diagnostics['wheel_inertia']['theta_std_added']
     # all wheels scaled together scale the tensor: 2 % per wheel, about 2 %/sqrt(3)..2 % total
+    # (the common scale keeps its prior: a wheels-only log cannot tell it)
     assert np.all(b.theta_std > a.theta_std)
-    np.testing.assert_allclose(np.sqrt(a.theta_std ** 2 + added ** 2), b.theta_std, rtol=1e-12)
+    np.testing.assert_allclose(np.sqrt(a.theta_std ** 2 + added ** 2), b.theta_std, rtol=2e-2)
     np.testing.assert_allclose(np.sqrt(np.diag(b.covariance)), b.theta_std, rtol=1e-9)
     assert 0.005 < np.linalg.norm(added[:3]) / np.linalg.norm(a.theta[:3]) < 0.05
 
@@ -306,8 +311,8 @@ def test_torque_scale_std_scales_the_torque_part_only() -> None:
     """Issue 26 defect 4 (batch): ``torque_scale_std`` is the torque sensor's scale, so on a
     wheels-only log it changes no sigma (rtol 1e-9; on 5a72dae x12-380 at 0.05), and with
     another torque stream the sigma it adds is the change of the estimate when that torque
-    alone is read 5 % larger (rtol 1e-6), under a fifth of the whole-right-hand-side rule 5 % of
-    theta."""
+    alone is read 5 % larger times the scale's posterior sigma (its profile, <= 1; rtol 2e-2),
+    under a fifth of the whole-right-hand-side rule 5 % of theta."""
     kw = dict(method='integral', model='full', torque_bias='off', segment=10.0)
     sc = Scene.from_dict(scene_dict(duration=6.0, gyro_rate=100.0))
     r = simulate(sc, 0)
@@ -325,10 +330,37 @@ def test_torque_scale_std_scales_the_torque_part_only() -> None:
                                torque_scale_std=0.05, **kw)
     b5 = estimate_with_momentum(r.t_gyro, r.omega, r.t_torque, 1.05 * r.torque, m, **kw)
     added = b.diagnostics['input_uncertainty']['theta_std_added']
-    np.testing.assert_allclose(added, np.abs(b5.theta - b0.theta), rtol=1e-6)
-    np.testing.assert_allclose(b.theta_std, np.hypot(b0.theta_std, added), rtol=1e-6)
+    # the torque scale profiled: its one-sigma change of the estimate times its posterior sigma
+    post = b.diagnostics['input_uncertainty']['inputs']['torque_scale']['posterior_sigmas']
+    assert 0.0 < post <= 1.0
+    np.testing.assert_allclose(added, post * np.abs(b5.theta - b0.theta), rtol=2e-2)
+    np.testing.assert_allclose(b.theta_std, np.hypot(b0.theta_std, added), rtol=2e-2)
     assert np.all(added < 0.2 * 0.05 * np.abs(b0.theta)), added
     assert b.diagnostics['calibration']['torque_scale_std'] == 0.05
     with pytest.raises(ValueError, match='torque_scale_std'):
         estimate_with_momentum(r.t_gyro, r.omega, r.t_torque, r.torque, m,
                                torque_scale_std=-0.1, **kw)
+
+
+def test_hold_auto_with_wheels_compares_the_other_torques_holds() -> None:
+    """Batch ``hold='auto'`` with wheels and another torque compares the other torque held
+    and linear by the evidence rule (Vuong test on window likelihoods, as torque-only input):
+    a torque commanded at 50 Hz and sampled at 50 Hz is kept held, one varying continuously
+    (commanded at 1 kHz) between its 50 Hz samples is taken linear; each choice significant
+    (p < 0.01) on 3 seeds.  (On f0eb6ad it ran as zoh with no comparison.)"""
+    for seed in (4, 5, 6):
+        for rate, want in ((50.0, 'zoh'), (1000.0, 'linear')):
+            d = scene_dict(duration=6.0, gyro_rate=100.0)
+            d['torque'] = [{'type': 'multisine', 'amplitude': [0.05, 0.05, 0.05],
+                            'f_min': 0.2, 'f_max': 2.0}]
+            d['torque_sensor'] = {'rate': 50.0, 'noise_std': 1e-4}
+            d['command_rate'] = rate
+            sc = Scene.from_dict(d)
+            r = simulate(sc, seed)
+            ws = [Wheel(w.joint, w.axis, w.inertia) for w in sc.wheels.wheels]
+            e = estimate_with_momentum(r.t_gyro, r.omega, r.t_torque, r.torque,
+                                       wheels_momentum(r.t_wheel, r.wheel_speed, ws),
+                                       hold='auto')
+            sel = e.diagnostics['hold_selection']
+            assert e.diagnostics['hold'] == want and sel['chosen'] == want, (seed, rate, sel)
+            assert sel['p_value'] < 0.01 and e.status == 'ok', (seed, rate, sel, e.status)

@@ -96,8 +96,6 @@ _TF_TORQUE_SCALE = (SUBSTITUTED + 'torque_scale_std=0: a torque scale has no eff
 _TF_NUISANCE = (SUBSTITUTED + "nuisance='off': no torque stream to offset or filter "
                                '(diagnostics.nuisance.skipped says so)')
 
-_BATCH_MOM_HOLD = (SUBSTITUTED + "hold='zoh' for the other torque (no comparison); give "
-                   "'zoh' or 'linear' explicitly")
 _MOM_NUISANCE = "nuisance terms are fitted on a torque stream only; use nuisance='off' with "\
     'wheels or rotors'
 
@@ -105,8 +103,7 @@ _MOM_NUISANCE = "nuisance terms are fitted on a torque stream only; use nuisance
 CAPABILITIES: dict[str, dict[str, dict[str, str]]] = {
     'batch': {
         'input': _row(),
-        # substituted today (the command line's default hold is 'auto' with --wheels too)
-        'hold_auto': _row(wheels_torque=_BATCH_MOM_HOLD),
+        'hold_auto': _row(),
         'hold_zoh': _row(), 'hold_linear': _row(),
         'model_auto': _row(), 'torque_bias_auto': _row(),
         'nuisance': _mom(_MOM_NUISANCE, torque_free=_TF_NUISANCE),
@@ -147,7 +144,7 @@ CAPABILITIES: dict[str, dict[str, dict[str, str]]] = {
     # estimate_with_momentum), so the cells are the batch ones
     'window': {
         'input': _row(),
-        'hold_auto': _row(wheels_torque=_BATCH_MOM_HOLD),
+        'hold_auto': _row(),
         'hold_zoh': _row(), 'hold_linear': _row(),
         'model_auto': _row(), 'torque_bias_auto': _row(),
         'nuisance': _mom(_MOM_NUISANCE, torque_free=_TF_NUISANCE),

@@ -21,11 +21,12 @@ differences, scaled by the gyro samples per wheel sample that share it), and the
 ``n x h`` and the wheel noise ``w x e`` in the ``w x h`` integral as white torque noise
 (the anchored model's torque random walk).
 
-The uncertainty of the wheel inertias ``J_k`` (an input, like a scale factor) is propagated
-by the sensitivity of the estimate to each ``J_k``: the estimate is repeated with ``J_k``
-moved by one sigma (the same method, model, bias, noise levels and segments), and the change
-of every reported quantity is added in quadrature to its standard error
-(``diagnostics['wheel_inertia']``, also as ``diagnostics['input_uncertainty']``).
+The stated uncertainties of the input (each wheel's ``J_k``, each rotor's ``k_f``, ``k_m``,
+``J``, the gyro and torque-sensor scales) are profiled under their prior by
+:func:`.stated.propagate`: the known impulse's sensitivity to each is fitted with the tensor,
+the data are corrected by the posterior mean and re-estimated, and the posterior's effect on
+every reported quantity is added to its standard error (``diagnostics['input_uncertainty']``,
+also ``diagnostics['wheel_inertia']``).
 """
 from __future__ import annotations
 
@@ -34,7 +35,6 @@ from typing import Any
 
 import numpy as np
 
-from ..tensor import principal_axes, theta_to_matrix
 from .options import ALPHA, IDENTIFIABILITY_TOL
 
 __all__ = ['Momentum', 'Wheel', 'as_momentum', 'equivalent_torque', 'estimate_with_momentum',
@@ -443,13 +443,15 @@ def estimate_with_momentum(t_gyro: Any, omega: Any, t_torque: Any, torque: Any,
         Internal angular momentum in the gyro frame [N m s] on the gyro's clock.
     **options
         The keyword options of :func:`.batch.estimate`.  ``torque_noise`` is the other
-        torque's noise (default: from its samples; 0 when there is none).
+        torque's noise (default: from its samples; 0 when there is none).  The stated
+        ``gyro_scale_std`` and ``torque_scale_std`` are stated inputs like the wheel
+        inertias (:func:`.stated.propagate`).
 
     Returns
     -------
     InertiaEstimate
-        ``diagnostics['momentum']`` records the input; ``diagnostics['wheel_inertia']`` the
-        propagated input uncertainty.
+        ``diagnostics['momentum']`` records the input; ``diagnostics['input_uncertainty']``
+        (also ``diagnostics['wheel_inertia']``) the stated inputs' profile and propagation.
     """
     from .._validate import as_samples, as_times
 
@@ -466,11 +468,14 @@ def estimate_with_momentum(t_gyro: Any, omega: Any, t_torque: Any, torque: Any,
     from .config import require
     kind = 'wheels_torque' if len(ts) else ('rotors' if mom.torque is not None else 'wheels')
     require('batch', kind, dict(options, hold=hold))
-    # the torque sensor's scale error scales the other torque only, never the momentum: it
-    # is propagated as one more uncertain input (:func:`_propagate`), not as a scale of y
+    # the torque sensor's scale error scales the other torque only, never the momentum; the
+    # gyro's scales the measured rate in both sides, w x h included: both are stated inputs
+    # (:func:`.stated.propagate`), not scales of y
     scale = options.pop('torque_scale_std', 0.0)
-    SelectionPolicy(torque_scale_std=scale)           # validates
+    gscale = options.pop('gyro_scale_std', 0.0)
+    SelectionPolicy(torque_scale_std=scale, gyro_scale_std=gscale)           # validates
     scale = float(scale) if len(ts) else 0.0
+    auto = hold == 'auto' and len(ts) > 0            # the holds of the other torque compared
     hold = HOLDS[0] if hold not in HOLDS else hold   # of the other torque; the result is held
     grid, tq, inside = equivalent_torque(tg, w, mom.t, mom.h, ts, tau, hold, mom.torque)
     if int(np.sum(inside)) < 6 or len(grid) < 2:
@@ -478,21 +483,41 @@ def estimate_with_momentum(t_gyro: Any, omega: Any, t_torque: Any, torque: Any,
                          f'{int(np.sum(inside))} gyro samples of [{tg[0]:.6g}, {tg[-1]:.6g}] s '
                          '(and of the torque, if any); the streams must overlap')
     tn, share = _noise_terms(tg, w, inside, grid, mom, ts, tau, options)
-    base = _estimate(tg[inside], w[inside], grid, tq, torque_noise=tn, **options)
     info = {'samples': len(mom.t), 'h_rms': np.sqrt(np.mean(mom.h ** 2, axis=0)),
             'h_noise_std': np.sqrt(np.diag(mom.noise_cov)), 'gyro_per_wheel_sample': share,
             'gyro_samples_outside': int(np.sum(~inside))}
-    diag = dict(base.diagnostics)
-    diag['momentum'] = info
-    if base.status == 'model_mismatch' and len(mom.h_std) and 'reason' in diag:
-        diag['reason'] = (f"{diag['reason']}; or wheel inertias / rotor coefficients off by "
-                          'about their stated std (the data resolve them better than stated)')
-    res = replace(base, samples_dropped=base.samples_dropped + int(np.sum(~inside)),
-                  diagnostics=diag)
-    if (len(mom.h_std) or scale) and res.inertia is not None \
-            and np.all(np.isfinite(res.inertia)):
-        res = _propagate(res, tg[inside], w[inside], ts, tau, mom, hold, tn, options, scale)
-    return res
+
+    def run(wi: np.ndarray, grid_i: np.ndarray, tq_i: np.ndarray, **opts: Any) -> Any:
+        """The estimate on the inside gyro samples ``wi`` and an equivalent torque."""
+        base = _estimate(tg[inside], wi, grid_i, tq_i, torque_noise=tn, **opts)
+        diag = dict(base.diagnostics, momentum=info)
+        return replace(base, samples_dropped=base.samples_dropped + int(np.sum(~inside)),
+                       diagnostics=diag)
+
+    from .stated import Stated, propagate
+
+    stated = bool(len(mom.h_std) or scale or gscale)
+    # with stated inputs this estimate only centres their profile: the final one runs on the
+    # corrected inputs (:func:`.stated.propagate`), so the ml refinement is left to it
+    first = dict(options, method='integral') if stated and \
+        options.get('method', 'auto') in ('auto', 'ml') else options
+    res = run(w[inside], grid, tq, **first)
+    if auto:
+        res, hold = _hold_auto(res, run, tg[inside], w[inside], mom, ts, tau, first)
+    st = Stated(tg[inside], w[inside], ts, tau, mom, hold, scale, gscale)
+    if stated and res.inertia is not None and np.all(np.isfinite(res.inertia)):
+        return propagate(res, run, st, options)
+    return res if first is options else _rerun(res, run, st, options)
+
+
+def _rerun(res: Any, run: Any, st: Any, options: dict[str, Any]) -> Any:
+    """The estimate with the requested ``options`` after all (no profile), with the hold
+    chosen for ``res`` (:class:`.stated.Stated` ``st``: the data and that hold)."""
+    out = run(*st.torque(np.zeros(len(st.names))), **options)
+    for key in ('hold', 'hold_selection'):
+        if key in res.diagnostics:
+            out.diagnostics[key] = res.diagnostics[key]
+    return out
 
 
 def _estimate(tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.ndarray, *,
@@ -514,7 +539,7 @@ def _estimate(tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.ndarray, *,
         SelectionPolicy(alpha, identifiability_tol, physical, torque_scale_std, gyro_scale_std))
     batch._check_counts(tg, ts)
     selection = None
-    if method == 'auto':        # method_choice's hook (helper 'method'): batch's auto branch
+    if method == 'auto':        # the batch's choice by evidence (method_choice)
         return batch._auto_method(tg, w, ts, tau, HOLDS[0], gyro_noise, torque_noise, segment,
                                   window, model, torque_bias, axis, policy, rotation_hz,
                                   white_y_cov)
@@ -527,89 +552,73 @@ def _estimate(tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.ndarray, *,
     return batch._maximum_likelihood(first, tg, w, ts, tau, HOLDS[0], axis, selection)
 
 
-def _changes(mom: Momentum, tau: np.ndarray, scale: float
-             ) -> list[tuple[str, np.ndarray, np.ndarray | None, np.ndarray]]:
-    """The inputs moved by one sigma each: ``(name, h, torque on the momentum stamps, other
-    torque)``; the torque scale (``scale`` > 0) moves the other torque only."""
-    out = []
-    dtq = mom.torque_std if mom.torque is not None else [None] * len(mom.names)
-    for name, dh, dt in zip(mom.names, mom.h_std, dtq, strict=True):
-        out.append((name, mom.h + dh, None if dt is None else mom.torque + dt, tau))
-    if scale:
-        out.append(('torque_scale', mom.h, mom.torque, tau * (1.0 + scale)))
-    return out
+def _hold_auto(held: Any, run: Any, tg: np.ndarray, w: np.ndarray, mom: Momentum,
+               ts: np.ndarray, tau: np.ndarray, options: dict[str, Any]) -> tuple[Any, str]:
+    """``hold='auto'`` with another torque: the held and the linear other torque compared by
+    the batch's evidence rule (:func:`.selection.select_hold`, a Vuong test on per-window
+    likelihoods of the two whole-record fits, same weights), held when it cannot tell.
 
+    ``held`` is the estimate with the held other torque; ``tg``, ``w`` the gyro samples inside
+    its coverage.  Returns the chosen estimate (``diagnostics['hold_selection']``) and hold.
+    """
+    from .selection import HOLD_ALPHA, select_hold
 
-def _propagate(res: Any, tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.ndarray,
-               mom: Momentum, hold: str, tn: np.ndarray, options: dict[str, Any],
-               scale: float = 0.0) -> Any:
-    """Add the one-sigma sensitivity of every reported quantity to each uncertain input
-    (:func:`_changes`: wheel inertias, rotor coefficients, the torque scale)."""
-
-    diag = dict(res.diagnostics)
-    fixed = dict(options)
-    fixed.update(method='integral' if res.method == 'ml' else res.method,
-                 model=res.model.removesuffix('+bias'),
-                 torque_bias='on' if res.model.endswith('+bias') else 'off',
-                 gyro_noise=diag.get('gyro_noise_std'))
-    if diag.get('segment_s') is not None:
-        fixed['segment'] = diag['segment_s']
-    if diag.get('filter_cutoff_hz'):    # the same band (helper 'method': auto may pick it)
-        fixed['window'] = 1.0 / float(diag['filter_cutoff_hz'])
-    if fixed['model'] not in ('full', 'diagonal', 'axisymmetric'):
-        return res
-    if res.method == 'ml':      # the same linear response without the refinement's cost
-        ref = _estimate(tg, w, *equivalent_torque(tg, w, mom.t, mom.h, ts, tau, hold,
-                                                  mom.torque)[:2], torque_noise=tn, **fixed)
+    grid, tq, inside = equivalent_torque(tg, w, mom.t, mom.h, ts, tau, 'linear', mom.torque)
+    both = inside                          # the linear coverage lies inside the held one
+    opts = dict(options)
+    if held.diagnostics.get('segment_s') is not None and 'segment' not in opts:
+        opts['segment'] = held.diagnostics['segment_s']       # the same segmentation
+    lin = run(w, grid, tq, **opts) if int(np.sum(both)) >= 6 else None
+    results = {'zoh': held, 'linear': lin}
+    rss = _hold_rss(results, tg[both], w[both], mom, ts, tau)
+    if isinstance(rss, str):
+        chosen, record = 'zoh', {'statistic': None, 'p_value': None, 'reason': rss}
     else:
-        ref = res
-    var6 = np.zeros(6)
-    outer = np.zeros((6, 6))
-    var_m = np.zeros(3)
-    var_r = np.zeros((3, 3))
-    var_a = np.zeros(3)
-    per: dict[str, Any] = {}
-    for name, h, tq_h, tau_p in _changes(mom, tau, scale):
-        grid, tq, _ = equivalent_torque(tg, w, mom.t, h, ts, tau_p, hold, tq_h)
-        p = _estimate(tg, w, grid, tq, torque_noise=tn, **fixed)
-        if p.inertia is None or ref.inertia is None:
-            continue
-        d6 = np.nan_to_num(p.theta - ref.theta)
-        var6 += d6 ** 2
-        outer += np.outer(d6, d6)
-        per[name] = {'theta_change': d6}
-        I0, I1 = ref.inertia, p.inertia
-        if np.all(np.isfinite(I0)) and np.all(np.isfinite(I1)):
-            m0, a0 = principal_axes(I0)
-            m1, a1 = principal_axes(I1)
-            var_m += (m1 - m0) ** 2
-            var_r += (I1 / np.trace(I1) - I0 / np.trace(I0)) ** 2
-            cosang = np.clip(np.abs(np.sum(a0 * a1, axis=0)), 0.0, 1.0)
-            var_a += np.arccos(cosang) ** 2
-    std6 = np.nan_to_num(res.theta_std) if res.theta_std is not None else np.zeros(6)
-    new_std = np.sqrt(std6 ** 2 + var6)
-    nan = ~np.isfinite(res.theta_std) if res.theta_std is not None else np.zeros(6, bool)
-    new_std[nan] = np.nan
-    inertia_std = theta_to_matrix(new_std, check_finite=False)
-    ratios_std = res.ratios_std
-    if ratios_std is not None:
-        ratios_std = np.sqrt(np.asarray(ratios_std) ** 2 + var_r)
-    if 'principal_moments_std' in diag:
-        diag['principal_moments_std'] = np.sqrt(np.asarray(diag['principal_moments_std']) ** 2
-                                                 + var_m)
-    if 'principal_axes_std' in diag:
-        diag['principal_axes_std'] = np.sqrt(np.asarray(diag['principal_axes_std']) ** 2
-                                             + var_a)
-    diag['wheel_inertia'] = {'inputs': per, 'theta_std_added': np.sqrt(var6),
-                             'rule': 'one-sigma change of the estimate per input, added in '
-                                     'quadrature'}
-    if scale:
-        calib = dict(diag.get('calibration') or {'gyro_scale_std': 0.0})
-        calib.update(torque_scale_std=scale, torque_scale_applies_to='the torque stream only '
-                     "(not the momentum input): input 'torque_scale' of input_uncertainty")
-        diag['calibration'] = calib
-    # the online estimator's name for the same record (wheel inertias, rotor coefficients)
-    diag['input_uncertainty'] = diag['wheel_inertia']
-    cov = None if res.covariance is None else np.asarray(res.covariance) + outer
-    return replace(res, inertia_std=inertia_std, ratios_std=ratios_std, covariance=cov,
-                   diagnostics=diag)
+        chosen, record = select_hold(*rss, HOLD_ALPHA)
+    est = results[chosen]
+    diag = dict(est.diagnostics, hold=chosen)
+    diag['hold_selection'] = {'requested': 'auto', **record, 'chosen': chosen,
+                              'compared': 'the other torque held or linear, momentum the same'}
+    return replace(est, diagnostics=diag), chosen
+
+
+def _hold_rss(results: dict[str, Any], tg: np.ndarray, w: np.ndarray, mom: Momentum,
+              ts: np.ndarray, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray] | str:
+    """Weighted residual sums (K,) per window of each hold's anchored equations at its own
+    whole-record tensor and bias (one weight, from the held fit): the batch's
+    :func:`.batch._hold_window_rss` on the equivalent torques.  Why not, when not."""
+    from .batch import _HOLD_MIN_ROWS, _HOLD_WINDOWS
+    from .equations import build_equations
+    from .fit import equation_weight
+    from .options import GAP_FACTOR
+    from .regressors import metric
+    from .statistics import sufficient_stats, window_raw
+
+    coef = {}
+    for h, r in results.items():
+        if r is None or r.theta is None or not np.all(np.isfinite(r.theta)):
+            return f'the {h} fit has no complete tensor: the holds are not compared'
+        bias = np.zeros(3) if r.torque_bias is None else np.asarray(r.torque_bias, float)
+        coef[h] = np.concatenate([-r.theta, -bias, [1.0]])
+    if len(tg) < 8 * _HOLD_MIN_ROWS:
+        return f'{len(tg)} gyro samples are too few for 8 windows: the holds are not compared'
+    gv = np.asarray(results['zoh'].diagnostics['gyro_noise_std'], dtype=float) ** 2
+    W = equation_weight(-coef['zoh'][:6], gv)
+    t0 = float(tg[0])
+    breaks = np.diff(tg) > GAP_FACTOR * float(np.median(np.diff(tg)))
+    n_win = min(_HOLD_WINDOWS, len(tg) // _HOLD_MIN_ROWS)
+    no_walk = np.zeros(3)
+    out = {}
+    for h, c in coef.items():
+        grid, tq, _ = equivalent_torque(tg, w, mom.t, mom.h, ts, tau, h, mom.torque)
+        g = grid - t0
+        eq = build_equations('integral', tg - t0, w, g, tq, np.ones(len(tg), bool), breaks,
+                             'zoh', gv, None)
+        cuts = np.linspace(0, len(eq.t), n_win + 1).astype(int)
+        rss = []
+        for a, b in zip(cuts[:-1], cuts[1:], strict=True):
+            sub, (j0, j1) = window_raw(eq, int(a), int(b), g, no_walk)
+            st = sufficient_stats(sub, None, g[j0:j1], float(sub.t[-1]), no_walk)
+            rss.append(float(c @ metric(st.C, W) @ c))
+        out[h] = np.array(rss)
+    return out['zoh'], out['linear']
