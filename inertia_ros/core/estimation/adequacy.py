@@ -30,7 +30,14 @@ import numpy as np
 from .options import ADEQUACY_ALPHA, MAX_RESIDUAL_EXCESS
 from .tails import chi2_sf
 
-__all__ = ['Adequacy', 'check_adequacy', 'window_consistency']
+#: Largest covariance widening a mismatch may need and still be ``ok`` (sigma x 2).
+MAX_WIDENING = 4.0
+#: Level below which either test widens the covariance by what it saw, though the status
+#: stays ``ok`` (a mismatch too small to be sure of, but not to be ignored in the sigma).
+WIDEN_ALPHA = 1e-2
+
+__all__ = ['MAX_WIDENING', 'WIDEN_ALPHA', 'Adequacy', 'check_adequacy', 'segment_shift',
+           'widening', 'window_consistency']
 
 
 @dataclass(frozen=True)
@@ -49,12 +56,16 @@ class Adequacy:
     excess : float
         Residual excess (weighted RSS over its noise-model prediction).
     inflation : float
-        Factor (>= 1) applied to the covariance: ``max(1, chi2 / dof, excess)`` when a test
-        failed, else 1.
+        Factor (>= 1) for the covariance (:func:`widening`) when a test failed at ``alpha``
+        or either test at :data:`WIDEN_ALPHA`, else 1.
     change_at : float or None
         Time [s] of the most likely step change when one split explains the disagreement.
     reason : str
         Empty when ``ok``; else what failed and the likely cause.
+    shift_chi2, shift_dof, shift_p_value, shift_max_sigma : float, int, float, float
+        :func:`segment_shift`'s test (``nan``/0/1/``nan`` when not run).
+    benign : bool
+        ``ok``, or the failure is covered by the widened covariance (status ``ok``).
     """
 
     ok: bool
@@ -66,13 +77,21 @@ class Adequacy:
     inflation: float
     change_at: float | None
     reason: str
+    shift_chi2: float = float('nan')
+    shift_dof: int = 0
+    shift_p_value: float = 1.0
+    shift_max_sigma: float = float('nan')
+    benign: bool = False
 
     def as_dict(self) -> dict[str, object]:
         """The JSON-ready record for ``diagnostics['adequacy']``."""
         return {'ok': self.ok, 'window_chi2': self.chi2, 'window_dof': self.dof,
                 'window_p_value': self.p_value, 'windows': self.windows,
                 'residual_excess': self.excess, 'covariance_inflation': self.inflation,
-                'change_at_s': self.change_at, 'reason': self.reason}
+                'change_at_s': self.change_at, 'reason': self.reason,
+                'segment_shift_chi2': self.shift_chi2, 'segment_shift_dof': self.shift_dof,
+                'segment_shift_p_value': self.shift_p_value,
+                'segment_shift_max_sigma': self.shift_max_sigma, 'benign': self.benign}
 
 
 def _pooled(thetas: np.ndarray, infos: np.ndarray) -> tuple[np.ndarray, float]:
@@ -161,11 +180,55 @@ def window_consistency(thetas: np.ndarray, covs: np.ndarray, t_mid: np.ndarray,
     return chi2, dof, pval, change_at
 
 
+def segment_shift(theta_long: np.ndarray, cov_long: np.ndarray, theta_short: np.ndarray,
+                  cov_short: np.ndarray) -> tuple[float, int, float, float]:
+    """How far the tensor moves when the anchored segments are cut shorter (a Hausman test).
+
+    Under the model both fits are unbiased and the longer-segment one is the more efficient, so
+    ``d = theta_short - theta_long`` has covariance ``cov_short - cov_long``.  An unmodelled
+    torque, a gyro bias or a drifting tensor act through the momentum each segment integrates,
+    which grows with the segment: the two fits then differ beyond that covariance.
+
+    Parameters
+    ----------
+    theta_long, theta_short : numpy.ndarray, shape (k,)
+        The tensor parameters of the two fits [kg m^2].
+    cov_long, cov_short : numpy.ndarray, shape (k, k)
+        Their covariances (noise model, not widened).
+
+    Returns
+    -------
+    chi2, dof, p_value : float, int, float
+        ``d' (cov_short - cov_long)^+ d`` on the rank of the difference (its eigenvalues below
+        a quarter of ``cov_short``'s, in ``cov_short``'s metric, are raised to that quarter so
+        that a nearly equal pair cannot make a noise-free direction).
+    max_sigma : float
+        ``max_i |d_i| / sigma_i`` with ``sigma`` the long fit's standard errors.
+    """
+    d = np.asarray(theta_short, float) - np.asarray(theta_long, float)
+    Cs = 0.5 * (cov_short + cov_short.T)
+    Cl = 0.5 * (cov_long + cov_long.T)
+    sl = np.sqrt(np.maximum(np.diag(Cl), 0.0))
+    if not (np.all(np.isfinite(d)) and np.all(np.isfinite(Cs)) and np.all(sl > 0)):
+        return float('nan'), 0, 1.0, float('nan')
+    # whiten by cov_short: V = Cs - Cl becomes I - L^-1 Cl L^-T, eigenvalues in [0, 1]
+    ev, U = np.linalg.eigh(Cs)
+    keep = ev > 1e-12 * float(np.max(ev))
+    T = U[:, keep] / np.sqrt(ev[keep])                      # Cs^-1/2 on its range
+    lam, Q = np.linalg.eigh(np.eye(int(np.sum(keep))) - T.T @ Cl @ T)
+    lam = np.maximum(lam, 0.25)
+    y = Q.T @ (T.T @ d)
+    chi2 = float(np.sum(y ** 2 / lam))
+    dof = int(np.sum(keep))
+    return chi2, dof, chi2_sf(chi2, dof), float(np.max(np.abs(d) / sl))
+
+
 def check_adequacy(thetas: np.ndarray, covs: np.ndarray, t_mid: np.ndarray, excess: float,
                    alpha: float = ADEQUACY_ALPHA,
                    max_excess: float = MAX_RESIDUAL_EXCESS,
-                   common: np.ndarray | None = None) -> Adequacy:
-    """Run both tests and name the likely cause of a failure.
+                   common: np.ndarray | None = None,
+                   shift: tuple[float, int, float, float] | None = None) -> Adequacy:
+    """Run the tests, name the likely cause of a failure and judge whether it is covered.
 
     Parameters
     ----------
@@ -174,18 +237,24 @@ def check_adequacy(thetas: np.ndarray, covs: np.ndarray, t_mid: np.ndarray, exce
     excess : float
         Residual excess of the whole-record fit (1 when the model holds).
     alpha : float
-        Level of the window test.
+        Level of the window and segment tests.
     max_excess : float
         Largest residual excess accepted.
     common : numpy.ndarray, shape (K, p, q), optional
         As :func:`window_consistency`: stated errors shared by the windows.
+    shift : tuple, optional
+        :func:`segment_shift`'s result for the fit (``None``: not run).
 
     Returns
     -------
     Adequacy
+        ``inflation`` is :func:`widening`'s factor; ``benign`` when a test failed but the
+        widened covariance covers what the tests saw.
     """
     chi2, dof, pval, change_at = window_consistency(thetas, covs, t_mid, common)
     excess = float(excess) if np.isfinite(excess) else 1.0
+    s_chi2, s_dof, s_p, s_max = shift if shift is not None else (float('nan'), 0, 1.0,
+                                                                  float('nan'))
     causes = []
     if dof > 0 and pval < alpha:
         if change_at is not None:
@@ -195,12 +264,54 @@ def check_adequacy(thetas: np.ndarray, covs: np.ndarray, t_mid: np.ndarray, exce
             causes.append(f'window estimates disagree (chi2 {chi2:.0f} on {dof} dof, p = '
                           f'{pval:.1e}): a drifting tensor, a gyro bias or an unmodelled '
                           'torque that varies with the motion')
+    if s_dof > 0 and s_p < alpha:
+        causes.append(f'the tensor moves by {s_max:.1f} sigma when the anchored segments are '
+                      f'cut shorter (chi2 {s_chi2:.0f} on {s_dof} dof): an unmodelled slow '
+                      'torque or a gyro bias')
     if excess > max_excess:
         causes.append(f'residuals {excess:.1f}x the noise model: unmodelled torque, a torque '
                       'that varies between its samples (try hold linear) or correlated '
                       'sensor noise')
     ok = not causes
-    inflation = 1.0 if ok else max(1.0, (chi2 / dof) if dof > 0 else 1.0, excess)
+    suspect = (dof > 0 and pval < WIDEN_ALPHA) or (s_dof > 0 and s_p < WIDEN_ALPHA)
+    factor, benign = (1.0, True) if ok and not suspect else widening(
+        chi2 / dof if dof > 0 else 1.0, s_chi2 / s_dof if s_dof > 0 else 1.0, excess,
+        change_at is not None and not ok)
+    benign = benign or ok
     return Adequacy(ok=ok, chi2=chi2, dof=dof, p_value=pval, windows=len(thetas),
-                    excess=excess, inflation=float(inflation), change_at=change_at,
-                    reason='; '.join(causes))
+                    excess=excess, inflation=float(factor), change_at=change_at,
+                    reason='; '.join(causes), shift_chi2=s_chi2, shift_dof=s_dof,
+                    shift_p_value=s_p, shift_max_sigma=s_max, benign=benign)
+
+
+
+
+def widening(window_ratio: float, shift_ratio: float, excess: float, step: bool
+             ) -> tuple[float, bool]:
+    """The covariance factor that covers what the tests saw, and whether that is benign.
+
+    The one widening of the estimators: the largest of the windows' Birge ratio (their
+    scatter over its noise-model prediction), the segment shift's (its chi2 per dof) and the
+    residual excess.  Benign (``ok`` with the widened covariance) when no step change was
+    located and the factor is at most :data:`MAX_WIDENING`: a larger one means the answer
+    depends on which part of the record, or which segmentation, is used by more than twice
+    its noise-model sigma, which is no longer noise to average but a wrong model.
+
+    Parameters
+    ----------
+    window_ratio, shift_ratio : float
+        ``chi2 / dof`` of the window and segment tests (1 when not run).
+    excess : float
+        Residual excess.
+    step : bool
+        A step change was located.
+
+    Returns
+    -------
+    factor : float
+        Covariance factor, >= 1.
+    benign : bool
+    """
+    ratios = [r for r in (window_ratio, shift_ratio, excess) if np.isfinite(r)]
+    factor = max([1.0, *ratios])
+    return factor, bool(not step and factor <= MAX_WIDENING)

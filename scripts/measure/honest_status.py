@@ -1,0 +1,60 @@
+"""Status and sigma on the reference simulator (issue 27 items 3-4): estimate() defaults or CLI.
+
+    python scripts/measure/honest_status.py CASE SEEDS DURATION [api|cli]
+
+CASE: conforming, continuous, disturbance, gyro_bias, payload_change, or a peer-like sine
+profile ``sine_{x,y,z,iso}_{AMPLITUDE}`` (one tone per axis at 0.1, 0.13, 0.17 Hz, a 0.27 rad/s start, quiet sensors, a small
+unmodelled disturbance fixed in inertial axes; add ``_nodist`` for none).  Prints the statuses,
+RMS z over all records and over the ok ones, max |z| of the ok ones, the median error and the
+sigma widening the estimates report.
+"""
+
+import sys
+
+import numpy as np
+
+from inertia_ros.bench.honesty import CASES, HonestyCase, run_case
+from inertia_ros.bench.truth_sim import TruthCase
+
+SCENE = TruthCase(amplitude=0.06, torque_noise=0.0012, omega0=(0.05, -0.03, 0.02))
+_AXES = {'x': (1.0, 0.0, 0.0), 'y': (0.0, 1.0, 0.0), 'z': (0.0, 0.0, 1.0), 'iso': (1.0, 1.0, 1.0)}
+
+
+def case_named(name: str, duration: float) -> TruthCase:
+    """The scenario called ``name`` (see the module docstring), ``duration`` s long."""
+    if name == 'conforming':
+        return SCENE.with_(duration=duration)
+    if name == 'continuous':
+        return SCENE.with_(torque_kind='continuous', duration=duration)
+    if name.startswith('sine_'):
+        parts = name.split('_')
+        dist = (0.0, 0.0, 0.0) if parts[-1] == 'nodist' else (2e-4, -1.5e-4, 1e-4)
+        return TruthCase(torque_kind='sine', sine_axes=_AXES[parts[1]], sine_freq=0.1,
+                         amplitude=float(parts[2]), gyro_noise=2e-4, torque_noise=2e-4,
+                         omega0=(0.2, -0.1, 0.15), disturbance=dist,
+                         disturbance_kind='inertial', duration=duration)
+    t = CASES[name].truth.with_(duration=duration)
+    return t.with_(t_change=duration / 2) if t.t_change is not None else t
+
+
+def main() -> None:
+    name, n, dur = sys.argv[1], int(sys.argv[2]), float(sys.argv[3])
+    path = sys.argv[4] if len(sys.argv) > 4 else 'api'
+    out = run_case(name, HonestyCase(case_named(name, dur)), range(n), (path,))
+    st: dict[str, int] = {}
+    for o in out:
+        st[o.status] = st.get(o.status, 0) + 1
+    z_all = np.concatenate([o.z[np.isfinite(o.z)] for o in out])
+    ok = [o for o in out if o.status == 'ok']
+    z_ok = np.concatenate([o.z[np.isfinite(o.z)] for o in ok]) if ok else np.zeros(0)
+    errs = [o.rel_error for o in out if np.isfinite(o.rel_error)] or [float('nan')]
+    maxz = [float(np.nanmax(np.abs(o.z), initial=0.0)) for o in out]
+    print(f'{name} {path} {n} x {dur:g} s: {st} RMS z all {np.sqrt(np.mean(z_all ** 2)):.2f} '
+          f'ok {np.sqrt(np.mean(z_ok ** 2)) if z_ok.size else float("nan"):.2f} '
+          f'max|z| ok {np.max(np.abs(z_ok)) if z_ok.size else float("nan"):.1f} '
+          f'(all: {min(maxz):.1f}-{max(maxz):.1f}) ok with |z|>5: {sum(o.defect for o in out)} '
+          f'median error {100 * np.median(errs):.3g} % (max {100 * np.max(errs):.3g} %)')
+
+
+if __name__ == '__main__':
+    main()
