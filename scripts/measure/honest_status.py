@@ -2,22 +2,22 @@
 
     python scripts/measure/honest_status.py CASE SEEDS DURATION [api|cli]
 
-CASE: conforming, continuous, disturbance, gyro_bias, payload_change, or a peer-like sine
-profile ``sine_{x,y,z,iso}_{AMPLITUDE}`` (one tone per axis at 0.1, 0.13, 0.17 Hz, a 0.27 rad/s start, quiet sensors, a small
-unmodelled disturbance fixed in inertial axes; add ``_nodist`` for none).  Prints the statuses,
-RMS z over all records and over the ok ones, max |z| of the ok ones, the median error and the
-sigma widening the estimates report.
+CASE: conforming, continuous, a case of ``bench.honesty.CASES`` (disturbance, gyro_bias,
+payload_change, ...), or a peer-like sine profile ``sine_{x,y,z,iso}_{AMPLITUDE}[_LEVEL]``
+(:func:`inertia_ros.bench.honesty.peer_like`: one tone per axis, quiet sensors, an unmodelled
+disturbance fixed in inertial axes of LEVEL x (1, -0.75, 0.5) N m, 2e-4 when not given;
+``_nodist`` for none).  Prints the statuses, RMS z over all records and over the ok ones,
+max |z| of the ok ones, the ok records with some |z| > 5 and the median error.
 """
 
 import sys
 
 import numpy as np
 
-from inertia_ros.bench.honesty import CASES, HonestyCase, run_case
+from inertia_ros.bench.honesty import CASES, HonestyCase, peer_like, run_case
 from inertia_ros.bench.truth_sim import TruthCase
 
 SCENE = TruthCase(amplitude=0.06, torque_noise=0.0012, omega0=(0.05, -0.03, 0.02))
-_AXES = {'x': (1.0, 0.0, 0.0), 'y': (0.0, 1.0, 0.0), 'z': (0.0, 0.0, 1.0), 'iso': (1.0, 1.0, 1.0)}
 
 
 def case_named(name: str, duration: float) -> TruthCase:
@@ -28,11 +28,8 @@ def case_named(name: str, duration: float) -> TruthCase:
         return SCENE.with_(torque_kind='continuous', duration=duration)
     if name.startswith('sine_'):
         parts = name.split('_')
-        dist = (0.0, 0.0, 0.0) if parts[-1] == 'nodist' else (2e-4, -1.5e-4, 1e-4)
-        return TruthCase(torque_kind='sine', sine_axes=_AXES[parts[1]], sine_freq=0.1,
-                         amplitude=float(parts[2]), gyro_noise=2e-4, torque_noise=2e-4,
-                         omega0=(0.2, -0.1, 0.15), disturbance=dist,
-                         disturbance_kind='inertial', duration=duration)
+        level = 0.0 if parts[-1] == 'nodist' else float(parts[3]) if len(parts) > 3 else 2e-4
+        return peer_like(parts[1], float(parts[2]), level, duration)
     t = CASES[name].truth.with_(duration=duration)
     return t.with_(t_change=duration / 2) if t.t_change is not None else t
 

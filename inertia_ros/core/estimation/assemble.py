@@ -277,7 +277,8 @@ def _suspect(a: Adequacy) -> str:
 
 def _widened_by(a: Adequacy) -> str:
     """Which test's ratio set the widening (the largest)."""
-    cands = {'window scatter (Birge ratio)': a.chi2 / a.dof if a.dof > 0 else 0.0,
+    cands = {'window scatter (1 + K (B - 1), B the windows\' Birge ratio)':
+             1.0 + a.windows * (a.chi2 / a.dof - 1.0) if a.dof > 0 else 0.0,
              'segment shift (chi2 per dof)': a.shift_chi2 / a.shift_dof if a.shift_dof > 0
              else 0.0,
              'residual excess': a.excess}
