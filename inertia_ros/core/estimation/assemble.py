@@ -243,15 +243,18 @@ def add_calibration(f: Fit, policy: SelectionPolicy, gyro_sensitivity: Sensitivi
 def _adequate(adequacy: AdequacyFunction, f: Fit, chosen: str, diag: dict[str, Any]) -> str:
     """Run the adequacy tests on the final fit: ``'ok'`` or ``'model_mismatch'``.
 
-    A failed test widens the covariance by :func:`.adequacy.widening`'s factor (the fit's own
-    excess inflation is not counted twice).  When that covers what the tests saw (benign)
-    the status stays ``ok`` and ``diag['adequacy']['sigma_widened_by']`` and a warning say by
-    how much and why; otherwise ``model_mismatch`` with the reason.
+    What the tests saw widens the covariance by :func:`.adequacy.widening`'s factor (the fit's
+    own excess inflation is not counted twice).  ``diag['adequacy']['sigma_widened_by']`` is
+    the sigma over the noise model's (1: not widened).  When the widening covers what the
+    tests saw (benign) the status stays ``ok`` and a warning says by how much and why;
+    otherwise ``model_mismatch`` with the reason.
     """
     a = adequacy(f, chosen)
     rec = diag['adequacy'] = a.as_dict()
     factor = max(1.0, a.inflation / max(f.excess, 1.0))
-    rec['sigma_widened_by'] = float(np.sqrt(factor))
+    # over the noise model's sigma (what the tests saw; a verdict the node may report one
+    # estimate later, so not relative to the current fit's own excess inflation)
+    rec['sigma_widened_by'] = float(np.sqrt(a.inflation))
     if factor == 1.0:
         rec['covariance'] = 'noise model' + (' x residual excess' if f.excess > 1.0 else '')
         if a.ok:
@@ -261,7 +264,7 @@ def _adequate(adequacy: AdequacyFunction, f: Fit, chosen: str, diag: dict[str, A
         rec['covariance'] = 'noise model x ' + _widened_by(a)
     if a.benign:
         diag['warnings'].append(
-            f'sigma widened {np.sqrt(factor):.3g}x by the ' + _widened_by(a) + ': '
+            f'sigma widened {np.sqrt(a.inflation):.3g}x by the ' + _widened_by(a) + ': '
             + (a.reason or _suspect(a)) + '; covered, the answer does not move beyond the '
             'widened sigma')
         return 'ok'
