@@ -33,7 +33,7 @@ def test_noise_model_scatter_is_ok_and_not_widened() -> None:
 
 
 def test_suspect_scatter_is_ok_with_the_sigma_widened_by_it() -> None:
-    """Scatter suspect at 1 % but not failing at 1e-4: ok, sigma widened by 1 + K (B - 1)."""
+    """Scatter suspect (p < 0.05) but not failing at 1e-4: ok, sigma widened by 1 + K (B - 1)."""
     a = check_adequacy(*_windows(1.45, seed=4), excess=1.0)
     B = a.chi2 / a.dof
     assert 1e-4 < a.p_value < 1e-2, a

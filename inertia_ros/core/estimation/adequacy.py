@@ -44,7 +44,7 @@ from .tails import chi2_sf
 MAX_WIDENING = 4.0
 #: Level below which either test widens the covariance by what it saw, though the status
 #: stays ``ok`` (a mismatch too small to be sure of, but not to be ignored in the sigma).
-WIDEN_ALPHA = 1e-2
+WIDEN_ALPHA = 5e-2
 
 __all__ = ['MAX_WIDENING', 'WIDEN_ALPHA', 'Adequacy', 'check_adequacy', 'segment_shift',
            'widening', 'window_consistency']

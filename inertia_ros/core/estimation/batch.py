@@ -692,8 +692,6 @@ def _refine(first: InertiaEstimate, tg: np.ndarray, w: np.ndarray, ts: np.ndarra
         return keep("the likelihood model holds each torque sample (hold='zoh' only)")
     if first.status != 'ok' or first.inertia is None:
         return keep(f'the starting estimate is {first.status!r}, only ok estimates are refined')
-    if diag.get('adequacy', {}).get('sigma_widened_by', 1.0) > 1.0:
-        return keep('its sigma was widened to cover a model mismatch (the likelihood has none)')
     if any('torque gap' in str(m) for m in diag['warnings']):
         return keep('torque gaps: the held-torque model does not cover them')
     t0 = float(min(tg[0], ts[0]))
@@ -719,7 +717,10 @@ def _refine(first: InertiaEstimate, tg: np.ndarray, w: np.ndarray, ts: np.ndarra
                     f'{MAX_RESIDUAL_EXCESS:g})')
     k = basis.shape[1]
     theta = basis @ res.beta
-    cov6 = basis @ res.cov[:k, :k] @ basis.T
+    # the widening the adequacy tests gave the integral sigma (over the noise model) holds
+    # for the likelihood's too: its model is the same
+    rcov = res.cov * float(diag.get('adequacy', {}).get('sigma_widened_by', 1.0)) ** 2
+    cov6 = basis @ rcov[:k, :k] @ basis.T
     calib = diag.get('calibration')
     if calib is not None:                   # the stated scale uncertainties, as for integral
         cov6 = cov6 + basis @ np.asarray(calib['covariance_added'])[:k, :k] @ basis.T
@@ -731,7 +732,7 @@ def _refine(first: InertiaEstimate, tg: np.ndarray, w: np.ndarray, ts: np.ndarra
     moments, axes = principal_with_std(I, cov6, diag)
     diag['physical'] = {'valid': True, 'projected': False}
     if res.bias is not None:
-        diag['torque_bias_std'] = np.sqrt(np.maximum(np.diag(res.cov)[k:k + 3], 0.0))
+        diag['torque_bias_std'] = np.sqrt(np.maximum(np.diag(rcov)[k:k + 3], 0.0))
     return replace(first, method='ml', inertia=I, covariance=0.5 * (cov6 + cov6.T),
                    inertia_std=theta_to_matrix(np.sqrt(np.maximum(np.diag(cov6), 0.0)),
                                                check_finite=False),
