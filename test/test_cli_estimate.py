@@ -29,8 +29,10 @@ EXPECTED = {'torque_free': ('scale_unobservable',),
             # likewise the rotor-driven quadrotor without --rotors (its torque topic is zeros)
             'quadrotor': ('scale_unobservable', 'insufficient_excitation'),
             # sensor nuisance samples: without --nuisance the model lacks the term
-            **dict.fromkeys(('gyro_bias', 'torque_delay', 'damping', 'gyro_lowpass'),
-                            ('model_mismatch',))}
+            **dict.fromkeys(('gyro_bias', 'damping', 'gyro_lowpass'), ('model_mismatch',)),
+            # ... but a 15 ms torque delay only raises the residuals (1.8x): covered by the
+            # widened sigma (issue 27 item 4), ok within 0.9 sigma of the truth
+            'torque_delay': ('ok',)}
 DEFAULT_BAG = ROOT / 'bags' / 'default.mcap'
 needs_default = pytest.mark.skipif(not DEFAULT_BAG.exists(), reason='bags/default.mcap absent')
 

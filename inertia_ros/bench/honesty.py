@@ -35,7 +35,7 @@ import numpy as np
 
 from .truth_sim import TruthCase, TruthRecord, simulate_truth
 
-__all__ = ['CASES', 'HonestyCase', 'Outcome', 'Summary', 'run_case', 'summarize']
+__all__ = ['CASES', 'HonestyCase', 'Outcome', 'Summary', 'peer_like', 'run_case', 'summarize']
 
 _IU = np.triu_indices(3)
 _THETA_ORDER = ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))
@@ -88,6 +88,26 @@ CASES: dict[str, HonestyCase] = {
     'spin_50': HonestyCase(_BASE.with_(omega0=(0.5, 0.3, 50.0), duration=30.0,
                                        gyro_rate=1000, torque_rate=100, amplitude=0.5)),
 }
+
+
+_SINE_AXES = {'x': (1.0, 0.0, 0.0), 'y': (0.0, 1.0, 0.0), 'z': (0.0, 0.0, 1.0),
+              'iso': (1.0, 1.0, 1.0)}
+
+
+def peer_like(axes: str, amplitude: float, disturbance: float,
+              duration: float = 60.0) -> TruthCase:
+    """A sine excitation profile of the kind a public peer's benchmark uses (issue 27).
+
+    One tone per torqued axis (0.1, 0.13, 0.17 Hz for x, y, z) of ``amplitude`` [N m] on
+    ``axes`` (``'x'``, ``'y'``, ``'z'`` or ``'iso'``: all three), quiet sensors (2e-4 rad/s,
+    2e-4 N m), a 0.27 rad/s initial rate, and an unmodelled disturbance fixed in inertial axes
+    of ``disturbance * (1, -0.75, 0.5)`` [N m] (0: none).
+    """
+    d = float(disturbance)
+    return TruthCase(torque_kind='sine', sine_axes=_SINE_AXES[axes], sine_freq=0.1,
+                     amplitude=float(amplitude), gyro_noise=2e-4, torque_noise=2e-4,
+                     omega0=(0.2, -0.1, 0.15), disturbance=(d, -0.75 * d, 0.5 * d),
+                     disturbance_kind='inertial', duration=float(duration))
 
 
 @dataclass(frozen=True)

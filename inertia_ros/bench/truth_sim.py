@@ -16,7 +16,8 @@ sample periods (``h = 1 / (substeps * gcd rate)``), for ``S`` seeds at once (eve
   ``delay`` later than it acted.
 
 The applied torque is either held between torque samples (``'zoh'``: a command), a smooth
-function of time sampled by the torque stream (``'continuous'``), or ``'constant'``.  An
+function of time sampled by the torque stream (``'continuous'``; ``'sine'``: one tone per
+axis at its own frequency, weighted by ``sine_axes``), or ``'constant'``.  An
 unmeasured disturbance ``d`` can be constant in body axes, a slow sinusoid, or constant in the
 inertial frame (rotating in body axes).  A payload change switches the tensor at ``t_change``
 conserving angular momentum (the payload is attached without impulse).
@@ -50,8 +51,13 @@ class TruthCase:
         Sample rates [Hz] (integers in Hz, so that both fall on the integration grid).
     gyro_noise, torque_noise : float
         White-noise standard deviation per axis [rad/s], [N m].
-    torque_kind : {'zoh', 'continuous', 'constant'}
+    torque_kind : {'zoh', 'continuous', 'sine', 'constant'}
         How the applied torque varies (see the module docstring).
+    sine_axes : tuple of float
+        ``'sine'``: the amplitude share of each axis (``(1, 1, 1)`` all axes, ``(1, 0, 0)`` x).
+    sine_freq : float
+        ``'sine'``: the x tone's frequency [Hz]; y and z at 1.3 and 1.7 times it (a random
+        phase per axis and seed).
     amplitude : float
         Torque amplitude per axis [N m].
     omega0 : tuple of float
@@ -89,6 +95,8 @@ class TruthCase:
     gyro_noise: float = 2e-3
     torque_noise: float = 5e-3
     torque_kind: str = 'zoh'
+    sine_axes: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    sine_freq: float = 0.2
     amplitude: float = 0.2
     omega0: tuple[float, float, float] = (0.1, -0.05, 0.08)
     gyro_bias: tuple[float, float, float] = (0.0, 0.0, 0.0)
@@ -178,6 +186,10 @@ class _Torques:
         c = self.case
         if c.torque_kind == 'constant':
             return c.amplitude * self.const
+        if c.torque_kind == 'sine':
+            f = c.sine_freq * np.array([1.0, 1.3, 1.7])
+            ph = self.phase[:, :, 0]
+            return c.amplitude * np.asarray(c.sine_axes) * np.sin(2 * np.pi * f * t + ph)
         arg = 2 * np.pi * self.freqs[None] * t + self.phase
         return c.amplitude * np.sin(arg).sum(axis=2) / np.sqrt(5.0 / 2.0)   # RMS = amplitude
 
@@ -256,7 +268,7 @@ def _integrate(case: TruthCase, torques: _Torques, S: int
         if k == n:
             break
         Iinv = np.linalg.inv(I)
-        if case.torque_kind == 'continuous':
+        if case.torque_kind in ('continuous', 'sine'):
             tau1, tau2, tau4 = torques.at(t), torques.at(t + h / 2), torques.at(t + h)
         else:
             tau1 = tau2 = tau4 = held

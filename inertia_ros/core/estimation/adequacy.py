@@ -1,6 +1,6 @@
 """Model adequacy: does the fitted model explain the data, and if not, what probably doesn't?
 
-Two tests, both against the noise model the standard errors come from:
+Three tests, all against the noise model the standard errors come from:
 
 Time-window consistency
     The record is cut into ``K`` consecutive windows and the same parameter set is fitted on
@@ -13,13 +13,23 @@ Time-window consistency
     A payload change, a drifting tensor, a gyro bias or an unmodelled torque make the windows
     disagree, because their effect depends on the motion in each window.  The split of the
     windows into two groups that explains most of ``chi2`` locates a step change.
+Segment shift
+    The whole record refitted with anchored segments 4x shorter (:func:`segment_shift`, a
+    Hausman-type test): an unmodelled slow torque or a gyro bias acts through the momentum a
+    segment integrates, so the tensor moves with the segment length.  Needs no room for
+    windows (short records, and the batch path only: the online path has no segment choice).
 Residual excess
     The weighted residual sum of squares over its noise-model prediction (``excess``, about 1
     when the model holds).  Much larger: an unmodelled torque or a wrong torque hold.
 
-A failed test makes the status ``model_mismatch``; the estimate is still reported, its
-covariance inflated by the Birge ratio ``chi2 / dof`` so that the spread the windows show is in
-the standard errors.  The level of both tests is :data:`.options.ADEQUACY_ALPHA`.
+Status and widening.  What the tests saw -- a failure at :data:`.options.ADEQUACY_ALPHA`, or
+either test below :data:`WIDEN_ALPHA` -- widens the covariance by one rule,
+:func:`widening` (the window scatter taken as a systematic error that does not average out,
+the segment shift's chi2 per dof, the residual excess: the largest).  A mismatch that needs
+at most :data:`MAX_WIDENING` (sigma x 2), without a located step, is benign: ``ok`` with the
+widened sigma and a warning saying by how much and why.  A failed test that needs more, or a
+step change, is ``model_mismatch``: the estimate is still reported with the widened
+covariance and the reason names the likely cause.
 """
 from __future__ import annotations
 
@@ -30,7 +40,14 @@ import numpy as np
 from .options import ADEQUACY_ALPHA, MAX_RESIDUAL_EXCESS
 from .tails import chi2_sf
 
-__all__ = ['Adequacy', 'check_adequacy', 'window_consistency']
+#: Largest covariance widening a mismatch may need and still be ``ok`` (sigma x 2).
+MAX_WIDENING = 4.0
+#: Level below which either test widens the covariance by what it saw, though the status
+#: stays ``ok`` (a mismatch too small to be sure of, but not to be ignored in the sigma).
+WIDEN_ALPHA = 5e-2
+
+__all__ = ['MAX_WIDENING', 'WIDEN_ALPHA', 'Adequacy', 'check_adequacy', 'segment_shift',
+           'widening', 'window_consistency']
 
 
 @dataclass(frozen=True)
@@ -40,7 +57,7 @@ class Adequacy:
     Attributes
     ----------
     ok : bool
-        Both tests passed.
+        No test failed at ``alpha`` (the window and segment tests) or ``max_excess``.
     chi2, dof, p_value : float, int, float
         Window-consistency statistic, its degrees of freedom and tail probability
         (``nan``/0/1 when there were too few usable windows).
@@ -49,12 +66,16 @@ class Adequacy:
     excess : float
         Residual excess (weighted RSS over its noise-model prediction).
     inflation : float
-        Factor (>= 1) applied to the covariance: ``max(1, chi2 / dof, excess)`` when a test
-        failed, else 1.
+        Factor (>= 1) for the covariance (:func:`widening`) when a test failed at ``alpha``
+        or either test at :data:`WIDEN_ALPHA`, else 1.
     change_at : float or None
         Time [s] of the most likely step change when one split explains the disagreement.
     reason : str
         Empty when ``ok``; else what failed and the likely cause.
+    shift_chi2, shift_dof, shift_p_value, shift_max_sigma : float, int, float, float
+        :func:`segment_shift`'s test (``nan``/0/1/``nan`` when not run).
+    benign : bool
+        ``ok``, or the failure is covered by the widened covariance (status ``ok``).
     """
 
     ok: bool
@@ -66,13 +87,21 @@ class Adequacy:
     inflation: float
     change_at: float | None
     reason: str
+    shift_chi2: float = float('nan')
+    shift_dof: int = 0
+    shift_p_value: float = 1.0
+    shift_max_sigma: float = float('nan')
+    benign: bool = False
 
     def as_dict(self) -> dict[str, object]:
         """The JSON-ready record for ``diagnostics['adequacy']``."""
         return {'ok': self.ok, 'window_chi2': self.chi2, 'window_dof': self.dof,
                 'window_p_value': self.p_value, 'windows': self.windows,
                 'residual_excess': self.excess, 'covariance_inflation': self.inflation,
-                'change_at_s': self.change_at, 'reason': self.reason}
+                'change_at_s': self.change_at, 'reason': self.reason,
+                'segment_shift_chi2': self.shift_chi2, 'segment_shift_dof': self.shift_dof,
+                'segment_shift_p_value': self.shift_p_value,
+                'segment_shift_max_sigma': self.shift_max_sigma, 'benign': self.benign}
 
 
 def _pooled(thetas: np.ndarray, infos: np.ndarray) -> tuple[np.ndarray, float]:
@@ -161,11 +190,51 @@ def window_consistency(thetas: np.ndarray, covs: np.ndarray, t_mid: np.ndarray,
     return chi2, dof, pval, change_at
 
 
+def segment_shift(theta_long: np.ndarray, cov_long: np.ndarray, theta_short: np.ndarray,
+                  cov_short: np.ndarray) -> tuple[float, int, float, float]:
+    """How far the tensor moves when the anchored segments are cut shorter (a Hausman test).
+
+    Under the model both fits are unbiased, so ``d = theta_short - theta_long`` is noise.  An
+    unmodelled torque, a gyro bias or a drifting tensor act through the momentum each
+    segment integrates, which grows with the segment: the two fits then differ beyond it.
+    The covariance of ``d`` is taken as ``cov_short`` (an upper bound of ``cov_short -
+    cov_long`` when the longer fit is the more efficient): the weighted fits are not exactly
+    efficient, and the tighter difference made false alarms on clean records (30 s, chi2 21-34
+    on 6 dof at a shift of 1.5 sigma).
+
+    Parameters
+    ----------
+    theta_long, theta_short : numpy.ndarray, shape (k,)
+        The tensor parameters of the two fits [kg m^2].
+    cov_long, cov_short : numpy.ndarray, shape (k, k)
+        Their covariances (noise model, not widened).
+
+    Returns
+    -------
+    chi2, dof, p_value : float, int, float
+        ``d' cov_short^+ d`` on the rank of ``cov_short``.
+    max_sigma : float
+        ``max_i |d_i| / sigma_i`` with ``sigma`` the long fit's standard errors.
+    """
+    d = np.asarray(theta_short, float) - np.asarray(theta_long, float)
+    Cs = 0.5 * (cov_short + cov_short.T)
+    sl = np.sqrt(np.maximum(np.diag(cov_long), 0.0))
+    if not (np.all(np.isfinite(d)) and np.all(np.isfinite(Cs)) and np.all(sl > 0)):
+        return float('nan'), 0, 1.0, float('nan')
+    ev, U = np.linalg.eigh(Cs)
+    keep = ev > 1e-12 * float(np.max(ev))
+    y = (U[:, keep].T @ d) / np.sqrt(ev[keep])
+    chi2 = float(y @ y)
+    dof = int(np.sum(keep))
+    return chi2, dof, chi2_sf(chi2, dof), float(np.max(np.abs(d) / sl))
+
+
 def check_adequacy(thetas: np.ndarray, covs: np.ndarray, t_mid: np.ndarray, excess: float,
                    alpha: float = ADEQUACY_ALPHA,
                    max_excess: float = MAX_RESIDUAL_EXCESS,
-                   common: np.ndarray | None = None) -> Adequacy:
-    """Run both tests and name the likely cause of a failure.
+                   common: np.ndarray | None = None,
+                   shift: tuple[float, int, float, float] | None = None) -> Adequacy:
+    """Run the tests, name the likely cause of a failure and judge whether it is covered.
 
     Parameters
     ----------
@@ -174,18 +243,24 @@ def check_adequacy(thetas: np.ndarray, covs: np.ndarray, t_mid: np.ndarray, exce
     excess : float
         Residual excess of the whole-record fit (1 when the model holds).
     alpha : float
-        Level of the window test.
+        Level of the window and segment tests.
     max_excess : float
         Largest residual excess accepted.
     common : numpy.ndarray, shape (K, p, q), optional
         As :func:`window_consistency`: stated errors shared by the windows.
+    shift : tuple, optional
+        :func:`segment_shift`'s result for the fit (``None``: not run).
 
     Returns
     -------
     Adequacy
+        ``inflation`` is :func:`widening`'s factor; ``benign`` when a test failed but the
+        widened covariance covers what the tests saw.
     """
     chi2, dof, pval, change_at = window_consistency(thetas, covs, t_mid, common)
     excess = float(excess) if np.isfinite(excess) else 1.0
+    s_chi2, s_dof, s_p, s_max = shift if shift is not None else (float('nan'), 0, 1.0,
+                                                                  float('nan'))
     causes = []
     if dof > 0 and pval < alpha:
         if change_at is not None:
@@ -195,12 +270,66 @@ def check_adequacy(thetas: np.ndarray, covs: np.ndarray, t_mid: np.ndarray, exce
             causes.append(f'window estimates disagree (chi2 {chi2:.0f} on {dof} dof, p = '
                           f'{pval:.1e}): a drifting tensor, a gyro bias or an unmodelled '
                           'torque that varies with the motion')
+    if s_dof > 0 and s_p < alpha:
+        causes.append(f'the tensor moves by {s_max:.1f} sigma when the anchored segments are '
+                      f'cut shorter (chi2 {s_chi2:.0f} on {s_dof} dof): an unmodelled slow '
+                      'torque or a gyro bias')
     if excess > max_excess:
         causes.append(f'residuals {excess:.1f}x the noise model: unmodelled torque, a torque '
                       'that varies between its samples (try hold linear) or correlated '
                       'sensor noise')
     ok = not causes
-    inflation = 1.0 if ok else max(1.0, (chi2 / dof) if dof > 0 else 1.0, excess)
+    suspect = (dof > 0 and pval < WIDEN_ALPHA) or (s_dof > 0 and s_p < WIDEN_ALPHA)
+    factor, benign = (1.0, True) if ok and not suspect else widening(
+        chi2 / dof if dof > 0 else 1.0, len(thetas), s_chi2 / s_dof if s_dof > 0 else 1.0,
+        excess, change_at is not None and not ok)
+    benign = benign or ok
     return Adequacy(ok=ok, chi2=chi2, dof=dof, p_value=pval, windows=len(thetas),
-                    excess=excess, inflation=float(inflation), change_at=change_at,
-                    reason='; '.join(causes))
+                    excess=excess, inflation=float(factor), change_at=change_at,
+                    reason='; '.join(causes), shift_chi2=s_chi2, shift_dof=s_dof,
+                    shift_p_value=s_p, shift_max_sigma=s_max, benign=benign)
+
+
+
+
+def widening(window_ratio: float, windows: int, shift_ratio: float, excess: float,
+             step: bool) -> tuple[float, bool]:
+    """The covariance factor that covers what the tests saw, and whether that is benign.
+
+    The one widening of the estimators, the largest of:
+
+    - the window scatter: ``1 + K (B - 1)`` with ``B`` the windows' Birge ratio (their
+      scatter over its noise-model prediction) and ``K`` the windows.  The scatter beyond the
+      noise is taken as a systematic error each window carries, which the whole record's
+      estimate keeps instead of averaging it down ``K`` times (``B`` alone left a gyro bias
+      or a small unmodelled torque at RMS z 1.7-1.8 after widening);
+    - the segment shift's chi2 per dof;
+    - the residual excess.
+
+    Benign (``ok`` with the widened covariance) when no step change was located and the
+    factor is at most :data:`MAX_WIDENING`: a larger one means the mismatch, not the noise,
+    dominates the error of the answer, which is then ``model_mismatch``.
+
+    Parameters
+    ----------
+    window_ratio : float
+        ``chi2 / dof`` of the window test (1 when not run).
+    windows : int
+        Windows that entered it.
+    shift_ratio : float
+        ``chi2 / dof`` of the segment shift (1 when not run).
+    excess : float
+        Residual excess.
+    step : bool
+        A step change was located.
+
+    Returns
+    -------
+    factor : float
+        Covariance factor, >= 1.
+    benign : bool
+    """
+    scatter = 1.0 + max(windows, 1) * (window_ratio - 1.0)
+    ratios = [r for r in (scatter, shift_ratio, excess) if np.isfinite(r)]
+    factor = max([1.0, *ratios])
+    return factor, bool(not step and factor <= MAX_WIDENING)

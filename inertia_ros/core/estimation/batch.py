@@ -84,7 +84,7 @@ import numpy as np
 from .._numeric import median
 from .._validate import as_noise_std, as_samples, as_times, refuse_nanoseconds
 from ..tensor import check_physical, theta_to_matrix
-from .adequacy import Adequacy, check_adequacy
+from .adequacy import Adequacy, check_adequacy, segment_shift
 from .assemble import conclude, status_only
 from .config import unapplied
 from .equations import Equations, build_equations, is_prefix, shared_integral_equations
@@ -528,10 +528,10 @@ def _estimate_shifted(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray
         sliding and differential methods are tested on the anchored (integral) equations.
         """
         if eq.kind == 'anchored':
-            return _window_adequacy(eq, segment, ts, gyro_var, torque_var, f)
+            return _window_adequacy(eq, segment, ts, tau_end, gyro_var, torque_var, f)
         eqa = build_equations('integral', tg, w, ts, tau, mask, breaks, hold, gyro_var, None)
         eqa.motion = eq.motion
-        return _window_adequacy(eqa, None, ts, gyro_var, torque_var, f)
+        return _window_adequacy(eqa, None, ts, tau_end, gyro_var, torque_var, f, own=False)
 
     def gyro_sensitivity(f: Fit) -> np.ndarray | None:
         """``d beta / d g`` of the final fit for a relative gyro scale error ``g``."""
@@ -595,22 +595,24 @@ def _gyro_sensitivity(eq: Equations, segment: float | None, ts: np.ndarray, tau_
     return (betas[1] - betas[0]) / step
 
 
-def _window_adequacy(eq: Equations, segment: float | None, ts: np.ndarray,
-                     gyro_var: np.ndarray, torque_var: np.ndarray, f: Fit) -> Adequacy:
-    """Refit ``f``'s parameter set on consecutive time windows and test their agreement.
+def _window_adequacy(eq: Equations, segment: float | None, ts: np.ndarray, tau_end: float,
+                     gyro_var: np.ndarray, torque_var: np.ndarray, f: Fit,
+                     own: bool = True) -> Adequacy:
+    """Refit ``f``'s parameter set on time windows and on shorter segments; test both.
 
     Up to :data:`ADEQUACY_WINDOWS` windows of at least :data:`ADEQUACY_MIN_WINDOW_S` each,
     weighted as the final fit (its tensor gives the weights), each with its own anchored
-    segments and torque-noise statistics.
+    segments and torque-noise statistics; and the whole record refitted with anchored
+    segments a quarter of ``segment`` (:func:`_segment_shift`), which needs no room for windows.
     """
-    k = f.basis.shape[1]
     p = len(f.beta)
     empty = np.zeros((0, p)), np.zeros((0, p, p)), np.zeros(0)
+    shift = _segment_shift(eq, segment, ts, tau_end, gyro_var, torque_var, f) if own else None
     span = float(eq.t[-1] - eq.t[0])
     n_win = min(ADEQUACY_WINDOWS, int(span // ADEQUACY_MIN_WINDOW_S))
     if eq.kind != 'anchored' or n_win < 2 or len(ts) < 2:
-        return check_adequacy(*empty, f.excess)
-    theta0 = f.basis @ f.beta[:k]
+        return check_adequacy(*empty, f.excess, shift=shift)
+    theta0 = f.basis @ f.beta[:f.basis.shape[1]]
     cuts = np.searchsorted(eq.t, np.linspace(eq.t[0], eq.t[-1], n_win + 1)[1:-1])
     bounds = [0, *cuts.tolist(), len(eq.t)]
     thetas, covs, mids = [], [], []
@@ -630,8 +632,30 @@ def _window_adequacy(eq: Equations, segment: float | None, ts: np.ndarray,
         covs.append(fk.cov)
         mids.append(0.5 * float(sub.t[0] + sub.t[-1]))
     if len(thetas) < 2:
-        return check_adequacy(*empty, f.excess)
-    return check_adequacy(np.array(thetas), np.array(covs), np.array(mids), f.excess)
+        return check_adequacy(*empty, f.excess, shift=shift)
+    return check_adequacy(np.array(thetas), np.array(covs), np.array(mids), f.excess,
+                          shift=shift)
+
+
+def _segment_shift(eq: Equations, segment: float | None, ts: np.ndarray, tau_end: float,
+                   gyro_var: np.ndarray, torque_var: np.ndarray, f: Fit
+                   ) -> tuple[float, int, float, float] | None:
+    """:func:`.adequacy.segment_shift` of ``f`` against the same fit on segments 4x shorter.
+
+    Both covariances are the noise model's (``f``'s excess inflation taken out).  ``None``
+    when the equations are not anchored or the shorter fit has too few equations.
+    """
+    if eq.kind != 'anchored':
+        return None
+    span = float(eq.t[-1] - eq.t[0])
+    st = sufficient_stats(eq, (segment or span) / 4.0, ts, tau_end, torque_var)
+    if st.n_eff < MIN_EQUATIONS:
+        return None
+    k = f.basis.shape[1]
+    theta0 = f.basis @ f.beta[:k] + (0.0 if f.offset is None else f.offset)
+    fs = fit_two_pass(st, f.basis, f.bias, gyro_var, torque_var, f.offset, theta0)
+    return segment_shift(f.beta[:k], f.cov[:k, :k] / max(f.excess, 1.0), fs.beta[:k],
+                         fs.cov[:k, :k] / max(fs.excess, 1.0))
 
 
 def _equation_rules(eq: Equations, method: str, diag: dict[str, Any],
@@ -765,7 +789,10 @@ def _refine(first: InertiaEstimate, tg: np.ndarray, w: np.ndarray, ts: np.ndarra
                     f'{MAX_RESIDUAL_EXCESS:g})')
     k = basis.shape[1]
     theta = basis @ res.beta
-    cov6 = basis @ res.cov[:k, :k] @ basis.T
+    # the widening the adequacy tests gave the integral sigma (over the noise model) holds
+    # for the likelihood's too: its model is the same
+    rcov = res.cov * float(diag.get('adequacy', {}).get('sigma_widened_by', 1.0)) ** 2
+    cov6 = basis @ rcov[:k, :k] @ basis.T
     calib = diag.get('calibration')
     if calib is not None:                   # the stated scale uncertainties, as for integral
         cov6 = cov6 + basis @ np.asarray(calib['covariance_added'])[:k, :k] @ basis.T
@@ -777,7 +804,7 @@ def _refine(first: InertiaEstimate, tg: np.ndarray, w: np.ndarray, ts: np.ndarra
     moments, axes = principal_with_std(I, cov6, diag)
     diag['physical'] = {'valid': True, 'projected': False}
     if res.bias is not None:
-        diag['torque_bias_std'] = np.sqrt(np.maximum(np.diag(res.cov)[k:k + 3], 0.0))
+        diag['torque_bias_std'] = np.sqrt(np.maximum(np.diag(rcov)[k:k + 3], 0.0))
     return replace(first, method='ml', inertia=I, covariance=0.5 * (cov6 + cov6.T),
                    inertia_std=theta_to_matrix(np.sqrt(np.maximum(np.diag(cov6), 0.0)),
                                                check_finite=False),

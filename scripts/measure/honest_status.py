@@ -1,0 +1,57 @@
+"""Status and sigma on the reference simulator (issue 27 items 3-4): estimate() defaults or CLI.
+
+    python scripts/measure/honest_status.py CASE SEEDS DURATION [api|cli]
+
+CASE: conforming, continuous, a case of ``bench.honesty.CASES`` (disturbance, gyro_bias,
+payload_change, ...), or a peer-like sine profile ``sine_{x,y,z,iso}_{AMPLITUDE}[_LEVEL]``
+(:func:`inertia_ros.bench.honesty.peer_like`: one tone per axis, quiet sensors, an unmodelled
+disturbance fixed in inertial axes of LEVEL x (1, -0.75, 0.5) N m, 2e-4 when not given;
+``_nodist`` for none).  Prints the statuses, RMS z over all records and over the ok ones,
+max |z| of the ok ones, the ok records with some |z| > 5 and the median error.
+"""
+
+import sys
+
+import numpy as np
+
+from inertia_ros.bench.honesty import CASES, HonestyCase, peer_like, run_case
+from inertia_ros.bench.truth_sim import TruthCase
+
+SCENE = TruthCase(amplitude=0.06, torque_noise=0.0012, omega0=(0.05, -0.03, 0.02))
+
+
+def case_named(name: str, duration: float) -> TruthCase:
+    """The scenario called ``name`` (see the module docstring), ``duration`` s long."""
+    if name == 'conforming':
+        return SCENE.with_(duration=duration)
+    if name == 'continuous':
+        return SCENE.with_(torque_kind='continuous', duration=duration)
+    if name.startswith('sine_'):
+        parts = name.split('_')
+        level = 0.0 if parts[-1] == 'nodist' else float(parts[3]) if len(parts) > 3 else 2e-4
+        return peer_like(parts[1], float(parts[2]), level, duration)
+    t = CASES[name].truth.with_(duration=duration)
+    return t.with_(t_change=duration / 2) if t.t_change is not None else t
+
+
+def main() -> None:
+    name, n, dur = sys.argv[1], int(sys.argv[2]), float(sys.argv[3])
+    path = sys.argv[4] if len(sys.argv) > 4 else 'api'
+    out = run_case(name, HonestyCase(case_named(name, dur)), range(n), (path,))
+    st: dict[str, int] = {}
+    for o in out:
+        st[o.status] = st.get(o.status, 0) + 1
+    z_all = np.concatenate([o.z[np.isfinite(o.z)] for o in out])
+    ok = [o for o in out if o.status == 'ok']
+    z_ok = np.concatenate([o.z[np.isfinite(o.z)] for o in ok]) if ok else np.zeros(0)
+    errs = [o.rel_error for o in out if np.isfinite(o.rel_error)] or [float('nan')]
+    maxz = [float(np.nanmax(np.abs(o.z), initial=0.0)) for o in out]
+    print(f'{name} {path} {n} x {dur:g} s: {st} RMS z all {np.sqrt(np.mean(z_all ** 2)):.2f} '
+          f'ok {np.sqrt(np.mean(z_ok ** 2)) if z_ok.size else float("nan"):.2f} '
+          f'max|z| ok {np.max(np.abs(z_ok)) if z_ok.size else float("nan"):.1f} '
+          f'(all: {min(maxz):.1f}-{max(maxz):.1f}) ok with |z|>5: {sum(o.defect for o in out)} '
+          f'median error {100 * np.median(errs):.3g} % (max {100 * np.max(errs):.3g} %)')
+
+
+if __name__ == '__main__':
+    main()
