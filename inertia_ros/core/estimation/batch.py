@@ -84,7 +84,8 @@ import numpy as np
 from .._numeric import median
 from .._validate import as_noise_std, as_samples, as_times, refuse_nanoseconds
 from ..tensor import check_physical, theta_to_matrix
-from .adequacy import Adequacy, check_adequacy, segment_shift
+from . import refits
+from .adequacy import Adequacy
 from .assemble import conclude, status_only
 from .config import unapplied
 from .equations import Equations, build_equations, is_prefix, shared_integral_equations
@@ -95,8 +96,6 @@ from .model import model_basis, symmetry_axis
 from .noise import isotropy_floor, noise_std_from_differences
 from .nuisance import nuisance_hook
 from .options import (
-    ADEQUACY_MIN_WINDOW_S,
-    ADEQUACY_WINDOWS,
     ALPHA,
     BATCH_HOLDS,
     GAP_FACTOR,
@@ -113,7 +112,7 @@ from .options import (
 )
 from .result import InertiaEstimate
 from .selection import HOLD_ALPHA, SelectionPolicy, hold_rule, select_hold
-from .statistics import segment_rss, sufficient_stats, window_raw
+from .statistics import segment_rss, sufficient_stats
 from .uncertainty import principal_with_std
 
 __all__ = ['BATCH_HOLDS', 'METHODS', 'ML_AUTO_MAX_SAMPLES', 'MODELS', 'TORQUE_BIAS', 'estimate',
@@ -528,14 +527,14 @@ def _estimate_shifted(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray
         sliding and differential methods are tested on the anchored (integral) equations.
         """
         if eq.kind == 'anchored':
-            return _window_adequacy(eq, segment, ts, tau_end, gyro_var, torque_var, f)
+            return refits.window_adequacy(eq, segment, ts, tau_end, gyro_var, torque_var, f)
         eqa = build_equations('integral', tg, w, ts, tau, mask, breaks, hold, gyro_var, None)
         eqa.motion = eq.motion
-        return _window_adequacy(eqa, None, ts, tau_end, gyro_var, torque_var, f, own=False)
+        return refits.window_adequacy(eqa, None, ts, tau_end, gyro_var, torque_var, f, own=False)
 
     def gyro_sensitivity(f: Fit) -> np.ndarray | None:
         """``d beta / d g`` of the final fit for a relative gyro scale error ``g``."""
-        return _gyro_sensitivity(eq, segment, ts, tau_end, gyro_var, torque_var, f)
+        return refits.gyro_sensitivity(eq, segment, ts, tau_end, gyro_var, torque_var, f)
 
     return conclude(fit, model, torque_bias, axis, policy, diag, base,
                     adequacy if final else None, gyro_sensitivity)
@@ -571,91 +570,6 @@ def _statistics(eq: Equations, segment: float | None,
             return f
         return fit_two_pass(st, basis, bias, gyro_var, torque_var, offset, theta0)
     return segment, st, fit
-
-
-def _gyro_sensitivity(eq: Equations, segment: float | None, ts: np.ndarray, tau_end: float,
-                      gyro_var: np.ndarray, torque_var: np.ndarray, f: Fit,
-                      step: float = 1e-4) -> np.ndarray | None:
-    """``d beta / d g`` by refitting the equations of a gyro read ``1 + step`` times larger.
-
-    The 13 variables scale exactly: ``w`` by ``1 + g``, the squared-rate integrals ``m`` by
-    ``(1 + g)^2``, time and torque not at all, so the scaled statistics need no new data.
-    ``None`` for equations that are not anchored (the caller then uses a bound).
-    """
-    if eq.kind != 'anchored':
-        return None
-    k = f.basis.shape[1]
-    theta0 = f.basis @ f.beta[:k] + (0.0 if f.offset is None else f.offset)
-    scaled = eq.rows(0, len(eq.t))
-    scaled.V[:, :3] *= 1.0 + step
-    scaled.V[:, 3:9] *= (1.0 + step) ** 2
-    betas = [fit_two_pass(sufficient_stats(e, segment, ts, tau_end, torque_var), f.basis,
-                          f.bias, gyro_var, torque_var, f.offset, theta0).beta
-             for e in (eq, scaled)]
-    return (betas[1] - betas[0]) / step
-
-
-def _window_adequacy(eq: Equations, segment: float | None, ts: np.ndarray, tau_end: float,
-                     gyro_var: np.ndarray, torque_var: np.ndarray, f: Fit,
-                     own: bool = True) -> Adequacy:
-    """Refit ``f``'s parameter set on time windows and on shorter segments; test both.
-
-    Up to :data:`ADEQUACY_WINDOWS` windows of at least :data:`ADEQUACY_MIN_WINDOW_S` each,
-    weighted as the final fit (its tensor gives the weights), each with its own anchored
-    segments and torque-noise statistics; and the whole record refitted with anchored
-    segments a quarter of ``segment`` (:func:`_segment_shift`), which needs no room for windows.
-    """
-    p = len(f.beta)
-    empty = np.zeros((0, p)), np.zeros((0, p, p)), np.zeros(0)
-    shift = _segment_shift(eq, segment, ts, tau_end, gyro_var, torque_var, f) if own else None
-    span = float(eq.t[-1] - eq.t[0])
-    n_win = min(ADEQUACY_WINDOWS, int(span // ADEQUACY_MIN_WINDOW_S))
-    if eq.kind != 'anchored' or n_win < 2 or len(ts) < 2:
-        return check_adequacy(*empty, f.excess, shift=shift)
-    theta0 = f.basis @ f.beta[:f.basis.shape[1]]
-    cuts = np.searchsorted(eq.t, np.linspace(eq.t[0], eq.t[-1], n_win + 1)[1:-1])
-    bounds = [0, *cuts.tolist(), len(eq.t)]
-    thetas, covs, mids = [], [], []
-    for a, b in zip(bounds[:-1], bounds[1:], strict=True):
-        if b - a < MIN_EQUATIONS:
-            continue
-        # the window's statistics from the whole fit's (its Gram and torque sums)
-        sub, (j0, j1) = window_raw(eq, a, b, ts, torque_var)
-        tsk = ts[j0:j1]
-        if len(tsk) < 2:
-            continue
-        st = sufficient_stats(sub, segment, tsk, float(sub.t[-1]), torque_var)
-        if st.n_eff < MIN_EQUATIONS:
-            continue
-        fk = fit_two_pass(st, f.basis, f.bias, gyro_var, torque_var, None, theta0)
-        thetas.append(fk.beta)
-        covs.append(fk.cov)
-        mids.append(0.5 * float(sub.t[0] + sub.t[-1]))
-    if len(thetas) < 2:
-        return check_adequacy(*empty, f.excess, shift=shift)
-    return check_adequacy(np.array(thetas), np.array(covs), np.array(mids), f.excess,
-                          shift=shift)
-
-
-def _segment_shift(eq: Equations, segment: float | None, ts: np.ndarray, tau_end: float,
-                   gyro_var: np.ndarray, torque_var: np.ndarray, f: Fit
-                   ) -> tuple[float, int, float, float] | None:
-    """:func:`.adequacy.segment_shift` of ``f`` against the same fit on segments 4x shorter.
-
-    Both covariances are the noise model's (``f``'s excess inflation taken out).  ``None``
-    when the equations are not anchored or the shorter fit has too few equations.
-    """
-    if eq.kind != 'anchored':
-        return None
-    span = float(eq.t[-1] - eq.t[0])
-    st = sufficient_stats(eq, (segment or span) / 4.0, ts, tau_end, torque_var)
-    if st.n_eff < MIN_EQUATIONS:
-        return None
-    k = f.basis.shape[1]
-    theta0 = f.basis @ f.beta[:k] + (0.0 if f.offset is None else f.offset)
-    fs = fit_two_pass(st, f.basis, f.bias, gyro_var, torque_var, f.offset, theta0)
-    return segment_shift(f.beta[:k], f.cov[:k, :k] / max(f.excess, 1.0), fs.beta[:k],
-                         fs.cov[:k, :k] / max(fs.excess, 1.0))
 
 
 def _equation_rules(eq: Equations, method: str, diag: dict[str, Any],

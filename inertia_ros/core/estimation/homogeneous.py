@@ -530,7 +530,7 @@ def _calibration(checks: Checks, st: SufficientStats, f: Fit, W: np.ndarray,
     A gyro read ``1 + g`` times too large scales the momentum variables by ``1 + g`` and the
     gyroscopic ones by ``(1 + g)^2``: torque-free, that is a change of time scale, which moves
     the ratios (not only their scale).  ``d theta / d g`` is a refit of the scaled statistics
-    with the final weight (as :func:`.batch._gyro_sensitivity` for the torque paths);
+    with the final weight (as :func:`.refits.gyro_sensitivity` for the torque paths);
     ``cov += g_std^2 J J'``.  A torque scale error has no effect on torque-free equations.
     """
     gs, ts = checks.gyro_scale_std, checks.torque_scale_std

@@ -1,0 +1,104 @@
+"""The anchored fit refitted on other views of the same equations: the batch's checks.
+
+:func:`window_adequacy` (time windows and shorter segments: the adequacy tests of
+:mod:`.adequacy`), :func:`shift_test` (the segment-shift test on segments 4x shorter) and
+:func:`gyro_sensitivity` (the fit's derivative with respect to a gyro scale).  Each works on
+the sufficient statistics of :mod:`.statistics` and the two-pass fit of :mod:`.fit`; none
+rebuilds equations from the data.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .adequacy import Adequacy, check_adequacy, segment_shift
+from .equations import Equations
+from .fit import Fit, fit_two_pass
+from .options import ADEQUACY_MIN_WINDOW_S, ADEQUACY_WINDOWS, MIN_EQUATIONS
+from .statistics import sufficient_stats, window_raw
+
+__all__ = ['gyro_sensitivity', 'shift_test', 'window_adequacy']
+
+
+def gyro_sensitivity(eq: Equations, segment: float | None, ts: np.ndarray, tau_end: float,
+                      gyro_var: np.ndarray, torque_var: np.ndarray, f: Fit,
+                      step: float = 1e-4) -> np.ndarray | None:
+    """``d beta / d g`` by refitting the equations of a gyro read ``1 + step`` times larger.
+
+    The 13 variables scale exactly: ``w`` by ``1 + g``, the squared-rate integrals ``m`` by
+    ``(1 + g)^2``, time and torque not at all, so the scaled statistics need no new data.
+    ``None`` for equations that are not anchored (the caller then uses a bound).
+    """
+    if eq.kind != 'anchored':
+        return None
+    k = f.basis.shape[1]
+    theta0 = f.basis @ f.beta[:k] + (0.0 if f.offset is None else f.offset)
+    scaled = eq.rows(0, len(eq.t))
+    scaled.V[:, :3] *= 1.0 + step
+    scaled.V[:, 3:9] *= (1.0 + step) ** 2
+    betas = [fit_two_pass(sufficient_stats(e, segment, ts, tau_end, torque_var), f.basis,
+                          f.bias, gyro_var, torque_var, f.offset, theta0).beta
+             for e in (eq, scaled)]
+    return (betas[1] - betas[0]) / step
+
+
+def window_adequacy(eq: Equations, segment: float | None, ts: np.ndarray, tau_end: float,
+                     gyro_var: np.ndarray, torque_var: np.ndarray, f: Fit,
+                     own: bool = True) -> Adequacy:
+    """Refit ``f``'s parameter set on time windows and on shorter segments; test both.
+
+    Up to :data:`ADEQUACY_WINDOWS` windows of at least :data:`ADEQUACY_MIN_WINDOW_S` each,
+    weighted as the final fit (its tensor gives the weights), each with its own anchored
+    segments and torque-noise statistics; and the whole record refitted with anchored
+    segments a quarter of ``segment`` (:func:`shift_test`), which needs no room for windows.
+    """
+    p = len(f.beta)
+    empty = np.zeros((0, p)), np.zeros((0, p, p)), np.zeros(0)
+    shift = shift_test(eq, segment, ts, tau_end, gyro_var, torque_var, f) if own else None
+    span = float(eq.t[-1] - eq.t[0])
+    n_win = min(ADEQUACY_WINDOWS, int(span // ADEQUACY_MIN_WINDOW_S))
+    if eq.kind != 'anchored' or n_win < 2 or len(ts) < 2:
+        return check_adequacy(*empty, f.excess, shift=shift)
+    theta0 = f.basis @ f.beta[:f.basis.shape[1]]
+    cuts = np.searchsorted(eq.t, np.linspace(eq.t[0], eq.t[-1], n_win + 1)[1:-1])
+    bounds = [0, *cuts.tolist(), len(eq.t)]
+    thetas, covs, mids = [], [], []
+    for a, b in zip(bounds[:-1], bounds[1:], strict=True):
+        if b - a < MIN_EQUATIONS:
+            continue
+        # the window's statistics from the whole fit's (its Gram and torque sums)
+        sub, (j0, j1) = window_raw(eq, a, b, ts, torque_var)
+        tsk = ts[j0:j1]
+        if len(tsk) < 2:
+            continue
+        st = sufficient_stats(sub, segment, tsk, float(sub.t[-1]), torque_var)
+        if st.n_eff < MIN_EQUATIONS:
+            continue
+        fk = fit_two_pass(st, f.basis, f.bias, gyro_var, torque_var, None, theta0)
+        thetas.append(fk.beta)
+        covs.append(fk.cov)
+        mids.append(0.5 * float(sub.t[0] + sub.t[-1]))
+    if len(thetas) < 2:
+        return check_adequacy(*empty, f.excess, shift=shift)
+    return check_adequacy(np.array(thetas), np.array(covs), np.array(mids), f.excess,
+                          shift=shift)
+
+
+def shift_test(eq: Equations, segment: float | None, ts: np.ndarray, tau_end: float,
+                   gyro_var: np.ndarray, torque_var: np.ndarray, f: Fit
+                   ) -> tuple[float, int, float, float] | None:
+    """:func:`.adequacy.segment_shift` of ``f`` against the same fit on segments 4x shorter.
+
+    Both covariances are the noise model's (``f``'s excess inflation taken out).  ``None``
+    when the equations are not anchored or the shorter fit has too few equations.
+    """
+    if eq.kind != 'anchored':
+        return None
+    span = float(eq.t[-1] - eq.t[0])
+    st = sufficient_stats(eq, (segment or span) / 4.0, ts, tau_end, torque_var)
+    if st.n_eff < MIN_EQUATIONS:
+        return None
+    k = f.basis.shape[1]
+    theta0 = f.basis @ f.beta[:k] + (0.0 if f.offset is None else f.offset)
+    fs = fit_two_pass(st, f.basis, f.bias, gyro_var, torque_var, f.offset, theta0)
+    return segment_shift(f.beta[:k], f.cov[:k, :k] / max(f.excess, 1.0), fs.beta[:k],
+                         fs.cov[:k, :k] / max(fs.excess, 1.0))
