@@ -13,6 +13,7 @@ import numpy as np
 
 from ..scene import SceneError, TorqueComponent
 from ..tensor import MATRIX_INDEX, THETA_NAMES, matrix_to_theta
+from .actuators import WheelLimit, axis_peaks
 
 __all__ = ['NEAR_DIAGONAL', 'Limits', 'Prior', 'Profile', 'Target', 'make_prior']
 
@@ -123,7 +124,8 @@ class Limits:
     Attributes
     ----------
     max_torque : tuple of 3 float
-        Peak torque per body axis [N m].
+        Peak torque per body axis [N m]; with ``wheels``, at most what the wheels give
+        about each axis alone (:func:`.actuators.axis_peaks`; ``inf`` here: only that).
     max_rate : float
         Largest body rate ``|omega|`` [rad/s].
     gyro_rate, torque_rate : float
@@ -137,6 +139,9 @@ class Limits:
         ``noise_rel``).
     initial_omega : tuple of 3 float
         Body rate at the start [rad/s].
+    wheels : tuple of WheelLimit
+        Reaction wheels producing the torque, with their torque and speed limits
+        (:mod:`.actuators`); empty: the body torque is limited per axis only.
     """
 
     max_torque: tuple[float, float, float]
@@ -147,12 +152,16 @@ class Limits:
     torque_noise: float = 0.001
     torque_noise_rel: float = 0.0
     initial_omega: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    wheels: tuple[WheelLimit, ...] = ()
 
     def __post_init__(self) -> None:
         """Refuse non-finite, zero or negative limits (one line naming the field)."""
         mt = tuple(float(v) for v in np.atleast_1d(np.asarray(self.max_torque, dtype=float)))
         if len(mt) == 1:
             mt = mt * 3
+        object.__setattr__(self, 'wheels', tuple(self.wheels))
+        if self.wheels and len(mt) == 3:
+            mt = tuple(float(v) for v in np.minimum(mt, axis_peaks(self.wheels)))
         object.__setattr__(self, 'max_torque', mt)
         checks = {'max_torque': mt, 'max_rate': (self.max_rate,),
                   'gyro_rate': (self.gyro_rate,), 'torque_rate': (self.torque_rate,),
