@@ -160,17 +160,19 @@ def wheel_axis_scale(t: np.ndarray, cmd: np.ndarray, lim: Limits) -> np.ndarray:
     return f * float(min(1.0, np.min(scales(f))))
 
 
-def limit_usage(profile: Profile, lim: Limits, duration: float, peak: float, seed: int = 0
-                ) -> dict[str, float]:
-    """Share of each limit the profile uses over ``duration`` [s] (1 = at the limit):
-    ``axis torque`` (largest peak torque / max_torque over the axes), ``body rate``
-    (``peak`` / max_rate) and per wheel ``wheel torque JOINT`` and ``wheel speed JOINT``
-    (largest ``|w|`` / max_speed; inf limits are left out)."""
+def limit_usage(profile: Profile, bodies: Sequence[np.ndarray], lim: Limits, duration: float,
+                seed: int = 0) -> dict[str, float]:
+    """Share of each limit the profile uses over ``duration`` [s] (1 = at the limit; the
+    span it was sized for): ``axis torque`` (largest peak torque / max_torque over the
+    axes), ``body rate`` (noise-free peak ``|omega|`` over ``bodies``, torque held at the
+    torque rate, / max_rate) and per wheel ``wheel torque JOINT`` and ``wheel speed JOINT``
+    (largest ``|w|`` / max_speed; unlimited ones are left out)."""
     t = _grid(duration, lim.torque_rate)
     cmd = profile.torque(t, duration, seed)
     out = {'axis torque': float(np.max(np.max(np.abs(cmd), axis=0)
                                         / np.asarray(lim.max_torque))),
-           'body rate': float(peak / lim.max_rate)}
+           'body rate': peak_rate(profile, bodies, lim, duration, lim.torque_rate, seed)
+           / lim.max_rate}
     if lim.wheels:
         m = np.max(np.abs(wheel_torques(lim.wheels, cmd)), axis=0)
         w = np.max(np.abs(wheel_speeds(lim.wheels, t, cmd)), axis=0)
@@ -331,8 +333,8 @@ class Plan:
     horizon : float
         Length [s] at which the candidates were compared.
     usage : dict
-        Share of each limit the designed profile uses over ``duration``
-        (:func:`limit_usage`).
+        Share of each limit the designed profile uses over the span it was sized for (the
+        target duration or ``max_duration``; :func:`limit_usage`).
     binding : str
         The limits the design is held by (:func:`binding_limits` of ``usage``).
     """
@@ -529,7 +531,7 @@ def plan(prior: Prior, lim: Limits, target: Target, *, n_bodies: int = 3, seed: 
         for std_prof in standard_profiles(lim.max_torque):
             rows.append(_row(std_prof.name, std_prof, bodies, prior, lim, target, model,
                              t_end, horizon, rate, seed)[0])
-    usage = limit_usage(limited, lim, duration, pk, seed)
+    usage = limit_usage(limited, bodies, lim, t_end, seed)
     return Plan(profile=limited, design=par, model=model, duration=duration,
                 time_to_target=ttt if target.rel_std is not None else math.nan,
                 times=curve[0], element_std=curve[1], principal_std=curve[2],
