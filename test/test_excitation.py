@@ -316,3 +316,67 @@ def test_cli_refuses_no_torque_limit_and_a_start_at_the_speed_limit(tmp_path, ca
     assert main([*base, '--wheels', str(wf), '--initial-wheel-speed', '0', '600', '0']) == 2
     err = capsys.readouterr().err
     assert 'wheels[1].max_speed' in err and '600' in err and err.count('\n') == 1
+
+
+# --------------------------------------------------------------------------------------------
+# rotors: plan --rotors FILE --hover-thrust N
+# --------------------------------------------------------------------------------------------
+
+ROTOR_POS = [(0.12, -0.12, 1), (-0.12, 0.12, 1), (0.12, 0.12, -1), (-0.12, -0.12, -1)]
+
+
+def _rotors_yaml(lo: float, hi: float, drop: str = '') -> str:
+    rows = [f'  - {{joint: rotor_{i}, position: [{x}, {y}, 0.0], spin: {s}, k_f: 8.5e-6, '
+            f'k_m: 1.36e-7, min_speed: {lo}, max_speed: {hi}}}'
+            for i, (x, y, s) in enumerate(ROTOR_POS)]
+    if drop:
+        rows[0] = rows[0].replace(drop, 'inertia: 3.0e-5')
+    return 'rotors:\n' + '\n'.join(rows) + '\n'
+
+
+def test_cli_rotors_keep_every_rotor_speed_in_range(tmp_path, capsys) -> None:
+    """A quadrotor hovering at 14.715 N (658 rad/s per rotor) with speeds limited to
+    [600, 700] rad/s: the rotor speeds that hold the thrust and make the scheduled torque
+    (``pinv(M) [T, tau]``, M built here from the file's coefficients) stay in range, and the
+    report names the rotor speeds among the limits it uses."""
+    rf = tmp_path / 'rotors.yaml'
+    rf.write_text(_rotors_yaml(600.0, 700.0))
+    out = tmp_path / 'plan'
+    rc = main(['plan', '--prior-inertia', '0.015', '0.015', '0.028', '0', '0', '0',
+               '--max-rate', '5', '--rotors', str(rf), '--hover-thrust', '14.715',
+               '--target-rel-std', '0.01', '--max-duration', '30', '--bodies', '1',
+               '--out', str(out), '--format', 'json'])
+    assert rc == 0
+    s = json.loads(capsys.readouterr().out)
+    a = np.array([0.0, 0.0, 1.0])
+    rows = [8.5e-6 * np.cross([x, y, 0.0], a) - sp * 1.36e-7 * a for x, y, sp in ROTOR_POS]
+    M = np.vstack([np.full(4, 8.5e-6), np.array(rows).T])
+    tau = np.loadtxt(out / 'torque.csv', delimiter=',', skiprows=1)[:, 1:]
+    u = np.linalg.solve(M, np.column_stack([np.full(len(tau), 14.715), tau]).T).T
+    speed = np.sqrt(u)
+    assert speed.min() >= 600.0 * (1 - 1e-9) and speed.max() <= 700.0 * (1 + 1e-9)
+    assert np.ptp(speed[:, 0]) > 10.0                                # it does excite
+    assert max(s['limit_usage'][f'rotor speed rotor_{k}'] for k in range(4)) > 0.9
+    assert s['rotors']['joints'] == [f'rotor_{k}' for k in range(4)]
+
+
+@pytest.mark.parametrize('text, extra, words', [
+    (_rotors_yaml(400, 800, drop='max_speed: 800'), ['--hover-thrust', '14.7'],
+     ['rotors[0].max_speed', 'missing']),
+    (_rotors_yaml(600, 700), ['--hover-thrust', '30'], ['rotor_0', '30 N', '[600, 700]']),
+    (_rotors_yaml(800, 700), ['--hover-thrust', '14.7'], ['rotors[0].max_speed', 'above']),
+    (_rotors_yaml(600, 700), [], ['--hover-thrust']),
+])
+def test_cli_refuses_bad_rotors_files(tmp_path, capsys, text, extra, words) -> None:
+    """A rotor without a speed range, a hover thrust out of it, an empty range, no hover
+    thrust: one line naming the field, exit 2."""
+    rf = tmp_path / 'r.yaml'
+    rf.write_text(text)
+    out = tmp_path / 'o'
+    rc = main(['plan', '--prior-inertia', '0.015', '0.015', '0.028', '0', '0', '0',
+               '--max-rate', '5', '--rotors', str(rf), *extra, '--out', str(out)])
+    err = capsys.readouterr().err
+    assert rc == 2 and err.count('\n') == 1, err
+    for w in words:
+        assert w in err
+    assert not out.exists()

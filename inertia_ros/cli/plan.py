@@ -1,7 +1,8 @@
 """``python -m inertia_ros plan --prior-inertia ... --max-torque ... --max-rate ... --out DIR``.
 
 The actuator limits are ``--max-torque`` per axis and/or ``--wheels FILE`` (per wheel
-``max_torque`` and ``max_speed``: :mod:`inertia_ros.core.excitation.actuators`).
+``max_torque`` and ``max_speed``) or ``--rotors FILE`` (per rotor ``min_speed`` and
+``max_speed``, hovering at ``--hover-thrust``): :mod:`inertia_ros.core.excitation.actuators`.
 
 Designs an excitation (:mod:`inertia_ros.core.excitation`) and writes to ``DIR``:
 
@@ -59,6 +60,12 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
                    help='reaction wheels (config/wheels/ schema with max_torque [N m] and '
                         'max_speed [rad/s] per wheel): the design keeps every wheel\'s torque '
                         'and speed within them')
+    p.add_argument('--rotors', metavar='ROTORS.yaml',
+                   help='a hovering multirotor\'s rotors (config/rotors/ schema with min_speed '
+                        'and max_speed [rad/s] per rotor): the design keeps every rotor\'s '
+                        'speed in range; needs --hover-thrust')
+    p.add_argument('--hover-thrust', type=_real, metavar='N',
+                   help='total thrust held while exciting, with --rotors [N]')
     p.add_argument('--initial-wheel-speed', nargs='+', type=_real, metavar='W',
                    help='wheel speeds at the start [rad/s], one per wheel in file order (0)')
     p.add_argument('--max-rate', type=_real, required=True, help='body-rate limit |omega| '
@@ -120,8 +127,15 @@ def _inputs(args: argparse.Namespace) -> tuple[Any, Any, Any]:
     from inertia_ros.core import excitation as ex
 
     mt = args.max_torque
-    if mt is None and not args.wheels:
-        raise UserError('give the actuator limits: --max-torque (per axis) and/or --wheels FILE')
+    if mt is None and not args.wheels and not args.rotors:
+        raise UserError('give the actuator limits: --max-torque (per axis) and/or --wheels FILE '
+                        'or --rotors FILE')
+    if args.wheels and args.rotors:
+        raise UserError('--wheels and --rotors: give one of them')
+    if (args.hover_thrust is None) == bool(args.rotors):
+        raise UserError('--rotors FILE needs --hover-thrust N (and --hover-thrust needs '
+                        '--rotors)')
+    rotors = _rotors(args)
     if mt is not None and len(mt) not in (1, 3):
         raise UserError(f'--max-torque: give one value or three (x y z), got {len(mt)}')
     if args.initial_wheel_speed is not None and not args.wheels:
@@ -138,7 +152,8 @@ def _inputs(args: argparse.Namespace) -> tuple[Any, Any, Any]:
                         max_rate=args.max_rate, gyro_rate=args.gyro_rate,
                         torque_rate=args.torque_rate, gyro_noise=args.gyro_noise,
                         torque_noise=args.torque_noise, torque_noise_rel=args.torque_noise_rel,
-                        initial_omega=tuple(args.initial_omega), wheels=wheels)
+                        initial_omega=tuple(args.initial_omega), wheels=wheels,
+                        rotors=rotors)
         rel = args.target_rel_std
         if rel is None and args.duration is None:
             rel = 0.01
@@ -168,6 +183,20 @@ def _wheels(args: argparse.Namespace) -> tuple[Any, ...]:
         raise UserError(msg if msg.startswith(args.wheels) else f'{args.wheels}: {msg}') \
             from None
     return tuple(wheels)
+
+
+def _rotors(args: argparse.Namespace) -> Any:
+    """The rotors' limits of ``--rotors`` hovering at ``--hover-thrust`` (or None)."""
+    if not args.rotors:
+        return None
+    from inertia_ros.io.rotors import load_rotor_limits
+
+    try:
+        return load_rotor_limits(args.rotors, args.hover_thrust)
+    except ValueError as exc:
+        msg = str(exc)
+        raise UserError(msg if msg.startswith(args.rotors) else f'{args.rotors}: {msg}') \
+            from None
 
 
 def _out_dir(args: argparse.Namespace) -> Path:
@@ -222,6 +251,10 @@ def _summary(result: Any, prior: Any, lim: Any, target: Any) -> dict[str, Any]:
         'wheels': [{'joint': w.joint, 'axis': w.axis.tolist(), 'inertia': w.inertia,
                     'max_torque': num(w.max_torque), 'max_speed': num(w.max_speed),
                     'initial_speed': w.initial_speed} for w in lim.wheels],
+        'rotors': None if lim.rotors is None else {
+            'joints': list(lim.rotors.joints), 'hover_thrust': lim.rotors.hover_thrust,
+            'min_speed': lim.rotors.min_speed.tolist(),
+            'max_speed': lim.rotors.max_speed.tolist()},
         'limit_usage': result.usage, 'binding_limit': result.binding,
         'prior': {'theta': prior.theta.tolist(), 'std': prior.std.tolist()},
         'predicted': {'t': result.times.tolist(),
@@ -250,7 +283,8 @@ def _text(s: dict[str, Any]) -> str:
              f'  scene duration {s["duration"]:g} s; peak body rate {s["peak_rate"]:.3g} rad/s '
              f'(limit {s["max_rate"]:g}); peak torque limit '
              f'{[float(f"{v:.4g}") for v in s["max_torque"]]} N m'
-             + (f' (with {len(s["wheels"])} wheels)' if s['wheels'] else ''),
+             + (f' (with {len(s["wheels"])} wheels)' if s['wheels'] else '')
+             + (f' (with {len(s["rotors"]["joints"])} rotors)' if s['rotors'] else ''),
              f'  binding limit(s): {s["binding_limit"]} (use: '
              + ', '.join(f'{k} {100 * v:.0f} %' for k, v in s['limit_usage'].items()) + ')',
              '', f'  {"profile":<56} {"criterion @ horizon":>20} {"time to target":>15}']

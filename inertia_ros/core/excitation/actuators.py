@@ -12,6 +12,12 @@ The wheel's speed relative to the body moves by ``m_k / J_k`` (the body's angula
 acceleration, ``J_k / I`` smaller, is neglected), so over a profile it is
 ``w_k(t) = w_k(0) + (1 / J_k) int_0^t m_k dt``: a multisine's integral is bounded, and the
 design must keep ``|w_k(t)| <= max_speed_k`` from the initial wheel speed on.
+
+Rotors of a hovering multirotor (:class:`RotorLimits`): the squared speeds ``u`` give the
+thrust ``k_f . u`` and the body torque ``R^T u`` (``R`` the torque rows), so the speeds that
+hold ``hover_thrust`` and make ``tau`` are ``u = pinv(M) [hover_thrust, tau]`` (the scenes'
+allocation, ``docs/SCENES.md``; the only one for four rotors); the design keeps every rotor's
+speed within ``[min_speed, max_speed]``.
 """
 from __future__ import annotations
 
@@ -21,8 +27,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ['WheelLimit', 'allocation', 'axis_peaks', 'wheel_speed_scale', 'wheel_speeds',
-           'wheel_torque_scale', 'wheel_torques']
+__all__ = ['RotorLimits', 'WheelLimit', 'allocation', 'axis_peaks', 'box_scale',
+           'wheel_speed_scale', 'wheel_speeds', 'wheel_torque_scale', 'wheel_torques']
 
 
 @dataclass(frozen=True, eq=False)
@@ -133,6 +139,87 @@ def wheel_speed_scale(wheels: Sequence[WheelLimit], t: np.ndarray, tau: np.ndarr
     w0 = np.array([w.initial_speed for w in wheels])
     dw = wheel_speeds(wheels, t, tau) - w0                     # (M, n), linear in the scale
     cap = np.array([w.max_speed for w in wheels])
-    up = np.where(dw > 0, (cap - w0) / np.where(dw > 0, dw, 1.0), np.inf)
-    down = np.where(dw < 0, (cap + w0) / np.where(dw < 0, -dw, 1.0), np.inf)
+    return box_scale(w0, dw, -cap, cap)
+
+
+def box_scale(x0: np.ndarray, dx: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """Largest factor ``s <= 1`` per column, (n,), with ``lo <= x0 + s dx <= hi`` for every
+    row of ``dx`` (M, n); ``x0``, ``lo``, ``hi`` (n,) with ``lo < x0 < hi``."""
+    up = np.where(dx > 0, (hi - x0) / np.where(dx > 0, dx, 1.0), np.inf)
+    down = np.where(dx < 0, (x0 - lo) / np.where(dx < 0, -dx, 1.0), np.inf)
     return np.minimum(1.0, np.min(np.minimum(up, down), axis=0))
+
+
+@dataclass(frozen=True, eq=False)
+class RotorLimits:
+    """A hovering multirotor's rotors and their speed ranges.
+
+    Attributes
+    ----------
+    joints : tuple of str
+        Rotor joint names (n).
+    k_f : numpy.ndarray, shape (n,)
+        Thrust coefficients [N/(rad/s)^2].
+    torque_rows : numpy.ndarray, shape (n, 3)
+        Body torque per unit squared speed [N m/(rad/s)^2].
+    min_speed, max_speed : numpy.ndarray, shape (n,)
+        Speed range of each rotor [rad/s], ``0 <= min < max``.
+    hover_thrust : float
+        Total thrust held while exciting [N], > 0.
+    """
+
+    joints: tuple[str, ...]
+    k_f: np.ndarray
+    torque_rows: np.ndarray
+    min_speed: np.ndarray
+    max_speed: np.ndarray
+    hover_thrust: float
+
+    def __post_init__(self) -> None:
+        """Refuse rotors that cannot make every torque axis or cannot hover in range."""
+        n = len(self.joints)
+        M = np.vstack([np.asarray(self.k_f, float).reshape(1, n),
+                       np.asarray(self.torque_rows, float).reshape(n, 3).T])
+        if np.linalg.matrix_rank(M, tol=1e-12 * np.max(np.abs(M))) < 4:
+            raise ValueError(f'the {n} rotors cannot set the thrust and every torque axis '
+                             'independently (give a rotor set that can)')
+        if not (math.isfinite(self.hover_thrust) and self.hover_thrust > 0):
+            raise ValueError(f'hover thrust must be > 0 N, got {self.hover_thrust:g}')
+        alloc = np.linalg.pinv(M)
+        object.__setattr__(self, 'alloc', alloc)
+        u0 = alloc[:, 0] * self.hover_thrust
+        for k, j in enumerate(self.joints):
+            lo, hi = float(self.min_speed[k]), float(self.max_speed[k])
+            w = math.sqrt(max(u0[k], 0.0))
+            if not lo ** 2 < u0[k] < hi ** 2:
+                raise ValueError(f'rotor {j}: hovering at {self.hover_thrust:g} N needs '
+                                 f'{w:.4g} rad/s, outside its speed range [{lo:g}, {hi:g}] '
+                                 'rad/s (change the hover thrust or the range)')
+
+    def squared_speeds(self, tau: np.ndarray) -> np.ndarray:
+        """Squared rotor speeds [(rad/s)^2], (M, n), hovering and making ``tau`` (M, 3)."""
+        return self.alloc[:, 0] * self.hover_thrust + np.asarray(tau, float) @ \
+            self.alloc[:, 1:].T
+
+    def speed_scale(self, tau: np.ndarray) -> np.ndarray:
+        """Largest factor ``<= 1`` per rotor, (n,), keeping its speed in range under
+        ``s tau`` (the squared speed is linear in ``s``)."""
+        u0 = self.alloc[:, 0] * self.hover_thrust
+        return box_scale(u0, self.squared_speeds(tau) - u0, self.min_speed ** 2,
+                         self.max_speed ** 2)
+
+    def speed_share(self, tau: np.ndarray) -> np.ndarray:
+        """Largest share of each rotor's room from hover to its speed limits used, (n,)."""
+        u0 = self.alloc[:, 0] * self.hover_thrust
+        du = self.squared_speeds(tau) - u0
+        up = np.max(du, axis=0) / (self.max_speed ** 2 - u0)
+        down = np.max(-du, axis=0) / (u0 - self.min_speed ** 2)
+        return np.maximum(up, down)
+
+    def axis_peaks(self) -> np.ndarray:
+        """Largest body torque [N m] about each axis alone within the speed ranges, (3,)."""
+        u0 = self.alloc[:, 0] * self.hover_thrust
+        room = np.minimum(self.max_speed ** 2 - u0, u0 - self.min_speed ** 2)[:, None]
+        a = np.abs(self.alloc[:, 1:])
+        with np.errstate(divide='ignore'):
+            return np.min(np.where(a > 0, room / np.where(a > 0, a, 1.0), np.inf), axis=0)

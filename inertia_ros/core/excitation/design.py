@@ -67,7 +67,7 @@ from .profiles import (
 
 __all__ = ['Plan', 'binding_limits', 'choose_model', 'criterion', 'enforce_limits',
            'information_at', 'limit_usage', 'plan', 'principal_std', 'simulated_peak_rate',
-           'targeted_rel_std', 'theta_covariance', 'time_to_reach', 'wheel_axis_scale']
+           'targeted_rel_std', 'theta_covariance', 'time_to_reach', 'actuator_axis_scale']
 
 #: Share of the body-rate limit a profile may use (margin for the prior's spread).
 RATE_MARGIN = 0.97
@@ -102,8 +102,8 @@ def enforce_limits(profile: Profile, bodies: Sequence[np.ndarray], lim: Limits,
                    duration: float, rate: float, seed: int = 0) -> tuple[Profile, float]:
     """Scale ``profile`` to the torque limit per axis, then down to the body-rate limit.
 
-    With wheels (``lim.wheels``), the axes are then scaled down until every wheel's motor
-    torque and speed stay within its limits (:func:`wheel_axis_scale`).
+    With wheels or rotors, the axes are then scaled down until every wheel's motor torque
+    and speed (every rotor's speed) stay within its limits (:func:`actuator_axis_scale`).
 
     Returns
     -------
@@ -119,8 +119,8 @@ def enforce_limits(profile: Profile, bodies: Sequence[np.ndarray], lim: Limits,
     cmd = profile.torque(t, duration, seed)
     peak_u = np.max(np.abs(cmd), axis=0)
     f = np.where(peak_u > 0, np.asarray(lim.max_torque) / np.where(peak_u > 0, peak_u, 1), 0)
-    if lim.wheels:
-        f = f * wheel_axis_scale(t, cmd * f, lim)
+    if lim.wheels or lim.rotors is not None:
+        f = f * actuator_axis_scale(t, cmd * f, lim)
     scaled = profile.scaled(f)
     w0 = float(np.linalg.norm(lim.initial_omega))
     allowed = RATE_MARGIN * lim.max_rate
@@ -135,29 +135,32 @@ def enforce_limits(profile: Profile, bodies: Sequence[np.ndarray], lim: Limits,
     return scaled.scaled(s), pk
 
 
-def wheel_axis_scale(t: np.ndarray, cmd: np.ndarray, lim: Limits) -> np.ndarray:
-    """Per-axis factors ``<= 1``, (3,), that keep every wheel's motor torque and speed within
-    its limits under the command ``cmd`` (M, 3) [N m] held on the grid ``t`` (M,) [s].
+def _actuator_scales(t: np.ndarray, tau: np.ndarray, lim: Limits) -> np.ndarray:
+    """Per actuator (wheel or rotor) the largest factor ``<= 1`` for ``tau`` (M, 3)."""
+    if lim.rotors is not None:
+        return lim.rotors.speed_scale(tau)
+    return np.minimum(wheel_torque_scale(lim.wheels, tau), wheel_speed_scale(lim.wheels, t, tau))
 
-    A wheel over a limit scales down the axes it takes part in (``P_ki != 0``) by its own
-    factor; a few rounds settle it (exact in one for wheels along the body axes), and a
-    common factor closes any remainder (both limits are linear in the torque's scale).
+
+def actuator_axis_scale(t: np.ndarray, cmd: np.ndarray, lim: Limits) -> np.ndarray:
+    """Per-axis factors ``<= 1``, (3,), that keep every wheel's motor torque and speed (or
+    every rotor's speed) within its limits under the command ``cmd`` (M, 3) [N m] held on
+    the grid ``t`` (M,) [s].
+
+    An actuator over a limit scales down the axes it takes part in (allocation
+    ``P_ki != 0``) by its own factor; a few rounds settle it (exact in one for wheels along
+    the body axes), and a common factor closes any remainder (every limit is linear in the
+    torque's scale).
     """
-    P = allocation(lim.wheels)
+    P = lim.rotors.alloc[:, 1:] if lim.rotors is not None else allocation(lim.wheels)
+    involved = np.abs(P) > 1e-9 * np.max(np.abs(P))              # (n, 3)
     f = np.ones(3)
-
-    def scales(x: np.ndarray) -> np.ndarray:
-        tau = cmd * x
-        return np.minimum(wheel_torque_scale(lim.wheels, tau),
-                          wheel_speed_scale(lim.wheels, t, tau))
-
     for _ in range(6):
-        s = scales(f)
+        s = _actuator_scales(t, cmd * f, lim)
         if np.all(s >= 1.0 - 1e-9):
             return f
-        involved = np.abs(P) > 1e-9 * np.max(np.abs(P))          # (n, 3)
         f = f * np.min(np.where(involved, s[:, None], 1.0), axis=0)
-    return f * float(min(1.0, np.min(scales(f))))
+    return f * float(min(1.0, np.min(_actuator_scales(t, cmd * f, lim))))
 
 
 def limit_usage(profile: Profile, bodies: Sequence[np.ndarray], lim: Limits, duration: float,
@@ -166,7 +169,8 @@ def limit_usage(profile: Profile, bodies: Sequence[np.ndarray], lim: Limits, dur
     span it was sized for): ``axis torque`` (largest peak torque / max_torque over the
     axes), ``body rate`` (noise-free peak ``|omega|`` over ``bodies``, torque held at the
     torque rate, / max_rate) and per wheel ``wheel torque JOINT`` and ``wheel speed JOINT``
-    (largest ``|w|`` / max_speed; unlimited ones are left out)."""
+    (largest ``|w|`` / max_speed; unlimited ones are left out), per rotor ``rotor speed
+    JOINT`` (largest share of its room from hover to a speed limit)."""
     t = _grid(duration, lim.torque_rate)
     cmd = profile.torque(t, duration, seed)
     out = {'axis torque': float(np.max(np.max(np.abs(cmd), axis=0)
@@ -181,6 +185,10 @@ def limit_usage(profile: Profile, bodies: Sequence[np.ndarray], lim: Limits, dur
                 out[f'wheel torque {wl.joint}'] = float(m[k] / wl.max_torque)
             if math.isfinite(wl.max_speed):
                 out[f'wheel speed {wl.joint}'] = float(w[k] / wl.max_speed)
+    if lim.rotors is not None:
+        share = lim.rotors.speed_share(cmd)
+        out.update({f'rotor speed {j}': float(share[k])
+                    for k, j in enumerate(lim.rotors.joints)})
     return out
 
 
@@ -515,7 +523,8 @@ def plan(prior: Prior, lim: Limits, target: Target, *, n_bodies: int = 3, seed: 
             f'{target.max_duration:g} s at max torque {list(lim.max_torque)} N m and max rate '
             f'{lim.max_rate:g} rad/s' + (f' with {len(lim.wheels)} wheels (their torque and '
                                          'speed limits)' if lim.wheels else '')
-            + '; raise --max-duration, --max-torque (or the wheels\' max_torque and max_speed) '
+            + (' with the rotors\' speed ranges' if lim.rotors is not None else '')
+            + '; raise --max-duration, --max-torque (or the wheels\' or rotors\' limits) '
             'or --max-rate, lower the sensor noise, or relax --target-rel-std')
     duration = t_end if target.duration is not None else min(
         target.max_duration, float(math.ceil(1.1 * ttt)))

@@ -13,7 +13,7 @@ import numpy as np
 
 from ..scene import SceneError, TorqueComponent
 from ..tensor import MATRIX_INDEX, THETA_NAMES, matrix_to_theta
-from .actuators import WheelLimit, axis_peaks
+from .actuators import RotorLimits, WheelLimit, axis_peaks
 
 __all__ = ['NEAR_DIAGONAL', 'Limits', 'Prior', 'Profile', 'Target', 'make_prior']
 
@@ -124,7 +124,7 @@ class Limits:
     Attributes
     ----------
     max_torque : tuple of 3 float
-        Peak torque per body axis [N m]; with ``wheels``, at most what the wheels give
+        Peak torque per body axis [N m]; with ``wheels`` (``rotors``), at most what they give
         about each axis alone (:func:`.actuators.axis_peaks`; ``inf`` here: only that).
     max_rate : float
         Largest body rate ``|omega|`` [rad/s].
@@ -142,6 +142,8 @@ class Limits:
     wheels : tuple of WheelLimit
         Reaction wheels producing the torque, with their torque and speed limits
         (:mod:`.actuators`); empty: the body torque is limited per axis only.
+    rotors : RotorLimits, optional
+        A hovering multirotor's rotors with their speed ranges (not with ``wheels``).
     """
 
     max_torque: tuple[float, float, float]
@@ -153,6 +155,7 @@ class Limits:
     torque_noise_rel: float = 0.0
     initial_omega: tuple[float, float, float] = (0.0, 0.0, 0.0)
     wheels: tuple[WheelLimit, ...] = ()
+    rotors: RotorLimits | None = None
 
     def __post_init__(self) -> None:
         """Refuse non-finite, zero or negative limits (one line naming the field)."""
@@ -160,8 +163,12 @@ class Limits:
         if len(mt) == 1:
             mt = mt * 3
         object.__setattr__(self, 'wheels', tuple(self.wheels))
+        if self.wheels and self.rotors is not None:
+            raise ValueError('wheels and rotors: give one of them')
         if self.wheels and len(mt) == 3:
             mt = tuple(float(v) for v in np.minimum(mt, axis_peaks(self.wheels)))
+        if self.rotors is not None and len(mt) == 3:
+            mt = tuple(float(v) for v in np.minimum(mt, self.rotors.axis_peaks()))
         object.__setattr__(self, 'max_torque', mt)
         checks = {'max_torque': mt, 'max_rate': (self.max_rate,),
                   'gyro_rate': (self.gyro_rate,), 'torque_rate': (self.torque_rate,),
