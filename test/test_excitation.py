@@ -206,3 +206,177 @@ def test_cli_refuses_non_empty_out_and_bad_report(tmp_path, capsys) -> None:
                '--out', str(tmp_path / 'o')])
     err = capsys.readouterr().err
     assert rc == 2 and 'inertia' in err and '--prior-inertia' in err
+
+
+# --------------------------------------------------------------------------------------------
+# reaction wheels: plan --wheels FILE
+# --------------------------------------------------------------------------------------------
+
+WHEELS_YAML = """wheels:
+  - {joint: rw1, axis: [1, 0, 0], inertia: 1.2e-3, max_torque: 0.1, max_speed: 100.0}
+  - {joint: rw2, axis: [0, 1, 0], inertia: 1.2e-3, max_torque: 0.1, max_speed: 600.0}
+  - {joint: rw3, axis: [0, 0, 1], inertia: 1.2e-3, max_torque: 0.05, max_speed: 600.0}
+"""
+
+
+def test_cli_wheels_keep_every_wheel_within_its_torque_and_speed(tmp_path, capsys) -> None:
+    """With --wheels (and no --max-torque) the schedule keeps each wheel's motor torque
+    (``-tau`` along its axis) within max_torque and its speed ``w0 - int tau dt / J`` (held
+    commands, integrated here from torque.csv) within max_speed, from a start of 40 rad/s on
+    rw1; rw1's 0.12 N m s capacity is below the 0.3 rad/s body's momentum swing, so its
+    speed limit binds and the report says so."""
+    wf = tmp_path / 'wheels.yaml'
+    wf.write_text(WHEELS_YAML)
+    out = tmp_path / 'plan'
+    rc = main(['plan', '--prior-inertia', *map(str, DEFAULT_THETA), '--max-rate', '0.3',
+               '--torque-noise', '0', '--torque-noise-rel', '0.02', '--target-rel-std', '0.003',
+               '--max-duration', '30', '--bodies', '1', '--wheels', str(wf),
+               '--initial-wheel-speed', '40', '0', '0', '--out', str(out), '--format', 'json'])
+    assert rc == 0
+    s = json.loads(capsys.readouterr().out)
+    sched = np.loadtxt(out / 'torque.csv', delimiter=',', skiprows=1)
+    t, tau = sched[:, 0], sched[:, 1:]
+    assert np.all(np.max(np.abs(tau), axis=0) <= np.array([0.1, 0.1, 0.05]) * (1 + 1e-8))
+    speed = np.array([40.0, 0, 0]) - np.vstack(
+        [np.zeros(3), np.cumsum(tau[:-1] * np.diff(t)[:, None], axis=0)]) / 1.2e-3
+    assert np.all(np.max(np.abs(speed), axis=0) <= np.array([100.0, 600.0, 600.0]) * (1 + 1e-6))
+    assert np.max(np.abs(speed[:, 0])) >= 0.97 * 100.0          # used, not wasted
+    assert s['binding_limit'].startswith('wheel speed rw1') or \
+        'wheel speed rw1' in s['binding_limit'].split(', ')
+    assert s['limit_usage']['wheel speed rw1'] == pytest.approx(1.0, abs=0.03)
+    assert s['max_torque'] == pytest.approx([0.1, 0.1, 0.05])
+    assert [w['joint'] for w in s['wheels']] == ['rw1', 'rw2', 'rw3']
+
+
+def test_skewed_wheels_exact_allocation_and_initial_speed() -> None:
+    """Three skewed wheels: the limited multisine's wheel torques, from the only allocation
+    (``A m = -tau`` solved here), stay within max_torque and the speeds within max_speed;
+    a wheel starting at +-60 of 100 rad/s leaves less room one way (a smaller profile) than at
+    rest."""
+    axes = np.array([[1.0, 0.2, 0.0], [0.0, 1.0, 0.3], [0.3, 0.0, 1.0]])
+
+    def limits(w0: float) -> ex.Limits:
+        wheels = tuple(ex.WheelLimit(f'w{k}', axes[k], 1e-3, 0.08, 100.0,
+                                     w0 if k == 0 else 0.0) for k in range(3))
+        return ex.Limits(max_torque=(1.0, 1.0, 1.0), max_rate=10.0, wheels=wheels)
+    body = np.diag([1.0, 1.2, 0.9])
+    prof = ex.multisine(0.05, 2, 0.0, False)
+    peaks = []
+    for w0 in (0.0, 60.0, -60.0):
+        lim = limits(w0)
+        limited, _ = ex.enforce_limits(prof, [body], lim, 40.0, 10.0)
+        t = np.arange(2001) / 50.0
+        tau = limited.torque(t, 40.0)
+        m = np.linalg.solve(np.stack([w.axis for w in lim.wheels], axis=1), -tau.T).T
+        assert np.max(np.abs(m)) <= 0.08 * (1 + 1e-6)
+        speed = np.array([w0, 0, 0]) + np.vstack(
+            [np.zeros(3), np.cumsum(m[:-1] * 0.02, axis=0)]) / 1e-3
+        assert np.max(np.abs(speed)) <= 100.0 * (1 + 1e-6)
+        assert np.max(np.abs(speed)) >= 0.9 * 100.0 or np.max(np.abs(m)) >= 0.9 * 0.08
+        peaks.append(np.max(np.abs(tau)))
+    assert min(peaks[1:]) < 0.95 * peaks[0]
+
+
+@pytest.mark.parametrize('body, words', [
+    ('  - {joint: a, axis: [1, 0, 0], inertia: 1.0e-3, max_torque: -1, max_speed: 5}',
+     ['wheels[0].max_torque', '> 0', '-1']),
+    ('  - {joint: a, axis: [1, 0, 0], inertia: 1.0e-3, max_speed: 5}',
+     ['wheels[0].max_torque', 'missing']),
+    ('  - {joint: a, axis: [1, 0, 0], inertia: 1.0e-3, max_torque: 1, max_speed: true}',
+     ['wheels[0].max_speed', 'number', 'True']),
+    ('  - {joint: a, axis: [1, 0, 0], inertia: 1.0e-3, max_torque: 1, max_speed: 5}\n'
+     '  - {joint: b, axis: [0, 1, 0], inertia: 1.0e-3, max_torque: 1, max_speed: 5}',
+     ['span only 2']),
+    ('  - {joint: a, axis: [1, 0, 0], inertia: 1.0e-3, max_torque: 1, max_speed: 5, top: 1}',
+     ['wheels[0]', 'unknown key', 'top']),
+])
+def test_cli_refuses_bad_wheels_files(tmp_path, capsys, body, words) -> None:
+    """A bad wheels file: one line naming the file, the field and the value, exit 2."""
+    wf = tmp_path / 'w.yaml'
+    wf.write_text('wheels:\n' + body + '\n')
+    out = tmp_path / 'o'
+    rc = main(['plan', '--prior-inertia', *map(str, DEFAULT_THETA), '--max-rate', '0.3',
+               '--wheels', str(wf), '--out', str(out)])
+    err = capsys.readouterr().err
+    assert rc == 2 and err.count('\n') == 1, err
+    assert str(wf) in err
+    for w in words:
+        assert w in err
+    assert not out.exists()
+
+
+def test_cli_refuses_no_torque_limit_and_a_start_at_the_speed_limit(tmp_path, capsys) -> None:
+    """Neither --max-torque nor --wheels; an initial wheel speed at max_speed."""
+    base = ['plan', '--prior-inertia', *map(str, DEFAULT_THETA), '--max-rate', '0.3',
+            '--out', str(tmp_path / 'o')]
+    assert main(base) == 2
+    assert '--max-torque' in capsys.readouterr().err
+    wf = tmp_path / 'w.yaml'
+    wf.write_text(WHEELS_YAML)
+    assert main([*base, '--wheels', str(wf), '--initial-wheel-speed', '0', '600', '0']) == 2
+    err = capsys.readouterr().err
+    assert 'wheels[1].max_speed' in err and '600' in err and err.count('\n') == 1
+
+
+# --------------------------------------------------------------------------------------------
+# rotors: plan --rotors FILE --hover-thrust N
+# --------------------------------------------------------------------------------------------
+
+ROTOR_POS = [(0.12, -0.12, 1), (-0.12, 0.12, 1), (0.12, 0.12, -1), (-0.12, -0.12, -1)]
+
+
+def _rotors_yaml(lo: float, hi: float, drop: str = '') -> str:
+    rows = [f'  - {{joint: rotor_{i}, position: [{x}, {y}, 0.0], spin: {s}, k_f: 8.5e-6, '
+            f'k_m: 1.36e-7, min_speed: {lo}, max_speed: {hi}}}'
+            for i, (x, y, s) in enumerate(ROTOR_POS)]
+    if drop:
+        rows[0] = rows[0].replace(drop, 'inertia: 3.0e-5')
+    return 'rotors:\n' + '\n'.join(rows) + '\n'
+
+
+def test_cli_rotors_keep_every_rotor_speed_in_range(tmp_path, capsys) -> None:
+    """A quadrotor hovering at 14.715 N (658 rad/s per rotor) with speeds limited to
+    [600, 700] rad/s: the rotor speeds that hold the thrust and make the scheduled torque
+    (``pinv(M) [T, tau]``, M built here from the file's coefficients) stay in range, and the
+    report names the rotor speeds among the limits it uses."""
+    rf = tmp_path / 'rotors.yaml'
+    rf.write_text(_rotors_yaml(600.0, 700.0))
+    out = tmp_path / 'plan'
+    rc = main(['plan', '--prior-inertia', '0.015', '0.015', '0.028', '0', '0', '0',
+               '--max-rate', '5', '--rotors', str(rf), '--hover-thrust', '14.715',
+               '--target-rel-std', '0.01', '--max-duration', '30', '--bodies', '1',
+               '--out', str(out), '--format', 'json'])
+    assert rc == 0
+    s = json.loads(capsys.readouterr().out)
+    a = np.array([0.0, 0.0, 1.0])
+    rows = [8.5e-6 * np.cross([x, y, 0.0], a) - sp * 1.36e-7 * a for x, y, sp in ROTOR_POS]
+    M = np.vstack([np.full(4, 8.5e-6), np.array(rows).T])
+    tau = np.loadtxt(out / 'torque.csv', delimiter=',', skiprows=1)[:, 1:]
+    u = np.linalg.solve(M, np.column_stack([np.full(len(tau), 14.715), tau]).T).T
+    speed = np.sqrt(u)
+    assert speed.min() >= 600.0 * (1 - 1e-9) and speed.max() <= 700.0 * (1 + 1e-9)
+    assert np.ptp(speed[:, 0]) > 10.0                                # it does excite
+    assert max(s['limit_usage'][f'rotor speed rotor_{k}'] for k in range(4)) > 0.9
+    assert s['rotors']['joints'] == [f'rotor_{k}' for k in range(4)]
+
+
+@pytest.mark.parametrize('text, extra, words', [
+    (_rotors_yaml(400, 800, drop='max_speed: 800'), ['--hover-thrust', '14.7'],
+     ['rotors[0].max_speed', 'missing']),
+    (_rotors_yaml(600, 700), ['--hover-thrust', '30'], ['rotor_0', '30 N', '[600, 700]']),
+    (_rotors_yaml(800, 700), ['--hover-thrust', '14.7'], ['rotors[0].max_speed', 'above']),
+    (_rotors_yaml(600, 700), [], ['--hover-thrust']),
+])
+def test_cli_refuses_bad_rotors_files(tmp_path, capsys, text, extra, words) -> None:
+    """A rotor without a speed range, a hover thrust out of it, an empty range, no hover
+    thrust: one line naming the field, exit 2."""
+    rf = tmp_path / 'r.yaml'
+    rf.write_text(text)
+    out = tmp_path / 'o'
+    rc = main(['plan', '--prior-inertia', '0.015', '0.015', '0.028', '0', '0', '0',
+               '--max-rate', '5', '--rotors', str(rf), *extra, '--out', str(out)])
+    err = capsys.readouterr().err
+    assert rc == 2 and err.count('\n') == 1, err
+    for w in words:
+        assert w in err
+    assert not out.exists()

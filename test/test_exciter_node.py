@@ -74,6 +74,7 @@ def run_while_listening(exe, cmd, timeout=30.0):
     (['-p', 'rate:=fast'], "'rate'"),
     (['-p', 'scene:=/nonexistent/plan.yaml'], 'plan.yaml'),
     (['-p', f'scene:={SCENES / "torque_free.yaml"}'], 'no torque components'),
+    (['-p', f'wheels:={ROOT / "config" / "rotors" / "quadrotor.yaml"}'], 'quadrotor.yaml'),
 ])
 def test_invalid_exciter_parameters_are_refused_in_one_line(listener, args, named):
     exe, rec = listener
@@ -226,6 +227,34 @@ def test_node_follows_the_covariance_and_the_estimator_resets(exciter_node):
     assert node.state == 'stopped' and node.final_sent and node.commands == 2
     node._on_tick()
     assert node.commands == 2                                  # never again
+
+
+def test_node_with_wheels_holds_until_their_speeds_arrive_then_checks_them(exciter_node):
+    """With ``wheels``: zero until a JointState carries every wheel (in any order: mapped by
+    name), then the command goes out; a wheel at its max_speed that the command would speed
+    up holds zero again, naming it."""
+    from sensor_msgs.msg import JointState
+
+    node = exciter_node(wheels=str(ROOT / 'config' / 'wheels' / 'wheels.yaml'),
+                        max_torque=1.0)
+    now = node.now_s()
+    node.rules.on_gyro(now, np.zeros(3))
+    node._on_tick()
+    assert node.state == 'holding' and 'no wheel speeds' in node.reason
+    msg = JointState(name=['rw3', 'rw1', 'other', 'rw2'], velocity=[3.0, 1.0, 9.0, 2.0])
+    msg.header.stamp.sec, msg.header.stamp.nanosec = int(now), int(now % 1 * 1e9)
+    node._on_joint_states(msg)
+    np.testing.assert_array_equal(node.rules.m.wheel_speeds, [1.0, 2.0, 3.0])
+    node._on_joint_states(JointState(name=['rw1'], velocity=[1.0]))      # incomplete: ignored
+    np.testing.assert_array_equal(node.rules.m.wheel_speeds, [1.0, 2.0, 3.0])
+    node.schedule.torque[:] = [0.5, 0.0, 0.0]            # spins rw1 the negative way
+    node._on_tick()
+    assert node.state == 'exciting', node.reason
+    msg.velocity = [3.0, -599.99, 9.0, 2.0]
+    node._on_joint_states(msg)
+    node.rules.on_gyro(node.now_s(), np.zeros(3))
+    node._on_tick()
+    assert node.state == 'holding' and 'wheel speed limit: rw1' in node.reason
 
 
 def messages_vec(x, y, z):

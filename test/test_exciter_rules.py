@@ -240,3 +240,71 @@ def test_schedule_commands_what_the_open_loop_simulator_commands():
     planned = np.array([sched.at(t) for t in t_s])
     np.testing.assert_allclose(planned, sim.torque_command, atol=1e-12)
     np.testing.assert_allclose(sched.at(sched.span + 1.0), sched.at(1.0), atol=1e-12)
+
+
+# --------------------------------------------------------------------------------------------
+# wheel speed limit
+# --------------------------------------------------------------------------------------------
+
+def _wheels(max_speed=100.0, inertia=1e-3):
+    from inertia_ros.core.excitation.actuators import WheelLimit
+
+    return [WheelLimit(f'rw{k + 1}', np.eye(3)[k], inertia, max_speed=max_speed)
+            for k in range(3)]
+
+
+def test_wheel_speed_check_refuses_speeding_up_past_the_limit_and_passes_braking():
+    """A wheel along x at 99.5 of 100 rad/s, J = 1e-3: a body torque -0.02 N m about x
+    spins it up by 20 rad/s^2 (0.6 rad/s in 0.03 s: over), +0.02 slows it (passes), and
+    the same torque with 0.01 s to go stays under."""
+    from inertia_ros.core.exciter_rules import wheel_speed_check
+
+    w = _wheels()
+    speeds = np.array([99.5, 0.0, 0.0])
+    why = wheel_speed_check(speeds, np.array([-0.02, 0, 0]), w, 0.03)
+    assert 'rw1' in why and '100' in why and 'max_speed' in why
+    assert wheel_speed_check(speeds, np.array([0.02, 0, 0]), w, 0.03) == ''
+    assert wheel_speed_check(speeds, np.array([-0.02, 0, 0]), w, 0.01) == ''
+    assert wheel_speed_check(-speeds, np.array([0.02, 0, 0]), w, 0.03) != ''
+
+
+def test_wheels_hold_zero_before_their_limit_and_resume_when_braking():
+    """Closed loop on the wheel speeds (w += dt m / J with m = -tau): a planned -0.05 N m
+    about x drives rw1 towards 100 rad/s; the rules hold zero before it crosses (the speed
+    never exceeds 100 rad/s), say which wheel, and pass an opposite (braking) plan again.
+    Without wheel speeds yet, they hold zero."""
+    r = rules(max_slew=1.0)
+    r.set_wheels(_wheels())
+    cmd = run(r, [-0.05, 0, 0])
+    assert cmd.state == 'holding' and 'no wheel speeds' in cmd.reason
+    speeds, peak, states = np.zeros(3), 0.0, []
+    for k in range(1, 200):
+        t = k * DT
+        r.on_gyro(t, np.zeros(3))
+        r.on_wheel_speeds(t, speeds)
+        cmd = r.step(t, np.array([-0.05, 0.0, 0.0]))
+        speeds = speeds - DT * cmd.torque / 1e-3
+        peak = max(peak, float(np.max(np.abs(speeds))))
+        states.append((cmd.state, cmd.reason))
+    assert peak <= 100.0
+    assert peak >= 95.0
+    assert states[-1][0] == 'holding' and 'wheel speed limit: rw1' in states[-1][1]
+    assert np.all(cmd.torque == 0.0)
+    r.on_wheel_speeds(200 * DT, speeds)
+    r.on_gyro(200 * DT, np.zeros(3))
+    cmd = r.step(200 * DT, np.array([0.05, 0.0, 0.0]))
+    assert cmd.state == 'exciting' and cmd.torque[0] > 0
+
+
+def test_stale_wheel_speeds_hold_zero_and_coplanar_wheels_are_refused():
+    """Wheel speeds older than gyro_timeout hold zero; wheels that cannot produce torque
+    about every axis are refused (ValueError naming the span)."""
+    from inertia_ros.core.excitation.actuators import WheelLimit
+
+    r = rules()
+    r.set_wheels(_wheels())
+    r.on_wheel_speeds(0.0, np.zeros(3))
+    cmd = run(r, [0.01, 0, 0], t0=1.0)
+    assert cmd.state == 'holding' and 'no wheel speeds for' in cmd.reason
+    with pytest.raises(ValueError, match='span only 2'):
+        r.set_wheels([WheelLimit('a', [1, 0, 0], 1e-3), WheelLimit('b', [0, 1, 0], 1e-3)])

@@ -1,5 +1,9 @@
 """``python -m inertia_ros plan --prior-inertia ... --max-torque ... --max-rate ... --out DIR``.
 
+The actuator limits are ``--max-torque`` per axis and/or ``--wheels FILE`` (per wheel
+``max_torque`` and ``max_speed``) or ``--rotors FILE`` (per rotor ``min_speed`` and
+``max_speed``, hovering at ``--hover-thrust``): :mod:`inertia_ros.core.excitation.actuators`.
+
 Designs an excitation (:mod:`inertia_ros.core.excitation`) and writes to ``DIR``:
 
 * ``scene.yaml``: a scene the simulator plays (``python -m inertia_ros simulate``);
@@ -49,8 +53,21 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
                        help='a previous estimate\'s JSON report (inertia and inertia_std)')
     p.add_argument('--prior-rel-std', type=bounded(1e-6, 10, ''), default=0.2,
                    help='relative prior sigma with --prior-inertia (default 0.2 = 20 %%)')
-    p.add_argument('--max-torque', nargs='+', type=_real, required=True, metavar='N_M',
-                   help='peak torque per axis [N m]: one value or x y z')
+    p.add_argument('--max-torque', nargs='+', type=_real, metavar='N_M',
+                   help='peak torque per axis [N m]: one value or x y z (needed unless '
+                        '--wheels gives every wheel a max_torque)')
+    p.add_argument('--wheels', metavar='WHEELS.yaml',
+                   help='reaction wheels (config/wheels/ schema with max_torque [N m] and '
+                        'max_speed [rad/s] per wheel): the design keeps every wheel\'s torque '
+                        'and speed within them')
+    p.add_argument('--rotors', metavar='ROTORS.yaml',
+                   help='a hovering multirotor\'s rotors (config/rotors/ schema with min_speed '
+                        'and max_speed [rad/s] per rotor): the design keeps every rotor\'s '
+                        'speed in range; needs --hover-thrust')
+    p.add_argument('--hover-thrust', type=_real, metavar='N',
+                   help='total thrust held while exciting, with --rotors [N]')
+    p.add_argument('--initial-wheel-speed', nargs='+', type=_real, metavar='W',
+                   help='wheel speeds at the start [rad/s], one per wheel in file order (0)')
     p.add_argument('--max-rate', type=_real, required=True, help='body-rate limit |omega| '
                    '[rad/s]')
     p.add_argument('--gyro-rate', type=_real, default=200.0, help='gyro rate [Hz] (200)')
@@ -110,8 +127,21 @@ def _inputs(args: argparse.Namespace) -> tuple[Any, Any, Any]:
     from inertia_ros.core import excitation as ex
 
     mt = args.max_torque
-    if len(mt) not in (1, 3):
+    if mt is None and not args.wheels and not args.rotors:
+        raise UserError('give the actuator limits: --max-torque (per axis) and/or --wheels FILE '
+                        'or --rotors FILE')
+    if args.wheels and args.rotors:
+        raise UserError('--wheels and --rotors: give one of them')
+    if (args.hover_thrust is None) == bool(args.rotors):
+        raise UserError('--rotors FILE needs --hover-thrust N (and --hover-thrust needs '
+                        '--rotors)')
+    rotors = _rotors(args)
+    if mt is not None and len(mt) not in (1, 3):
         raise UserError(f'--max-torque: give one value or three (x y z), got {len(mt)}')
+    if args.initial_wheel_speed is not None and not args.wheels:
+        raise UserError('--initial-wheel-speed needs --wheels FILE')
+    wheels = _wheels(args)
+    mt = [math.inf] if mt is None else mt
     try:
         if args.prior_report:
             theta, std = _prior_from_report(args.prior_report)
@@ -122,7 +152,8 @@ def _inputs(args: argparse.Namespace) -> tuple[Any, Any, Any]:
                         max_rate=args.max_rate, gyro_rate=args.gyro_rate,
                         torque_rate=args.torque_rate, gyro_noise=args.gyro_noise,
                         torque_noise=args.torque_noise, torque_noise_rel=args.torque_noise_rel,
-                        initial_omega=tuple(args.initial_omega))
+                        initial_omega=tuple(args.initial_omega), wheels=wheels,
+                        rotors=rotors)
         rel = args.target_rel_std
         if rel is None and args.duration is None:
             rel = 0.01
@@ -132,6 +163,40 @@ def _inputs(args: argparse.Namespace) -> tuple[Any, Any, Any]:
         raise UserError(str(exc).replace('max_torque', '--max-torque')
                         .replace('max_rate', '--max-rate')) from None
     return prior, lim, target
+
+
+def _wheels(args: argparse.Namespace) -> tuple[Any, ...]:
+    """The wheels' limits of ``--wheels`` (max_torque needed without --max-torque)."""
+    if not args.wheels:
+        return ()
+    from inertia_ros.io.wheels import load_wheel_limits
+
+    need = ('max_speed',) if args.max_torque is not None else ('max_torque', 'max_speed')
+    try:
+        wheels = load_wheel_limits(args.wheels, need=need,
+                                   initial_speed=args.initial_wheel_speed)
+        from inertia_ros.core.excitation.actuators import allocation
+
+        allocation(wheels)
+    except ValueError as exc:
+        msg = str(exc)
+        raise UserError(msg if msg.startswith(args.wheels) else f'{args.wheels}: {msg}') \
+            from None
+    return tuple(wheels)
+
+
+def _rotors(args: argparse.Namespace) -> Any:
+    """The rotors' limits of ``--rotors`` hovering at ``--hover-thrust`` (or None)."""
+    if not args.rotors:
+        return None
+    from inertia_ros.io.rotors import load_rotor_limits
+
+    try:
+        return load_rotor_limits(args.rotors, args.hover_thrust)
+    except ValueError as exc:
+        msg = str(exc)
+        raise UserError(msg if msg.startswith(args.rotors) else f'{args.rotors}: {msg}') \
+            from None
 
 
 def _out_dir(args: argparse.Namespace) -> Path:
@@ -183,6 +248,14 @@ def _summary(result: Any, prior: Any, lim: Any, target: Any) -> dict[str, Any]:
         'time_to_target': num(result.time_to_target), 'duration': result.duration,
         'peak_rate': result.peak_rate, 'max_rate': lim.max_rate,
         'max_torque': list(lim.max_torque), 'horizon': result.horizon,
+        'wheels': [{'joint': w.joint, 'axis': w.axis.tolist(), 'inertia': w.inertia,
+                    'max_torque': num(w.max_torque), 'max_speed': num(w.max_speed),
+                    'initial_speed': w.initial_speed} for w in lim.wheels],
+        'rotors': None if lim.rotors is None else {
+            'joints': list(lim.rotors.joints), 'hover_thrust': lim.rotors.hover_thrust,
+            'min_speed': lim.rotors.min_speed.tolist(),
+            'max_speed': lim.rotors.max_speed.tolist()},
+        'limit_usage': result.usage, 'binding_limit': result.binding,
         'prior': {'theta': prior.theta.tolist(), 'std': prior.std.tolist()},
         'predicted': {'t': result.times.tolist(),
                       'element_std': dict(zip(_THETA, result.element_std.T.tolist(),
@@ -208,7 +281,12 @@ def _text(s: dict[str, Any]) -> str:
              f'  predicted criterion at {tgt["duration"]:g} s: '
              f'{100 * s["predicted"]["criterion"][-1]:.3g} %',
              f'  scene duration {s["duration"]:g} s; peak body rate {s["peak_rate"]:.3g} rad/s '
-             f'(limit {s["max_rate"]:g}); peak torque limit {s["max_torque"]} N m',
+             f'(limit {s["max_rate"]:g}); peak torque limit '
+             f'{[float(f"{v:.4g}") for v in s["max_torque"]]} N m'
+             + (f' (with {len(s["wheels"])} wheels)' if s['wheels'] else '')
+             + (f' (with {len(s["rotors"]["joints"])} rotors)' if s['rotors'] else ''),
+             f'  binding limit(s): {s["binding_limit"]} (use: '
+             + ', '.join(f'{k} {100 * v:.0f} %' for k, v in s['limit_usage'].items()) + ')',
              '', f'  {"profile":<56} {"criterion @ horizon":>20} {"time to target":>15}']
     for r in s['comparison']:
         crit = f"{100 * r['criterion']:.3g} %" if r['criterion'] is not None else 'inf'

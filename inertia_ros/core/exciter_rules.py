@@ -18,6 +18,12 @@ Safety (each command)
       lowers the predicted rate, still passes).  It resumes once ``|omega|`` is back under
       ``rate_hysteresis * max_rate``.
     - **No gyro** for ``gyro_timeout``: hold zero (the rate cannot be checked).
+    - **Wheel speed** (with wheels, :meth:`ExciterRules.set_wheels`): the wheels make the
+      body torque, each wheel's motor torque ``m = P tau`` (:mod:`.excitation.actuators`)
+      moves its speed by ``m / J``; over the same horizon as the rate check, from the newest
+      JointState speeds, a wheel that would cross ``max_speed`` while speeding up holds
+      zero (:func:`wheel_speed_check`; a command that slows every such wheel passes).  No
+      wheel speeds for ``gyro_timeout``: hold zero.
 
 Stopping (for good: after a stop the only output is a final zero)
     ``target_reached``  every targeted relative sigma <= ``target_rel_std``;
@@ -35,12 +41,15 @@ from __future__ import annotations
 
 import math
 from collections import deque
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from .excitation.actuators import WheelLimit, allocation
+
 __all__ = ['STATES', 'STOP_REASONS', 'Command', 'ExciterLimits', 'ExciterRules',
-           'TorqueSchedule', 'predicted_rate', 'principal_rel_std']
+           'TorqueSchedule', 'predicted_rate', 'principal_rel_std', 'wheel_speed_check']
 
 STATES = ('waiting', 'exciting', 'holding', 'stopped')
 STOP_REASONS = ('target_reached', 'timeout', 'estimator_lost', 'reset', 'not_improving')
@@ -190,6 +199,38 @@ def predicted_rate(omega: np.ndarray, torque: np.ndarray, inertia: np.ndarray,
                  + margin * horizon * np.linalg.norm(inv @ torque))
 
 
+def wheel_speed_check(speeds: np.ndarray, torque: np.ndarray,
+                      wheels: Sequence[WheelLimit], horizon: float) -> str:
+    """Why ``torque`` would drive a wheel over its speed limit ('' when it would not).
+
+    Parameters
+    ----------
+    speeds : numpy.ndarray, shape (n,)
+        Wheel speeds now [rad/s], in the order of ``wheels``.
+    torque : numpy.ndarray, shape (3,)
+        Body torque held over the horizon [N m].
+    wheels : sequence of WheelLimit
+        The wheels (axes, spin inertia, ``max_speed``).
+    horizon : float
+        Time [s], >= 0.
+
+    Returns
+    -------
+    str
+        '' when every wheel's predicted speed ``w + horizon m / J`` (``m = P tau``, the
+        minimum-norm allocation) is within ``max_speed`` or slower than now; else one line
+        naming the first wheel that would cross.
+    """
+    w = np.asarray(speeds, dtype=float).reshape(len(wheels))
+    m = allocation(wheels) @ np.asarray(torque, dtype=float).reshape(3)
+    pred = w + horizon * m / np.array([wl.inertia for wl in wheels])
+    for k, wl in enumerate(wheels):
+        if abs(pred[k]) > wl.max_speed and abs(pred[k]) > abs(w[k]):
+            return (f'wheel speed limit: {wl.joint} at {w[k]:.4g} rad/s, predicted '
+                    f'{pred[k]:.4g} beyond max_speed {wl.max_speed:g} rad/s')
+    return ''
+
+
 @dataclass
 class _Memory:
     """What the rules have seen (mutable state of :class:`ExciterRules`)."""
@@ -204,6 +245,8 @@ class _Memory:
     stop_reason: str = ''
     stop_detail: str = ''
     sigma: deque = field(default_factory=deque)  # (t, rel_std)
+    t_wheels: float | None = None
+    wheel_speeds: np.ndarray | None = None
 
 
 class ExciterRules:
@@ -223,6 +266,7 @@ class ExciterRules:
     def __init__(self, limits: ExciterLimits, inertia: np.ndarray) -> None:
         self.limits = limits
         self.set_inertia(inertia)
+        self.wheels: tuple[WheelLimit, ...] = ()
         self.m = _Memory()
 
     # ------------------------------------------------------------------ inputs
@@ -233,6 +277,20 @@ class ExciterRules:
                 or np.linalg.eigvalsh(0.5 * (inertia + inertia.T))[0] <= 0.0:
             raise ValueError(f'inertia must be a positive definite 3x3 tensor, got {inertia!r}')
         self.inertia = 0.5 * (inertia + inertia.T)
+
+    def set_wheels(self, wheels: Sequence[WheelLimit]) -> None:
+        """Enforce the speed limits of ``wheels`` (they make the body torque) from now on;
+        :meth:`on_wheel_speeds` feeds their speeds.  Raises ValueError when their axes do
+        not span the three body axes."""
+        wheels = tuple(wheels)
+        if wheels:
+            allocation(wheels)
+        self.wheels = wheels
+
+    def on_wheel_speeds(self, t: float, speeds: np.ndarray) -> None:
+        """The wheels' speeds ``speeds`` (n,) [rad/s], in :meth:`set_wheels` order, at ``t``."""
+        self.m.t_wheels = float(t)
+        self.m.wheel_speeds = np.asarray(speeds, dtype=float).reshape(len(self.wheels)).copy()
 
     def on_gyro(self, t: float, omega: np.ndarray) -> None:
         """The newest gyro sample ``omega`` (3,) [rad/s] taken at ``t`` [s]."""
@@ -362,7 +420,20 @@ class ExciterRules:
             return np.zeros(3), (f'rate limit: |omega| {rate:.4g} rad/s, predicted '
                                  f'{pred:.4g} > max_rate {lim.max_rate:g} rad/s (resume '
                                  f'under {lim.rate_hysteresis * lim.max_rate:.4g})')
-        return planned, ''
+        why = self._wheel_reason(t, nxt, horizon - max(age, 0.0))
+        return (np.zeros(3), why) if why else (planned, '')
+
+    def _wheel_reason(self, t: float, nxt: np.ndarray, ahead: float) -> str:
+        """Why the wheels hold zero ('' when they do not, or without wheels); ``ahead`` [s]
+        is the rate check's horizon less the gyro's age (the wheel sample's age is added)."""
+        m, lim = self.m, self.limits
+        if not self.wheels:
+            return ''
+        if m.t_wheels is None or t - m.t_wheels > lim.gyro_timeout:
+            return ('no wheel speeds yet' if m.t_wheels is None else
+                    f'no wheel speeds for {t - m.t_wheels:.3g} s (> {lim.gyro_timeout:g} s)')
+        return wheel_speed_check(m.wheel_speeds, nxt,
+                                 self.wheels, max(t - m.t_wheels, 0.0) + ahead)
 
 
 class TorqueSchedule:

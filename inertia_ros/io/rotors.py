@@ -14,6 +14,8 @@
         k_f_std: 1.7e-7            # optional one-sigma uncertainties, same units
         k_m_std: 2.8e-9
         inertia_std: 1.0e-6
+        min_speed: 300.0           # optional: speed range [rad/s] (plan --rotors)
+        max_speed: 1200.0
 
 The body torque is ``sum_i w_i^2 (k_f,i p_i x a - s_i k_m,i a)`` (see
 :mod:`inertia_ros.core.estimation.rotors`).  :class:`ActuatorInput` turns JointState speeds
@@ -34,10 +36,13 @@ from ..core.estimation.rotors import Rotor, RotorSet, rotors_momentum
 from .actuator_yaml import check_entry, check_top, joint_name, number, std_of, vector3
 from .yaml_input import read_yaml
 
-__all__ = ['ActuatorInput', 'load_actuators', 'load_rotors', 'rotors_from_dict']
+__all__ = ['ActuatorInput', 'load_actuators', 'load_rotor_limits', 'load_rotors',
+           'rotors_from_dict']
 
 _KEYS = ('joint', 'position', 'spin', 'k_f', 'k_m', 'time_constant', 'inertia', 'k_f_std',
-         'k_m_std', 'inertia_std')
+         'k_m_std', 'inertia_std', 'min_speed', 'max_speed')
+#: Largest rotor speed limit [rad/s].
+MAX_ROTOR_SPEED = 1e5
 _REQUIRED = ('joint', 'position', 'spin', 'k_f', 'k_m')
 #: Longest motor time constant [s].
 MAX_TIME_CONSTANT = 10.0
@@ -70,6 +75,7 @@ def rotors_from_dict(d: Any, where: str = 'rotors') -> RotorSet:
         for k in ('k_f', 'k_m', 'inertia'):
             val[f'{k}_std'] = std_of(it.get(f'{k}_std', 0.0), f'{key}.{k}_std', val[k])
         joint = joint_name(it['joint'], f'{key}.joint')
+        _speed_range(it, key)
         pos = np.array(vector3(it['position'], f'{key}.position'))
         try:
             out.append(Rotor(joint, pos, int(spin), **val))
@@ -83,6 +89,47 @@ def rotors_from_dict(d: Any, where: str = 'rotors') -> RotorSet:
         return RotorSet(tuple(out), np.array(axis))
     except ValueError as exc:
         raise ValueError(f'{where}: {exc}') from None
+
+
+def _speed_range(it: dict, key: str) -> tuple[float, float]:
+    """A rotor's optional ``[min_speed, max_speed]`` [rad/s] (default ``[0, inf]``)."""
+    lo = number(it.get('min_speed', 0.0), f'{key}.min_speed', nonneg=True,
+                high=MAX_ROTOR_SPEED)
+    if 'max_speed' not in it:
+        return lo, float('inf')
+    hi = number(it['max_speed'], f'{key}.max_speed', positive=True, high=MAX_ROTOR_SPEED)
+    if not hi > lo:
+        raise ValueError(f'{key}.max_speed: must be above min_speed ({lo:g}), got '
+                         f'{show(it["max_speed"])}')
+    return lo, hi
+
+
+def load_rotor_limits(path: str | Path, hover_thrust: float) -> Any:
+    """The rotors of a rotors file with their speed ranges, hovering at ``hover_thrust``
+    [N] (:class:`~inertia_ros.core.excitation.actuators.RotorLimits`; ``max_speed`` needed).
+
+    Raises
+    ------
+    ValueError
+        As :func:`load_rotors`; a rotor without ``max_speed``; rotors that cannot make every
+        torque axis or hover within their ranges: one line naming the file.
+    """
+    from ..core.excitation.actuators import RotorLimits
+
+    d = read_yaml(path, 'rotors')
+    rs = rotors_from_dict(d, str(path))
+    ranges = []
+    for i, it in enumerate(d['rotors']):
+        if 'max_speed' not in it:
+            raise ValueError(f'{path}: rotors[{i}].max_speed: missing (plan --rotors needs a '
+                             'speed range per rotor)')
+        ranges.append(_speed_range(it, f'{path}: rotors[{i}]'))
+    lo, hi = (np.array(v) for v in zip(*ranges, strict=True))
+    try:
+        return RotorLimits(tuple(rs.joints), np.array([r.k_f for r in rs.rotors]),
+                           rs.torque_rows(), lo, hi, float(hover_thrust))
+    except ValueError as exc:
+        raise ValueError(f'{path}: {exc}') from None
 
 
 def load_rotors(path: str | Path) -> RotorSet:

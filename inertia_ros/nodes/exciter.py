@@ -15,7 +15,10 @@ Subscribes
     ``<estimator>/principal_moments`` (Vector3Stamped) and ``<estimator>/principal_axes``
     (QuaternionStamped): the relative sigma of each principal moment and the tensor of the
     rate prediction;
-    ``/diagnostics``: the estimator's ``resets`` count (an increase stops the exciter).
+    ``/diagnostics``: the estimator's ``resets`` count (an increase stops the exciter);
+    ``joint_states`` (sensor_msgs/JointState, sensor-data QoS) with ``wheels`` set: the
+    wheels' speeds; the exciter holds zero when a wheel would cross its ``max_speed``
+    (and while no speeds arrive).
 
 Re-planning (``replan_period`` > 0): every ``replan_period`` s of excitation, once the
 estimator's tensor and covariance are at hand, a thread designs the next ``replan_horizon`` s
@@ -41,7 +44,7 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import QuaternionStamped, Vector3Stamped, WrenchStamped
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
-from sensor_msgs.msg import Imu
+from sensor_msgs.msg import Imu, JointState
 from std_msgs.msg import Float64MultiArray
 
 from inertia_ros.core.excitation.inputs import Limits, Target
@@ -111,6 +114,7 @@ class ExciterNode(Node):
             rate_margin=cfg['rate_margin'], rate_hysteresis=cfg['rate_hysteresis'],
             stall_window=cfg['stall_window'])
         self.rules = ExciterRules(self.limits, scene.inertia)
+        self._wheel_index = _wheels_setup(cfg['wheels'], self.rules)
         self._replan = _replan_setup(cfg, scene)
         self.frame_id = cfg['frame_id'] or scene.gyro.frame_id
         self.exit_on_stop = cfg['exit_on_stop']
@@ -127,6 +131,9 @@ class ExciterNode(Node):
         self.create_subscription(QuaternionStamped, f'{est}/principal_axes',
                                  self._on_axes, 10)
         self.create_subscription(DiagnosticArray, '/diagnostics', self._on_diagnostics, 10)
+        if self._wheel_index:
+            self.create_subscription(JointState, 'joint_states', self._on_joint_states,
+                                     sensor_qos(100))
         self._cov: np.ndarray | None = None
         self._sched_t0: float | None = None      # start of the running schedule (None: t_start)
         self._replan_lock = threading.Lock()
@@ -164,6 +171,19 @@ class ExciterNode(Node):
         omega = np.array([w.x, w.y, w.z])
         if np.all(np.isfinite(omega)):
             self.rules.on_gyro(messages.stamp_to_ns(msg.header.stamp) * 1e-9, omega)
+
+    def _on_joint_states(self, msg: JointState) -> None:
+        """The wheels' speeds, when the message carries a finite velocity for each."""
+        names = list(msg.name)
+        if len(msg.velocity) != len(names):
+            return
+        vel = dict(zip(names, msg.velocity, strict=True))
+        try:
+            speeds = np.array([vel[j] for j in self._wheel_index], dtype=float)
+        except KeyError:
+            return
+        if np.all(np.isfinite(speeds)):
+            self.rules.on_wheel_speeds(messages.stamp_to_ns(msg.header.stamp) * 1e-9, speeds)
 
     def _on_moments(self, msg: Vector3Stamped) -> None:
         v = msg.vector
@@ -307,6 +327,20 @@ class ExciterNode(Node):
             values=[KeyValue(key=k, value=v) for k, v in values.items()])
         self.pub_diag.publish(diagnostic_array([status],
                                                self.get_clock().now().nanoseconds))
+
+
+def _wheels_setup(path: str, rules: ExciterRules) -> list[str]:
+    """Enforce the speed limits of the wheels file ``path`` ('' = none); their joints."""
+    if not path:
+        return []
+    from inertia_ros.io.wheels import load_wheel_limits
+
+    wheels = load_wheel_limits(path, need=('max_speed',))
+    try:
+        rules.set_wheels(wheels)
+    except ValueError as exc:
+        raise ValueError(f'{path}: {exc}') from None
+    return [w.joint for w in wheels]
 
 
 def _replan_setup(cfg: dict[str, Any], scene: Any

@@ -478,6 +478,10 @@ EXCITER: dict[str, ParamSpec] = {
                                 read_only=True),
     'exit_on_stop': ParamSpec(False, 'exit the process 2 s after the final zero command',
                               read_only=True),
+    'wheels': ParamSpec('', "wheels YAML (config/wheels/ schema with max_speed [rad/s] per "
+                        "wheel) whose speeds on 'joint_states' are kept within max_speed: "
+                        "hold zero when a wheel would cross it; '' = no wheels",
+                        read_only=True),
 }
 
 #: Node name -> (one-line summary, parameter table), for ``--help`` and the tests.

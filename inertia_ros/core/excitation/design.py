@@ -48,6 +48,13 @@ from scipy.optimize import minimize_scalar
 from ..crlb import fisher_information
 from ..simulation import integrate_rigid_body
 from ..tensor import THETA_NAMES
+from .actuators import (
+    allocation,
+    wheel_speed_scale,
+    wheel_speeds,
+    wheel_torque_scale,
+    wheel_torques,
+)
 from .inputs import Limits, Prior, Profile, Target
 from .profiles import (
     _from,
@@ -58,9 +65,9 @@ from .profiles import (
     standard_profiles,
 )
 
-__all__ = ['Plan', 'choose_model', 'criterion', 'enforce_limits', 'information_at', 'plan',
-           'principal_std', 'simulated_peak_rate', 'targeted_rel_std', 'theta_covariance',
-           'time_to_reach']
+__all__ = ['Plan', 'binding_limits', 'choose_model', 'criterion', 'enforce_limits',
+           'information_at', 'limit_usage', 'plan', 'principal_std', 'simulated_peak_rate',
+           'targeted_rel_std', 'theta_covariance', 'time_to_reach', 'actuator_axis_scale']
 
 #: Share of the body-rate limit a profile may use (margin for the prior's spread).
 RATE_MARGIN = 0.97
@@ -95,10 +102,14 @@ def enforce_limits(profile: Profile, bodies: Sequence[np.ndarray], lim: Limits,
                    duration: float, rate: float, seed: int = 0) -> tuple[Profile, float]:
     """Scale ``profile`` to the torque limit per axis, then down to the body-rate limit.
 
+    With wheels or rotors, the axes are then scaled down until every wheel's motor torque
+    and speed (every rotor's speed) stay within its limits (:func:`actuator_axis_scale`).
+
     Returns
     -------
     profile : Profile
-        Peak torque per axis ``<= max_torque`` on the command grid; noise-free peak body rate
+        Peak torque per axis ``<= max_torque`` on the command grid, wheel torques and
+        speeds within their limits; noise-free peak body rate
         ``<= RATE_MARGIN max_rate`` on every body (torque held at the torque rate; ``rate``
         is ignored).
     peak : float
@@ -108,6 +119,8 @@ def enforce_limits(profile: Profile, bodies: Sequence[np.ndarray], lim: Limits,
     cmd = profile.torque(t, duration, seed)
     peak_u = np.max(np.abs(cmd), axis=0)
     f = np.where(peak_u > 0, np.asarray(lim.max_torque) / np.where(peak_u > 0, peak_u, 1), 0)
+    if lim.wheels or lim.rotors is not None:
+        f = f * actuator_axis_scale(t, cmd * f, lim)
     scaled = profile.scaled(f)
     w0 = float(np.linalg.norm(lim.initial_omega))
     allowed = RATE_MARGIN * lim.max_rate
@@ -120,6 +133,70 @@ def enforce_limits(profile: Profile, bodies: Sequence[np.ndarray], lim: Limits,
         s *= 0.98 * (allowed - w0) / max(pk - w0, 1e-12)
         pk = peak_rate(scaled.scaled(s), bodies, lim, duration, rate, seed)
     return scaled.scaled(s), pk
+
+
+def _actuator_scales(t: np.ndarray, tau: np.ndarray, lim: Limits) -> np.ndarray:
+    """Per actuator (wheel or rotor) the largest factor ``<= 1`` for ``tau`` (M, 3)."""
+    if lim.rotors is not None:
+        return lim.rotors.speed_scale(tau)
+    return np.minimum(wheel_torque_scale(lim.wheels, tau), wheel_speed_scale(lim.wheels, t, tau))
+
+
+def actuator_axis_scale(t: np.ndarray, cmd: np.ndarray, lim: Limits) -> np.ndarray:
+    """Per-axis factors ``<= 1``, (3,), that keep every wheel's motor torque and speed (or
+    every rotor's speed) within its limits under the command ``cmd`` (M, 3) [N m] held on
+    the grid ``t`` (M,) [s].
+
+    An actuator over a limit scales down the axes it takes part in (allocation
+    ``P_ki != 0``) by its own factor; a few rounds settle it (exact in one for wheels along
+    the body axes), and a common factor closes any remainder (every limit is linear in the
+    torque's scale).
+    """
+    P = lim.rotors.alloc[:, 1:] if lim.rotors is not None else allocation(lim.wheels)
+    involved = np.abs(P) > 1e-9 * np.max(np.abs(P))              # (n, 3)
+    f = np.ones(3)
+    for _ in range(6):
+        s = _actuator_scales(t, cmd * f, lim)
+        if np.all(s >= 1.0 - 1e-9):
+            return f
+        f = f * np.min(np.where(involved, s[:, None], 1.0), axis=0)
+    return f * float(min(1.0, np.min(_actuator_scales(t, cmd * f, lim))))
+
+
+def limit_usage(profile: Profile, bodies: Sequence[np.ndarray], lim: Limits, duration: float,
+                seed: int = 0) -> dict[str, float]:
+    """Share of each limit the profile uses over ``duration`` [s] (1 = at the limit; the
+    span it was sized for): ``axis torque`` (largest peak torque / max_torque over the
+    axes), ``body rate`` (noise-free peak ``|omega|`` over ``bodies``, torque held at the
+    torque rate, / max_rate) and per wheel ``wheel torque JOINT`` and ``wheel speed JOINT``
+    (largest ``|w|`` / max_speed; unlimited ones are left out), per rotor ``rotor speed
+    JOINT`` (largest share of its room from hover to a speed limit)."""
+    t = _grid(duration, lim.torque_rate)
+    cmd = profile.torque(t, duration, seed)
+    out = {'axis torque': float(np.max(np.max(np.abs(cmd), axis=0)
+                                        / np.asarray(lim.max_torque))),
+           'body rate': peak_rate(profile, bodies, lim, duration, lim.torque_rate, seed)
+           / lim.max_rate}
+    if lim.wheels:
+        m = np.max(np.abs(wheel_torques(lim.wheels, cmd)), axis=0)
+        w = np.max(np.abs(wheel_speeds(lim.wheels, t, cmd)), axis=0)
+        for k, wl in enumerate(lim.wheels):
+            if math.isfinite(wl.max_torque):
+                out[f'wheel torque {wl.joint}'] = float(m[k] / wl.max_torque)
+            if math.isfinite(wl.max_speed):
+                out[f'wheel speed {wl.joint}'] = float(w[k] / wl.max_speed)
+    if lim.rotors is not None:
+        share = lim.rotors.speed_share(cmd)
+        out.update({f'rotor speed {j}': float(share[k])
+                    for k, j in enumerate(lim.rotors.joints)})
+    return out
+
+
+def binding_limits(usage: dict[str, float], share: float = 0.98) -> str:
+    """The limits within ``share`` of the largest use, most used first (comma-separated)."""
+    top = max(usage.values())
+    return ', '.join(k for k, v in sorted(usage.items(), key=lambda kv: -kv[1])
+                     if v >= share * top)
 
 
 def information_at(profile: Profile, body: np.ndarray, lim: Limits, duration: float,
@@ -263,6 +340,11 @@ class Plan:
         ``max_duration``), ``peak_rate`` [rad/s], ``peak_torque`` [N m] per axis.
     horizon : float
         Length [s] at which the candidates were compared.
+    usage : dict
+        Share of each limit the designed profile uses over the span it was sized for (the
+        target duration or ``max_duration``; :func:`limit_usage`).
+    binding : str
+        The limits the design is held by (:func:`binding_limits` of ``usage``).
     """
 
     profile: Profile
@@ -277,6 +359,8 @@ class Plan:
     peak_rate: float
     comparison: list[dict[str, Any]] = field(default_factory=list)
     horizon: float = 0.0
+    usage: dict[str, float] = field(default_factory=dict)
+    binding: str = ''
 
 
 def choose_model(prior: Prior, target: Target) -> str:
@@ -437,8 +521,11 @@ def plan(prior: Prior, lim: Limits, target: Target, *, n_bodies: int = 3, seed: 
             f'target not reachable: the designed profile reaches {100 * curve[3][-1]:.3g} % '
             f'(target {100 * target.rel_std:g} %) in the maximum duration '
             f'{target.max_duration:g} s at max torque {list(lim.max_torque)} N m and max rate '
-            f'{lim.max_rate:g} rad/s; raise --max-duration, --max-torque or --max-rate, lower '
-            'the sensor noise, or relax --target-rel-std')
+            f'{lim.max_rate:g} rad/s' + (f' with {len(lim.wheels)} wheels (their torque and '
+                                         'speed limits)' if lim.wheels else '')
+            + (' with the rotors\' speed ranges' if lim.rotors is not None else '')
+            + '; raise --max-duration, --max-torque (or the wheels\' or rotors\' limits) '
+            'or --max-rate, lower the sensor noise, or relax --target-rel-std')
     duration = t_end if target.duration is not None else min(
         target.max_duration, float(math.ceil(1.1 * ttt)))
     pk = simulated_peak_rate(limited, bodies, lim, duration, seed)
@@ -453,7 +540,9 @@ def plan(prior: Prior, lim: Limits, target: Target, *, n_bodies: int = 3, seed: 
         for std_prof in standard_profiles(lim.max_torque):
             rows.append(_row(std_prof.name, std_prof, bodies, prior, lim, target, model,
                              t_end, horizon, rate, seed)[0])
+    usage = limit_usage(limited, bodies, lim, t_end, seed)
     return Plan(profile=limited, design=par, model=model, duration=duration,
                 time_to_target=ttt if target.rel_std is not None else math.nan,
                 times=curve[0], element_std=curve[1], principal_std=curve[2],
-                criterion=curve[3], peak_rate=pk, comparison=rows, horizon=horizon)
+                criterion=curve[3], peak_rate=pk, comparison=rows, horizon=horizon,
+                usage=usage, binding=binding_limits(usage))

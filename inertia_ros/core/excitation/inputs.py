@@ -13,6 +13,7 @@ import numpy as np
 
 from ..scene import SceneError, TorqueComponent
 from ..tensor import MATRIX_INDEX, THETA_NAMES, matrix_to_theta
+from .actuators import RotorLimits, WheelLimit, axis_peaks
 
 __all__ = ['NEAR_DIAGONAL', 'Limits', 'Prior', 'Profile', 'Target', 'make_prior']
 
@@ -123,7 +124,8 @@ class Limits:
     Attributes
     ----------
     max_torque : tuple of 3 float
-        Peak torque per body axis [N m].
+        Peak torque per body axis [N m]; with ``wheels`` (``rotors``), at most what they give
+        about each axis alone (:func:`.actuators.axis_peaks`; ``inf`` here: only that).
     max_rate : float
         Largest body rate ``|omega|`` [rad/s].
     gyro_rate, torque_rate : float
@@ -137,6 +139,11 @@ class Limits:
         ``noise_rel``).
     initial_omega : tuple of 3 float
         Body rate at the start [rad/s].
+    wheels : tuple of WheelLimit
+        Reaction wheels producing the torque, with their torque and speed limits
+        (:mod:`.actuators`); empty: the body torque is limited per axis only.
+    rotors : RotorLimits, optional
+        A hovering multirotor's rotors with their speed ranges (not with ``wheels``).
     """
 
     max_torque: tuple[float, float, float]
@@ -147,12 +154,21 @@ class Limits:
     torque_noise: float = 0.001
     torque_noise_rel: float = 0.0
     initial_omega: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    wheels: tuple[WheelLimit, ...] = ()
+    rotors: RotorLimits | None = None
 
     def __post_init__(self) -> None:
         """Refuse non-finite, zero or negative limits (one line naming the field)."""
         mt = tuple(float(v) for v in np.atleast_1d(np.asarray(self.max_torque, dtype=float)))
         if len(mt) == 1:
             mt = mt * 3
+        object.__setattr__(self, 'wheels', tuple(self.wheels))
+        if self.wheels and self.rotors is not None:
+            raise ValueError('wheels and rotors: give one of them')
+        if self.wheels and len(mt) == 3:
+            mt = tuple(float(v) for v in np.minimum(mt, axis_peaks(self.wheels)))
+        if self.rotors is not None and len(mt) == 3:
+            mt = tuple(float(v) for v in np.minimum(mt, self.rotors.axis_peaks()))
         object.__setattr__(self, 'max_torque', mt)
         checks = {'max_torque': mt, 'max_rate': (self.max_rate,),
                   'gyro_rate': (self.gyro_rate,), 'torque_rate': (self.torque_rate,),
