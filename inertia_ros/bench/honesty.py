@@ -96,7 +96,7 @@ _SINE_AXES = {'x': (1.0, 0.0, 0.0), 'y': (0.0, 1.0, 0.0), 'z': (0.0, 0.0, 1.0),
 
 def peer_like(axes: str, amplitude: float, disturbance: float,
               duration: float = 60.0) -> TruthCase:
-    """A sine excitation profile of the kind a public peer's benchmark uses (issue 27).
+    """A sine excitation profile of the kind a public peer's benchmark uses.
 
     One tone per torqued axis (0.1, 0.13, 0.17 Hz for x, y, z) of ``amplitude`` [N m] on
     ``axes`` (``'x'``, ``'y'``, ``'z'`` or ``'iso'``: all three), quiet sensors (2e-4 rad/s,

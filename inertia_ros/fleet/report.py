@@ -101,6 +101,11 @@ def find_outliers(rows: Iterable[dict[str, Any]], threshold: float = THRESHOLD_S
                   ) -> list[dict[str, Any]]:
     """Logs whose tensor differs from their vehicle's previous one by more than ``threshold``.
 
+    The previous one is the latest earlier log with status ``ok`` (the first log's successor
+    compares with it whatever its status): a ``model_mismatch`` log (a payload change inside
+    it) carries a sigma widened by its own window scatter, so it hides the jump as a reference;
+    the next ``ok`` log is then compared with the last ``ok`` one before the change.
+
     Parameters
     ----------
     rows : iterable of dict
@@ -121,18 +126,28 @@ def find_outliers(rows: Iterable[dict[str, Any]], threshold: float = THRESHOLD_S
     out = []
     for v in sorted(by_vehicle):
         seq = sorted(by_vehicle[v], key=_order)
-        for prev, cur in zip(seq, seq[1:], strict=False):
-            c = compare(prev, cur)
-            if c is None or c['sigma'] <= threshold:
-                continue
-            dI = None
-            if all(cur.get(f'I{k}') is not None and prev.get(f'I{k}') is not None
-                   for k in (1, 2, 3)):
-                dI = [cur[f'I{k}'] - prev[f'I{k}'] for k in (1, 2, 3)]
-            out.append({'vehicle': v, 'path': cur['path'], 'log_start': cur.get('log_start'),
-                        'previous': prev['path'], 'sigma': c['sigma'], 'worst': c['worst'],
-                        'z': c['z'], 'dI': dI})
+        prev = seq[0]
+        for cur in seq[1:]:
+            record = _outlier(v, prev, cur, threshold)
+            if record is not None:
+                out.append(record)
+            if cur.get('status') == 'ok' or prev.get('status') != 'ok':
+                prev = cur
     return out
+
+
+def _outlier(vehicle: str, prev: dict[str, Any], cur: dict[str, Any], threshold: float
+             ) -> dict[str, Any] | None:
+    """The outlier record of ``cur`` against ``prev`` (:func:`find_outliers`), or None."""
+    c = compare(prev, cur)
+    if c is None or c['sigma'] <= threshold:
+        return None
+    dI = None
+    if all(cur.get(f'I{k}') is not None and prev.get(f'I{k}') is not None for k in (1, 2, 3)):
+        dI = [cur[f'I{k}'] - prev[f'I{k}'] for k in (1, 2, 3)]
+    return {'vehicle': vehicle, 'path': cur['path'], 'log_start': cur.get('log_start'),
+            'previous': prev['path'], 'sigma': c['sigma'], 'worst': c['worst'], 'z': c['z'],
+            'dI': dI}
 
 
 def status_counts(rows: Iterable[dict[str, Any]]) -> Counter[str]:

@@ -28,6 +28,9 @@ from .momentum import Momentum, equivalent_torque
 __all__ = ['Stated', 'cumulative_impulse', 'intervals', 'lhs_columns', 'profile_inputs',
            'propagate']
 
+#: Rows the profile of the stated inputs needs (fewer: the inputs stay at their prior).
+_MIN_PROFILE_ROWS = 20
+
 _STEPS = 4                      # Gauss-Newton steps of the profile at most
 _PER_UNKNOWN = 4                # intervals per unknown of the profile
 _SMOOTH_S = 0.2                 # window of the smoothed input changes [s]
@@ -262,7 +265,7 @@ def _profile(res: Any, st: Stated) -> tuple[np.ndarray, np.ndarray]:
         return lhs_columns(t, w) @ theta - cumulative_impulse(grid - st.tg[0], tq, t)
 
     u, cov = np.zeros(q), np.eye(q)
-    if len(t) < 20:
+    if len(t) < _MIN_PROFILE_ROWS:
         return u, cov
     # the columns from smoothed changes: a change computed from the noisy speeds carries
     # the noise of y itself (errors in variables that would shrink every input)

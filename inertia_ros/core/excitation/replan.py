@@ -41,6 +41,9 @@ from .profiles import _from, corner_frequency
 __all__ = ['Continuation', 'Replan', 'ReplanSettings', 'Replanner', 'design_next',
            'predict_omega', 'prior_from_estimate', 'schedule_torque']
 
+#: Samples per period of the highest tone a re-plan may place (at the given rate).
+_SAMPLES_PER_PERIOD = 5.0
+
 #: Base frequencies tried, as multiples of the estimate's corner frequency.
 F0_FACTORS = (0.5, 0.71, 1.0, 1.41, 2.0)
 #: Layouts tried: (spread, tones per axis, decay, stagger) as in :func:`.profiles.multisine`.
@@ -148,7 +151,7 @@ def _candidates(prior: Prior, lim: Limits, horizon: float, rate: float,
     out = [dict(current)] if current else []
     for spread, n, decay, stagger in LAYOUTS:
         top = 3 * n if spread is None else (2 * n - 1) * (1 + 2 * spread)
-        hi, lo = rate / (5.0 * top), 1.0 / horizon
+        hi, lo = rate / (_SAMPLES_PER_PERIOD * top), 1.0 / horizon
         if hi < lo:
             continue
         for f0 in sorted({float(np.clip(f_c * k, lo, hi)) for k in F0_FACTORS}):
