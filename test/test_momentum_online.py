@@ -59,10 +59,10 @@ def reaction_torque(sc, r, used, rate=50.0):
 def test_online_matches_the_batch_momentum_form() -> None:
     """Same log, same segment length: the online estimate's noise sigma agrees with the batch
     ``integral`` one on the stated inputs (5 %); both profile the stated wheel inertias
-    (:mod:`.online_stated`, :mod:`.stated`): the batch moves within its sigma of the
-    exact-input estimate, the online within twice its own (measured 1.24, ixz), and the
-    online sigma they add is at most the batch's (measured 0.62-1.0 of it: the online profile
-    uses the whole anchored segments, the batch's 0.5 s intervals)."""
+    (:mod:`.online_stated`, :mod:`.stated`): each moves within its sigma of the exact-input
+    estimate (online measured 0.67 at most), and the online sigma they add is at most the
+    batch's (measured 0.65-1.0 of it: the online profile uses the whole anchored segments,
+    the batch's 0.5 s intervals)."""
     sc = Scene.from_dict(scene_dict(duration=4.0, gyro_rate=100.0))
     r = simulate(sc, 1)
     ws = [Wheel(w.joint, w.axis, w.inertia, 0.01 * w.inertia) for w in sc.wheels.wheels]
@@ -85,7 +85,7 @@ def test_online_matches_the_batch_momentum_form() -> None:
     added_b = b.diagnostics['wheel_inertia']['theta_std_added']
     np.testing.assert_allclose(np.sqrt(o.theta_std ** 2 - added_o ** 2), b0.theta_std,
                                rtol=0.05)
-    assert np.all(np.abs(o.theta - b0.theta) <= 2 * o.theta_std), (o.theta - b0.theta)
+    assert np.all(np.abs(o.theta - b0.theta) <= o.theta_std), (o.theta - b0.theta)
     assert np.all(np.abs(b.theta - b0.theta) <= b.theta_std), (b.theta - b0.theta)
     assert np.all(added_o <= 1.05 * added_b), (added_o, added_b)
     np.testing.assert_allclose(o.diagnostics['torque_noise_std'],
@@ -336,7 +336,7 @@ def test_online_profile_reads_the_batch_equations_with_the_inputs_corrected() ->
     path, same 10 s segments) on the inputs corrected by the online posterior mean within
     0.1 sigma per element (measured 0.04 at most): the statistics read with the inputs
     corrected are the corrected data's.  Against the batch's own profile it agrees within
-    1.5 sigma (measured 1.29, ixz, seed 3; 0.26 on seed 2): the two profiles fit the same
+    1.5 sigma (measured 1.11, ixz, seed 3; 0.06 on seed 2): the two profiles fit the same
     prior on different equations (online: the whole anchored segments under the noise
     model's sandwich; batch: >= 0.5 s intervals with free intercepts, clustered scores),
     so their posterior means differ by about one posterior sigma of the inputs, and the

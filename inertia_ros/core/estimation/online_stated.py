@@ -278,6 +278,38 @@ class StatedInputs:
         self.theta: np.ndarray | None = None              # the last estimate's tensor
         #: (model and hold, D (q, 6), data span [s]) of the last sensitivities
         self.cache: tuple[str, np.ndarray, float] | None = None
+        p = len(names)
+        self._AA = np.zeros((p, p))        # the momentum input's changes against itself:
+        self._Ay = np.zeros(p)             # for the inputs' common scale (scale_dir)
+        self._yy = 0.0
+
+    def observe(self, h: np.ndarray, tq: np.ndarray, dh: np.ndarray, dtq: np.ndarray) -> None:
+        """Accumulate a momentum block's ``h``, torque (k, 3) and their one-sigma changes
+        (p, k, 3) for :meth:`scale_dir`."""
+        if not len(dh):
+            return
+        A = np.concatenate([dh.reshape(len(dh), -1), dtq.reshape(len(dtq), -1)], axis=1)
+        y = np.concatenate([h.reshape(-1), tq.reshape(-1)])
+        self._AA += A @ A.T
+        self._Ay += A @ y
+        self._yy += float(y @ y)
+
+    def scale_dir(self, other_torque: bool) -> np.ndarray | None:
+        """The ``u`` (q,) that scales the whole known input (momentum, its torque and the
+        other torque) by one, every part of it stated (else None): the batch rule
+        (:func:`.stated._scale_direction`) on the accumulated blocks."""
+        p = len(self._Ay)
+        if not p or (other_torque and not self.torque_scale_std) or self._yy <= 0:
+            return None
+        s = np.linalg.lstsq(self._AA, self._Ay, rcond=None)[0]
+        resid = self._yy - 2.0 * float(s @ self._Ay) + float(s @ self._AA @ s)
+        if resid > 1e-12 * self._yy:
+            return None
+        out = np.zeros(len(self.names))
+        out[:p] = s
+        if self.torque_scale_std:
+            out[p] = 1.0 / self.torque_scale_std
+        return out
 
     def read(self, est: Any, u: np.ndarray) -> Any:
         """``est``'s statistics (its noise model) read with the inputs ``u`` (q,) off."""
@@ -290,7 +322,13 @@ class StatedInputs:
 
     def update(self, est: Any) -> None:
         """Profile the inputs on ``est``'s statistics (:func:`profile`, from the last
-        posterior mean and tensor) and read every accumulator with them corrected."""
+        posterior mean and tensor) and read every accumulator with them corrected.  With
+        ``reselect_every`` > 1 the profile runs with the model selection (on every
+        ``reselect_every``-th estimate, the first included) and its posterior is reused in
+        between, as the selection's verdicts are."""
+        due = est._schedule.estimates % est.reselect_every == 0 or self.theta is None
+        if not due:
+            return
         est._process()
         tv = est._torque_variance()
         tv = tv if tv is not None else np.zeros(3)
@@ -305,7 +343,8 @@ class StatedInputs:
                 theta0 = f.basis @ f.beta[:6]
             if np.all(np.isfinite(theta0)):
                 self.u, self.cov_u, _ = profile(acc, self.u, self.q_y, self.gscale, theta0,
-                                                bias, nv, tv, est._context(), acc.n_eff())
+                                                bias, nv, tv, est._context(), acc.n_eff(),
+                                                self.scale_dir(est.other_torque))
         for a in est._accs.values():
             a.correction = correction_map(self.u, self.q_y, self.gscale)
 

@@ -205,6 +205,8 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
         if k == 0:
             return
         self._m.add(t, h, tq, dh, dt)
+        if self._stated is not None:
+            self._stated.observe(h, tq, dh, dt)
         self._h_noise.add(h)
         if m.torque is not None:
             self._tr_noise.add(tq)
