@@ -370,3 +370,29 @@ def test_online_profile_reads_the_batch_equations_with_the_inputs_corrected() ->
         gb = b.diagnostics['input_uncertainty']['inputs']['gyro_scale']
         assert abs(u[-1] - 1.0) < 3 * rec['gyro_scale']['posterior_sigmas'], rec['gyro_scale']
         assert abs(gb['profiled_sigmas'] - 1.0) < 3 * gb['posterior_sigmas'], gb
+
+
+@pytest.mark.parametrize('factor, status', [(1.05, 'ok'), (1.5, 'model_mismatch')])
+def test_online_profile_covers_what_the_stated_sigma_covers(factor, status) -> None:
+    """The first wheel's inertia stated ``factor`` times too large with a 1 % sigma: 5 stated
+    sigmas off, the online profile moves it as the batch profile does (each input within
+    0.1 sigma of the batch's; both ok, measured |du| <= 0.05); 50 sigmas off (beyond what
+    the stated sigma covers), neither absorbs it: both keep the prior and say
+    model_mismatch (the fit at the stated inputs informs them little, the batch rule).
+    On 3d1889e^ the online estimator had no profile (KeyError)."""
+    sc = Scene.from_dict(scene_dict(duration=4.0, gyro_rate=100.0))
+    r = simulate(sc, 0)
+    ws = [Wheel(w.joint, w.axis, w.inertia * (factor if k == 0 else 1.0), 0.01 * w.inertia)
+          for k, w in enumerate(sc.wheels.wheels)]
+    names = wheel_inputs(r.t_wheel[:1], r.wheel_speed[:1], ws).names
+    o = feed_blocks(MomentumRecursiveEstimator(names=names, other_torque=False,
+                                               torque_bias=False, segment=10.0), r, ws)
+    b = estimate_with_momentum(r.t_gyro, r.omega, [], np.zeros((0, 3)),
+                               wheels_momentum(r.t_wheel, r.wheel_speed, ws), method='integral',
+                               model='full', torque_bias='off', segment=10.0)
+    uo = [o.diagnostics['input_uncertainty']['inputs'][n]['profiled_sigmas'] for n in names]
+    ub = [b.diagnostics['input_uncertainty']['inputs'][n]['profiled_sigmas'] for n in names]
+    assert o.status == b.status == status, (o.status, b.status)
+    np.testing.assert_allclose(uo, ub, rtol=0, atol=0.1)
+    if status == 'ok':
+        assert uo[0] < -2.0, uo

@@ -186,7 +186,7 @@ def profile(acc: Any, u0: np.ndarray, q_y: int, gscale: float, theta0: np.ndarra
     u = np.asarray(u0, dtype=float).copy()
     cov = np.eye(q)
     theta = np.asarray(theta0, dtype=float)
-    for _ in range(_STEPS if gscale else 1):
+    for _ in range(_STEPS if gscale else 2):     # linear: the 2nd rescales the noise
         E = _blocks(u, q_y, gscale, nv, theta, bias)
         st = SimpleNamespace(C=_cross(E, G), CP=_cross(E, GP), n_eff=n_eff, walk_time=walk,
                              omega_m2=acc.omega_m2(), **ctx)
@@ -229,13 +229,16 @@ def _posterior(st: Any, q: int, u0: np.ndarray, theta0: np.ndarray, bias: bool,
     if not len(lam):
         return np.zeros(q), np.eye(q), np.asarray(theta0, dtype=float)
     # the data-only step (the inputs free) and its sandwich covariance in the directions
-    # the data touch; the residual excess at that fit inflates the meat (never deflates)
+    # the data touch; the residual excess of the fit with the inputs at u0 inflates the meat
+    # (never deflates), as the batch's noise scale is that fit's: data the stated inputs
+    # cannot explain near u0 (an input far beyond its sigma) inform them little, so they
+    # keep the prior and the adequacy test sees the misfit
     d = (V.T @ gu) / lam
     step = V @ d
     pinv_n = np.linalg.pinv(H[np.ix_(n_i, n_i)], rcond=1e-12, hermitian=True)
-    beta_n = pinv_n @ (g[n_i] - H[np.ix_(n_i, u_i)] @ step)
-    c = np.concatenate([-beta_n, -step, [1.0]])
-    meat, excess = _anchored_meat(st, np.eye(k), m, W, Gm, c, beta_n[:6], nv, tv)
+    beta_0 = pinv_n @ g[n_i]
+    c = np.concatenate([-beta_0, np.zeros(q), [1.0]])
+    meat, excess = _anchored_meat(st, np.eye(k), m, W, Gm, c, beta_0[:6], nv, tv)
     Mv = _larger(V.T @ R @ meat @ R.T @ V * max(excess, 1.0), np.diag(lam))
     J = np.diag(lam) @ np.linalg.pinv(Mv, hermitian=True) @ np.diag(lam)   # data information
     # only directions the data inform at least _MIN_INFORMATION times the prior move
