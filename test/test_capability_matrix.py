@@ -194,18 +194,8 @@ def cells(supported: bool):
                     yield mode, kind, feature
 
 
-_GYRO_SCALE_WHEELS = ('a gyro scale error of +-1 stated sigma (2 %) on wheel data is not a '
-                      'pure rescaling of the tensor (it scales w in the w x h term too): '
-                      'model_mismatch on 3/3 seeds (residual excess 30-37) although the sigma '
-                      'covers the error; the batch profiles the stated scale with the momentum '
-                      'terms (core/estimation/stated.py), the online estimator does not yet '
-                      '(it would need the cross Grams of y and dY/dp): ')
 #: supported cells that fail the accuracy / z check today (issue 26 findings; measured)
-KNOWN = {
-    ('recursive', 'wheels', 'gyro_scale_std'): _GYRO_SCALE_WHEELS + 'error 1.34 %, RMS z 0.82',
-    ('recursive', 'wheels_torque', 'gyro_scale_std'): _GYRO_SCALE_WHEELS
-    + 'error 1.36 %, RMS z 0.75',
-}
+KNOWN: dict[tuple[str, str, str], str] = {}
 
 
 def known(cell: tuple[str, str, str]) -> str | None:

@@ -57,17 +57,19 @@ def reaction_torque(sc, r, used, rate=50.0):
 
 
 def test_online_matches_the_batch_momentum_form() -> None:
-    """Same log, same segment length: the online estimate and its noise sigma agree with the
-    batch ``integral`` ones on the stated inputs (0.2 sigma, 5 %); the batch's profile of the
-    stated wheel inertias moves its estimate within its sigma and adds at most the online
-    (prior-propagated) sigma."""
+    """Same log, same segment length: the online estimate's noise sigma agrees with the batch
+    ``integral`` one on the stated inputs (5 %); both profile the stated wheel inertias
+    (:mod:`.online_stated`, :mod:`.stated`): each moves within its sigma of the exact-input
+    estimate (online measured 0.67 at most), and the online sigma they add is at most the
+    batch's (measured 0.65-1.0 of it: the online profile uses the whole anchored segments,
+    the batch's 0.5 s intervals)."""
     sc = Scene.from_dict(scene_dict(duration=4.0, gyro_rate=100.0))
     r = simulate(sc, 1)
     ws = [Wheel(w.joint, w.axis, w.inertia, 0.01 * w.inertia) for w in sc.wheels.wheels]
     b = estimate_with_momentum(r.t_gyro, r.omega, [], np.zeros((0, 3)),
                                wheels_momentum(r.t_wheel, r.wheel_speed, ws), method='integral',
                                model='full', torque_bias='off', segment=10.0)
-    # the same inputs without their stated sigma: the batch's estimate before its profile
+    # the same inputs without their stated sigma: the estimate before the profile
     b0 = estimate_with_momentum(r.t_gyro, r.omega, [], np.zeros((0, 3)),
                                 wheels_momentum(r.t_wheel, r.wheel_speed,
                                                 [Wheel(w.joint, w.axis, w.inertia) for w in ws]),
@@ -79,15 +81,13 @@ def test_online_matches_the_batch_momentum_form() -> None:
     assert o.status == 'ok' and b.status == 'ok'
     # the online grid leaves out the last gyro sample (no momentum sample after it yet)
     assert abs(o.samples_used - b.samples_used) <= 3
-    np.testing.assert_allclose(o.theta, b0.theta, rtol=0, atol=0.2 * b0.theta_std.min())
     added_o = o.diagnostics['input_uncertainty']['theta_std_added']
     added_b = b.diagnostics['wheel_inertia']['theta_std_added']
     np.testing.assert_allclose(np.sqrt(o.theta_std ** 2 - added_o ** 2), b0.theta_std,
                                rtol=0.05)
-    # the batch profiles the stated inertias (moves within its sigma, adds their posterior);
-    # online they are propagated at their prior
+    assert np.all(np.abs(o.theta - b0.theta) <= o.theta_std), (o.theta - b0.theta)
     assert np.all(np.abs(b.theta - b0.theta) <= b.theta_std), (b.theta - b0.theta)
-    assert np.all(added_b <= 1.05 * added_o), (added_b, added_o)
+    assert np.all(added_o <= 1.05 * added_b), (added_o, added_b)
     np.testing.assert_allclose(o.diagnostics['torque_noise_std'],
                                b.diagnostics['torque_noise_std'], rtol=0.05)
 
@@ -227,9 +227,10 @@ def test_linear_hold_does_not_relinearise_the_equivalent_torque() -> None:
 
 def test_torque_scale_std_scales_the_torque_part_only_online() -> None:
     """Issue 26 defect 4 (online): on a wheels-only stream ``torque_scale_std`` changes no
-    sigma (rtol 1e-9; on 5a72dae x12-350 at 0.05); with another torque stream the sigma it
-    adds matches the batch sensitivity (the change of the estimate with that torque read 5 %
-    larger) within 0.1 of each element's sigma."""
+    sigma (rtol 1e-9; on 5a72dae x12-350 at 0.05); with another torque stream the torque
+    scale is profiled as the batch profiles it (the data inform it: posterior below the
+    prior) and the sigma it adds matches the batch's within 0.1 of each element's sigma
+    (measured 0.08)."""
     from test_wheels import _wheels_and_torque
 
     sc = Scene.from_dict(scene_dict(duration=6.0, gyro_rate=100.0))
@@ -246,11 +247,13 @@ def test_torque_scale_std_scales_the_torque_part_only_online() -> None:
                     torque=(r.t_torque, r.torque))
     m = wheels_momentum(r.t_wheel, r.wheel_speed, ws)
     kw = dict(method='integral', model='full', torque_bias='off', segment=10.0)
-    b0, b5 = (estimate_with_momentum(r.t_gyro, r.omega, r.t_torque, s * r.torque, m, **kw)
-              for s in (1.0, 1.05))
-    added = o.diagnostics['input_uncertainty']['theta_std_added']
-    assert o.status == 'ok' and 'torque_scale' in o.diagnostics['input_uncertainty']['inputs']
-    np.testing.assert_allclose(added, np.abs(b5.theta - b0.theta), rtol=0,
+    b = estimate_with_momentum(r.t_gyro, r.omega, r.t_torque, r.torque, m,
+                               torque_scale_std=0.05, **kw)
+    rec = o.diagnostics['input_uncertainty']
+    assert o.status == 'ok' and 'torque_scale' in rec['inputs']
+    assert rec['inputs']['torque_scale']['posterior_sigmas'] < 0.9, rec['inputs']
+    np.testing.assert_allclose(rec['theta_std_added'],
+                               b.diagnostics['input_uncertainty']['theta_std_added'], rtol=0,
                                atol=0.1 * o.theta_std.min())
     assert o.diagnostics['calibration']['torque_scale_std'] == 0.05
 
@@ -324,3 +327,72 @@ def test_auto_hold_without_another_torque_has_nothing_to_choose() -> None:
     assert auto.status == 'ok' and 'no other torque' in auto.diagnostics['hold_selection'][
         'reason']
     np.testing.assert_allclose(auto.theta, held.theta, rtol=1e-12)
+
+
+def test_online_profile_reads_the_batch_equations_with_the_inputs_corrected() -> None:
+    """Issue 26, online equal to batch with stated inputs: wheels with their inertias stated
+    at 1 % and a gyro reading 1 % high with ``gyro_scale_std=0.01``, fed as the node feeds
+    them.  The online estimate over the whole record equals the batch estimate (momentum.py
+    path, same 10 s segments) on the inputs corrected by the online posterior mean within
+    0.1 sigma per element (measured 0.04 at most): the statistics read with the inputs
+    corrected are the corrected data's.  Against the batch's own profile it agrees within
+    1.5 sigma (measured 1.11, ixz, seed 3; 0.06 on seed 2): the two profiles fit the same
+    prior on different equations (online: the whole anchored segments under the noise
+    model's sandwich; batch: >= 0.5 s intervals with free intercepts, clustered scores),
+    so their posterior means differ by about one posterior sigma of the inputs, and the
+    least-informed element moves by its sensitivity times that.  Both find the gyro scale
+    (truth +1 sigma) within 3 of their posterior sigmas.  On 3d1889e^ the online estimator
+    propagated the inputs at the prior: no profiled value (KeyError)."""
+    for seed in (2, 3):
+        sc = Scene.from_dict(scene_dict(duration=4.0, gyro_rate=100.0))
+        r = simulate(sc, seed)
+        ws = [Wheel(w.joint, w.axis, w.inertia, 0.01 * w.inertia) for w in sc.wheels.wheels]
+        names = wheel_inputs(r.t_wheel[:1], r.wheel_speed[:1], ws).names
+        rr = type('Log', (), dict(t_gyro=r.t_gyro, omega=1.01 * r.omega, t_wheel=r.t_wheel,
+                                  wheel_speed=r.wheel_speed))
+        o = feed_blocks(MomentumRecursiveEstimator(names=names, other_torque=False,
+                                                   torque_bias=False, segment=10.0,
+                                                   gyro_scale_std=0.01), rr, ws)
+        kw = dict(method='integral', model='full', torque_bias='off', segment=10.0)
+        b = estimate_with_momentum(rr.t_gyro, rr.omega, [], np.zeros((0, 3)),
+                                   wheels_momentum(r.t_wheel, r.wheel_speed, ws),
+                                   gyro_scale_std=0.01, **kw)
+        rec = o.diagnostics['input_uncertainty']['inputs']
+        u = np.array([rec[n]['profiled_sigmas'] for n in [*names, 'gyro_scale']])
+        fixed = [Wheel(w.joint, w.axis, w.inertia + u[j] * w.inertia_std)
+                 for j, w in enumerate(ws)]
+        bc = estimate_with_momentum(rr.t_gyro, rr.omega / (1.0 + 0.01 * u[-1]), [],
+                                    np.zeros((0, 3)),
+                                    wheels_momentum(r.t_wheel, r.wheel_speed, fixed), **kw)
+        assert o.status == b.status == bc.status == 'ok', (o.status, b.status, bc.status)
+        np.testing.assert_array_less(np.abs(o.theta - bc.theta), 0.1 * o.theta_std)
+        np.testing.assert_array_less(np.abs(o.theta - b.theta), 1.5 * b.theta_std)
+        gb = b.diagnostics['input_uncertainty']['inputs']['gyro_scale']
+        assert abs(u[-1] - 1.0) < 3 * rec['gyro_scale']['posterior_sigmas'], rec['gyro_scale']
+        assert abs(gb['profiled_sigmas'] - 1.0) < 3 * gb['posterior_sigmas'], gb
+
+
+@pytest.mark.parametrize('factor, status', [(1.05, 'ok'), (1.5, 'model_mismatch')])
+def test_online_profile_covers_what_the_stated_sigma_covers(factor, status) -> None:
+    """The first wheel's inertia stated ``factor`` times too large with a 1 % sigma: 5 stated
+    sigmas off, the online profile moves it as the batch profile does (each input within
+    0.1 sigma of the batch's; both ok, measured |du| <= 0.05); 50 sigmas off (beyond what
+    the stated sigma covers), neither absorbs it: both keep the prior and say
+    model_mismatch (the fit at the stated inputs informs them little, the batch rule).
+    On 3d1889e^ the online estimator had no profile (KeyError)."""
+    sc = Scene.from_dict(scene_dict(duration=4.0, gyro_rate=100.0))
+    r = simulate(sc, 0)
+    ws = [Wheel(w.joint, w.axis, w.inertia * (factor if k == 0 else 1.0), 0.01 * w.inertia)
+          for k, w in enumerate(sc.wheels.wheels)]
+    names = wheel_inputs(r.t_wheel[:1], r.wheel_speed[:1], ws).names
+    o = feed_blocks(MomentumRecursiveEstimator(names=names, other_torque=False,
+                                               torque_bias=False, segment=10.0), r, ws)
+    b = estimate_with_momentum(r.t_gyro, r.omega, [], np.zeros((0, 3)),
+                               wheels_momentum(r.t_wheel, r.wheel_speed, ws), method='integral',
+                               model='full', torque_bias='off', segment=10.0)
+    uo = [o.diagnostics['input_uncertainty']['inputs'][n]['profiled_sigmas'] for n in names]
+    ub = [b.diagnostics['input_uncertainty']['inputs'][n]['profiled_sigmas'] for n in names]
+    assert o.status == b.status == status, (o.status, b.status)
+    np.testing.assert_allclose(uo, ub, rtol=0, atol=0.1)
+    if status == 'ok':
+        assert uo[0] < -2.0, uo

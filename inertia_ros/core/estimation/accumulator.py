@@ -41,9 +41,9 @@ class OnlineStats:
 
     Attributes
     ----------
-    C, Cc : ndarray, shape (13, 13)
+    C, Cc : ndarray, shape (dim, dim)
         Centred Gram of the open segment and the sum over the closed ones.
-    GPc : ndarray, shape (13, 13)
+    GPc : ndarray, shape (dim, dim)
         Closed segments' torque-noise Gram.
     w0, w00, wc, w00c, neffc : float
         Sum of weights and of squared weights (open; closed) and the closed effective count.
@@ -55,20 +55,32 @@ class OnlineStats:
         self.segment = float(segment)
         self.window = window
         self.forgetting = float(forgetting)
+        #: variables per row: the 13 ``[w, m, t, T]`` and any extra columns of the same
+        #: equations after them (:mod:`.online_stated`: the stated inputs' impulse changes)
+        self.dim = 13
+        #: map (dim, 13) of the variables read back by :meth:`stats` and
+        #: :meth:`group_stats` (None: the first 13), e.g. the inputs corrected
+        self.correction: np.ndarray | None = None
+        self.reset()
+
+    def widen(self, dim: int) -> None:
+        """Carry ``dim - 13`` extra columns after the 13 variables (forgets everything)."""
+        self.dim = int(dim)
         self.reset()
 
     def reset(self) -> None:
         """Forget everything."""
         self.w0 = 0.0                   # sum of weights
         self.w00 = 0.0                  # sum of squared weights
-        self.mean = np.zeros(13)          # open segment: weighted mean and centred Gram of V
-        self.C = np.zeros((13, 13))
-        self.Cc = np.zeros((13, 13))      # closed segments
+        d = self.dim
+        self.mean = np.zeros(d)           # open segment: weighted mean and centred Gram of V
+        self.C = np.zeros((d, d))
+        self.Cc = np.zeros((d, d))        # closed segments
         self.wc = self.w00c = self.neffc = 0.0
         self.seg_start: float | None = None
         self.first_segment = True
         self._walk_reset()
-        self.GPc = np.zeros((13, 13))        # closed segments' torque-noise Gram
+        self.GPc = np.zeros((d, d))          # closed segments' torque-noise Gram
         self.walkc = 0.0
         self.m2_sum = np.zeros((3, 3))   # (decayed) sum of w w' [rad^2/s^2] and its count
         self.m2_n = 0.0
@@ -105,7 +117,7 @@ class OnlineStats:
 
     # ------------------------------------------------------------------ equations
     def merge(self, t: np.ndarray, V: np.ndarray, ts: np.ndarray) -> None:
-        """Merge a block of equations ``V`` (n, 13) at ``t`` (n,) [s], closing anchored
+        """Merge a block of equations ``V`` (n, dim) at ``t`` (n,) [s], closing anchored
         segments at their boundaries; ``ts`` (M,) are the held torque's sample times [s]."""
         while len(t):
             if self.seg_start is None:
@@ -168,8 +180,8 @@ class OnlineStats:
             self.walkc += walk
             self.history.add(self.open_segment(gp, walk))
         self.w0 = self.w00 = 0.0
-        self.mean = np.zeros(13)
-        self.C = np.zeros((13, 13))
+        self.mean = np.zeros(self.dim)
+        self.C = np.zeros((self.dim, self.dim))
         self._walk_reset()
         self.first_segment = False
         self.seg_start = new_start
@@ -187,12 +199,13 @@ class OnlineStats:
         self._wk_ntt = 0                  # torque samples of the segment up to the last gyro
         self._wk_n = 0                    # gyro samples of the segment
         self._wk_t0 = self._wk_tl = 0.0   # first and last gyro time of the segment [s]
-        self._wk_ref = np.zeros(13)       # reference row: variables are kept relative to it
-        self._wk_S = np.zeros(14)         # sum of x_b = [v_b - ref, 1]
-        self._wk_St = np.zeros(14)        # open interval: sum of (t_b - s_J) x_b
+        d = self.dim + 1
+        self._wk_ref = np.zeros(d - 1)    # reference row: variables are kept relative to it
+        self._wk_S = np.zeros(d)          # sum of x_b = [v_b - ref, 1]
+        self._wk_St = np.zeros(d)         # open interval: sum of (t_b - s_J) x_b
         self._wk_h2 = 0.0                 # closed intervals: sum h_j^2, sum h_j Q_j,
-        self._wk_hQ = np.zeros(14)        # sum Q_j Q_j'  (Q_j = St_j - h_j F_j, 14 vectors)
-        self._wk_QQ = np.zeros((14, 14))
+        self._wk_hQ = np.zeros(d)         # sum Q_j Q_j'  (Q_j = St_j - h_j F_j, dim + 1)
+        self._wk_QQ = np.zeros((d, d))
 
     def walk_add(self, t: np.ndarray, V: np.ndarray, ts: np.ndarray) -> None:
         """Accumulate the open segment's torque-noise statistics over new equations.
@@ -217,9 +230,10 @@ class OnlineStats:
             self._wk_ntt = i + 1 if self.first_segment else 1
             self._wk_ref = V[0].copy()
             self._wk_t0 = float(t[0])
-        X = np.empty((n, 14))
-        np.subtract(V, self._wk_ref[None], out=X[:, :13])
-        X[:, 13] = 1.0
+        d = self.dim
+        X = np.empty((n, d + 1))
+        np.subtract(V, self._wk_ref[None], out=X[:, :d])
+        X[:, d] = 1.0
         lo = int(np.searchsorted(ts, self._wk_s, side='right'))
         hi = int(np.searchsorted(ts, t[-1], side='right'))
         b = ts[lo:hi]                      # torque samples starting new intervals
@@ -232,8 +246,8 @@ class OnlineStats:
             counts = np.diff(np.append(first, n))
             nz = counts > 0
             u = t - np.repeat(bounds, counts)
-            Sm = np.zeros((k + 1, 14))
-            St = np.zeros((k + 1, 14))
+            Sm = np.zeros((k + 1, d + 1))
+            St = np.zeros((k + 1, d + 1))
             Sm[nz] = np.add.reduceat(X, first[nz], axis=0)
             St[nz] = np.add.reduceat(X * u[:, None], first[nz], axis=0)
             h = np.diff(bounds)
@@ -252,15 +266,16 @@ class OnlineStats:
         self._wk_tl = float(t[-1])
 
     def segment_walk(self) -> tuple[np.ndarray, float]:
-        """Torque-noise Gram (13 x 13) and walk time of the open segment (as statistics)."""
+        """Torque-noise Gram (dim x dim) and walk time of the open segment (as statistics)."""
+        d = self.dim
         if self._wk_n == 0 or not self.torque_seen or self._wk_ntt < 2 or not self._wk_ok:
-            return np.zeros((13, 13)), 0.0
+            return np.zeros((d, d)), 0.0
         S, hQ = self._wk_S, self._wk_hQ
         RR = self._wk_h2 * np.outer(S, S) + np.outer(S, hQ) + np.outer(hQ, S) + self._wk_QQ \
             + np.outer(self._wk_St, self._wk_St)
-        L = np.empty((13, 14))
-        L[:, :13] = np.eye(13)
-        L[:, 13] = -S[:13] / self._wk_n
+        L = np.empty((d, d + 1))
+        L[:, :d] = np.eye(d)
+        L[:, d] = -S[:d] / self._wk_n
         G = L @ RR @ L.T
         return 0.5 * (G + G.T), self._wk_n * (self._wk_tl - self._wk_t0) / 6.0
 
@@ -277,7 +292,7 @@ class OnlineStats:
         squared-rate integrals scale exactly; for the gyro-scale sensitivity).  ``torque_dt``,
         ``gyro_dt`` [s] and ``white_y_cov`` (3, 3) are the noise model's stream figures.
         """
-        K = _noise_map(nv, gyro_scale)
+        K = self._read_map(nv, gyro_scale)
         C_all = lift(K.T @ (self.C + self.Cc) @ K)
         gp, walk = self.segment_walk()
         CP = lift(K.T @ (self.GPc + gp) @ K) if walk_noise else None
@@ -329,13 +344,28 @@ class OnlineStats:
         groups = [g for g in self.history.groups(ADEQUACY_WINDOWS, self.open_segment(gp, walk),
                                                  self.clock)
                   if g.neff >= MIN_EQUATIONS and g.t1 - g.t0 >= ADEQUACY_MIN_WINDOW_S]
-        K = _noise_map(nv, gyro_scale)
+        K = self._read_map(nv, gyro_scale)
         return [(SufficientStats(lift(K.T @ g.C @ K), lift(K.T @ g.GP @ K), int(round(g.w0)),
                                  int(round(g.neff)), 1, kind='anchored', eiv_var=nv,
                                  weighted=True, walk_time=g.walk, torque_dt=torque_dt,
                                  omega_m2=self.omega_m2(), gyro_dt=gyro_dt,
                                  white_y_cov=white_y_cov), g.w00 / g.w0, 0.5 * (g.t0 + g.t1))
                 for g in groups]
+
+
+    def _read_map(self, nv: np.ndarray, gyro_scale: float) -> np.ndarray:
+        """The map (dim, 13) from the accumulated variables to the 13 read back: the
+        :attr:`correction` (or the first 13), then :func:`_noise_map`."""
+        K = _noise_map(nv, gyro_scale)
+        if self.correction is not None:
+            return self.correction @ K
+        return K if self.dim == 13 else np.eye(self.dim, 13) @ K
+
+    def totals(self) -> tuple[np.ndarray, np.ndarray, float]:
+        """Centred Gram (dim, dim) of everything merged, the torque-noise Gram and the
+        walk time [s] (for fits of the extra columns: :mod:`.online_stated`)."""
+        gp, walk = self.segment_walk()
+        return self.C + self.Cc, self.GPc + gp, self.walkc + walk
 
 
 def _noise_map(nv: np.ndarray, gyro_scale: float = 1.0) -> np.ndarray:

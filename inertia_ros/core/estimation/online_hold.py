@@ -196,9 +196,9 @@ class AutoHold:
              breaks: list[int]) -> dict[str, np.ndarray]:
         """Both holds' variables (n, 13) of rows ``V`` (the held ones from ``align``) at
         ``t`` (n,) [s]; the rows join the windows, which end at the ``breaks``."""
-        V_lin = V.copy()
+        V_lin = V.copy()            # extra columns after the 13 (stated inputs) kept as held
         V_lin[:, 10:13] = self.T_base + linear_integral(align, t)
-        X = np.concatenate([V, V_lin[:, 10:13]], axis=1)
+        X = np.concatenate([V[:, :13], V_lin[:, 10:13]], axis=1)
         lo = 0
         for k in [*breaks, len(t)]:
             self.windows.add(X[lo:k])

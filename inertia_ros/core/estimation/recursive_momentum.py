@@ -19,30 +19,29 @@ is white noise in the right-hand side (``white_y_cov``), and the gyro noise ``n 
 momentum noise ``w x e`` in the ``w x h`` integral and the torques' own noise are white
 torque noise held over each grid interval (:meth:`_torque_variance`).
 
-Uncertain inputs (wheel inertias, rotor coefficients: ``names`` at construction, one-sigma
-changes of ``h`` and of the torque with every block) are propagated by the estimate's
-sensitivity: one :class:`~.recursive.RecursiveEstimator` per input is fed the same gyro and
-the equivalent torque of the input's change alone; the fit is linear in the right-hand side,
-so its fit with the final estimate's parameter set and weights is the change of the estimate
-``d theta``, and ``cov += sum d theta d theta'`` (``diagnostics['input_uncertainty']``).
+Stated inputs (wheel inertias, rotor coefficients: ``names`` at construction, one-sigma
+changes of ``h`` and of the torque with every block; ``torque_scale_std`` of the other torque;
+``gyro_scale_std``) are profiled under their prior as the batch does (:mod:`.stated`): the
+equivalent torque of each input's change (for the gyro scale the ``w x h`` part) is held over
+the same grid intervals and carried as extra columns of the same equations
+(:class:`.online_stated.StatedAligner`), so their cross products accumulate with the same
+forgetting; each estimate fits them with the tensor under the prior, reads the statistics with
+the inputs corrected by the posterior mean and adds ``D cov_u D'``
+(:mod:`.online_stated`, ``diagnostics['input_uncertainty']``).
 """
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import replace
 from typing import Any
 
 import numpy as np
 
-from ..tensor import theta_to_matrix
 from .align import gap_starts, hermite, run_slopes
-from .fit import fit_two_pass
-from .model import model_basis
 from .momentum import Momentum, held_over, interval_torque, walk_sums, walk_variance
 from .noise import StreamingNoise
+from .online_stated import StatedAligner, StatedInputs
 from .recursive import RecursiveEstimator
 from .result import InertiaEstimate
-from .uncertainty import principal_with_std, ratio_cov
 
 __all__ = ['MomentumRecursiveEstimator']
 
@@ -92,8 +91,8 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
         momentum is known at its samples), so there is nothing to choose.
     **kwargs
         The other options of :class:`~.recursive.RecursiveEstimator`.  ``torque_scale_std``
-        scales the other torque only, never the momentum: it is propagated as one more
-        uncertain input (``torque_scale``, fed the other torque times that std).
+        scales the other torque only, never the momentum: it is one more stated input
+        (``torque_scale``); ``gyro_scale_std`` too (``gyro_scale``: the rate in both sides).
     """
 
     def __init__(self, names: Sequence[str] = (), other_torque: bool = True,
@@ -106,29 +105,36 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
                 dict({'model': 'full', 'torque_bias': False}, **kwargs, hold=hold))
         self._hold_auto = hold == 'auto'
         scale = kwargs.pop('torque_scale_std', 0.0)
-        SelectionPolicy(torque_scale_std=scale)           # validates
+        # the gyro's scales the measured rate in both sides, w x h included: a stated input
+        # like the others (:mod:`.online_stated`), not a scale of y
+        gscale = kwargs.pop('gyro_scale_std', 0.0)
+        SelectionPolicy(torque_scale_std=scale, gyro_scale_std=gscale)     # validates
         self.names = tuple(names)
         self.other_torque = bool(other_torque)
         self.torque_hold = hold if self.other_torque else HOLDS[0]
         self.torque_scale_std = float(scale) if self.other_torque else 0.0
+        self.gyro_scale_std = float(gscale)
         # the equivalent torque is held over each grid interval: integrated as held, whatever
         # the other torque's hold (which _other_on has applied already); 'auto' keeps both
         self._kwargs = dict(kwargs, hold='auto' if self.torque_hold == 'auto' else HOLDS[0])
         super().__init__(**self._kwargs)
 
     def reset(self) -> None:
-        """Forget everything (also the per-input sensitivity estimators)."""
+        """Forget everything (also the stated inputs' posterior)."""
         super().reset()
         p = len(getattr(self, 'names', ()))
         self._g = _Buffer((3,))                       # gyro: w
         self._m = _Buffer((3,), (3,), (p, 3), (p, 3))  # momentum: h, torque, dh, dtorque
         self._o = _Buffer((3,))                       # other torque
         self._cursor: float | None = None             # start of the next grid interval [s]
-        # the momentum's changes do not depend on the other torque's hold: held estimators
-        self._pert = [RecursiveEstimator(**dict(self._kwargs, hold='zoh')) for _ in range(p)]
-        # the torque scale's sensitivity: fed the other torque times its std
-        self._scale_est = RecursiveEstimator(**self._kwargs) \
-            if getattr(self, 'torque_scale_std', 0.0) else None
+        # the stated inputs' impulse changes: extra columns of the same equations
+        st = StatedInputs(getattr(self, 'names', ()), getattr(self, 'torque_scale_std', 0.0),
+                          getattr(self, 'gyro_scale_std', 0.0))
+        self._stated = st if len(st.names) else None
+        if self._stated is not None:
+            self._align = StatedAligner(3 * len(st.names))
+            for acc in self._accs.values():
+                acc.widen(13 + 3 * len(st.names))
         self._h_noise = StreamingNoise(floor=False)
         self._tr_noise = StreamingNoise(floor=False)
         self._o_noise = StreamingNoise(floor=False)
@@ -138,8 +144,6 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
         self._walk_w = np.zeros((3, 3, 3))       # sum over the grid of [w]x_ij [w]x_ik
         self._walk_n = 0
         self.momentum_samples = 0
-        # (model and hold, per-input record, sum d theta d theta', data span [s] when computed)
-        self._prop_cache: tuple[str | None, dict[str, Any], np.ndarray, float] | None = None
 
     # ------------------------------------------------------------------ input
     def add_gyro(self, t: Any, omega: Any) -> None:
@@ -201,6 +205,8 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
         if k == 0:
             return
         self._m.add(t, h, tq, dh, dt)
+        if self._stated is not None:
+            self._stated.observe(h, tq, dh, dt)
         self._h_noise.add(h)
         if m.torque is not None:
             self._tr_noise.add(tq)
@@ -296,6 +302,16 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
             return np.column_stack([np.interp(grid, tm, y[:, k]) for k in range(3)])
         own = interval_torque(grid, wg, hg, lin(tq) if has_tr else None)
         other, other_lin = self._other_on(grid) if self.other_torque else (None, None)
+        if self._stated is not None:  # the stated inputs' one-sigma changes, held alike
+            x = [interval_torque(grid, wg, hermite(tm, dh[i], run_slopes(tm, dh[i], gaps),
+                                                   grid), lin(dtq[i]) if has_tr else None)
+                 for i in range(len(self.names))]
+            if self.torque_scale_std:
+                x.append(self.torque_scale_std * (other if other is not None else 0 * own))
+            if self._stated.gscale:
+                c = np.cross(wg, hg)
+                x.append(-0.5 * (c[1:] + c[:-1]))
+            self._align.take_extra(grid[:-1], np.concatenate(x, axis=1))
         out = own if other is None else own + other
         self._walk(hg[:-1], wg[:-1])
         gi = (self._g.t >= grid[0]) & (self._g.t <= grid[-1])
@@ -307,18 +323,6 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
             self._palt.append(own + other_lin)
         if np.any(fresh):
             super().add_gyro(t_in[fresh], w_in[fresh])
-        changes = [(est, interval_torque(grid, wg, hermite(tm, dh[i], run_slopes(tm, dh[i],
-                                                                              gaps), grid),
-                                          lin(dtq[i]) if has_tr else None))
-                   for i, est in enumerate(self._pert)]
-        if self._scale_est is not None and other is not None:
-            changes.append((self._scale_est, self.torque_scale_std * other))
-            if other_lin is not None:
-                self._scale_est._palt.append(self.torque_scale_std * other_lin)
-        for est, d in changes:
-            est.add_torque(grid[:-1], d)
-            if np.any(fresh):
-                est.add_gyro(t_in[fresh], w_in[fresh])
         self._cursor = float(grid[-1])
         self._trim()
 
@@ -385,7 +389,10 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
 
     def estimate(self) -> InertiaEstimate:
         """The current estimate (see :meth:`.RecursiveEstimator.estimate`), with the momentum
-        input's record in ``diagnostics['momentum']`` and its uncertain inputs propagated."""
+        input's record in ``diagnostics['momentum']`` and its stated inputs profiled
+        (:mod:`.online_stated`)."""
+        if self._stated is not None:
+            self._stated.update(self)
         est = super().estimate()
         diag = est.diagnostics
         diag['momentum'] = {'samples': self.momentum_samples,
@@ -401,81 +408,6 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
         if est.status == 'insufficient_data' and self.other_torque and len(self._o.t) == 0:
             diag['reason'] = ('no other torque sample yet: the momentum input waits for it '
                               '(build with other_torque=False when there is none)')
-        uncertain = bool(self._pert) or self._scale_est is not None
-        if uncertain and est.status in ('ok', 'model_mismatch') and est.theta is not None \
-                and np.all(np.isfinite(est.theta)):
-            est = self._propagate(est)
+        if self._stated is not None:
+            est = self._stated.widen(self, est)
         return est
-
-    def _fresh(self, then: float, now: float) -> bool:
-        """Sensitivities computed at data span ``then`` [s] still hold at ``now``: the data
-        grew by under 5 % (and by under a tenth of the memory ``window``, if any)."""
-        grown = now - then
-        return grown < 0.05 * max(then, 1e-9) and (not self.window or grown < 0.1 * self.window)
-
-    def _sensitivities(self, est: InertiaEstimate, name: str
-                       ) -> tuple[dict[str, Any], np.ndarray]:
-        """``d theta`` (6,) of every uncertain input and ``sum d theta d theta'`` (6, 6)."""
-        basis = model_basis(name, self.axis)
-        bias = bool(est.model and est.model.endswith('+bias'))
-        nv = self._gyro_var()
-        n_eff = self._acc.n_eff()
-        k = basis.shape[1]
-        per, outer = {}, np.zeros((6, 6))
-        pairs = list(zip(self.names, self._pert, strict=True))
-        if self._scale_est is not None:
-            pairs.append(('torque_scale', self._scale_est))
-        for nm, p in pairs:
-            p._process()
-            if p._auto is not None:          # the torque scale's: the hold chosen
-                p._active = self._active
-            p._white_y_cov = self._white_y_cov
-            f = fit_two_pass(p._stats(nv, n_eff), basis, bias, nv, np.zeros(3), None, est.theta)
-            d6 = np.nan_to_num(basis @ f.beta[:k])
-            per[nm] = {'theta_change': d6}
-            outer += np.outer(d6, d6)
-        return per, outer
-
-    def _propagate(self, est: InertiaEstimate) -> InertiaEstimate:
-        """Add ``sum d theta d theta'`` of the uncertain inputs to the covariance (the
-        sensitivities reused while the parameter set and the hold stay and the data grew by
-        under 5 %, :meth:`_fresh`)."""
-        name = (est.model or 'full').removesuffix('+bias')
-        if name not in ('full', 'diagonal', 'axisymmetric'):
-            return est
-        span = (self._acc.t_last or 0.0) - (self._align.t0 or 0.0)
-        cached = self._prop_cache
-        key = f'{est.model} {self._active}'        # the parameter set and the hold estimated
-        if cached is not None and cached[0] == key and self._fresh(cached[3], span):
-            per, outer = cached[1], cached[2]
-        else:
-            per, outer = self._sensitivities(est, name)
-            self._prop_cache = (key, per, outer, span)
-        return _widened(est, per, outer, self.torque_scale_std if self._scale_est else None)
-
-
-def _widened(est: InertiaEstimate, per: dict[str, Any], outer: np.ndarray,
-             torque_scale_std: float | None) -> InertiaEstimate:
-    """``est`` with ``outer`` (6, 6), the sum of the uncertain inputs' ``d theta d theta'``
-    (``per``: each input's record), added to its covariance, and every standard error
-    derived from it; ``torque_scale_std`` (or None: not stated) recorded in
-    ``diagnostics['calibration']``."""
-    cov6 = np.asarray(est.covariance) + outer
-    diag = dict(est.diagnostics)
-    moments, axes = principal_with_std(est.inertia, cov6, diag)
-    r_se = np.sqrt(np.maximum(np.diag(ratio_cov(est.theta, cov6)), 0.0))
-    diag['input_uncertainty'] = {
-        'inputs': per, 'theta_std_added': np.sqrt(np.diag(outer)),
-        'rule': 'linear sensitivity of the estimate to each input, added in quadrature'}
-    if torque_scale_std is not None:
-        calib = dict(diag.get('calibration') or {'gyro_scale_std': 0.0})
-        calib.update(torque_scale_std=torque_scale_std,
-                     torque_scale_applies_to='the torque stream only (not the momentum '
-                     "input): input 'torque_scale' of input_uncertainty")
-        diag['calibration'] = calib
-    return replace(est, covariance=cov6,
-                   inertia_std=theta_to_matrix(np.sqrt(np.maximum(np.diag(cov6), 0.0)),
-                                               check_finite=False),
-                   ratios_std=theta_to_matrix(r_se, check_finite=False),
-                   principal_moments=moments, principal_axes=axes, diagnostics=diag)
-
