@@ -223,10 +223,9 @@ def _check_outputs(args: argparse.Namespace) -> None:
     and two options naming one file are always refused.  ``--urdf`` also needs ``--mass``
     and a ``--link`` name of printable characters.
     """
-    from inertia_ros.io.outputs import OutputError, check_output
-    from inertia_ros.io.urdf import check_name
-
     if args.urdf is not None:
+        from inertia_ros.io.urdf import check_name  # (only then: its imports)
+
         if args.mass is None:
             raise UserError('--urdf needs --mass M [kg]: rotation data cannot tell the mass')
         try:
@@ -238,6 +237,10 @@ def _check_outputs(args: argparse.Namespace) -> None:
         if kind not in PLOT_FORMATS:
             raise UserError(f'--plot {args.plot}: cannot draw a {args.plot.suffix!r} file; '
                             'give a .png (or .svg, .pdf) name')
+    if args.output is None and args.plot is None and args.urdf is None:
+        return                          # (nothing written: io.outputs and its imports unneeded)
+    from inertia_ros.io.outputs import OutputError, check_output
+
     inputs = _inputs(args)
     named: dict[Path, str] = {}
     for opt, out in (('-o', args.output), ('--plot', args.plot), ('--urdf', args.urdf)):

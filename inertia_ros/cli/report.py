@@ -15,10 +15,11 @@ from typing import Any
 
 import numpy as np
 
+from inertia_ros.core.dynamics import angular_momentum
 from inertia_ros.core.estimation import estimate
 from inertia_ros.core.estimation.options import MIN_GYRO_SAMPLES
 from inertia_ros.core.estimation.result import InertiaEstimate, to_jsonable
-from inertia_ros.core.inertia import angular_momentum, matrix_to_theta
+from inertia_ros.core.tensor import matrix_to_theta
 from inertia_ros.io.logs import LogData
 
 __all__ = ['STATUS_TEXT', 'Convergence', 'NumericalWarnings', 'build_report', 'convergence',

@@ -58,11 +58,11 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from inertia_ros.io import cdr_decode
-from inertia_ros.io.joint_state import joint_rows
 from inertia_ros.io.log_clean import clean, prepare, prepare_joints
 from inertia_ros.io.log_clocks import rate_hz, repair_clocks
 from inertia_ros.io.log_topics import (
@@ -94,8 +94,10 @@ from inertia_ros.io.mcap_reader import (
     MessageBatch,
     Schema,
 )
-from inertia_ros.io.rosbag2 import BagInfo, BagMetadataError, read_bag_info
-from inertia_ros.io.rosbags_source import RosbagsError, RosbagsSource
+
+if TYPE_CHECKING:          # (imported where used: a .mcap file needs neither, nor joint_state)
+    from inertia_ros.io.rosbag2 import BagInfo
+    from inertia_ros.io.rosbags_source import RosbagsSource
 
 __all__ = ['JOINT_STATE', 'OMEGA_TYPES', 'TORQUE_TYPES', 'TRUTH_TOPIC', 'TRUTH_TYPE',
            'JointCounts', 'LogData', 'LogError', 'Stream', 'StreamCounts', 'log_files',
@@ -107,6 +109,8 @@ def _bag(path: str | Path) -> BagInfo | None:
     p = Path(path)
     if not p.is_dir():
         return None
+    from inertia_ros.io.rosbag2 import BagMetadataError, read_bag_info
+
     try:
         return read_bag_info(p)
     except BagMetadataError as exc:
@@ -328,6 +332,8 @@ def _open(f: Path, info: BagInfo | None, prog: Callable[[int, int], None]
           ) -> McapReader | RosbagsSource:
     """A batch source for one MCAP file, or for the whole bag when rosbags must read it."""
     if info is not None and not info.own_mcap_path:
+        from inertia_ros.io.rosbags_source import RosbagsError, RosbagsSource
+
         try:
             return RosbagsSource(info, progress=prog)
         except RosbagsError as exc:
@@ -423,6 +429,8 @@ def _add_batch(raw: RawTopic, typ: str, b: MessageBatch, ordinal: np.ndarray,
     """Decode one batch of ``typ`` messages into ``raw``."""
     if typ == JOINT_STATE:
         assert joints is not None
+        from inertia_ros.io.joint_state import joint_rows
+
         stamp, speed, status, names = joint_rows(b.buf, b.starts, b.lengths, joints)
         raw.add_rows(stamp, speed, status, ordinal, b.sequence, names)
         return
@@ -445,8 +453,15 @@ def _batches(reader: McapReader | RosbagsSource, select: ChannelFilter
         yield from reader.iter_batches(select)
     except CodecMissingError as exc:
         raise LogError(str(exc)) from None
-    except RosbagsError as exc:
+    except _rosbags_error() as exc:     # (evaluated only when an exception propagates)
         raise LogError(str(exc)) from None
+
+
+def _rosbags_error() -> type[Exception]:
+    """:class:`~inertia_ros.io.rosbags_source.RosbagsError`, imported on first need."""
+    from inertia_ros.io.rosbags_source import RosbagsError
+
+    return RosbagsError
 
 
 

@@ -21,7 +21,8 @@ from .noise import median_rows
 from .options import GAP_FACTOR
 from .regressors import cumulative_torque, monomials
 
-__all__ = ['OnlineAligner', 'gap_starts', 'hermite', 'inside_gaps', 'run_slopes']
+__all__ = ['OnlineAligner', 'gap_starts', 'hermite', 'hermite_basis', 'inside_gaps',
+           'run_slopes']
 
 _DT_HISTORY = 64        # recent sample intervals kept per stream for the nominal interval
 
@@ -91,17 +92,27 @@ def run_slopes(t_h: np.ndarray, h: np.ndarray, gaps: np.ndarray) -> np.ndarray:
     return out
 
 
-def hermite(t_h: np.ndarray, h: np.ndarray, slopes: np.ndarray, t: np.ndarray) -> np.ndarray:
+def hermite(t_h: np.ndarray, h: np.ndarray, slopes: np.ndarray, t: np.ndarray,
+            basis: tuple[np.ndarray, tuple[np.ndarray, ...]] | None = None) -> np.ndarray:
     """Cubic Hermite interpolation of ``h`` (K, c) with ``slopes`` (K, c) at ``t`` (n,).
 
-    ``t`` must lie in ``[t_h[0], t_h[-1]]``; K >= 2.  Returns (n, c).
+    ``t`` must lie in ``[t_h[0], t_h[-1]]``; K >= 2.  Returns (n, c).  ``basis``: the
+    :func:`hermite_basis` of ``t_h`` and ``t``, when several ``h`` share the stamps.
     """
+    j, (a, b, c, d) = hermite_basis(t_h, t) if basis is None else basis
+    return a * h[j] + b * slopes[j] + c * h[j + 1] + d * slopes[j + 1]
+
+
+def hermite_basis(t_h: np.ndarray, t: np.ndarray
+                  ) -> tuple[np.ndarray, tuple[np.ndarray, ...]]:
+    """The interval ``j`` (n,) of each time ``t`` in ``t_h`` and the weights (n, 1) of
+    ``h[j]``, ``slopes[j]``, ``h[j + 1]`` and ``slopes[j + 1]`` in :func:`hermite`."""
     j = np.clip(np.searchsorted(t_h, t, side='right') - 1, 0, len(t_h) - 2)
     dx = (t_h[j + 1] - t_h[j])[:, None]
     u = (t - t_h[j])[:, None] / dx
     h00, h10 = 2 * u ** 3 - 3 * u ** 2 + 1, u ** 3 - 2 * u ** 2 + u
     h01, h11 = -2 * u ** 3 + 3 * u ** 2, u ** 3 - u ** 2
-    return h00 * h[j] + h10 * dx * slopes[j] + h01 * h[j + 1] + h11 * dx * slopes[j + 1]
+    return j, (h00, h10 * dx, h01, h11 * dx)
 
 
 class OnlineAligner:

@@ -237,8 +237,11 @@ def _estimate_direct(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray,
                      segment: float | None, window: float | None, model: str,
                      torque_bias: str, axis: np.ndarray | None, policy: SelectionPolicy,
                      selection: dict[str, Any] | None,
-                     white_y_cov: np.ndarray | None = None) -> InertiaEstimate:
-    """Every method but ``ml``: noise levels, then :func:`_estimate_shifted` from ``t = 0``."""
+                     white_y_cov: np.ndarray | None = None,
+                     final: bool = True) -> InertiaEstimate:
+    """Every method but ``ml``: noise levels, then :func:`_estimate_shifted` from ``t = 0``
+    (``final=False``: without the adequacy tests, for a result whose tensor alone is used;
+    a given hold only)."""
     # work relative to the first stamp: ROS times are ~1.7e9 s, and prefix sums of absolute
     # times would lose the sub-millisecond differences everything depends on
     t_origin = float(min(tg[0], ts[0])) if len(ts) else float(tg[0])
@@ -266,7 +269,7 @@ def _estimate_direct(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray,
                                  torque_bias, axis, policy, d, white_y_cov, final, chosen,
                                  shared)
     if hold != 'auto':
-        return run(hold, diag)
+        return run(hold, diag, final=final)
     return _auto_hold(run, diag, torque_std, len(tg), (tg - t_origin, w, ts - t_origin, tau,
                                                         gyro_std ** 2, torque_std ** 2))
 

@@ -46,13 +46,16 @@ relative variance).
 """
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from typing import Any
 
 import numpy as np
 
+from .._numeric import median, median_rows
 from .filtered import MAX_NOISE_SHARE as _MAX_NOISE_SHARE
 from .options import ML_AUTO_MAX_SAMPLES
+from .regressors import cumulative_torque
 
 __all__ = ['DEFAULT_RULE', 'choose', 'lowest_rotation_hz', 'residual_spectrum',
            'spectral_evidence']
@@ -99,26 +102,6 @@ def lowest_rotation_hz(speed: Any) -> float | None:
     return float(np.min(np.percentile(s[:, spinning], 2.0, axis=0)))
 
 
-def _held_integral(ts: np.ndarray, tau: np.ndarray, t: np.ndarray, hold: str) -> np.ndarray:
-    """``int_{ts[0]}^{t} tau dt`` at ``t`` (M,) [N m s], ``tau`` held or linear."""
-    if len(ts) < 2:
-        return np.zeros((len(t), 3))
-    dts = np.diff(ts)
-    if hold == 'linear':
-        inc = 0.5 * (tau[1:] + tau[:-1]) * dts[:, None]
-    else:
-        inc = tau[:-1] * dts[:, None]
-    cum = np.vstack([np.zeros(3), np.cumsum(inc, axis=0)])
-    j = np.clip(np.searchsorted(ts, t, side='right') - 1, 0, len(ts) - 1)
-    dt = np.clip(t - ts[j], 0.0, None)[:, None]
-    if hold == 'linear':
-        k = np.minimum(j + 1, len(ts) - 1)
-        slope = np.where((k > j)[:, None], (tau[k] - tau[j]) / np.maximum(ts[k] - ts[j],
-                                                                             1e-300)[:, None], 0)
-        return cum[j] + tau[j] * dt + 0.5 * slope * dt ** 2
-    return cum[j] + tau[j] * dt
-
-
 def residual_spectrum(tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.ndarray,
                       inertia: np.ndarray, bias: Any, hold: str
                       ) -> tuple[np.ndarray, np.ndarray, int]:
@@ -145,49 +128,98 @@ def residual_spectrum(tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.nda
     segments : int
         Welch segments averaged (the estimate's chi-square spread: ``2 segments`` dof).
     """
-    inside = (tg >= ts[0]) & (tg <= ts[-1]) if len(ts) >= 2 else np.ones(len(tg), bool)
-    t, wi = tg[inside], w[inside]
-    gyro = np.cross(wi, wi @ inertia.T)
-    dtt = np.diff(t)[:, None]
-    gint = np.vstack([np.zeros(3), np.cumsum(0.5 * (gyro[1:] + gyro[:-1]) * dtt, axis=0)])
-    r = wi @ inertia.T + gint - _held_integral(ts, tau, t, hold)
+    # the gyro samples inside the torque's coverage: one run of the sorted stamps (views)
+    a, b = _inside(tg, ts)
+    t, wi = tg[a:b], w[a:b]
+    h = wi @ inertia.T
+    gyro = np.empty_like(h)                                # w x (I w), as np.cross
+    gyro[:, 0] = wi[:, 1] * h[:, 2] - wi[:, 2] * h[:, 1]
+    gyro[:, 1] = wi[:, 2] * h[:, 0] - wi[:, 0] * h[:, 2]
+    gyro[:, 2] = wi[:, 0] * h[:, 1] - wi[:, 1] * h[:, 0]
+    r = np.empty_like(h)
+    r[0] = 0.0
+    inc = gyro[1:] + gyro[:-1]
+    inc *= 0.5
+    inc *= np.diff(t)[:, None]
+    np.cumsum(inc, axis=0, out=r[1:])                      # int w x I w dt (trapezoid)
+    r += h
+    if len(ts) >= 2:                                       # - int tau dt, held or linear
+        r -= cumulative_torque(ts, tau, t, hold)
     if bias is not None:
-        r = r - np.outer(t - t[0], np.asarray(bias, dtype=float))
-    fs = 1.0 / float(np.median(np.diff(t)))
+        r -= np.outer(t - t[0], np.asarray(bias, dtype=float))
+    fs = 1.0 / median(np.diff(t))
     nper = int(2 ** np.floor(np.log2(max(len(t) / 4.0, 16.0))))
     nper = min(nper, 1024)
     f, p, segments = _welch(r, fs, nper)
     return f, p, segments
 
 
+def _inside(tg: np.ndarray, ts: np.ndarray) -> tuple[int, int]:
+    """The gyro samples ``a:b`` inside ``[ts[0], ts[-1]]`` (all without torque)."""
+    if len(ts) < 2:
+        return 0, len(tg)
+    return (int(np.searchsorted(tg, ts[0], side='left')),
+            int(np.searchsorted(tg, ts[-1], side='right')))
+
+
 def _welch(x: np.ndarray, fs: float, nper: int) -> tuple[np.ndarray, np.ndarray, int]:
     """Welch's one-sided density of ``x`` (n, 3) summed over the columns: Hann windows of
     ``nper`` samples, half overlapping, each linearly detrended (as ``scipy.signal.welch``
-    with ``detrend='linear'``, without its ~1 s import on the default path)."""
-    step = nper // 2
-    starts = np.arange(0, len(x) - nper + 1, step)
+    with ``detrend='linear'``, without its ~1 s import on the default path).  All segments
+    at once: a strided view of the columns, one detrending product and one ``rfft``."""
+    step = max(nper // 2, 1)
+    n_seg = max((len(x) - nper) // step + 1, 0)
     win = np.hanning(nper + 1)[:-1] if nper > 1 else np.ones(1)   # periodic Hann
     u = np.arange(nper) - 0.5 * (nper - 1)
-    acc = np.zeros(nper // 2 + 1)
-    for s0 in starts:
-        seg = x[s0:s0 + nper]
-        seg = seg - seg.mean(axis=0) - np.outer(u, u @ seg / (u @ u))
-        acc += np.sum(np.abs(np.fft.rfft(seg * win[:, None], axis=0)) ** 2, axis=1)
-    p = acc / (len(starts) * fs * float(win @ win))
+    xt = np.ascontiguousarray(x.T)                                  # (3, n)
+    s0, s1 = xt.strides
+    segs = np.lib.stride_tricks.as_strided(xt, (3, n_seg, nper), (s0, step * s1, s1),
+                                           writeable=False)         # (3, segments, nper)
+    seg = segs - segs.mean(axis=2, keepdims=True)
+    seg -= ((segs @ u) / (u @ u))[..., None] * u
+    seg *= win
+    spec = np.fft.rfft(seg, axis=2)
+    pw = spec.real ** 2
+    pw += spec.imag ** 2
+    p = np.sum(pw, axis=(0, 1)) / (n_seg * fs * float(win @ win))
     p[1:-1] *= 2.0                       # one-sided (nper even)
-    return np.fft.rfftfreq(nper, 1.0 / fs), p, len(starts)
+    return np.fft.rfftfreq(nper, 1.0 / fs), p, n_seg
 
 
 def _threshold(segments: int, bins: int) -> float:
     """How far above its reference a Welch bin may lie by chance (all ``bins`` together at
     :data:`_FALSE_ALARM`): the chi-square quantile of ``2 segments`` (x3 axes) dof, over
     its mean."""
-    from statistics import NormalDist
-
     dof = 2 * 3 * segments
-    z = NormalDist().inv_cdf(1.0 - _FALSE_ALARM / max(bins, 1))
+    # (the tail of the rounded 1 - p, as NormalDist().inv_cdf(1 - p) took it)
+    z = _upper_normal_quantile(1.0 - (1.0 - _FALSE_ALARM / max(bins, 1)))
     # Wilson-Hilferty: the chi-square quantile over its dof without scipy.stats' import
     return float((1.0 - 2.0 / (9 * dof) + z * np.sqrt(2.0 / (9 * dof))) ** 3)
+
+
+def _percentile(x: np.ndarray, q: float) -> float:
+    """``np.percentile(x, q)`` of a finite 1-D ``x`` (linear), bit for bit, by one partition
+    (``np.percentile`` imports ``numpy.ma``, ~5 ms of the default path's start-up)."""
+    vi = (len(x) - 1) * (q / 100)
+    lo = int(math.floor(vi))
+    hi = min(lo + 1, len(x) - 1)
+    part = np.partition(x, [lo, hi])
+    a, b, g = float(part[lo]), float(part[hi]), vi - lo
+    return b - (b - a) * (1 - g) if g >= 0.5 else a + (b - a) * g
+
+
+def _upper_normal_quantile(p: float) -> float:
+    """``z`` with ``P(N(0, 1) > z) = p`` (0 < p < 0.5) by Newton steps on ``log erfc``: the
+    standard normal's quantile to rounding, without ``statistics``' imports (``fractions``,
+    ``decimal``) on the default path."""
+    z = math.sqrt(-2.0 * math.log(p))
+    for _ in range(50):
+        q = 0.5 * math.erfc(z / math.sqrt(2.0))
+        step = (math.log(q) - math.log(p)) * q / (math.exp(-0.5 * z * z) / math.sqrt(2 * math.pi))
+        z += step
+        if abs(step) <= 1e-15 * z:
+            break
+    return z
 
 
 def spectral_evidence(f: np.ndarray, psd: np.ndarray, segments: int, span: float
@@ -221,12 +253,12 @@ def spectral_evidence(f: np.ndarray, psd: np.ndarray, segments: int, span: float
         return out
     fb, pb = f[sel], psd[sel]
     thr = _threshold(segments, len(pb))
-    floor = float(np.percentile(pb, 20.0))
+    floor = _percentile(pb, 20.0)
     # a model-conforming residual spectrum never rises with frequency: white floors (gyro,
     # wheel speeds) and 1 / f^2 walks (integrated torque noise), each ending at its sensor's
     # band; a line or a resonance is a rise above the lowest (smoothed) level below it
     padded = np.pad(pb, 4, mode='edge')
-    smooth = np.median(np.lib.stride_tricks.sliding_window_view(padded, 9), axis=1)
+    smooth = median_rows(np.lib.stride_tricks.sliding_window_view(padded, 9).T)
     model = np.minimum.accumulate(smooth)
     peak = (pb > thr * smooth) & (pb >= np.r_[0, pb[:-1]]) & (pb >= np.r_[pb[1:], 0])
     far = pb > 2.0 * thr * model
@@ -355,7 +387,8 @@ def _evidence(first: Any, data: tuple[np.ndarray, ...], hold: str,
     span = float(tg[-1] - tg[0])
     ev: dict[str, Any] = {'rotation_hz': rotation_hz, 'found': False, 'edge_hz': None,
                           'cutoff_hz': None}
-    inside = np.count_nonzero((tg >= ts[0]) & (tg <= ts[-1])) if len(ts) >= 2 else len(tg)
+    a, b = _inside(tg, ts)
+    inside = b - a
     if first.inertia is None or not np.all(np.isfinite(first.inertia)) or inside < 64:
         ev['reason'] = ('no integral tensor to take the residual of' if inside >= 64 else
                         f'{inside} gyro samples in the torque coverage: too few for a spectrum')

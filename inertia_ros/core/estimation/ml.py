@@ -49,6 +49,11 @@ _MAX_SUBSTEPS = 256         # RK4 substeps per torque interval: beyond, ml is no
 _SIGMA_T_FLOOR = 1e-3       # torque-noise std floor, relative to the largest axis or torque rms
 _CHORD_MAX_STEP = 3.0       # std errors: after a smaller step, the next pass keeps the Jacobian
 #: Quadratic 9-point Savitzky-Golay smoothing weights (reference states only).
+#: Largest one-call products of :func:`_thin_dot` (rows x columns, vector length): the BLAS
+#: keeps to one thread below them; larger products (a momentum input's union grid) go in
+#: blocks, as the BLAS threads' spinning costs more CPU than the work on a loaded machine
+_ONE_THREAD_GEMV = 400_000
+_ONE_THREAD_DOT = 10_000
 _SMOOTH = np.array([-21.0, 14.0, 39.0, 54.0, 59.0, 54.0, 39.0, 14.0, -21.0]) / 231.0
 
 
@@ -487,12 +492,25 @@ def _step(pb: _Problem, lin: _Linear, wk: np.ndarray, w1: np.ndarray, r: np.ndar
     bd[:-1] += Gz[:, :3]
     bd[1:] += Gz[:, 3:6]
     bd = bd.ravel()
-    bp = Xz.ravel() @ lin.Xf
+    bp = _thin_dot(Xz.ravel(), lin.Xf)
     X0 = linalg.cho_solve_banded((lin.cb, False), bd, check_finite=False)
     dp = lin.cov @ (bp - lin.Dpf.T @ X0)
     delta = X0 - lin.X1 @ dp
-    rss = float(np.sum(Xz * Xz)) - float(bd @ delta) - float(bp @ dp)
+    rss = float(np.sum(Xz * Xz)) - float(_thin_dot(bd, delta)) - float(bp @ dp)
     return dp, delta, rss / max(3 * pb.n_gyro - 3 - pb.npar, 1)
+
+
+def _thin_dot(x: np.ndarray, A: np.ndarray) -> np.ndarray:
+    """``x @ A`` for ``x`` (n,) and ``A`` (n,) or (n, k), in blocks of rows above the sizes the
+    BLAS computes on one thread (below them the single call, bit for bit)."""
+    k = A.shape[1] if A.ndim == 2 else 1
+    rows = _ONE_THREAD_GEMV // k if A.ndim == 2 else _ONE_THREAD_DOT
+    if len(x) <= rows:
+        return x @ A
+    out = x[:rows] @ A[:rows]
+    for a in range(rows, len(x), rows):
+        out = out + x[a:a + rows] @ A[a:a + rows]
+    return out
 
 
 def _inverse3(A: np.ndarray) -> np.ndarray:

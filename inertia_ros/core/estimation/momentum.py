@@ -37,9 +37,9 @@ import numpy as np
 
 from .options import ALPHA, IDENTIFIABILITY_TOL
 
-__all__ = ['Momentum', 'Wheel', 'as_momentum', 'equivalent_torque', 'estimate_with_momentum',
-           'held_over', 'interval_torque', 'walk_sums', 'walk_variance', 'wheel_inputs',
-           'wheel_momentum', 'wheels_momentum']
+__all__ = ['Momentum', 'Reduction', 'Wheel', 'as_momentum', 'equivalent_torque',
+           'estimate_with_momentum', 'held_over', 'interval_torque', 'walk_sums',
+           'walk_variance', 'wheel_inputs', 'wheel_momentum', 'wheels_momentum']
 
 
 @dataclass(frozen=True)
@@ -283,27 +283,66 @@ def equivalent_torque(tg: np.ndarray, w: np.ndarray, t_h: np.ndarray, h: np.ndar
     spans it with one interval (a torque gap to the estimators, which start a new anchored
     segment after it) and ``h`` is interpolated within each gap-free run only.
     """
-    from .align import gap_starts, inside_gaps
+    return Reduction(tg, t_h, ts, hold)(w, h, tau, tq_h)
 
-    lo, hi = max(tg[0], t_h[0]), min(tg[-1], t_h[-1])
-    if len(ts):
-        lo = max(lo, ts[0])
-        end = ts[-1] + (float(np.median(np.diff(ts))) if hold == 'zoh' else 0.0)
-        hi = min(hi, end)
-    gaps = gap_starts(t_h)
-    inside = (tg >= lo) & (tg <= hi) & ~inside_gaps(t_h, gaps, tg)
-    grid = np.union1d(tg[inside], t_h[(t_h >= lo) & (t_h <= hi)])
-    if len(grid) < 2:
-        return grid, np.zeros((len(grid), 3)), inside
-    wg = np.column_stack([np.interp(grid, tg, w[:, c]) for c in range(3)])
-    trg = None if tq_h is None else np.column_stack([np.interp(grid, t_h, tq_h[:, k])
-                                                     for k in range(3)])
-    out = np.empty((len(grid), 3))
-    out[:-1] = interval_torque(grid, wg, _interp_h(t_h, h, grid, gaps), trg)
-    if len(ts):
-        out[:-1] += held_over(grid, ts, tau, hold)
-    out[-1] = out[-2]
-    return grid, out, inside
+
+class Reduction:
+    """:func:`equivalent_torque` on fixed stamps for many inputs (the stated inputs'
+    re-estimations): the coverage, the grid, the interpolation weights and the rates on the
+    grid (for the same ``w`` object) are computed once; the same numbers, bit for bit.
+
+    Parameters
+    ----------
+    tg : ndarray, shape (N,)
+        Gyro times [s].
+    t_h : ndarray, shape (K,)
+        Momentum times [s].
+    ts : ndarray, shape (M,)
+        Other torque's times [s] (M = 0: none).
+    hold : {'zoh', 'linear'}
+        Hold of the other torque.
+    """
+
+    def __init__(self, tg: np.ndarray, t_h: np.ndarray, ts: np.ndarray, hold: str) -> None:
+        from .align import gap_starts, hermite_basis, inside_gaps
+
+        lo, hi = max(tg[0], t_h[0]), min(tg[-1], t_h[-1])
+        if len(ts):
+            lo = max(lo, ts[0])
+            end = ts[-1] + (float(np.median(np.diff(ts))) if hold == 'zoh' else 0.0)
+            hi = min(hi, end)
+        self.tg, self.t_h, self.ts, self.hold = tg, t_h, ts, hold
+        self.gaps = gap_starts(t_h)
+        self.inside = (tg >= lo) & (tg <= hi) & ~inside_gaps(t_h, self.gaps, tg)
+        self.grid = np.union1d(tg[self.inside], t_h[(t_h >= lo) & (t_h <= hi)])
+        self.basis = (hermite_basis(t_h, self.grid) if len(t_h) >= 3 and len(self.grid) >= 2
+                      else None)
+        self._rates: tuple[np.ndarray, np.ndarray] | None = None
+
+    def rates(self, w: np.ndarray) -> np.ndarray:
+        """``w`` (N, 3) [rad/s] on the grid (G, 3), linear (kept for the same object)."""
+        if self._rates is None or self._rates[0] is not w:
+            self._rates = (w, np.column_stack([np.interp(self.grid, self.tg, w[:, c])
+                                               for c in range(3)]))
+        return self._rates[1]
+
+    def __call__(self, w: np.ndarray, h: np.ndarray, tau: np.ndarray,
+                 tq_h: np.ndarray | None = None
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(grid, torque, inside)`` of :func:`equivalent_torque` for these inputs."""
+        grid, t_h = self.grid, self.t_h
+        if len(grid) < 2:
+            return grid, np.zeros((len(grid), 3)), self.inside
+        wg = self.rates(w)
+        trg = None if tq_h is None else np.column_stack([np.interp(grid, t_h, tq_h[:, k])
+                                                         for k in range(3)])
+        out = np.empty((len(grid), 3))
+        out[:-1] = interval_torque(grid, wg, _interp_h(t_h, h, grid, self.gaps, self.basis),
+                                   trg)
+        if len(self.ts):
+            out[:-1] += held_over(grid, self.ts, tau, self.hold)
+        out[-1] = out[-2]
+        return grid, out, self.inside
 
 
 def interval_torque(grid: np.ndarray, wg: np.ndarray, hg: np.ndarray,
@@ -339,9 +378,10 @@ def held_over(grid: np.ndarray, ts: np.ndarray, tau: np.ndarray, hold: str) -> n
 
 
 def _interp_h(t_h: np.ndarray, h: np.ndarray, t: np.ndarray,
-              gaps: np.ndarray | None = None) -> np.ndarray:
+              gaps: np.ndarray | None = None, basis: Any = None) -> np.ndarray:
     """``h`` at ``t`` (inside ``t_h``) by cubic Hermite interpolation, slopes by
-    ``np.gradient`` within each gap-free run (:func:`.align.run_slopes`; the online rule).
+    ``np.gradient`` within each gap-free run (:func:`.align.run_slopes`; the online rule;
+    ``basis``: :func:`.align.hermite_basis` of ``t_h`` and ``t``, when known).
 
     Linear interpolation would leave an error ``h'' dt^2 / 8`` between wheel samples that is
     coherent over the record (a bias of the tensor at 1e-5 relative for a 100 Hz JointState).
@@ -351,7 +391,7 @@ def _interp_h(t_h: np.ndarray, h: np.ndarray, t: np.ndarray,
     if len(t_h) < 3:
         return np.column_stack([np.interp(t, t_h, h[:, c]) for c in range(3)])
     gaps = gap_starts(t_h) if gaps is None else gaps
-    return hermite(t_h, h, run_slopes(t_h, h, gaps), t)
+    return hermite(t_h, h, run_slopes(t_h, h, gaps), t, basis)
 
 
 def _cross_matrices(v: np.ndarray) -> np.ndarray:
@@ -526,10 +566,13 @@ def _estimate(tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.ndarray, *,
               gyro_noise: Any = None, torque_noise: Any = None, segment: float | None = None,
               window: float | None = None, identifiability_tol: float = IDENTIFIABILITY_TOL,
               physical: bool = True, torque_scale_std: float = 0.0,
-              gyro_scale_std: float = 0.0, rotation_hz: float | None = None) -> Any:
+              gyro_scale_std: float = 0.0, rotation_hz: float | None = None,
+              final: bool = True) -> Any:
     """:func:`.batch.estimate` on the equivalent held torque, with ``white_y_cov`` (the same
     dispatch: method choice, ``integral`` then the ``ml`` refinement; ``rotation_hz``: the
-    wheels' or rotors' lowest rotation line for ``method='auto'``, :mod:`.method_choice`)."""
+    wheels' or rotors' lowest rotation line for ``method='auto'``, :mod:`.method_choice`;
+    ``final=False``: a method other than ``auto`` and ``ml`` without the adequacy tests, for
+    a sensitivity re-estimation whose tensor alone is used)."""
     from . import batch
     from .options import HOLDS
     from .selection import SelectionPolicy
@@ -546,7 +589,8 @@ def _estimate(tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.ndarray, *,
     first = batch._estimate_direct('integral' if method == 'ml' else method, tg, w, ts, tau,
                                    HOLDS[0], gyro_noise, torque_noise, segment, window, model,
                                    torque_bias, axis, policy,
-                                   None if method == 'ml' else selection, white_y_cov)
+                                   None if method == 'ml' else selection, white_y_cov,
+                                   final or method == 'ml')
     if method != 'ml':
         return first
     return batch._maximum_likelihood(first, tg, w, ts, tau, HOLDS[0], axis, selection)

@@ -18,12 +18,13 @@ marginal covariance of the tensor: never smaller than with the inputs known exac
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from functools import cached_property
 from typing import Any
 
 import numpy as np
 
 from ..tensor import principal_axes, theta_to_matrix
-from .momentum import Momentum, equivalent_torque
+from .momentum import Momentum, Reduction
 
 __all__ = ['Stated', 'cumulative_impulse', 'intervals', 'lhs_columns', 'profile_inputs',
            'propagate']
@@ -38,6 +39,11 @@ _MIN_INFORMATION = 4.0          # data information per prior information kept
 _MIN_INTERVAL_S = 0.5           # shortest interval of the profile [s]
 _DU = 0.1                       # finite-difference step of the columns [stated sigmas]
 _UNIT = np.array([theta_to_matrix(e) for e in np.eye(6)])       # (6, 3, 3) dI / dtheta_j
+#: Rows per product of :func:`_tall_lstsq`: below this the BLAS keeps to one thread (a
+#: least-squares solve of all the rows woke its threads, whose spinning cost more CPU than
+#: the work on a loaded machine)
+_ROWS = 4096
+_MIN_EIGEN = 1e-10              # equilibrated normal equations' smallest relative eigenvalue
 
 
 def _cumtrapz(t: np.ndarray, f: np.ndarray) -> np.ndarray:
@@ -77,6 +83,38 @@ def intervals(t: np.ndarray, count: int, gap_factor: float = 1.5
     cum = np.r_[0, np.cumsum(bad)]
     keep = (b - a >= 2) & (cum[b] == cum[a])
     return a[keep], b[keep]
+
+
+def _tall_lstsq(A: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Least-squares solution (k,) of the tall ``A x = y`` (``A`` (n, k), ``y`` (n,)) and its
+    residual ``y - A x`` (n,), without waking the BLAS threads.
+
+    The equilibrated normal equations, summed over blocks of :data:`_ROWS` rows, solved and
+    refined once by the residual (semi-normal equations with a correction step: a QR
+    solution's accuracy for a well-conditioned ``A``); ``np.linalg.lstsq`` when ``A`` is near
+    rank-deficient (eigenvalue ratio below :data:`_MIN_EIGEN`).
+    """
+    n, k = A.shape
+    G = np.zeros((k, k))
+    for a in range(0, n, _ROWS):
+        G += A[a:a + _ROWS].T @ A[a:a + _ROWS]
+    d = np.sqrt(np.diag(G))
+    Gs = G / np.outer(d, d) if np.all(d > 0) else np.zeros((k, k))
+    lam = np.linalg.eigvalsh(Gs)
+    if not lam[0] > _MIN_EIGEN * lam[-1]:
+        x = np.linalg.lstsq(A, y, rcond=None)[0]
+        return x, y - A @ x
+    x, r = np.zeros(k), y.copy()
+    for step in range(3):               # the solution, its correction, the final residual
+        g = np.zeros(k)
+        for a in range(0, n, _ROWS):
+            if step:
+                r[a:a + _ROWS] = y[a:a + _ROWS] - A[a:a + _ROWS] @ x
+            if step < 2:
+                g += A[a:a + _ROWS].T @ r[a:a + _ROWS]
+        if step < 2:
+            x = x + np.linalg.solve(Gs, g / d) / d
+    return x, r
 
 
 def _demean(a: np.ndarray, ids: np.ndarray) -> np.ndarray:
@@ -155,8 +193,7 @@ def profile_inputs(t: np.ndarray, X: np.ndarray, y: np.ndarray, C: np.ndarray,
     # residual variance per axis of the fit with the inputs at u0 (free, they could scale
     # the known impulse away with the tensor): the equations' noise scale
     keep = np.r_[0:6, 6 + q:m]
-    sol = np.linalg.lstsq(A[:, :, keep].reshape(-1, len(keep)), b.reshape(-1), rcond=None)[0]
-    r = b - A[:, :, keep] @ sol
+    r = _tall_lstsq(A[:, :, keep].reshape(-1, len(keep)), b.reshape(-1))[1].reshape(b.shape)
     dof = max(len(rows) - len(i) - len(keep) / 3.0, 1.0)
     sigma = np.sqrt(np.maximum(np.sum(r ** 2, axis=0) / dof, 1e-300))
     Aw = A / sigma[None, :, None]
@@ -245,11 +282,15 @@ class Stated:
         w = self.w / (1.0 + u[-1] * self.gscale) if self.gscale else self.w
         return w, h, tq, tau
 
+    @cached_property
+    def reduction(self) -> Reduction:
+        """:func:`.momentum.equivalent_torque` on these stamps (grid and weights once)."""
+        return Reduction(self.tg, self.mom.t, self.ts, self.hold)
+
     def torque(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Rates (n, 3), grid (G,) and equivalent torque (G, 3) with the inputs ``u`` off."""
         w, h, tq, tau = self.data(u)
-        grid, out, _ = equivalent_torque(self.tg, w, self.mom.t, h, self.ts, tau, self.hold,
-                                         tq)
+        grid, out, _ = self.reduction(w, h, tau, tq)
         return w, grid, out
 
 
@@ -259,10 +300,16 @@ def _profile(res: Any, st: Stated) -> tuple[np.ndarray, np.ndarray]:
     q = len(st.names)
     t = st.tg - st.tg[0]
     theta = np.asarray(res.theta, dtype=float)
+    lhs0 = lhs_columns(t, st.w)            # the rates as measured (all but the gyro scale's)
+    momentum0 = lhs0 @ theta
+
+    def lhs(w: np.ndarray) -> np.ndarray:
+        return lhs0 if w is st.w else lhs_columns(t, w)
 
     def error(u: np.ndarray, src: Stated = st) -> np.ndarray:
         w, grid, tq = src.torque(u)
-        return lhs_columns(t, w) @ theta - cumulative_impulse(grid - st.tg[0], tq, t)
+        return ((momentum0 if w is st.w else lhs(w) @ theta)
+                - cumulative_impulse(grid - st.tg[0], tq, t))
 
     u, cov = np.zeros(q), np.eye(q)
     if len(t) < _MIN_PROFILE_ROWS:
@@ -291,7 +338,7 @@ def _profile(res: Any, st: Stated) -> tuple[np.ndarray, np.ndarray]:
         if st.gscale:
             d = np.eye(q)[-1] * _DU
             C[:, :, -1] = (error(u + d, sm) - error(u, sm)) / _DU
-        new, cov, _ = profile_inputs(t, lhs_columns(t, w0),
+        new, cov, _ = profile_inputs(t, lhs(w0),
                                      cumulative_impulse(grid0 - st.tg[0], tq0, t), C, ends,
                                      res.model.endswith('+bias'), u, gv, scale_dir)
         done = np.all(np.abs(new - u) <= 0.01 * np.sqrt(np.maximum(np.diag(cov), 1e-30)))
@@ -316,8 +363,8 @@ def _scale_direction(st: Stated) -> np.ndarray | None:
     y = np.concatenate(target)
     if not A.size or not np.any(y):
         return None
-    s = np.linalg.lstsq(A, y, rcond=None)[0]
-    if np.linalg.norm(A @ s - y) > 1e-6 * np.linalg.norm(y):
+    s, r = _tall_lstsq(A, y)
+    if np.sqrt(np.sum(r * r)) > 1e-6 * np.sqrt(np.sum(y * y)):     # (no BLAS dot: threads)
         return None
     out = np.zeros(q)
     out[:len(s)] = s
@@ -383,10 +430,12 @@ def propagate(res: Any, run: Any, st: Stated, options: dict[str, Any]) -> Any:
         and np.all(np.isfinite(out.inertia)) else None
     if fixed is None:
         return res if out.inertia is None else out
-    ref = out if out.method != 'ml' else run(*st.torque(u_hat), **fixed)
+    # the reference and the sensitivity runs are used for their tensors alone: without the
+    # adequacy tests (which only widen a covariance)
+    ref = out if out.method != 'ml' else run(*st.torque(u_hat), **fixed, final=False)
     D, per = [], {}
     for j, name in enumerate(names):
-        p = run(*st.torque(u_hat + np.eye(len(names))[j]), **fixed)
+        p = run(*st.torque(u_hat + np.eye(len(names))[j]), **fixed, final=False)
         good = p.inertia is not None and bool(np.all(np.isfinite(p.inertia)))
         d6 = np.nan_to_num(p.theta - ref.theta) if good else np.zeros(6)
         D.append((d6, p.inertia if good else ref.inertia))
