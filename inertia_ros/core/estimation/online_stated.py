@@ -48,7 +48,7 @@ from .fit import _anchored_meat, equation_weight, fit_two_pass
 from .model import model_basis
 from .options import MIN_EQUATIONS, MIN_GYRO_SAMPLES
 from .regressors import MOMENTUM_BASIS, VARIABLE_MAP
-from .stated import _MIN_INFORMATION, _larger
+from .stated import _MIN_INFORMATION, _larger, record_inputs
 from .uncertainty import principal_with_std, ratio_cov
 
 __all__ = ['StatedAligner', 'StatedInputs', 'correction_map', 'profile', 'sensitivities',
@@ -416,21 +416,9 @@ def widened(est: Any, per: dict[str, Any], outer: np.ndarray, cov_u: np.ndarray,
     diag = dict(est.diagnostics)
     moments, axes = principal_with_std(est.inertia, cov6, diag)
     r_se = np.sqrt(np.maximum(np.diag(ratio_cov(est.theta, cov6)), 0.0))
-    diag['input_uncertainty'] = {
-        'inputs': per, 'theta_std_added': np.sqrt(np.diag(outer)), 'posterior_cov': cov_u,
-        'rule': 'stated inputs profiled under their N(0, stated sigma) prior on the '
-                'accumulated equations, the statistics read with the inputs corrected by the '
-                "posterior mean, D cov D' added"}
-    if torque_scale_std or gyro_scale_std:
-        calib = dict(diag.get('calibration') or {})
-        calib.update(torque_scale_std=torque_scale_std, gyro_scale_std=gyro_scale_std,
-                     applies_to="stated inputs 'torque_scale' (the torque stream only, not "
-                     "the momentum input) and 'gyro_scale' (the rate in both sides, w x h "
-                     'included) of input_uncertainty')
-        diag['calibration'] = calib
-    if est.status == 'model_mismatch' and 'reason' in diag:
-        diag['reason'] = (f"{diag['reason']}; beyond what the stated wheel inertias / rotor "
-                          'coefficients / sensor scales explain')
+    record_inputs(diag, per, outer, cov_u, 'the accumulated equations, the statistics read '
+                  'with the inputs corrected by the posterior mean', torque_scale_std,
+                  gyro_scale_std, est.status)
     return replace(est, covariance=cov6,
                    inertia_std=theta_to_matrix(np.sqrt(np.maximum(np.diag(cov6), 0.0)),
                                                check_finite=False),

@@ -27,7 +27,7 @@ from ..tensor import principal_axes, theta_to_matrix
 from .momentum import Momentum, Reduction
 
 __all__ = ['Stated', 'cumulative_impulse', 'intervals', 'lhs_columns', 'profile_inputs',
-           'propagate']
+           'propagate', 'record_inputs']
 
 #: Rows the profile of the stated inputs needs (fewer: the inputs stay at their prior).
 _MIN_PROFILE_ROWS = 20
@@ -471,21 +471,36 @@ def _widen(res: Any, ref: Any, D: list[tuple[np.ndarray, np.ndarray]], per: dict
     for key, v in (('principal_moments_std', var(dm)), ('principal_axes_std', var(da))):
         if key in diag:
             diag[key] = np.sqrt(np.asarray(diag[key]) ** 2 + v)
-    diag['wheel_inertia'] = {
-        'inputs': per, 'theta_std_added': np.sqrt(np.diag(outer)), 'posterior_cov': cov_u,
-        'rule': 'stated inputs profiled under their N(0, stated sigma) prior on the anchored '
-                'equations, the data corrected by the posterior mean, D cov D\' added'}
-    diag['input_uncertainty'] = diag['wheel_inertia']
-    if st.scale or st.gscale:
-        calib = dict(diag.get('calibration') or {})
-        calib.update(torque_scale_std=st.scale, gyro_scale_std=st.gscale,
-                     applies_to="stated inputs 'torque_scale' (the torque stream only) and "
-                     "'gyro_scale' (the rate in both sides, w x h included) of "
-                     'input_uncertainty')
-        diag['calibration'] = calib
-    if res.status == 'model_mismatch' and 'reason' in diag:
-        diag['reason'] = (f"{diag['reason']}; beyond what the stated wheel inertias / rotor "
-                          'coefficients / sensor scales explain')
+    record_inputs(diag, per, outer, cov_u, 'the anchored equations, the data corrected by the '
+                  'posterior mean', st.scale, st.gscale, res.status)
     cov = None if res.covariance is None else np.asarray(res.covariance) + outer
     return replace(res, inertia_std=theta_to_matrix(new_std, check_finite=False),
                    ratios_std=ratios_std, covariance=cov, diagnostics=diag)
+
+
+def record_inputs(diag: dict[str, Any], per: dict[str, Any], outer: np.ndarray,
+                  cov_u: np.ndarray, where: str, scale: float, gscale: float,
+                  status: str) -> None:
+    """Write the stated inputs' record into ``diag`` (batch and online alike).
+
+    ``diagnostics['input_uncertainty']`` (alias ``wheel_inertia``): each input's record
+    ``per``, the standard errors added (from ``outer`` (6, 6), ``D cov_u D'``), the posterior
+    covariance ``cov_u`` (q, q) and the rule (``where`` the profile ran); the stated scales in
+    ``diagnostics['calibration']``; a ``model_mismatch`` reason says the stated sigmas do not
+    explain it.
+    """
+    diag['wheel_inertia'] = {
+        'inputs': per, 'theta_std_added': np.sqrt(np.diag(outer)), 'posterior_cov': cov_u,
+        'rule': f"stated inputs profiled under their N(0, stated sigma) prior on {where}, "
+                "D cov D' added"}
+    diag['input_uncertainty'] = diag['wheel_inertia']
+    if scale or gscale:
+        calib = dict(diag.get('calibration') or {})
+        calib.update(torque_scale_std=scale, gyro_scale_std=gscale,
+                     applies_to="stated inputs 'torque_scale' (the torque stream only, not the "
+                     "momentum input) and 'gyro_scale' (the rate in both sides, w x h "
+                     'included) of input_uncertainty')
+        diag['calibration'] = calib
+    if status == 'model_mismatch' and 'reason' in diag:
+        diag['reason'] = (f"{diag['reason']}; beyond what the stated wheel inertias / rotor "
+                          'coefficients / sensor scales explain')
