@@ -322,3 +322,22 @@ def _short(value: Any, limit: int) -> str:
     else:
         text = '[' + ', '.join(show(v, 20) for v in value) + ']'
     return text if len(text) <= limit else text[:limit - 3] + '...'
+
+
+def unit_axis(axis: Any, owner: str) -> np.ndarray:
+    """``axis`` as a read-only unit vector (3,); ``owner`` names it in the one-line error.
+
+    Raises
+    ------
+    ValueError
+        Not 3 finite numbers, or all zero.
+    """
+    try:
+        a = np.asarray(axis, dtype=float)
+    except (TypeError, ValueError):
+        a = np.full(1, np.nan)
+    if a.shape != (3,) or not np.all(np.isfinite(a)) or not np.linalg.norm(a) > 0:
+        raise ValueError(f'{owner}: axis must be 3 finite numbers, not all zero, got {axis!r}')
+    a = a / np.linalg.norm(a)
+    a.setflags(write=False)
+    return a

@@ -35,6 +35,7 @@ from typing import Any
 
 import numpy as np
 
+from .._validate import unit_axis
 from .options import ALPHA, IDENTIFIABILITY_TOL
 
 __all__ = ['Momentum', 'Reduction', 'Wheel', 'as_momentum', 'equivalent_torque',
@@ -67,13 +68,7 @@ class Wheel:
         """Validate: a named joint, a finite non-zero axis (normalised), J > 0, std >= 0."""
         if not isinstance(self.joint, str) or not self.joint:
             raise ValueError(f'joint: must be a non-empty name, got {self.joint!r}')
-        a = np.asarray(self.axis, dtype=float)
-        if a.shape != (3,) or not np.all(np.isfinite(a)) or not np.linalg.norm(a) > 0:
-            raise ValueError(f'wheel {self.joint}: axis must be 3 finite numbers, not all '
-                             f'zero, got {self.axis!r}')
-        a = a / np.linalg.norm(a)
-        a.setflags(write=False)
-        object.__setattr__(self, 'axis', a)
+        object.__setattr__(self, 'axis', unit_axis(self.axis, f'wheel {self.joint}'))
         if not (np.isfinite(self.inertia) and self.inertia > 0):
             raise ValueError(f'wheel {self.joint}: inertia must be > 0 kg m^2, got '
                              f'{self.inertia!r}')

@@ -32,6 +32,7 @@ from typing import Any
 
 import numpy as np
 
+from .._validate import unit_axis
 from .momentum import Momentum, as_momentum
 
 __all__ = ['Rotor', 'RotorSet', 'motor_lag', 'rotors_momentum']
@@ -124,14 +125,8 @@ class RotorSet:
         names = [r.joint for r in self.rotors]
         if len(set(names)) != len(names):
             raise ValueError(f'rotors: joint names must be unique, got {names}')
-        a = np.asarray(self.axis, dtype=float)
-        if a.shape != (3,) or not np.all(np.isfinite(a)) or not np.linalg.norm(a) > 0:
-            raise ValueError(f'rotors: axis must be 3 finite numbers, not all zero, got '
-                             f'{self.axis!r}')
-        a = a / np.linalg.norm(a)
-        a.setflags(write=False)
         object.__setattr__(self, 'rotors', tuple(self.rotors))
-        object.__setattr__(self, 'axis', a)
+        object.__setattr__(self, 'axis', unit_axis(self.axis, 'rotors'))
 
     @property
     def joints(self) -> list[str]:

@@ -27,6 +27,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._validate import unit_axis
+
 __all__ = ['RotorLimits', 'WheelLimit', 'allocation', 'axis_peaks', 'box_scale',
            'wheel_speed_scale', 'wheel_speeds', 'wheel_torque_scale', 'wheel_torques']
 
@@ -60,13 +62,7 @@ class WheelLimit:
 
     def __post_init__(self) -> None:
         """Refuse a zero axis, non-positive inertia or limits, a start at the speed limit."""
-        a = np.asarray(self.axis, dtype=float).reshape(-1)
-        if a.shape != (3,) or not np.all(np.isfinite(a)) or not np.linalg.norm(a) > 0:
-            raise ValueError(f'wheel {self.joint}: axis must be 3 finite numbers, not all zero, '
-                             f'got {np.asarray(self.axis).tolist()}')
-        a = a / np.linalg.norm(a)
-        a.setflags(write=False)
-        object.__setattr__(self, 'axis', a)
+        object.__setattr__(self, 'axis', unit_axis(self.axis, f'wheel {self.joint}'))
         for name in ('inertia', 'max_torque', 'max_speed'):
             v = float(getattr(self, name))
             if math.isnan(v) or not v > 0 or (name == 'inertia' and math.isinf(v)):
