@@ -472,6 +472,33 @@ def simulated_peak_rate(profile: Profile, bodies: Sequence[np.ndarray], lim: Lim
     return worst
 
 
+def _candidates(prior: Prior, bodies: list[np.ndarray], lim: Limits, target: Target,
+                model: str, t_end: float, horizon: float, rate: float, seed: int
+                ) -> tuple[dict[str, Any], tuple[Any, ...], list[dict[str, Any]]]:
+    """The plan's profile: the designed multisine (the best of :func:`_design`'s candidates
+    by time to target) or a standard profile at the same limits, whichever has the smaller
+    worst criterion over the prior bodies at the horizon (the designed one on a tie).
+
+    Returns the winner's design (``family``: ``multisine`` or the standard profile's name),
+    its :func:`_row` and the comparison rows of the others (the designed one first).
+    """
+    best: Any = None
+    for par_i, prof_i in _design(prior, bodies, lim, target, model, horizon, rate, seed):
+        got = _row('designed', prof_i, bodies, prior, lim, target, model, t_end, horizon,
+                   rate, seed)
+        if best is None or got[0]['time_to_target'] < best[1][0]['time_to_target']:
+            best = ({'family': 'multisine', **par_i}, got)
+        if target.rel_std is None:
+            break                     # a duration target: the criterion decided already
+    cands = [best] + [({'family': p.name}, _row(p.name, p, bodies, prior, lim, target, model,
+                                                   t_end, horizon, rate, seed))
+                      for p in standard_profiles(lim.max_torque)]
+    k = min(range(len(cands)), key=lambda i: (cands[i][1][0]['criterion'], i))
+    others = [{**c[1][0], 'name': c[1][1].name if i == 0 else c[1][0]['name']}
+              for i, c in enumerate(cands) if i != k]
+    return cands[k][0], cands[k][1], others
+
+
 def plan(prior: Prior, lim: Limits, target: Target, *, n_bodies: int = 3, seed: int = 0,
          compare: bool = True) -> Plan:
     """Design an excitation for ``target`` within ``lim``, robust over ``prior``.
@@ -506,15 +533,8 @@ def plan(prior: Prior, lim: Limits, target: Target, *, n_bodies: int = 3, seed: 
     bodies = prior.bodies(max(1, n_bodies), seed)
     t_end = target.duration if target.duration is not None else target.max_duration
     horizon = min(t_end, _horizon(prior, lim, target, model, t_end, rate, seed))
-    best: Any = None
-    for par_i, prof_i in _design(prior, bodies, lim, target, model, horizon, rate, seed):
-        got = _row('designed', prof_i, bodies, prior, lim, target, model, t_end, horizon,
-                   rate, seed)
-        if best is None or got[0]['time_to_target'] < best[1][0]['time_to_target']:
-            best = (par_i, got)
-        if target.rel_std is None:
-            break                     # a duration target: the criterion decided already
-    par, (row, limited, curve) = best
+    par, (row, limited, curve), others = _candidates(prior, bodies, lim, target, model,
+                                                     t_end, horizon, rate, seed)
     ttt = row['time_to_target']
     if target.rel_std is not None and not math.isfinite(ttt):
         raise ValueError(
@@ -537,9 +557,7 @@ def plan(prior: Prior, lim: Limits, target: Target, *, n_bodies: int = 3, seed: 
         pk = simulated_peak_rate(limited, bodies, lim, duration, seed)
     rows = [{**row, 'name': limited.name, 'time_to_target': ttt, 'peak_rate': pk}]
     if compare:
-        for std_prof in standard_profiles(lim.max_torque):
-            rows.append(_row(std_prof.name, std_prof, bodies, prior, lim, target, model,
-                             t_end, horizon, rate, seed)[0])
+        rows += others
     usage = limit_usage(limited, bodies, lim, t_end, seed)
     return Plan(profile=limited, design=par, model=model, duration=duration,
                 time_to_target=ttt if target.rel_std is not None else math.nan,
