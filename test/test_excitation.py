@@ -66,8 +66,8 @@ def test_a_standard_profile_wins_when_it_is_predicted_better(tmp_path, capsys) -
     assert any(r['name'].startswith('designed') for r in rows[1:]) and len(rows) == 7
     assert p.time_to_target <= min(r['time_to_target'] for r in rows[1:]) * 1.05
     out = tmp_path / 'plan'
-    rc = main([*BASE[:-5], '3', *BASE[-4:], '--target-rel-std', '0.002', '--max-duration', '60', '--bodies', '2',
-               '--out', str(out), '--format', 'json'])
+    rc = main([*BASE[:-5], '3', *BASE[-4:], '--target-rel-std', '0.002', '--max-duration',
+               '60', '--bodies', '2', '--out', str(out), '--format', 'json'])
     assert rc == 0
     summary = json.loads(capsys.readouterr().out)
     assert summary['design']['family'] == 'sines'
