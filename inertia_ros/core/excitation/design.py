@@ -22,7 +22,9 @@ centred on the initial rate).  The base frequency is searched around the corner 
 ``u_max / (2 pi I omega_max)`` at which a full-amplitude tone just reaches the rate limit.
 Each candidate is scored by its criterion (the largest targeted relative sigma) at the design
 horizon, on the prior value and then, for the best few, on bodies drawn from the prior: the
-worst case decides.
+worst case decides.  The standard profiles (:func:`.profiles.standard_profiles`, at the same
+limits) compete under the same worst-case criterion: the plan is a standard profile when it is
+predicted better than the designed multisine.
 
 Information is evaluated at a reduced rate ``r`` with the noise rescaled to the same density
 (gyro std ``sigma_g sqrt(r / rate_g)``, torque ``sigma_t sqrt(r / rate_t)``): the bound is
@@ -311,9 +313,11 @@ class Plan:
     Attributes
     ----------
     profile : Profile
-        The designed profile, within the limits.
+        The planned profile, within the limits: the designed multisine or a standard profile
+        that is predicted better (:func:`_candidates`).
     design : dict
-        Its parameters (``f0`` Hz, ``n_per_axis``, ``decay``, ``quadrature``, ``spread``,
+        ``family``: ``multisine`` or the standard profile's name; for a multisine its
+        parameters (``f0`` Hz, ``n_per_axis``, ``decay``, ``quadrature``, ``spread``,
         ``stagger``: :func:`.profiles.multisine`).
     model : str
         ``full`` or ``diagonal``: the model whose information the plan uses (run the
@@ -335,9 +339,11 @@ class Plan:
     peak_rate : float
         Simulated peak ``|omega|`` [rad/s] over the prior bodies.
     comparison : list of dict
-        One row per profile (designed first): ``name``, ``criterion`` (worst over the prior
-        bodies at the horizon), ``time_to_target`` [s] (inf when not reached within
-        ``max_duration``), ``peak_rate`` [rad/s], ``peak_torque`` [N m] per axis.
+        One row per profile (the planned one first, then the designed multisine if a
+        standard profile won, then the other standard profiles): ``name``, ``criterion``
+        (worst over the prior bodies at the horizon), ``time_to_target`` [s] (inf when not
+        reached within ``max_duration``), ``peak_rate`` [rad/s], ``peak_torque`` [N m] per
+        axis.
     horizon : float
         Length [s] at which the candidates were compared.
     usage : dict
