@@ -273,7 +273,10 @@ def _text(s: dict[str, Any]) -> str:
     what = (f"relative sigma {100 * tgt['rel_std']:g} % of {', '.join(tgt['elements'])}"
             if tgt['rel_std'] is not None else f"fixed duration {tgt['duration']:g} s")
     ttt = s['time_to_target']
-    lines = [f'plan: {s["comparison"][0]["name"]}',
+    family = s['design'].get('family', 'multisine')
+    lines = [f'plan: {s["comparison"][0]["name"]}'
+             + ('' if family == 'multisine' else
+                ' (a standard profile: predicted better than the designed multisine)'),
              f'  target: {what}; model {s["model"]}'
              + (' (near-diagonal prior: products not estimated)' if s['model'] == 'diagonal'
                 else ''),

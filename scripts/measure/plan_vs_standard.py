@@ -84,7 +84,9 @@ for name in sys.argv[1:]:
         ach.append(ex.time_to_reach(fr * p.time_to_target, np.array(crit), goal))
     print(
         f"{name:12s} target {100 * goal:.3g} % model {p.model}: designed {p.time_to_target:6.1f} s "
-        f"({p.design['n_per_axis']}/axis {p.design['spread']} f0 {p.design['f0']:.3g}); best standard "
+        + (f"({p.design['n_per_axis']}/axis {p.design['spread']} f0 {p.design['f0']:.3g}); "
+           if p.design.get('family', 'multisine') == 'multisine' else f"(standard {p.design['family']}); ")
+        + f"best standard "
         f"{best['name']} {best['time_to_target']:6.1f} s (ratio {best['time_to_target'] / p.time_to_target:.2f}); "
         f"scene own profile {sc.duration:g} s; achieved {[round(a, 1) for a in ach]} s "
         f"(pred/ach {[round(p.time_to_target / a, 2) for a in ach]}); plan {dt:.0f} s",

@@ -22,7 +22,9 @@ centred on the initial rate).  The base frequency is searched around the corner 
 ``u_max / (2 pi I omega_max)`` at which a full-amplitude tone just reaches the rate limit.
 Each candidate is scored by its criterion (the largest targeted relative sigma) at the design
 horizon, on the prior value and then, for the best few, on bodies drawn from the prior: the
-worst case decides.
+worst case decides.  The standard profiles (:func:`.profiles.standard_profiles`, at the same
+limits) compete under the same worst-case criterion: the plan is a standard profile when it is
+predicted better than the designed multisine.
 
 Information is evaluated at a reduced rate ``r`` with the noise rescaled to the same density
 (gyro std ``sigma_g sqrt(r / rate_g)``, torque ``sigma_t sqrt(r / rate_t)``): the bound is
@@ -311,9 +313,11 @@ class Plan:
     Attributes
     ----------
     profile : Profile
-        The designed profile, within the limits.
+        The planned profile, within the limits: the designed multisine or a standard profile
+        that is predicted better (:func:`_candidates`).
     design : dict
-        Its parameters (``f0`` Hz, ``n_per_axis``, ``decay``, ``quadrature``, ``spread``,
+        ``family``: ``multisine`` or the standard profile's name; for a multisine its
+        parameters (``f0`` Hz, ``n_per_axis``, ``decay``, ``quadrature``, ``spread``,
         ``stagger``: :func:`.profiles.multisine`).
     model : str
         ``full`` or ``diagonal``: the model whose information the plan uses (run the
@@ -335,9 +339,11 @@ class Plan:
     peak_rate : float
         Simulated peak ``|omega|`` [rad/s] over the prior bodies.
     comparison : list of dict
-        One row per profile (designed first): ``name``, ``criterion`` (worst over the prior
-        bodies at the horizon), ``time_to_target`` [s] (inf when not reached within
-        ``max_duration``), ``peak_rate`` [rad/s], ``peak_torque`` [N m] per axis.
+        One row per profile (the planned one first, then the designed multisine if a
+        standard profile won, then the other standard profiles): ``name``, ``criterion``
+        (worst over the prior bodies at the horizon), ``time_to_target`` [s] (inf when not
+        reached within ``max_duration``), ``peak_rate`` [rad/s], ``peak_torque`` [N m] per
+        axis.
     horizon : float
         Length [s] at which the candidates were compared.
     usage : dict
@@ -472,6 +478,33 @@ def simulated_peak_rate(profile: Profile, bodies: Sequence[np.ndarray], lim: Lim
     return worst
 
 
+def _candidates(prior: Prior, bodies: list[np.ndarray], lim: Limits, target: Target,
+                model: str, t_end: float, horizon: float, rate: float, seed: int
+                ) -> tuple[dict[str, Any], tuple[Any, ...], list[dict[str, Any]]]:
+    """The plan's profile: the designed multisine (the best of :func:`_design`'s candidates
+    by time to target) or a standard profile at the same limits, whichever has the smaller
+    worst criterion over the prior bodies at the horizon (the designed one on a tie).
+
+    Returns the winner's design (``family``: ``multisine`` or the standard profile's name),
+    its :func:`_row` and the comparison rows of the others (the designed one first).
+    """
+    best: Any = None
+    for par_i, prof_i in _design(prior, bodies, lim, target, model, horizon, rate, seed):
+        got = _row('designed', prof_i, bodies, prior, lim, target, model, t_end, horizon,
+                   rate, seed)
+        if best is None or got[0]['time_to_target'] < best[1][0]['time_to_target']:
+            best = ({'family': 'multisine', **par_i}, got)
+        if target.rel_std is None:
+            break                     # a duration target: the criterion decided already
+    cands = [best] + [({'family': p.name}, _row(p.name, p, bodies, prior, lim, target, model,
+                                                   t_end, horizon, rate, seed))
+                      for p in standard_profiles(lim.max_torque)]
+    k = min(range(len(cands)), key=lambda i: (cands[i][1][0]['criterion'], i))
+    others = [{**c[1][0], 'name': c[1][1].name if i == 0 else c[1][0]['name']}
+              for i, c in enumerate(cands) if i != k]
+    return cands[k][0], cands[k][1], others
+
+
 def plan(prior: Prior, lim: Limits, target: Target, *, n_bodies: int = 3, seed: int = 0,
          compare: bool = True) -> Plan:
     """Design an excitation for ``target`` within ``lim``, robust over ``prior``.
@@ -506,15 +539,8 @@ def plan(prior: Prior, lim: Limits, target: Target, *, n_bodies: int = 3, seed: 
     bodies = prior.bodies(max(1, n_bodies), seed)
     t_end = target.duration if target.duration is not None else target.max_duration
     horizon = min(t_end, _horizon(prior, lim, target, model, t_end, rate, seed))
-    best: Any = None
-    for par_i, prof_i in _design(prior, bodies, lim, target, model, horizon, rate, seed):
-        got = _row('designed', prof_i, bodies, prior, lim, target, model, t_end, horizon,
-                   rate, seed)
-        if best is None or got[0]['time_to_target'] < best[1][0]['time_to_target']:
-            best = (par_i, got)
-        if target.rel_std is None:
-            break                     # a duration target: the criterion decided already
-    par, (row, limited, curve) = best
+    par, (row, limited, curve), others = _candidates(prior, bodies, lim, target, model,
+                                                     t_end, horizon, rate, seed)
     ttt = row['time_to_target']
     if target.rel_std is not None and not math.isfinite(ttt):
         raise ValueError(
@@ -537,9 +563,7 @@ def plan(prior: Prior, lim: Limits, target: Target, *, n_bodies: int = 3, seed: 
         pk = simulated_peak_rate(limited, bodies, lim, duration, seed)
     rows = [{**row, 'name': limited.name, 'time_to_target': ttt, 'peak_rate': pk}]
     if compare:
-        for std_prof in standard_profiles(lim.max_torque):
-            rows.append(_row(std_prof.name, std_prof, bodies, prior, lim, target, model,
-                             t_end, horizon, rate, seed)[0])
+        rows += others
     usage = limit_usage(limited, bodies, lim, t_end, seed)
     return Plan(profile=limited, design=par, model=model, duration=duration,
                 time_to_target=ttt if target.rel_std is not None else math.nan,
