@@ -141,18 +141,10 @@ CAPABILITIES: dict[str, dict[str, dict[str, str]]] = {
         'torque_scale_std': _row(), 'gyro_scale_std': _row(), 'adequacy': _row(),
     },
     # each re-solve is the batch estimator on the window (the momentum inputs: its
-    # estimate_with_momentum), so the cells are the batch ones
-    'window': {
-        'input': _row(),
-        'hold_auto': _row(),
-        'hold_zoh': _row(), 'hold_linear': _row(),
-        'model_auto': _row(), 'torque_bias_auto': _row(),
-        'nuisance': _mom(_MOM_NUISANCE, torque_free=_TF_NUISANCE),
-        'torque_scale_std': _row(wheels=_TORQUE_SCALE_MOM, rotors=_TORQUE_SCALE_MOM,
-                                 torque_free=_TF_TORQUE_SCALE),
-        'gyro_scale_std': _row(), 'adequacy': _row(),
-    },
+    # estimate_with_momentum), so the cells are the batch ones: derived, not copied
+    'window': {},
 }
+CAPABILITIES['window'] = {feature: dict(row) for feature, row in CAPABILITIES['batch'].items()}
 
 
 @dataclass(frozen=True)
