@@ -21,8 +21,8 @@ from .noise import median_rows
 from .options import GAP_FACTOR
 from .regressors import cumulative_torque, monomials
 
-__all__ = ['OnlineAligner', 'gap_starts', 'hermite', 'hermite_basis', 'inside_gaps',
-           'run_slopes']
+__all__ = ['OnlineAligner', 'cross_matrices', 'cumtrapz', 'gap_starts', 'hermite',
+           'hermite_basis', 'inside_gaps', 'run_slopes']
 
 _DT_HISTORY = 64        # recent sample intervals kept per stream for the nominal interval
 
@@ -113,6 +113,21 @@ def hermite_basis(t_h: np.ndarray, t: np.ndarray
     h00, h10 = 2 * u ** 3 - 3 * u ** 2 + 1, u ** 3 - 2 * u ** 2 + u
     h01, h11 = -2 * u ** 3 + 3 * u ** 2, u ** 3 - u ** 2
     return j, (h00, h10 * dx, h01, h11 * dx)
+
+
+def cumtrapz(t: np.ndarray, f: np.ndarray) -> np.ndarray:
+    """Cumulative trapezoid of ``f`` (n, ...) over the stamps ``t`` (n,) [s], 0 at ``t[0]``."""
+    dt = np.diff(t).reshape((-1,) + (1,) * (f.ndim - 1))
+    out = np.zeros_like(f)
+    out[1:] = np.cumsum(0.5 * (f[1:] + f[:-1]) * dt, axis=0)
+    return out
+
+
+def cross_matrices(v: np.ndarray) -> np.ndarray:
+    """``[v]x`` (n, 3, 3) with ``[v]x u = v x u`` for each row of ``v`` (n, 3)."""
+    out = np.zeros((len(v), 3, 3))
+    out[:, 0, 1], out[:, 0, 2], out[:, 1, 2] = -v[:, 2], v[:, 1], -v[:, 0]
+    return out - out.transpose(0, 2, 1)
 
 
 class OnlineAligner:

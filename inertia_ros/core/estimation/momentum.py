@@ -389,13 +389,6 @@ def _interp_h(t_h: np.ndarray, h: np.ndarray, t: np.ndarray,
     return hermite(t_h, h, run_slopes(t_h, h, gaps), t, basis)
 
 
-def _cross_matrices(v: np.ndarray) -> np.ndarray:
-    """``[v]x`` (n, 3, 3) with ``[v]x u = v x u`` for each row of ``v`` (n, 3)."""
-    out = np.zeros((len(v), 3, 3))
-    out[:, 0, 1], out[:, 0, 2], out[:, 1, 2] = -v[:, 2], v[:, 1], -v[:, 0]
-    return out - out.transpose(0, 2, 1)
-
-
 def _noise_terms(tg: np.ndarray, w: np.ndarray, inside: np.ndarray, grid: np.ndarray,
                  mom: Momentum, ts: np.ndarray, tau: np.ndarray,
                  options: dict[str, Any]) -> tuple[np.ndarray, float]:
@@ -452,8 +445,10 @@ def walk_sums(hg: np.ndarray, wg: np.ndarray) -> tuple[np.ndarray, np.ndarray, i
     n : int
         Grid points summed.
     """
-    hx = _cross_matrices(hg)
-    wx = _cross_matrices(wg)
+    from .align import cross_matrices
+
+    hx = cross_matrices(hg)
+    wx = cross_matrices(wg)
     return (np.einsum('nij,nij->ij', hx, hx), np.einsum('nij,nik->ijk', wx, wx), len(hg))
 
 
@@ -626,10 +621,10 @@ def _hold_rss(results: dict[str, Any], tg: np.ndarray, w: np.ndarray, mom: Momen
     """Weighted residual sums (K,) per window of each hold's anchored equations at its own
     whole-record tensor and bias (one weight, from the held fit): the batch's
     :func:`.batch._hold_window_rss` on the equivalent torques.  Why not, when not."""
+    from .align import gap_starts
     from .batch import _HOLD_MIN_ROWS, _HOLD_WINDOWS
     from .equations import build_equations
     from .fit import equation_weight
-    from .options import GAP_FACTOR
     from .regressors import metric
     from .statistics import sufficient_stats, window_raw
 
@@ -644,7 +639,8 @@ def _hold_rss(results: dict[str, Any], tg: np.ndarray, w: np.ndarray, mom: Momen
     gv = np.asarray(results['zoh'].diagnostics['gyro_noise_std'], dtype=float) ** 2
     W = equation_weight(-coef['zoh'][:6], gv)
     t0 = float(tg[0])
-    breaks = np.diff(tg) > GAP_FACTOR * float(np.median(np.diff(tg)))
+    breaks = np.zeros(len(tg) - 1, dtype=bool)
+    breaks[gap_starts(tg)] = True
     n_win = min(_HOLD_WINDOWS, len(tg) // _HOLD_MIN_ROWS)
     no_walk = np.zeros(3)
     out = {}

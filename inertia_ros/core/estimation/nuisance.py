@@ -51,10 +51,10 @@ import numpy as np
 
 from .._validate import as_samples, as_times
 from ..tensor import THETA_COLS, THETA_ROWS, theta_to_matrix
+from .align import cross_matrices, cumtrapz, gap_starts
 from .noise import noise_std_from_differences
 from .options import (
     ALPHA,
-    GAP_FACTOR,
     NUISANCE_EIV_SHARE,
     NUISANCE_INTERVALS_S,
     NUISANCE_MAX_DELAY_S,
@@ -64,11 +64,11 @@ from .options import (
 )
 from .regressors import cumulative_torque
 from .result import InertiaEstimate
+from .stated import lhs_columns
 from .uncertainty import principal_with_std, ratio_cov
 
 __all__ = ['NuisanceFit', 'apply_nuisance', 'fit_nuisance', 'nuisance_hook', 'with_nuisance']
 
-_BASIS = np.array([theta_to_matrix(e) for e in np.eye(6)])     # (6, 3, 3) dI / dtheta_j
 _SIZES = {'gyro_bias': 3, 'torque_delay': 1, 'damping': 3, 'gyro_lowpass': 1}
 _GRID = 11                      # profile grid points over a nonlinear term's range
 _GOLDEN_STEPS = 20              # golden-section iterations after the grid
@@ -161,8 +161,7 @@ def _prepare(tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.ndarray
     dt = float(np.median(np.diff(tg)))
     noise_var = noise_std_from_differences(w) ** 2
     margin = NUISANCE_MAX_DELAY_S + NUISANCE_MAX_TIME_CONSTANT_S
-    dts = np.diff(ts)
-    gaps = np.flatnonzero(dts > GAP_FACTOR * float(np.median(dts)))
+    gaps = gap_starts(ts)
     best: tuple[np.ndarray, np.ndarray, float, float] | None = None
     for length in NUISANCE_INTERVALS_S:
         m = max(2, int(round(length / dt)))
@@ -189,22 +188,6 @@ def _prepare(tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.ndarray
                                              'regressor_noise_share': share}
 
 
-def _cumtrapz(t: np.ndarray, f: np.ndarray) -> np.ndarray:
-    """Cumulative trapezoid integral of ``f`` (N, ...) over ``t`` (N,), zero at ``t[0]``."""
-    out = np.zeros_like(f)
-    h = np.diff(t).reshape((-1,) + (1,) * (f.ndim - 1))
-    np.cumsum(0.5 * h * (f[1:] + f[:-1]), axis=0, out=out[1:])
-    return out
-
-
-def _skew(v: np.ndarray) -> np.ndarray:
-    """Cross-product matrices (N, 3, 3) of vectors (N, 3)."""
-    z = np.zeros(len(v))
-    return np.stack([np.stack([z, -v[:, 2], v[:, 1]], -1),
-                     np.stack([v[:, 2], z, -v[:, 0]], -1),
-                     np.stack([-v[:, 1], v[:, 0], z], -1)], 1)
-
-
 def _design(d: _Data, terms: tuple[str, ...], theta: np.ndarray,
             bias: np.ndarray) -> tuple[np.ndarray, list[str]]:
     """Interval design (n, 3, p) of the linear parameters and their names.
@@ -213,17 +196,16 @@ def _design(d: _Data, terms: tuple[str, ...], theta: np.ndarray,
     linearisation at ``theta``.
     """
     w = d.w - bias
-    Ew = np.einsum('jkl,nl->njk', _BASIS, w)                    # (N, 6, 3)
-    cols = [np.swapaxes(Ew + _cumtrapz(d.tg, np.cross(w[:, None, :], Ew)), 1, 2)]
+    cols = [lhs_columns(d.tg, w)]                               # the tensor's, (N, 3, 6)
     cols.append(-d.tg[:, None, None] * np.eye(3))              # constant disturbance d
     names = ['ixx', 'iyy', 'izz', 'ixy', 'ixz', 'iyz', 'torque_bias_x', 'torque_bias_y',
              'torque_bias_z']
     if 'gyro_bias' in terms:
         I = theta_to_matrix(theta, check_finite=False)
-        cols.append(_cumtrapz(d.tg, _skew(w @ I) - _skew(w) @ I))
+        cols.append(cumtrapz(d.tg, cross_matrices(w @ I) - cross_matrices(w) @ I))
         names += ['gyro_bias_x', 'gyro_bias_y', 'gyro_bias_z']
     if 'damping' in terms:
-        cols.append(_cumtrapz(d.tg, w)[:, :, None] * np.eye(3))
+        cols.append(cumtrapz(d.tg, w)[:, :, None] * np.eye(3))
         names += ['damping_x', 'damping_y', 'damping_z']
     X = np.concatenate(cols, axis=2)
     return X[d.b] - X[d.a], names
@@ -526,7 +508,7 @@ def apply_nuisance(tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.ndarra
               float(np.median(np.diff(tgs))))
     Jc = _torque_side(d, t_true, fit.delay, fit.time_constant)
     if 'damping' in fit.terms:
-        W = _cumtrapz(tgs, w2)
+        W = cumtrapz(tgs, w2)
         D = np.asarray(fit.value('damping'))
         Jc = Jc - D * np.stack([np.interp(t_true, tgs, W[:, i]) for i in range(3)], 1)
     tau2 = np.empty_like(tau)

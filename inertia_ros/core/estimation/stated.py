@@ -24,7 +24,9 @@ from typing import Any
 import numpy as np
 
 from ..tensor import principal_axes, theta_to_matrix
+from .align import cumtrapz, gap_starts
 from .momentum import Momentum, Reduction
+from .regressors import MOMENTUM_BASIS, momentum_matrix
 
 __all__ = ['Stated', 'cumulative_impulse', 'intervals', 'lhs_columns', 'profile_inputs',
            'propagate', 'record_inputs']
@@ -38,7 +40,6 @@ _SMOOTH_S = 0.2                 # window of the smoothed input changes [s]
 _MIN_INFORMATION = 4.0          # data information per prior information kept
 _MIN_INTERVAL_S = 0.5           # shortest interval of the profile [s]
 _DU = 0.1                       # finite-difference step of the columns [stated sigmas]
-_UNIT = np.array([theta_to_matrix(e) for e in np.eye(6)])       # (6, 3, 3) dI / dtheta_j
 #: Rows per product of :func:`_tall_lstsq`: below this the BLAS keeps to one thread (a
 #: least-squares solve of all the rows woke its threads, whose spinning cost more CPU than
 #: the work on a loaded machine)
@@ -46,20 +47,12 @@ _ROWS = 4096
 _MIN_EIGEN = 1e-10              # equilibrated normal equations' smallest relative eigenvalue
 
 
-def _cumtrapz(t: np.ndarray, f: np.ndarray) -> np.ndarray:
-    """Cumulative trapezoid of ``f`` (n, ...) over ``t`` (n,), starting at 0."""
-    dt = np.diff(t).reshape((-1,) + (1,) * (f.ndim - 1))
-    out = np.zeros_like(f)
-    out[1:] = np.cumsum(0.5 * (f[1:] + f[:-1]) * dt, axis=0)
-    return out
-
-
 def lhs_columns(t: np.ndarray, w: np.ndarray) -> np.ndarray:
     """``d/d theta_j`` of ``I w(t) + int_0^t w x I w`` (n, 3, 6) [rad/s, rad] at the gyro
     stamps ``t`` (n,) [s] for the rates ``w`` (n, 3) [rad/s] (trapezoid)."""
-    Iw = np.einsum('jab,nb->naj', _UNIT, w)                 # (n, 3, 6)
+    Iw = momentum_matrix(w)                                 # (n, 3, 6)
     gyro = np.cross(w[:, :, None], Iw, axisa=1, axisb=1, axisc=1)
-    return Iw + _cumtrapz(t, gyro)
+    return Iw + cumtrapz(t, gyro)
 
 
 def cumulative_impulse(grid: np.ndarray, torque: np.ndarray, t: np.ndarray) -> np.ndarray:
@@ -70,14 +63,13 @@ def cumulative_impulse(grid: np.ndarray, torque: np.ndarray, t: np.ndarray) -> n
     return J[np.clip(np.searchsorted(grid, t), 0, len(grid) - 1)]
 
 
-def intervals(t: np.ndarray, count: int, gap_factor: float = 1.5
-              ) -> tuple[np.ndarray, np.ndarray]:
+def intervals(t: np.ndarray, count: int) -> tuple[np.ndarray, np.ndarray]:
     """Start and end indices (k,) of about ``count`` non-overlapping intervals of the stamps
-    ``t`` (n,) [s] that share no sample (one skipped between them) and span no gap of over
-    ``gap_factor`` median intervals: their equations have independent noise (white gyro
+    ``t`` (n,) [s] that share no sample (one skipped between them) and span no gap (the one
+    gap rule, :func:`.align.gap_starts`): their equations have independent noise (white gyro
     noise at the ends, torque-noise walk increments inside)."""
-    dt = np.diff(t)
-    bad = dt > gap_factor * float(np.median(dt))
+    bad = np.zeros(len(t) - 1, dtype=bool)
+    bad[gap_starts(t)] = True
     edges = np.linspace(0, len(t) - 1, max(count, 1) + 1).round().astype(int)
     a, b = edges[:-1] + (np.arange(len(edges) - 1) > 0), edges[1:]
     cum = np.r_[0, np.cumsum(bad)]
@@ -199,8 +191,9 @@ def profile_inputs(t: np.ndarray, X: np.ndarray, y: np.ndarray, C: np.ndarray,
     Aw = A / sigma[None, :, None]
     H = np.einsum('nai,naj->ij', Aw, Aw)
     if gyro_var is not None:          # E[(E_j n)(E_k n)'] on the demeaned rows, per axis
-        S = np.einsum('jab,b,kcb->jkac', _UNIT, np.asarray(gyro_var, float), _UNIT)
-        H[:6, :6] -= (len(rows) - len(i)) * np.einsum('jkaa,a->jk', S, sigma ** -2.0)
+        H[:6, :6] -= (len(rows) - len(i)) * np.einsum(
+            'c,crk,r,crl->kl', np.asarray(gyro_var, float), MOMENTUM_BASIS, sigma ** -2.0,
+            MOMENTUM_BASIS)
     # the interval-clustered scores: residuals correlated within an interval (a torque-noise
     # walk, an interpolated momentum sample) count once per interval
     sc = np.zeros((len(i), m))
