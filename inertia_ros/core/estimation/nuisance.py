@@ -44,13 +44,13 @@ from __future__ import annotations
 
 import functools
 from collections.abc import Callable
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
 from .._validate import as_samples, as_times
-from ..tensor import THETA_COLS, THETA_ROWS, theta_to_matrix
+from ..tensor import theta_to_matrix
 from .align import cross_matrices, cumtrapz, gap_starts
 from .noise import noise_std_from_differences
 from .options import (
@@ -65,7 +65,7 @@ from .options import (
 from .regressors import cumulative_torque
 from .result import InertiaEstimate
 from .stated import lhs_columns
-from .uncertainty import principal_with_std, ratio_cov
+from .uncertainty import widen
 
 __all__ = ['NuisanceFit', 'apply_nuisance', 'fit_nuisance', 'nuisance_hook', 'with_nuisance']
 
@@ -533,29 +533,6 @@ def _added_cov(fit: NuisanceFit) -> np.ndarray:
     return (vec * np.maximum(lam, 0.0)) @ vec.T
 
 
-def _widen(est: InertiaEstimate, added: np.ndarray) -> InertiaEstimate:
-    """``est`` with ``added`` (6, 6) in its covariance and every sigma derived from it."""
-    if est.covariance is None or est.inertia is None:
-        return est
-    cov = np.asarray(est.covariance, dtype=float)
-    fixed = np.diag(cov) == 0.0                   # elements the model holds (diagonal: products)
-    added = np.where(fixed[:, None] | fixed[None, :], 0.0, added)
-    cov6 = cov + added
-    diag = est.diagnostics
-    std = np.sqrt(np.maximum(np.diag(cov6), 0.0))
-    out: dict[str, Any] = {'covariance': cov6,
-                           'inertia_std': theta_to_matrix(std, check_finite=False)}
-    I = np.asarray(est.inertia)
-    if est.principal_moments is not None:
-        principal_with_std(I, np.nan_to_num(cov6), diag)
-    if est.ratios_std is not None and np.all(np.isfinite(I)):
-        theta = I[THETA_ROWS, THETA_COLS]
-        r_se = np.sqrt(np.maximum(np.diag(ratio_cov(theta, np.nan_to_num(cov6))), 0.0))
-        out['ratios_std'] = theta_to_matrix(np.where(np.isfinite(std), r_se, np.nan),
-                                            check_finite=False)
-    return replace(est, **out)
-
-
 def nuisance_hook(fn: Callable[..., InertiaEstimate]) -> Callable[..., InertiaEstimate]:
     """Give :func:`.batch.estimate` its ``nuisance`` option (the decorated function itself
     always runs with the option off, on the corrected streams when terms are chosen)."""
@@ -632,7 +609,7 @@ def with_nuisance(estimate_fn: Callable[..., InertiaEstimate], streams: tuple[An
         return est
     added = _added_cov(fit)
     est = done.get(fit.terms)
-    est = _widen(est if est is not None else corrected(fit, kw_fit), added)
+    est = widen(est if est is not None else corrected(fit, kw_fit), added)
     record['values'] = {t: fit.value(t) for t in fit.terms}
     record['sigma'] = {t: fit.sigma(t) for t in fit.terms}
     record['units'] = {t: _UNITS[t] for t in fit.terms}

@@ -36,7 +36,6 @@ reduction of the other torque on both sides.
 """
 from __future__ import annotations
 
-from dataclasses import replace
 from types import SimpleNamespace
 from typing import Any
 
@@ -48,11 +47,9 @@ from .fit import _anchored_meat, equation_weight, fit_two_pass
 from .model import model_basis
 from .options import MIN_EQUATIONS, MIN_GYRO_SAMPLES
 from .regressors import MOMENTUM_BASIS, VARIABLE_MAP
-from .stated import _MIN_INFORMATION, _larger, record_inputs
-from .uncertainty import principal_with_std, ratio_cov
+from .stated import _MIN_INFORMATION, _larger, widened
 
-__all__ = ['StatedAligner', 'StatedInputs', 'correction_map', 'profile', 'sensitivities',
-           'widened']
+__all__ = ['StatedAligner', 'StatedInputs', 'correction_map', 'profile', 'sensitivities']
 
 _STEPS = 4                      # Gauss-Newton steps at most (the gyro scale's column moves)
 _TOL = 0.01                     # converged: every step below this many posterior sigmas
@@ -381,11 +378,9 @@ class StatedInputs:
             D = sensitivities(lambda u: self.read(est, u), self.u, res, est.axis,
                               est._gyro_var(), tv)
             self.cache = (key, D, span)
-        per = {nm: {'theta_change': D[j], 'profiled_sigmas': float(self.u[j]),
-                    'posterior_sigmas': float(np.sqrt(max(self.cov_u[j, j], 0.0)))}
-               for j, nm in enumerate(self.names)}
-        return widened(res, per, D.T @ self.cov_u @ D, self.cov_u, self.torque_scale_std,
-                       self.gscale)
+        return widened(res, D, self.u, self.cov_u, self.names, 'the accumulated equations, '
+                       'the statistics read with the inputs corrected by the posterior mean',
+                       self.torque_scale_std, self.gscale)
 
 
 def sensitivities(stats: Any, u_hat: np.ndarray, est: Any, axis: Any, nv: np.ndarray,
@@ -404,23 +399,3 @@ def sensitivities(stats: Any, u_hat: np.ndarray, est: Any, axis: Any, nv: np.nda
         return basis @ f.beta[:k]
     ref = theta(u_hat)
     return np.array([np.nan_to_num(theta(u_hat + e) - ref) for e in np.eye(len(u_hat))])
-
-
-def widened(est: Any, per: dict[str, Any], outer: np.ndarray, cov_u: np.ndarray,
-            torque_scale_std: float, gyro_scale_std: float) -> Any:
-    """``est`` with ``outer`` (6, 6), the stated inputs' ``D cov_u D'``, added to its
-    covariance and every standard error derived from it; ``per``: each input's record,
-    ``cov_u`` (q, q) their posterior covariance; the stated scales recorded in
-    ``diagnostics['calibration']``."""
-    cov6 = np.asarray(est.covariance) + outer
-    diag = dict(est.diagnostics)
-    moments, axes = principal_with_std(est.inertia, cov6, diag)
-    r_se = np.sqrt(np.maximum(np.diag(ratio_cov(est.theta, cov6)), 0.0))
-    record_inputs(diag, per, outer, cov_u, 'the accumulated equations, the statistics read '
-                  'with the inputs corrected by the posterior mean', torque_scale_std,
-                  gyro_scale_std, est.status)
-    return replace(est, covariance=cov6,
-                   inertia_std=theta_to_matrix(np.sqrt(np.maximum(np.diag(cov6), 0.0)),
-                                               check_finite=False),
-                   ratios_std=theta_to_matrix(r_se, check_finite=False),
-                   principal_moments=moments, principal_axes=axes, diagnostics=diag)

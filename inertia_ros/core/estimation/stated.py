@@ -23,13 +23,13 @@ from typing import Any
 
 import numpy as np
 
-from ..tensor import principal_axes, theta_to_matrix
 from .align import cumtrapz, gap_starts
 from .momentum import Momentum, Reduction
 from .regressors import MOMENTUM_BASIS, momentum_matrix
+from .uncertainty import widen
 
 __all__ = ['Stated', 'cumulative_impulse', 'intervals', 'lhs_columns', 'profile_inputs',
-           'propagate', 'record_inputs']
+           'propagate', 'record_inputs', 'widened']
 
 #: Rows the profile of the stated inputs needs (fewer: the inputs stay at their prior).
 _MIN_PROFILE_ROWS = 20
@@ -426,49 +426,35 @@ def propagate(res: Any, run: Any, st: Stated, options: dict[str, Any]) -> Any:
     # the reference and the sensitivity runs are used for their tensors alone: without the
     # adequacy tests (which only widen a covariance)
     ref = out if out.method != 'ml' else run(*st.torque(u_hat), **fixed, final=False)
-    D, per = [], {}
-    for j, name in enumerate(names):
+    D = np.zeros((len(names), 6))                   # d theta (6,) per input sigma
+    for j in range(len(names)):
         p = run(*st.torque(u_hat + np.eye(len(names))[j]), **fixed, final=False)
-        good = p.inertia is not None and bool(np.all(np.isfinite(p.inertia)))
-        d6 = np.nan_to_num(p.theta - ref.theta) if good else np.zeros(6)
-        D.append((d6, p.inertia if good else ref.inertia))
-        per[name] = {'theta_change': d6, 'profiled_sigmas': float(u_hat[j]),
-                     'posterior_sigmas': float(np.sqrt(max(cov_u[j, j], 0.0)))}
-    return _widen(out, ref, D, per, cov_u, st)
+        if p.inertia is not None and np.all(np.isfinite(p.inertia)):
+            D[j] = np.nan_to_num(p.theta - ref.theta)
+    return widened(out, D, u_hat, cov_u, names, 'the anchored equations, the data corrected '
+                   'by the posterior mean', st.scale, st.gscale)
 
 
-def _widen(res: Any, ref: Any, D: list[tuple[np.ndarray, np.ndarray]], per: dict[str, Any],
-           cov_u: np.ndarray, st: Stated) -> Any:
-    """``res`` with ``D cov_u D'`` added to every reported uncertainty (first order)."""
-    diag = dict(res.diagnostics)
-    d6 = np.array([d for d, _ in D])                                  # (q, 6)
-    outer = d6.T @ cov_u @ d6
-    I0 = ref.inertia
-    m0, a0 = principal_axes(I0)
-    dm, dr, da = [], [], []
-    for _, I1 in D:
-        m1, a1 = principal_axes(I1)
-        dm.append(m1 - m0)
-        dr.append((I1 / np.trace(I1) - I0 / np.trace(I0)).reshape(-1))
-        da.append(np.arccos(np.clip(np.abs(np.sum(a0 * a1, axis=0)), 0.0, 1.0)))
+def widened(est: Any, D: np.ndarray, u: np.ndarray, cov_u: np.ndarray, names: list[str],
+            where: str, scale: float, gscale: float) -> Any:
+    """``est`` with the stated inputs' ``D' cov_u D`` added to its covariance and every
+    uncertainty derived from it (:func:`.uncertainty.widen`), and their record
+    (:func:`record_inputs`), batch and online alike.
 
-    def var(x: list[np.ndarray]) -> np.ndarray:
-        a = np.array(x)
-        return np.maximum(np.einsum('ia,ij,ja->a', a, cov_u, a), 0.0)
-    std6 = np.nan_to_num(res.theta_std)
-    new_std = np.sqrt(std6 ** 2 + np.diag(outer))
-    new_std[~np.isfinite(res.theta_std)] = np.nan
-    ratios_std = res.ratios_std
-    if ratios_std is not None:
-        ratios_std = np.sqrt(np.asarray(ratios_std) ** 2 + var(dr).reshape(3, 3))
-    for key, v in (('principal_moments_std', var(dm)), ('principal_axes_std', var(da))):
-        if key in diag:
-            diag[key] = np.sqrt(np.asarray(diag[key]) ** 2 + v)
-    record_inputs(diag, per, outer, cov_u, 'the anchored equations, the data corrected by the '
-                  'posterior mean', st.scale, st.gscale, res.status)
-    cov = None if res.covariance is None else np.asarray(res.covariance) + outer
-    return replace(res, inertia_std=theta_to_matrix(new_std, check_finite=False),
-                   ratios_std=ratios_std, covariance=cov, diagnostics=diag)
+    ``D`` (q, 6): the change of ``theta`` per stated sigma of each input; ``u`` (q,), ``cov_u``
+    (q, q): their posterior mean [stated sigmas] and covariance; ``names`` (q): the inputs;
+    ``where``: the equations the profile ran on; ``scale``, ``gscale``: the stated torque and
+    gyro scale sigmas.
+    """
+    outer = D.T @ cov_u @ D
+    per = {nm: {'theta_change': D[j], 'profiled_sigmas': float(u[j]),
+                'posterior_sigmas': float(np.sqrt(max(cov_u[j, j], 0.0)))}
+           for j, nm in enumerate(names)}
+    out = widen(est, outer)
+    if out is est:
+        out = replace(est, diagnostics=dict(est.diagnostics))
+    record_inputs(out.diagnostics, per, outer, cov_u, where, scale, gscale, out.status)
+    return out
 
 
 def record_inputs(diag: dict[str, Any], per: dict[str, Any], outer: np.ndarray,

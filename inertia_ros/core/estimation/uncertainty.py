@@ -6,14 +6,15 @@ covariance of ``theta`` (6, 6) [kg^2 m^4].
 """
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
 
-from ..tensor import principal_axes
+from ..tensor import THETA_COLS, THETA_ROWS, principal_axes, theta_to_matrix
 from .model import TRACE
 
-__all__ = ['axis_std', 'moment_std', 'principal_with_std', 'ratio_cov']
+__all__ = ['axis_std', 'moment_std', 'principal_with_std', 'ratio_cov', 'widen']
 
 
 def moment_std(I: np.ndarray, cov6: np.ndarray) -> np.ndarray:
@@ -76,3 +77,31 @@ def principal_with_std(I: np.ndarray, cov6: np.ndarray,
     diag['principal_moments_std'] = moment_std(I, cov6)
     diag['principal_axes_std'] = axis_std(I, cov6)
     return moments, axes
+
+
+def widen(est: Any, added: np.ndarray) -> Any:
+    """``est`` with ``added`` (6, 6) [kg^2 m^4] in its covariance and every standard error
+    derived from it (the tensor's, the principal moments' and axes', the ratios'): the one
+    widening of the nuisance terms and of the stated inputs, batch and online alike.
+
+    Elements the parameter set holds (zero variance) stay held; an estimate without a
+    covariance or a tensor is returned as it is.
+    """
+    if est.covariance is None or est.inertia is None:
+        return est
+    cov = np.asarray(est.covariance, dtype=float)
+    fixed = np.diag(cov) == 0.0                   # elements the model holds (diagonal: products)
+    cov6 = cov + np.where(fixed[:, None] | fixed[None, :], 0.0, added)
+    std = np.sqrt(np.maximum(np.diag(cov6), 0.0))
+    diag = dict(est.diagnostics)
+    out: dict[str, Any] = {'covariance': cov6, 'diagnostics': diag,
+                           'inertia_std': theta_to_matrix(std, check_finite=False)}
+    I = np.asarray(est.inertia)
+    if est.principal_moments is not None:
+        out['principal_moments'], out['principal_axes'] = principal_with_std(
+            I, np.nan_to_num(cov6), diag)
+    if est.ratios_std is not None and np.all(np.isfinite(I)):
+        r_cov = ratio_cov(I[THETA_ROWS, THETA_COLS], np.nan_to_num(cov6))
+        out['ratios_std'] = theta_to_matrix(np.where(np.isfinite(std), np.sqrt(
+            np.maximum(np.diag(r_cov), 0.0)), np.nan), check_finite=False)
+    return replace(est, **out)
