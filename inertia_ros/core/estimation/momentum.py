@@ -619,41 +619,26 @@ def _hold_auto(held: Any, run: Any, tg: np.ndarray, w: np.ndarray, mom: Momentum
 def _hold_rss(results: dict[str, Any], tg: np.ndarray, w: np.ndarray, mom: Momentum,
               ts: np.ndarray, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray] | str:
     """Weighted residual sums (K,) per window of each hold's anchored equations at its own
-    whole-record tensor and bias (one weight, from the held fit): the batch's
-    :func:`.batch._hold_window_rss` on the equivalent torques.  Why not, when not."""
+    whole-record tensor and bias (one weight, from the held fit): the batch's rule,
+    :func:`.batch._hold_window_rss`, on the equations of each hold's equivalent torque
+    (:func:`.equations.shared_integral_equations`, the regressors built once).  Why not,
+    when not."""
     from .align import gap_starts
-    from .batch import _HOLD_MIN_ROWS, _HOLD_WINDOWS
-    from .equations import build_equations
-    from .fit import equation_weight
-    from .regressors import metric
-    from .statistics import sufficient_stats, window_raw
+    from .batch import _hold_window_rss
+    from .equations import shared_integral_equations
 
-    coef = {}
-    for h, r in results.items():
-        if r is None or r.theta is None or not np.all(np.isfinite(r.theta)):
-            return f'the {h} fit has no complete tensor: the holds are not compared'
-        bias = np.zeros(3) if r.torque_bias is None else np.asarray(r.torque_bias, float)
-        coef[h] = np.concatenate([-r.theta, -bias, [1.0]])
-    if len(tg) < 8 * _HOLD_MIN_ROWS:
-        return f'{len(tg)} gyro samples are too few for 8 windows: the holds are not compared'
+    if results['linear'] is None:
+        return 'the linear fit covers too few gyro samples: the holds are not compared'
     gv = np.asarray(results['zoh'].diagnostics['gyro_noise_std'], dtype=float) ** 2
-    W = equation_weight(-coef['zoh'][:6], gv)
     t0 = float(tg[0])
     breaks = np.zeros(len(tg) - 1, dtype=bool)
     breaks[gap_starts(tg)] = True
-    n_win = min(_HOLD_WINDOWS, len(tg) // _HOLD_MIN_ROWS)
-    no_walk = np.zeros(3)
-    out = {}
-    for h, c in coef.items():
+    shared: dict[str, Any] = {}
+    eqs = {}
+    for h in results:                   # each hold's equivalent torque, itself held
         grid, tq, _ = equivalent_torque(tg, w, mom.t, mom.h, ts, tau, h, mom.torque)
-        g = grid - t0
-        eq = build_equations('integral', tg - t0, w, g, tq, np.ones(len(tg), bool), breaks,
-                             'zoh', gv, None)
-        cuts = np.linspace(0, len(eq.t), n_win + 1).astype(int)
-        rss = []
-        for a, b in zip(cuts[:-1], cuts[1:], strict=True):
-            sub, (j0, j1) = window_raw(eq, int(a), int(b), g, no_walk)
-            st = sufficient_stats(sub, None, g[j0:j1], float(sub.t[-1]), no_walk)
-            rss.append(float(c @ metric(st.C, W) @ c))
-        out[h] = np.array(rss)
-    return out['zoh'], out['linear']
+        shared_integral_equations('integral', tg - t0, w, grid - t0, tq,
+                                  np.ones(len(tg), bool), breaks, 'zoh', gv, shared)
+        eqs[h] = shared.pop('eqs')['zoh']
+    return _hold_window_rss(results, (tg - t0, w, np.zeros(0), np.zeros((0, 3)), gv, None),
+                            None, {'eqs': eqs})
