@@ -490,20 +490,17 @@ def estimate_with_momentum(t_gyro: Any, omega: Any, t_torque: Any, torque: Any,
     w = as_samples(omega, len(tg), 'omega', 't_gyro')
     ts = as_times(t_torque, 't_torque')
     tau = as_samples(torque, len(ts), 'torque', 't_torque')
-    from .options import BATCH_HOLDS, HOLDS, check_choice
-    from .selection import SelectionPolicy
+    from .config import require
+    from .options import HOLDS
 
     hold = options.pop('hold', HOLDS[0])
-    check_choice('hold', hold, BATCH_HOLDS)
-    from .config import require
     kind = 'wheels_torque' if len(ts) else ('rotors' if mom.torque is not None else 'wheels')
-    require('batch', kind, dict(options, hold=hold))
+    require('batch', kind, dict(options, hold=hold))      # every option validated once
     # the torque sensor's scale error scales the other torque only, never the momentum; the
     # gyro's scales the measured rate in both sides, w x h included: both are stated inputs
     # (:func:`.stated.propagate`), not scales of y
     scale = options.pop('torque_scale_std', 0.0)
     gscale = options.pop('gyro_scale_std', 0.0)
-    SelectionPolicy(torque_scale_std=scale, gyro_scale_std=gscale)           # validates
     scale = float(scale) if len(ts) else 0.0
     auto = hold == 'auto' and len(ts) > 0            # the holds of the other torque compared
     hold = HOLDS[0] if hold not in HOLDS else hold   # of the other torque; the result is held
@@ -524,7 +521,7 @@ def estimate_with_momentum(t_gyro: Any, omega: Any, t_torque: Any, torque: Any,
         return replace(base, samples_dropped=base.samples_dropped + int(np.sum(~inside)),
                        diagnostics=diag)
 
-    from .stated import Stated, propagate
+    from .stated import Stated, propagate, rerun
 
     stated = bool(len(mom.h_std) or scale or gscale)
     # with stated inputs this estimate only centres their profile: the final one runs on the
@@ -537,17 +534,7 @@ def estimate_with_momentum(t_gyro: Any, omega: Any, t_torque: Any, torque: Any,
     st = Stated(tg[inside], w[inside], ts, tau, mom, hold, scale, gscale)
     if stated and res.inertia is not None and np.all(np.isfinite(res.inertia)):
         return propagate(res, run, st, options)
-    return res if first is options else _rerun(res, run, st, options)
-
-
-def _rerun(res: Any, run: Any, st: Any, options: dict[str, Any]) -> Any:
-    """The estimate with the requested ``options`` after all (no profile), with the hold
-    chosen for ``res`` (:class:`.stated.Stated` ``st``: the data and that hold)."""
-    out = run(*st.torque(np.zeros(len(st.names))), **options)
-    for key in ('hold', 'hold_selection'):
-        if key in res.diagnostics:
-            out.diagnostics[key] = res.diagnostics[key]
-    return out
+    return res if first is options else rerun(res, run, st, np.zeros(len(st.names)), options)
 
 
 def _estimate(tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.ndarray, *,

@@ -29,7 +29,7 @@ from .regressors import MOMENTUM_BASIS, momentum_matrix
 from .uncertainty import widen
 
 __all__ = ['Stated', 'cumulative_impulse', 'intervals', 'lhs_columns', 'profile_inputs',
-           'propagate', 'record_inputs', 'widened']
+           'propagate', 'record_inputs', 'rerun', 'widened']
 
 #: Rows the profile of the stated inputs needs (fewer: the inputs stay at their prior).
 _MIN_PROFILE_ROWS = 20
@@ -394,6 +394,16 @@ def _fixed(res: Any, options: dict[str, Any]) -> dict[str, Any] | None:
     return fixed if fixed['model'] in ('full', 'diagonal', 'axisymmetric') else None
 
 
+def rerun(res: Any, run: Any, st: Stated, u: np.ndarray, options: dict[str, Any]) -> Any:
+    """``run`` with ``options`` on the data with the stated inputs ``u`` (q,) off, keeping
+    the other torque's hold chosen for ``res`` (its ``hold`` and ``hold_selection``)."""
+    out = run(*st.torque(u), **options)
+    for key in ('hold', 'hold_selection'):
+        if key in res.diagnostics:
+            out.diagnostics[key] = res.diagnostics[key]
+    return out
+
+
 def propagate(res: Any, run: Any, st: Stated, options: dict[str, Any]) -> Any:
     """The estimate with the stated inputs profiled (module docstring).
 
@@ -415,10 +425,7 @@ def propagate(res: Any, run: Any, st: Stated, options: dict[str, Any]) -> Any:
     """
     names = st.names
     u_hat, cov_u = _profile(res, st)
-    out = run(*st.torque(u_hat), **options)
-    for key in ('hold', 'hold_selection'):          # the other torque's hold, chosen before
-        if key in res.diagnostics:
-            out.diagnostics[key] = res.diagnostics[key]
+    out = rerun(res, run, st, u_hat, options)
     fixed = _fixed(out, options) if out.inertia is not None \
         and np.all(np.isfinite(out.inertia)) else None
     if fixed is None:
