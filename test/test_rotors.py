@@ -54,7 +54,8 @@ def test_coefficient_changes_are_the_linear_sensitivities() -> None:
               k_m_std=2e-9, inertia_std=1e-6)
     rs = RotorSet((r, Rotor('n', [-0.1, 0.2, 0.0], -1, 8e-6, 1.3e-7)))
     w = np.array([[600.0, 640.0], [610.0, 620.0], [-630.0, 600.0]])
-    names, dh, dt = rs.uncertain_inputs(w)
+    m = rs.inputs(np.arange(3.0), w)          # no motor lag: the speeds as given
+    names, dh, dt = m.names, m.h_std, m.torque_std
     assert names == ('k_f:m', 'k_m:m', 'inertia:m')
     for i, (field, std) in enumerate((('k_f', 1e-7), ('k_m', 2e-9), ('inertia', 1e-6))):
         moved = RotorSet((replace(r, **{field: getattr(r, field) + std}), rs.rotors[1]))

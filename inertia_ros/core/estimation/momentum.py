@@ -39,8 +39,8 @@ from .._validate import unit_axis
 from .options import ALPHA, IDENTIFIABILITY_TOL
 
 __all__ = ['Momentum', 'Reduction', 'Wheel', 'as_momentum', 'equivalent_torque',
-           'estimate_with_momentum', 'held_over', 'interval_torque', 'walk_sums',
-           'walk_variance', 'wheel_inputs', 'wheel_momentum', 'wheels_momentum']
+           'estimate_with_momentum', 'held_over', 'interval_torque', 'speeds', 'spin_inputs',
+           'walk_sums', 'walk_variance', 'wheel_inputs', 'wheel_momentum', 'wheels_momentum']
 
 
 @dataclass(frozen=True)
@@ -114,32 +114,59 @@ class Momentum:
     torque_std: np.ndarray | None = None
 
 
+def speeds(speed: Any, n: int) -> np.ndarray:
+    """``speed`` as a float array (K, n) [rad/s], or a one-line ValueError."""
+    s = np.asarray(speed, dtype=float)
+    if s.ndim != 2 or s.shape[1] != n:
+        raise ValueError(f'speed: expected shape (K, {n}), got {s.shape}')
+    return s
+
+
 def wheel_momentum(wheels: list[Wheel], speed: Any) -> np.ndarray:
-    """Internal momentum ``h = sum_k J_k w_k a_k`` of the wheels.
+    """Internal momentum ``h = sum_k J_k w_k a_k`` (K, 3) [N m s] of the wheels (body axes)
+    at the speeds (K, n_wheels) [rad/s] relative to the body, columns in ``wheels`` order."""
+    return speeds(speed, len(wheels)) @ _wheel_rows(wheels)
+
+
+def _wheel_rows(wheels: list[Wheel]) -> np.ndarray:
+    """``J_k a_k`` (n, 3) [kg m^2]: each wheel's momentum per unit speed."""
+    return np.array([wh.inertia * wh.axis for wh in wheels]).reshape(len(wheels), 3)
+
+
+def spin_inputs(t: Any, s: np.ndarray, h_rows: np.ndarray, tq_rows: np.ndarray | None,
+                stated: list[tuple[str, int, Any, Any]]) -> Momentum:
+    """The momentum input of spinning parts (wheels, rotors: unvalidated, any K >= 1;
+    ``noise_cov`` None).
 
     Parameters
     ----------
-    wheels : list of Wheel
-        The wheels, in the column order of ``speed``.
-    speed : array_like, shape (K, n_wheels)
-        Wheel speeds relative to the body [rad/s].
-
-    Returns
-    -------
-    ndarray, shape (K, 3)
-        [N m s], body axes.
+    t : array_like, shape (K,)
+        Sample times [s].
+    s : ndarray, shape (K, n)
+        Speeds [rad/s] (rotors: magnitudes, after any motor lag).
+    h_rows : ndarray, shape (n, 3)
+        Momentum per unit speed of each part [N m s / (rad/s)]: ``h = s @ h_rows``.
+    tq_rows : ndarray, shape (n, 3), optional
+        Torque per unit squared speed [N m / (rad/s)^2]: ``torque = s^2 @ tq_rows`` (None:
+        no torque).
+    stated : list of (name, k, dh (3,) or None, dtq (3,) or None)
+        One stated input each: the one-sigma changes ``s_k dh`` of ``h`` and ``s_k^2 dtq``
+        of the torque.
     """
-    s = np.asarray(speed, dtype=float)
-    if s.ndim != 2 or s.shape[1] != len(wheels):
-        raise ValueError(f'speed: expected shape (K, {len(wheels)}), got {s.shape}')
-    coef = np.array([wh.inertia * wh.axis for wh in wheels]).reshape(len(wheels), 3)
-    return s @ coef
+    z = np.zeros(3)
+    empty = np.zeros((0, len(s), 3))
+    dh = [np.outer(s[:, k], z if a is None else a) for _, k, a, _ in stated]
+    dt = [np.outer(s[:, k] ** 2, z if b is None else b) for _, k, _, b in stated]
+    return Momentum(np.asarray(t, dtype=float).reshape(-1), s @ h_rows,
+                    np.array(dh) if dh else empty, tuple(n for n, *_ in stated), None,
+                    None if tq_rows is None else (s * s) @ tq_rows,
+                    None if tq_rows is None else (np.array(dt) if dt else empty))
 
 
 def wheel_inputs(t: Any, speed: Any, wheels: list[Wheel]) -> Momentum:
-    """The momentum input of a block of wheel speeds (unvalidated, any K >= 1; the online
-    estimator's form): ``h`` with one uncertain input per wheel whose ``inertia_std`` is
-    positive (named ``inertia:<joint>``); ``noise_cov`` None.
+    """The momentum input of a block of wheel speeds (:func:`spin_inputs`; the online
+    estimator's form): ``h`` with one stated input per wheel whose ``inertia_std`` is
+    positive (named ``inertia:<joint>``).
 
     Parameters
     ----------
@@ -149,15 +176,9 @@ def wheel_inputs(t: Any, speed: Any, wheels: list[Wheel]) -> Momentum:
         Wheel speeds [rad/s], columns in the order of ``wheels``.
     wheels : list of Wheel
     """
-    s = np.asarray(speed, dtype=float)
-    h = wheel_momentum(wheels, s)
-    pert, names = [], []
-    for k, wh in enumerate(wheels):
-        if wh.inertia_std > 0:
-            pert.append(np.outer(s[:, k], wh.inertia_std * wh.axis))
-            names.append(f'inertia:{wh.joint}')
-    h_std = np.array(pert) if pert else np.zeros((0, len(h), 3))
-    return Momentum(np.asarray(t, dtype=float).reshape(-1), h, h_std, tuple(names))
+    return spin_inputs(t, speeds(speed, len(wheels)), _wheel_rows(wheels), None,
+                       [(f'inertia:{wh.joint}', k, wh.inertia_std * wh.axis, None)
+                        for k, wh in enumerate(wheels) if wh.inertia_std > 0])
 
 
 def wheels_momentum(t: Any, speed: Any, wheels: list[Wheel]) -> Momentum:

@@ -33,7 +33,7 @@ from typing import Any
 import numpy as np
 
 from .._validate import unit_axis
-from .momentum import Momentum, as_momentum
+from .momentum import Momentum, as_momentum, speeds, spin_inputs
 
 __all__ = ['Rotor', 'RotorSet', 'motor_lag', 'rotors_momentum']
 
@@ -144,50 +144,33 @@ class RotorSet:
         return np.array([r.k_f * np.cross(r.position, a) - r.spin * r.k_m * a
                          for r in self.rotors]).reshape(len(self.rotors), 3)
 
+    def momentum_rows(self) -> np.ndarray:
+        """Momentum per unit speed of each rotor ``J_i s_i a``, shape (n, 3) [N m s/(rad/s)]."""
+        return np.array([r.inertia * r.spin * self.axis for r in self.rotors]).reshape(-1, 3)
+
     def torque(self, speed: Any) -> np.ndarray:
         """Body torque (K, 3) [N m] of the speeds (K, n) [rad/s] (no lag applied)."""
-        s = self._speeds(speed)
+        s = np.abs(speeds(speed, len(self.rotors)))
         return (s * s) @ self.torque_rows()
 
     def momentum(self, speed: Any) -> np.ndarray:
         """Rotor momentum ``sum J_i s_i |w_i| a`` (K, 3) [N m s]."""
-        s = self._speeds(speed)
-        return np.outer(s @ np.array([r.inertia * r.spin for r in self.rotors]), self.axis)
+        return np.abs(speeds(speed, len(self.rotors))) @ self.momentum_rows()
 
-    def _speeds(self, speed: Any) -> np.ndarray:
-        s = np.asarray(speed, dtype=float)
-        if s.ndim != 2 or s.shape[1] != len(self.rotors):
-            raise ValueError(f'speed: expected shape (K, {len(self.rotors)}), got {s.shape}')
-        return np.abs(s)
-
-    def uncertain_inputs(self, speed: np.ndarray
-                         ) -> tuple[tuple[str, ...], np.ndarray, np.ndarray]:
-        """Names and one-sigma changes of ``h`` and of the torque, (P, K, 3) each.
-
-        One input per positive ``k_f_std``, ``k_m_std`` and ``inertia_std`` (named
-        ``k_f:<joint>``, ``k_m:<joint>``, ``inertia:<joint>``); ``speed`` (K, n) as used.
-        """
-        s = np.abs(speed)
-        a = self.axis
-        names, dh, dt = [], [], []
-        zero = np.zeros((len(s), 3))
+    def stated(self) -> list[tuple[str, int, np.ndarray | None, np.ndarray | None]]:
+        """The stated inputs for :func:`.momentum.spin_inputs`: one per positive ``k_f_std``,
+        ``k_m_std`` and ``inertia_std`` (named ``k_f:<joint>``, ``k_m:<joint>``,
+        ``inertia:<joint>``) with its one-sigma change of the torque or of ``h`` per unit
+        (squared) speed."""
+        a, out = self.axis, []
         for i, r in enumerate(self.rotors):
-            s2 = s[:, i] ** 2
-            if r.k_f_std > 0:
-                names.append(f'k_f:{r.joint}')
-                dh.append(zero)
-                dt.append(np.outer(s2, r.k_f_std * np.cross(r.position, a)))
-            if r.k_m_std > 0:
-                names.append(f'k_m:{r.joint}')
-                dh.append(zero)
-                dt.append(np.outer(s2, -r.spin * r.k_m_std * a))
-            if r.inertia_std > 0:
-                names.append(f'inertia:{r.joint}')
-                dh.append(np.outer(s[:, i], r.spin * r.inertia_std * a))
-                dt.append(zero)
-        if not names:
-            return (), np.zeros((0, len(s), 3)), np.zeros((0, len(s), 3))
-        return tuple(names), np.array(dh), np.array(dt)
+            for name, std, dh, dtq in (('k_f', r.k_f_std, None, np.cross(r.position, a)),
+                                       ('k_m', r.k_m_std, None, -r.spin * a),
+                                       ('inertia', r.inertia_std, r.spin * a, None)):
+                if std > 0:
+                    out.append((f'{name}:{r.joint}', i, None if dh is None else std * dh,
+                                None if dtq is None else std * dtq))
+        return out
 
     def inputs(self, t: Any, speed: Any, state: dict[str, Any] | None = None) -> Momentum:
         """The momentum input of a block of JointState speeds (unvalidated, any K >= 1).
@@ -205,14 +188,14 @@ class RotorSet:
         Returns
         -------
         Momentum
-            ``h``, ``torque`` and their one-sigma changes; ``noise_cov`` None.
+            ``h``, ``torque`` and their one-sigma changes (:func:`.momentum.spin_inputs`);
+            ``noise_cov`` None.
         """
         t = np.asarray(t, dtype=float).reshape(-1)
-        s = np.abs(self._speeds(speed))
+        s = np.abs(speeds(speed, len(self.rotors)))
         if np.any(self.time_constants > 0):
             s = motor_lag(t, s, self.time_constants, state)
-        names, dh, dt = self.uncertain_inputs(s)
-        return Momentum(t, self.momentum(s), dh, names, None, self.torque(s), dt)
+        return spin_inputs(t, s, self.momentum_rows(), self.torque_rows(), self.stated())
 
 
 def motor_lag(t: np.ndarray, command: np.ndarray, time_constant: np.ndarray,
