@@ -25,10 +25,10 @@ import numpy as np
 
 from .align import cumtrapz, gap_starts
 from .momentum import Momentum, Reduction
-from .regressors import MOMENTUM_BASIS, momentum_matrix
+from .regressors import MOMENTUM_BASIS, cumulative_torque, momentum_matrix
 from .uncertainty import widen
 
-__all__ = ['Stated', 'cumulative_impulse', 'intervals', 'lhs_columns', 'profile_inputs',
+__all__ = ['Stated', 'intervals', 'lhs_columns', 'profile_inputs',
            'propagate', 'record_inputs', 'rerun', 'widened']
 
 #: Rows the profile of the stated inputs needs (fewer: the inputs stay at their prior).
@@ -53,14 +53,6 @@ def lhs_columns(t: np.ndarray, w: np.ndarray) -> np.ndarray:
     Iw = momentum_matrix(w)                                 # (n, 3, 6)
     gyro = np.cross(w[:, :, None], Iw, axisa=1, axisb=1, axisc=1)
     return Iw + cumtrapz(t, gyro)
-
-
-def cumulative_impulse(grid: np.ndarray, torque: np.ndarray, t: np.ndarray) -> np.ndarray:
-    """``int_grid[0]^t`` of the torque (G, 3) [N m] held over the grid intervals, at ``t``
-    (n,) [s] (grid points): (n, 3) [N m s]."""
-    J = np.zeros((len(grid), 3))
-    J[1:] = np.cumsum(torque[:-1] * np.diff(grid)[:, None], axis=0)
-    return J[np.clip(np.searchsorted(grid, t), 0, len(grid) - 1)]
 
 
 def intervals(t: np.ndarray, count: int) -> tuple[np.ndarray, np.ndarray]:
@@ -302,7 +294,7 @@ def _profile(res: Any, st: Stated) -> tuple[np.ndarray, np.ndarray]:
     def error(u: np.ndarray, src: Stated = st) -> np.ndarray:
         w, grid, tq = src.torque(u)
         return ((momentum0 if w is st.w else lhs(w) @ theta)
-                - cumulative_impulse(grid - st.tg[0], tq, t))
+                - cumulative_torque(grid - st.tg[0], tq, t))
 
     u, cov = np.zeros(q), np.eye(q)
     if len(t) < _MIN_PROFILE_ROWS:
@@ -332,7 +324,7 @@ def _profile(res: Any, st: Stated) -> tuple[np.ndarray, np.ndarray]:
             d = np.eye(q)[-1] * _DU
             C[:, :, -1] = (error(u + d, sm) - error(u, sm)) / _DU
         new, cov, _ = profile_inputs(t, lhs(w0),
-                                     cumulative_impulse(grid0 - st.tg[0], tq0, t), C, ends,
+                                     cumulative_torque(grid0 - st.tg[0], tq0, t), C, ends,
                                      res.model.endswith('+bias'), u, gv, scale_dir)
         done = np.all(np.abs(new - u) <= 0.01 * np.sqrt(np.maximum(np.diag(cov), 1e-30)))
         u = new
