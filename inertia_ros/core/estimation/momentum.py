@@ -410,10 +410,10 @@ def _interp_h(t_h: np.ndarray, h: np.ndarray, t: np.ndarray,
     return hermite(t_h, h, run_slopes(t_h, h, gaps), t, basis)
 
 
-def _noise_terms(tg: np.ndarray, w: np.ndarray, inside: np.ndarray, grid: np.ndarray,
-                 mom: Momentum, ts: np.ndarray, tau: np.ndarray,
-                 options: dict[str, Any]) -> tuple[np.ndarray, float]:
-    """Torque-noise std (3,) [N m] of the equivalent torque and the wheel-noise share.
+def _noise_terms(red: Reduction, w: np.ndarray, mom: Momentum, ts: np.ndarray,
+                 tau: np.ndarray, options: dict[str, Any]) -> tuple[np.ndarray, float]:
+    """Torque-noise std (3,) [N m] of the equivalent torque on ``red``'s grid (the rates
+    and ``h`` interpolated there as for the torque) and the wheel-noise share.
 
     Sets ``options['white_y_cov']`` (the wheel-speed noise in ``y``).  Returns the other
     torque's noise (scaled to the grid) with the white torque noises of the ``w x h``
@@ -421,6 +421,7 @@ def _noise_terms(tg: np.ndarray, w: np.ndarray, inside: np.ndarray, grid: np.nda
     """
     from .noise import isotropy_floor, noise_std_from_differences
 
+    tg, grid = red.tg, red.grid
     tn = options.pop('torque_noise', None)
     if tn is None:
         tn = noise_std_from_differences(tau) if len(ts) > 2 else np.zeros(3)
@@ -441,10 +442,9 @@ def _noise_terms(tg: np.ndarray, w: np.ndarray, inside: np.ndarray, grid: np.nda
     # grid interval (the torque-noise random walk of the anchored model); so is the wheel
     # noise e in it, w x e (times the gyro samples sharing one wheel sample)
     gn = options.get('gyro_noise')
-    g_std = (isotropy_floor(noise_std_from_differences(w[inside])) if gn is None
+    g_std = (isotropy_floor(noise_std_from_differences(w[red.inside])) if gn is None
              else np.broadcast_to(np.asarray(gn, dtype=float), (3,)))
-    sums = walk_sums(_interp_h(mom.t, mom.h, grid),
-                     np.column_stack([np.interp(grid, tg, w[:, c]) for c in range(3)]))
+    sums = walk_sums(_interp_h(mom.t, mom.h, grid, red.gaps, red.basis), red.rates(w))
     walk = walk_variance(*sums, g_std ** 2, mom.noise_cov, share)
     return np.sqrt(tn ** 2 + walk), share
 
@@ -525,12 +525,13 @@ def estimate_with_momentum(t_gyro: Any, omega: Any, t_torque: Any, torque: Any,
     scale = float(scale) if len(ts) else 0.0
     auto = hold == 'auto' and len(ts) > 0            # the holds of the other torque compared
     hold = HOLDS[0] if hold not in HOLDS else hold   # of the other torque; the result is held
-    grid, tq, inside = equivalent_torque(tg, w, mom.t, mom.h, ts, tau, hold, mom.torque)
+    red = Reduction(tg, mom.t, ts, hold)       # the grid and weights, for the noise too
+    grid, tq, inside = red(w, mom.h, tau, mom.torque)
     if int(np.sum(inside)) < 6 or len(grid) < 2:
         raise ValueError(f'momentum: its samples [{mom.t[0]:.6g}, {mom.t[-1]:.6g}] s cover '
                          f'{int(np.sum(inside))} gyro samples of [{tg[0]:.6g}, {tg[-1]:.6g}] s '
                          '(and of the torque, if any); the streams must overlap')
-    tn, share = _noise_terms(tg, w, inside, grid, mom, ts, tau, options)
+    tn, share = _noise_terms(red, w, mom, ts, tau, options)
     info = {'samples': len(mom.t), 'h_rms': np.sqrt(np.mean(mom.h ** 2, axis=0)),
             'h_noise_std': np.sqrt(np.diag(mom.noise_cov)), 'gyro_per_wheel_sample': share,
             'gyro_samples_outside': int(np.sum(~inside))}
