@@ -39,7 +39,8 @@ from .._validate import unit_axis
 from .options import ALPHA, IDENTIFIABILITY_TOL
 
 __all__ = ['Momentum', 'Reduction', 'Wheel', 'as_momentum', 'equivalent_torque',
-           'estimate_with_momentum', 'held_over', 'interval_torque', 'speeds', 'spin_inputs',
+           'estimate_with_momentum', 'held_over', 'interval_torque', 'nonneg', 'speeds',
+           'spin_inputs',
            'walk_sums', 'walk_variance', 'wheel_inputs', 'wheel_momentum', 'wheels_momentum']
 
 
@@ -69,14 +70,22 @@ class Wheel:
         if not isinstance(self.joint, str) or not self.joint:
             raise ValueError(f'joint: must be a non-empty name, got {self.joint!r}')
         object.__setattr__(self, 'axis', unit_axis(self.axis, f'wheel {self.joint}'))
-        if not (np.isfinite(self.inertia) and self.inertia > 0):
-            raise ValueError(f'wheel {self.joint}: inertia must be > 0 kg m^2, got '
-                             f'{self.inertia!r}')
-        if not (np.isfinite(self.inertia_std) and self.inertia_std >= 0):
-            raise ValueError(f'wheel {self.joint}: inertia_std must be >= 0 kg m^2, got '
-                             f'{self.inertia_std!r}')
-        object.__setattr__(self, 'inertia', float(self.inertia))
-        object.__setattr__(self, 'inertia_std', float(self.inertia_std))
+        for name in ('inertia', 'inertia_std'):
+            object.__setattr__(self, name, nonneg(f'wheel {self.joint}', name, getattr(
+                self, name), name == 'inertia', ' kg m^2'))
+
+
+def nonneg(owner: str, name: str, value: Any, positive: bool = False, unit: str = '') -> float:
+    """``value`` as a finite float >= 0 (> 0 with ``positive``), or a one-line ValueError
+    naming ``owner`` (a wheel, a rotor), the field ``name`` and its ``unit``."""
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f'{owner}: {name} must be a number, got {value!r}') from None
+    if not np.isfinite(v) or v < 0 or (positive and v == 0):
+        raise ValueError(f'{owner}: {name} must be {"> 0" if positive else ">= 0"}{unit}, got '
+                         f'{value!r}')
+    return v
 
 
 @dataclass(frozen=True)

@@ -33,21 +33,9 @@ from typing import Any
 import numpy as np
 
 from .._validate import unit_axis
-from .momentum import Momentum, as_momentum, speeds, spin_inputs
+from .momentum import Momentum, as_momentum, nonneg, speeds, spin_inputs
 
 __all__ = ['Rotor', 'RotorSet', 'motor_lag', 'rotors_momentum']
-
-
-def _nonneg(name: str, value: Any, joint: str, positive: bool = False) -> float:
-    """``value`` as a finite float >= 0 (> 0 with ``positive``), or a one-line ValueError."""
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f'rotor {joint}: {name} must be a number, got {value!r}') from None
-    if not np.isfinite(v) or v < 0 or (positive and v == 0):
-        raise ValueError(f'rotor {joint}: {name} must be {"> 0" if positive else ">= 0"}, got '
-                         f'{value!r}')
-    return v
 
 
 @dataclass(frozen=True)
@@ -99,9 +87,10 @@ class Rotor:
         if self.spin not in (1, -1) or isinstance(self.spin, bool):
             raise ValueError(f'rotor {self.joint}: spin must be +1 or -1, got {self.spin!r}')
         object.__setattr__(self, 'spin', int(self.spin))
-        object.__setattr__(self, 'k_f', _nonneg('k_f', self.k_f, self.joint, positive=True))
+        object.__setattr__(self, 'k_f', nonneg(f'rotor {self.joint}', 'k_f', self.k_f, True))
         for name in ('k_m', 'time_constant', 'inertia', 'k_f_std', 'k_m_std', 'inertia_std'):
-            object.__setattr__(self, name, _nonneg(name, getattr(self, name), self.joint))
+            object.__setattr__(self, name, nonneg(f'rotor {self.joint}', name,
+                                                  getattr(self, name)))
 
 
 @dataclass(frozen=True)
