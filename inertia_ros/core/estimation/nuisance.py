@@ -60,7 +60,6 @@ from .options import (
     NUISANCE_MAX_DELAY_S,
     NUISANCE_MAX_TIME_CONSTANT_S,
     NUISANCE_TERMS,
-    check_nuisance,
 )
 from .regressors import cumulative_torque
 from .result import InertiaEstimate
@@ -540,8 +539,8 @@ def nuisance_hook(fn: Callable[..., InertiaEstimate]) -> Callable[..., InertiaEs
     def wrapper(t_gyro: Any, omega: Any, t_torque: Any, torque: Any,
                 **kw: Any) -> InertiaEstimate:
         from .config import require
-        require('batch', 'torque' if _count(t_torque) else 'torque_free', kw)
-        request = check_nuisance(kw.get('nuisance', 'off'))
+        request = require('batch', 'torque' if _count(t_torque) else 'torque_free',
+                          kw).nuisance                     # validated (normalised) once
         if request == 'off':
             return fn(t_gyro, omega, t_torque, torque, **kw)
         return with_nuisance(fn, (t_gyro, omega, t_torque, torque), dict(kw, nuisance=request))
