@@ -23,8 +23,9 @@ Subscribes
 Re-planning (``replan_period`` > 0): every ``replan_period`` s of excitation, once the
 estimator's tensor and covariance are at hand, a thread designs the next ``replan_horizon`` s
 from the current estimate as the prior
-(:func:`inertia_ros.core.excitation.replan.design_next`); the running profile is replaced
-when the new one is predicted better.  The diagnostics carry ``replans``,
+(:func:`inertia_ros.core.excitation.replan.design_next`; with ``wheels``, within their speed
+and torque limits from the speeds last measured); the running profile is replaced when the
+new one is predicted better.  The diagnostics carry ``replans``,
 ``replan_switches``, ``replan_failures``, ``replan_predicted_rel_sigma`` and ``replan_last``.
 
 The rules (limits, holds, stops) are :class:`inertia_ros.core.exciter_rules.ExciterRules`;
