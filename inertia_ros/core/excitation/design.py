@@ -23,8 +23,9 @@ centred on the initial rate).  The base frequency is searched around the corner 
 Each candidate is scored by its criterion (the largest targeted relative sigma) at the design
 horizon, on the prior value and then, for the best few, on bodies drawn from the prior: the
 worst case decides.  The standard profiles (:func:`.profiles.standard_profiles`, at the same
-limits) compete under the same worst-case criterion: the plan is a standard profile when it is
-predicted better than the designed multisine.
+limits) then compete with the best designed candidates by time to target on further bodies
+drawn from the prior (:func:`_robust_pick`): the plan is the designed multisine only when it is
+sooner than every standard profile on every one of them, else a standard profile.
 
 Information is evaluated at a reduced rate ``r`` with the noise rescaled to the same density
 (gyro std ``sigma_g sqrt(r / rate_g)``, torque ``sigma_t sqrt(r / rate_t)``): the bound is
@@ -327,11 +328,12 @@ class Plan:
     ----------
     profile : Profile
         The planned profile, within the limits: the designed multisine or a standard profile
-        that is predicted better (:func:`_candidates`).
+        (:func:`_robust_pick`).
     design : dict
         ``family``: ``multisine`` or the standard profile's name; for a multisine its
         parameters (``f0`` Hz, ``n_per_axis``, ``decay``, ``quadrature``, ``spread``,
-        ``stagger``: :func:`.profiles.multisine`).
+        ``stagger``: :func:`.profiles.multisine`); for a precision target ``check``, the
+        times on the bodies drawn from the prior (:func:`_robust_pick`).
     model : str
         ``full`` or ``diagonal``: the model whose information the plan uses (run the
         estimator with it).
