@@ -150,3 +150,51 @@ def test_a_replan_that_ends_after_its_start_time_is_not_used():
     assert book.lead == pytest.approx(2.25)                # 1.5 x its computing time
     assert book.started(10.0) == pytest.approx(12.25)
     assert book.finished(11.0, new) and book.switches == 1
+
+
+def _wheel_lim() -> ex.Limits:
+    """LIM made by three wheels along the body axes (spin inertia 0.01 kg m^2, 50 rad/s)."""
+    from inertia_ros.core.excitation.actuators import WheelLimit
+
+    wheels = tuple(WheelLimit(j, ax, 0.01, max_speed=50.0)
+                   for j, ax in (('wx', (1, 0, 0)), ('wy', (0, 1, 0)), ('wz', (0, 0, 1))))
+    return ex.Limits(max_torque=LIM.max_torque, max_rate=LIM.max_rate, gyro_rate=200.0,
+                     torque_rate=50.0, gyro_noise=0.002, torque_noise=0.0,
+                     torque_noise_rel=0.02, wheels=wheels)
+
+
+def test_a_replan_keeps_the_wheels_within_their_speed_limit_from_their_measured_speeds():
+    """With a wheel measured at -45 of its +-50 rad/s, the re-planned profile's wheel speeds,
+    integrated from the measured ones over the horizon, stay within +-50 rad/s; the profile
+    designed from the wheels' file speeds (0 rad/s) would take that wheel past it from -45."""
+    from inertia_ros.core.excitation.actuators import wheel_speeds
+    from inertia_ros.core.excitation.replan import with_wheel_speeds
+
+    lim = _wheel_lim()
+    cov = np.diag([0.005 ** 2] * 6)
+    measured = np.array([-45.0, 10.0, 0.0])
+    out = design_next(TRUE, cov, np.zeros(3), lim, TARGET, 'full', ReplanSettings(horizon=H),
+                      wheel_speeds=measured)
+    t, torque = schedule_torque(out.profile, H, lim.torque_rate)
+    now = with_wheel_speeds(lim, measured)
+    assert [w.initial_speed for w in now.wheels] == measured.tolist()
+    w = wheel_speeds(now.wheels, np.append(t, H), np.vstack([torque, torque[-1:]]))
+    assert np.max(np.abs(w)) <= 50.0 * (1 + 1e-9)
+    assert np.abs(torque).max() > 0.01                    # still excites
+    free = design_next(TRUE, cov, np.zeros(3), lim, TARGET, 'full', ReplanSettings(horizon=H))
+    t, torque = schedule_torque(free.profile, H, lim.torque_rate)
+    w = wheel_speeds(now.wheels, np.append(t, H), np.vstack([torque, torque[-1:]]))
+    assert np.max(np.abs(w)) > 50.0
+
+
+def test_measured_wheel_speeds_are_checked_and_taken_under_the_limit():
+    """A speed at or past the limit starts the design at 0.99 of it (sign kept); not one
+    finite speed per wheel is refused in one line."""
+    from inertia_ros.core.excitation.replan import with_wheel_speeds
+
+    lim = _wheel_lim()
+    got = with_wheel_speeds(lim, [60.0, -50.0, 1.0])
+    assert [w.initial_speed for w in got.wheels] == [49.5, -49.5, 1.0]
+    assert with_wheel_speeds(LIM, [1.0, 2.0]) is LIM and with_wheel_speeds(lim, None) is lim
+    with pytest.raises(ValueError, match=r'^wheel speeds: expected 3 finite values'):
+        with_wheel_speeds(lim, [1.0, float('nan'), 0.0])

@@ -393,6 +393,55 @@ def test_node_replans_from_the_estimate_and_swaps_its_schedule(exciter_node):
     assert not book.due(node.now_s() + 100.0, node.rules.t_start, True, node.rules.stopped)
 
 
+def test_node_replans_within_the_wheels_limits_from_their_measured_speeds(exciter_node):
+    """With ``wheels`` and re-planning: the re-planned schedule keeps every wheel of the
+    file within its 600 rad/s from the speeds measured on joint_states (560, -560 and 560
+    rad/s: 40 rad/s of room, where 4 s at 0.1 N m could swing a 1.2e-3 kg m^2 wheel by 333
+    rad/s), integrated here over the schedule."""
+    from geometry_msgs.msg import QuaternionStamped, Vector3Stamped
+    from sensor_msgs.msg import JointState
+
+    from inertia_ros.core.excitation.actuators import wheel_speeds
+    from inertia_ros.core.excitation.replan import with_wheel_speeds
+    from inertia_ros.nodes.messages import covariance_msg
+
+    node = exciter_node(wheels=str(ROOT / 'config' / 'wheels' / 'wheels.yaml'),
+                        target_rel_std=0.001, replan_period=0.5, replan_horizon=4.0,
+                        max_rate=0.3)
+    lim = node._replan[1]
+    assert [w.joint for w in lim.wheels] == ['rw1', 'rw2', 'rw3']
+    measured = [560.0, -560.0, 560.0]
+
+    def feed() -> None:
+        now = node.now_s()
+        msg = JointState(name=['rw1', 'rw2', 'rw3'], velocity=measured)
+        msg.header.stamp.sec, msg.header.stamp.nanosec = int(now), int(now % 1 * 1e9)
+        node._on_joint_states(msg)
+        node.rules.on_gyro(now, np.zeros(3))
+        node.rules.on_sigma(now, 0.01)
+
+    old = node.schedule
+    feed()
+    node._on_tick()
+    node._on_moments(Vector3Stamped(vector=messages_vec(0.9, 1.0, 1.2)))
+    q = QuaternionStamped()
+    q.quaternion.w = 1.0
+    node._on_axes(q)
+    node._on_covariance(covariance_msg(np.diag([0.9 ** 2, 1.0, 1.2 ** 2, 0, 0, 0]) * 1e-4))
+    book = node._replan[0]
+    end = time.monotonic() + 30.0
+    while node.schedule is old and time.monotonic() < end:
+        feed()
+        node._on_tick()
+        time.sleep(0.02)
+    assert book.switches == 1 and node.schedule is not old, book.last_reason
+    t, tau = node.schedule.t, node.schedule.torque
+    w = wheel_speeds(with_wheel_speeds(lim, measured).wheels, np.append(t, 4.0),
+                     np.vstack([tau, tau[-1:]]))
+    assert np.abs(w).max() <= 600.0 * (1 + 1e-9)
+    assert np.abs(tau).max() > 0.01
+
+
 @pytest.mark.slow
 def test_closed_loop_replans_for_a_body_twice_the_prior(listener, tmp_path):
     """Three processes; the simulated body is twice the exciter's prior (the scene's profile

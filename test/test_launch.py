@@ -384,3 +384,13 @@ def test_foxglove_message_paths_exist():
         assert _field_type(pubs[topic], fields) == 'double', s
     with pytest.raises(AssertionError, match='has no field vector.w'):
         _field_type(pubs['/inertia_estimator/principal_moments'], ['vector', 'w'])
+
+
+def test_active_launch_passes_a_wheels_file_to_the_exciter():
+    """active.launch.xml's ``wheels`` argument (default '': no wheels) is the exciter's
+    ``wheels`` parameter."""
+    lf = LaunchFile(ROOT / 'launch' / 'active.launch.xml')
+    assert lf.value('wheels') == ''
+    exciter = next(n for n in lf.root.iter('node') if n.get('exec') == 'exciter')
+    params = {p.get('name'): p.get('value') for p in exciter.iter('param') if p.get('name')}
+    assert params['wheels'] == '$(var wheels)'

@@ -274,13 +274,18 @@ def _text(s: dict[str, Any]) -> str:
             if tgt['rel_std'] is not None else f"fixed duration {tgt['duration']:g} s")
     ttt = s['time_to_target']
     family = s['design'].get('family', 'multisine')
+    chk = s['design'].get('check', {})
     lines = [f'plan: {s["comparison"][0]["name"]}'
              + ('' if family == 'multisine' else
-                ' (a standard profile: predicted better than the designed multisine)'),
+                ' (a standard profile: the designed multisine is not sooner on every '
+                'body drawn from the prior)'),
              f'  target: {what}; model {s["model"]}'
              + (' (near-diagonal prior: products not estimated)' if s['model'] == 'diagonal'
                 else ''),
-             f'  predicted time to target: {ttt:.1f} s' if ttt is not None else
+             f'  predicted time to target: {ttt:.1f} s on the prior value'
+             + (f"; {chk['median']:.1f} s median ({chk['q10']:.1f}-{chk['q90']:.1f} s, "
+                f"10-90 %) on {chk['check_bodies']} bodies drawn from the prior"
+                if chk.get('median') is not None else '') if ttt is not None else
              f'  predicted criterion at {tgt["duration"]:g} s: '
              f'{100 * s["predicted"]["criterion"][-1]:.3g} %',
              f'  scene duration {s["duration"]:g} s; peak body rate {s["peak_rate"]:.3g} rad/s '

@@ -65,8 +65,8 @@ from .estimation.model import BIAS_NAMES
 from .estimation.regressors import GYROSCOPIC_MAP, MOMENTUM_MAP, MONOMIAL_I, MONOMIAL_J
 from .tensor import THETA_COLS, THETA_NAMES, THETA_ROWS
 
-__all__ = ['FisherResult', 'PredictionErrorStep', 'fisher_information', 'frobenius_weights',
-           'prediction_error_step', 'scene_fisher']
+__all__ = ['FisherResult', 'PredictionErrorStep', 'cumulative_information',
+           'fisher_information', 'frobenius_weights', 'prediction_error_step', 'scene_fisher']
 
 _MAX_STEP_ANGLE = 0.02                          # rad turned per RK4 substep, at most
 _TIME_TOL = 1e-9                                # s: times closer than this are merged
@@ -261,6 +261,7 @@ class _Pass:
     sensitivity: np.ndarray
     gradient: np.ndarray | None
     cost: float
+    partial: tuple[np.ndarray, ...] = ()
 
 
 def _merged_grid(tg: np.ndarray, ts: np.ndarray, tau: np.ndarray, d: np.ndarray
@@ -305,11 +306,12 @@ def _step(dyn: Dynamics, w: np.ndarray, S: np.ndarray, Z: np.ndarray, u: np.ndar
 
 def _kalman_pass(tg: np.ndarray, ts: np.ndarray, tau: np.ndarray, I: np.ndarray,
                  w0: np.ndarray, sg: np.ndarray, st: np.ndarray, d: np.ndarray, *, bias: bool,
-                 y: np.ndarray | None) -> _Pass:
+                 y: np.ndarray | None, counts: tuple[int, ...] = ()) -> _Pass:
     """Trajectory, sensitivities and the Kalman filter; with data ``y`` also the innovations.
 
     ``F = sum de' S^-1 de``; with ``y`` the gradient ``sum de' S^-1 e`` and the cost
-    ``1/2 sum e' S^-1 e`` of the prediction-error criterion at these parameters.
+    ``1/2 sum e' S^-1 e`` of the prediction-error criterion at these parameters; ``partial``:
+    ``F`` of the first ``counts[k]`` (ascending) gyro samples (causal: the record cut there).
     """
     n_par = 12 if bias else 9
     names = tuple(THETA_NAMES) + ('wx0', 'wy0', 'wz0') + (BIAS_NAMES if bias else ())
@@ -333,7 +335,7 @@ def _kalman_pass(tg: np.ndarray, ts: np.ndarray, tau: np.ndarray, I: np.ndarray,
     omega_out = np.empty((tg.size, 3))
     sens_out = np.empty((tg.size, 3, n_par))
     g = 0
-    Z = np.zeros((3, n_par + 6))
+    Z, partial = np.zeros((3, n_par + 6)), []
     for i in range(grid.size):
         if is_gyro[i]:
             omega_out[g] = w
@@ -344,6 +346,8 @@ def _kalman_pass(tg: np.ndarray, ts: np.ndarray, tau: np.ndarray, I: np.ndarray,
             Sk = P[:3, :3] + R
             Sinv = np.linalg.inv(Sk)
             F += de.T @ Sinv @ de
+            while len(partial) < len(counts) and counts[len(partial)] <= g:
+                partial.append(0.5 * (F + F.T))
             if y is not None:
                 e = y[g - 1] - w - xhat[:3]
                 Se = Sinv @ e
@@ -377,7 +381,8 @@ def _kalman_pass(tg: np.ndarray, ts: np.ndarray, tau: np.ndarray, I: np.ndarray,
             D = A @ D
             xhat = A @ xhat
     F = 0.5 * (F + F.T)
-    return _Pass(F, names, omega_out, sens_out, grad if y is not None else None, cost)
+    return _Pass(F, names, omega_out, sens_out, grad if y is not None else None, cost,
+                 tuple(partial))
 
 
 def fisher_information(t_gyro: Any, t_torque: Any, torque: Any, inertia: Any, omega0: Any, *,
@@ -424,6 +429,28 @@ def fisher_information(t_gyro: Any, t_torque: Any, torque: Any, inertia: Any, om
     p = _kalman_pass(*args, bias=bool(estimate_bias), y=None)
     return FisherResult(information=p.information, names=p.names, omega=p.omega,
                         sensitivity=p.sensitivity)
+
+
+def cumulative_information(t_gyro: Any, t_torque: Any, torque: Any, inertia: Any,
+                           omega0: Any, times: Any, *, gyro_std: Any, torque_std: Any = 0.0
+                           ) -> np.ndarray:
+    """Fisher information of the record cut at each of ``times``, in one filter pass.
+
+    Arguments as :func:`fisher_information` (no disturbance, no bias); ``times`` (K,) [s],
+    ascending.  Returns shape (K, 9, 9): entry ``k`` is the information of the gyro samples
+    at or before ``times[k]`` (the filter is causal: the same as :func:`fisher_information`
+    of the record cut at ``times[k]``); zero where fewer than 2 samples are.
+    """
+    args = _validated(t_gyro, t_torque, torque, inertia, omega0, gyro_std, torque_std, None)
+    tk = np.asarray(times, dtype=float).reshape(-1)
+    if np.any(np.diff(tk) < 0):
+        raise ValueError('times: expected ascending times')
+    counts = np.searchsorted(args[0], tk + 1e-9, side='right')
+    use = tuple(int(c) for c in counts if c >= 2)
+    p = _kalman_pass(*args, bias=False, y=None, counts=use)
+    out = np.zeros((tk.size, 9, 9))
+    out[counts >= 2] = np.array(p.partial).reshape(-1, 9, 9)
+    return out
 
 
 def scene_fisher(sim: Any, *, estimate_bias: bool | None = None) -> FisherResult:

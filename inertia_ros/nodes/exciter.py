@@ -23,8 +23,9 @@ Subscribes
 Re-planning (``replan_period`` > 0): every ``replan_period`` s of excitation, once the
 estimator's tensor and covariance are at hand, a thread designs the next ``replan_horizon`` s
 from the current estimate as the prior
-(:func:`inertia_ros.core.excitation.replan.design_next`); the running profile is replaced
-when the new one is predicted better.  The diagnostics carry ``replans``,
+(:func:`inertia_ros.core.excitation.replan.design_next`; with ``wheels``, within their speed
+and torque limits from the speeds last measured); the running profile is replaced when the
+new one is predicted better.  The diagnostics carry ``replans``,
 ``replan_switches``, ``replan_failures``, ``replan_predicted_rel_sigma`` and ``replan_last``.
 
 The rules (limits, holds, stops) are :class:`inertia_ros.core.exciter_rules.ExciterRules`;
@@ -115,7 +116,7 @@ class ExciterNode(Node):
             stall_window=cfg['stall_window'])
         self.rules = ExciterRules(self.limits, scene.inertia)
         self._wheel_index = _wheels_setup(cfg['wheels'], self.rules)
-        self._replan = _replan_setup(cfg, scene)
+        self._replan = _replan_setup(cfg, scene, self.rules.wheels)
         self.frame_id = cfg['frame_id'] or scene.gyro.frame_id
         self.exit_on_stop = cfg['exit_on_stop']
         est = cfg['estimator'].rstrip('/') or '/inertia_estimator'
@@ -283,6 +284,7 @@ class ExciterNode(Node):
         t_swap = book.started(now)
         inertia = self.rules.inertia.copy()
         cov, omega = self._cov.copy(), self.rules.m.omega.copy()
+        speeds = None if self.rules.m.wheel_speeds is None else self.rules.m.wheel_speeds.copy()
         t0 = self.rules.t_start if self._sched_t0 is None else self._sched_t0
         at, offset = self.schedule.at, now - t0
         model = 'diagonal' if not np.any(cov[3:, :]) and not np.any(cov[:, 3:]) else 'full'
@@ -294,7 +296,8 @@ class ExciterNode(Node):
                 out = (now, design_next(inertia, cov, w, lim, target, model, book.settings,
                                         book.design, seed,
                                         Continuation(at, offset + t_swap - now),
-                                        self.limits.max_rate * KEEP_RATE_SHARE), '')
+                                        self.limits.max_rate * KEEP_RATE_SHARE,
+                                        wheel_speeds=speeds), '')
             except (ValueError, np.linalg.LinAlgError) as exc:
                 out = (now, None, str(exc).splitlines()[0] if str(exc) else repr(exc))
             with self._replan_lock:
@@ -343,17 +346,19 @@ def _wheels_setup(path: str, rules: ExciterRules) -> list[str]:
     return [w.joint for w in wheels]
 
 
-def _replan_setup(cfg: dict[str, Any], scene: Any
+def _replan_setup(cfg: dict[str, Any], scene: Any, wheels: Any = ()
                   ) -> tuple[Replanner, Limits, Target, int] | None:
     """The re-planner, the design's limits (the exciter's torque and rate limits, the
-    scene's sensors) and target, or None when ``replan_period`` is 0."""
+    ``wheels`` file's wheels (their speed and torque limits; the re-plans start them from
+    their measured speeds), the scene's sensors) and target, or None when
+    ``replan_period`` is 0."""
     if cfg['replan_period'] <= 0.0:
         return None
     lim = Limits(max_torque=(cfg['max_torque'],) * 3,
                  max_rate=REPLAN_RATE_SHARE * cfg['max_rate'],
                  gyro_rate=scene.gyro.rate, torque_rate=cfg['rate'],
                  gyro_noise=scene.gyro.noise_std, torque_noise=scene.torque_sensor.noise_std,
-                 torque_noise_rel=scene.torque_sensor.noise_rel)
+                 torque_noise_rel=scene.torque_sensor.noise_rel, wheels=tuple(wheels))
     settings = ReplanSettings(period=cfg['replan_period'], horizon=cfg['replan_horizon'])
     target = Target(rel_std=cfg['target_rel_std'], max_duration=cfg['timeout'])
     return Replanner(settings), lim, target, int(scene.seed)

@@ -23,8 +23,9 @@ centred on the initial rate).  The base frequency is searched around the corner 
 Each candidate is scored by its criterion (the largest targeted relative sigma) at the design
 horizon, on the prior value and then, for the best few, on bodies drawn from the prior: the
 worst case decides.  The standard profiles (:func:`.profiles.standard_profiles`, at the same
-limits) compete under the same worst-case criterion: the plan is a standard profile when it is
-predicted better than the designed multisine.
+limits) then compete with the best designed candidates by time to target on further bodies
+drawn from the prior (:func:`_robust_pick`): the plan is the designed multisine only when it is
+sooner than every standard profile on every one of them, else a standard profile.
 
 Information is evaluated at a reduced rate ``r`` with the noise rescaled to the same density
 (gyro std ``sigma_g sqrt(r / rate_g)``, torque ``sigma_t sqrt(r / rate_t)``): the bound is
@@ -47,7 +48,7 @@ from typing import Any
 import numpy as np
 from scipy.optimize import minimize_scalar
 
-from ..crlb import fisher_information
+from ..crlb import cumulative_information
 from ..simulation import integrate_rigid_body
 from ..tensor import THETA_NAMES
 from .actuators import (
@@ -77,6 +78,14 @@ RATE_MARGIN = 0.97
 DESIGN_RATE_MAX = 10.0
 #: Longest design horizon [s].
 HORIZON_MAX = 60.0
+#: Bodies drawn from the prior on which the plan's profile is checked (:func:`_robust_pick`).
+N_CHECK = 16
+#: How much sooner a designed multisine must be than every standard profile on every check
+#: body to be planned.
+DOMINANCE_MARGIN = 0.02
+#: Standard profiles timed on the check bodies: within this factor of the best time to target
+#: on the prior value.
+CHECK_SHARE = 1.5
 _DIAG_KEEP = np.array([0, 1, 2, 6, 7, 8])
 
 # --------------------------------------------------------------------------------------------
@@ -216,17 +225,22 @@ def information_at(profile: Profile, body: np.ndarray, lim: Limits, duration: fl
     ts = _grid(duration, rt)
     cmd_s = cmd[np.minimum(np.floor(ts * lim.torque_rate + 1e-6).astype(int), cmd.shape[0] - 1)]
     tg_all = _grid(duration, rg)
-    out = []
-    for t_end in times:
-        tg = tg_all[tg_all <= t_end + 1e-9]
-        if tg.size < 3:
-            out.append(np.zeros((9, 9)))
-            continue
-        keep = ts <= t_end + 1e-9
-        fr = fisher_information(tg, ts[keep], cmd_s[keep], body, np.asarray(lim.initial_omega),
-                                gyro_std=lim.gyro_noise * math.sqrt(rg / lim.gyro_rate),
-                                torque_std=t_std * math.sqrt(rt / lim.torque_rate))
-        out.append(fr.information)
+    times = np.asarray(times, dtype=float)
+    counts = np.searchsorted(tg_all, times + 1e-9, side='right')
+    out = [np.zeros((9, 9)) for _ in times]
+    use = np.flatnonzero(counts >= 3)
+    if use.size == 0:
+        return out
+    order = use[np.argsort(times[use], kind='stable')]
+    t_last = float(np.max(times[use]))
+    keep = ts <= t_last + 1e-9
+    infos = cumulative_information(
+        tg_all[:int(np.max(counts))], ts[keep], cmd_s[keep], body,
+        np.asarray(lim.initial_omega), times[order],
+        gyro_std=lim.gyro_noise * math.sqrt(rg / lim.gyro_rate),
+        torque_std=t_std * math.sqrt(rt / lim.torque_rate))
+    for k, F in zip(order, infos, strict=True):
+        out[int(k)] = F
     return out
 
 
@@ -314,11 +328,12 @@ class Plan:
     ----------
     profile : Profile
         The planned profile, within the limits: the designed multisine or a standard profile
-        that is predicted better (:func:`_candidates`).
+        (:func:`_robust_pick`).
     design : dict
         ``family``: ``multisine`` or the standard profile's name; for a multisine its
         parameters (``f0`` Hz, ``n_per_axis``, ``decay``, ``quadrature``, ``spread``,
-        ``stagger``: :func:`.profiles.multisine`).
+        ``stagger``: :func:`.profiles.multisine`); for a precision target ``check``, the
+        times on the bodies drawn from the prior (:func:`_robust_pick`).
     model : str
         ``full`` or ``diagonal``: the model whose information the plan uses (run the
         estimator with it).
@@ -478,31 +493,107 @@ def simulated_peak_rate(profile: Profile, bodies: Sequence[np.ndarray], lim: Lim
     return worst
 
 
+def check_times(profile: Profile, bodies: Sequence[np.ndarray], lim: Limits, target: Target,
+                model: str, t_end: float, rate: float, seed: int = 0, n: int = 48
+                ) -> np.ndarray:
+    """Predicted time to target [s] of the (already limited) ``profile`` on each body, (B,):
+    the Cramer-Rao criterion at ``n`` times from ``t_end / 30`` to ``t_end`` in one filter
+    pass per body; inf where it is not reached by ``t_end``."""
+    times = np.geomspace(max(4.0 / rate, t_end / 30.0), t_end, n)
+    out = []
+    for body in bodies:
+        crit = [criterion(F, body, target, model)
+                for F in information_at(profile, body, lim, t_end, times, rate, seed)]
+        out.append(time_to_reach(times, np.array(crit), target.rel_std))
+    return np.array(out)
+
+
+def _robust_pick(cands: list[Any], n_designed: int, prior: Prior, lim: Limits,
+                 target: Target, model: str, t_end: float, rate: float, seed: int
+                 ) -> tuple[int, dict[str, Any]]:
+    """Index of the plan's profile among ``cands`` (the first ``n_designed`` designed, then
+    the standard ones) by time to target on :data:`N_CHECK` bodies drawn from the prior.
+
+    Each profile's regret is its largest ratio over the bodies of its time to the best
+    standard profile's on that body (1: never later than the best standard; a designed one
+    pays :data:`DOMINANCE_MARGIN` more, so it is planned over a standard that is never
+    behind the others only when it is that much sooner on every body).  The smallest regret
+    wins, then the smallest median time.  Several standard profiles may each be ahead on
+    some of the bodies (as PRBS and the sines when only the torque limit binds): then no
+    profile has regret 1 and a designed one may still win.  Only the standard profiles
+    within ``CHECK_SHARE`` of the best time on the prior value are timed.
+    Returns the index and a summary (``check_bodies``, ``median``, ``q10``, ``q90`` [s] of
+    the pick, ``dominates``: a designed one, sooner than the best standard on every body by
+    the margin, ``medians``: profile name -> median time [s] of every timed profile).
+    """
+    t0 = np.array([c[1][0]['time_to_target'] for c in cands])
+    best0 = float(np.min(t0))
+    if not math.isfinite(best0):
+        return 0, {}
+    t_chk = min(t_end, 2.0 * best0 * CHECK_SHARE)
+    bodies = prior.bodies(N_CHECK + 1, seed + 7919)[1:]
+    timed = [i for i in range(len(cands)) if i < n_designed or t0[i] <= CHECK_SHARE * best0]
+    T = {i: check_times(cands[i][1][1], bodies, lim, target, model, t_chk, rate, seed)
+         for i in timed}
+    std = [i for i in timed if i >= n_designed]
+    if not std:
+        std = [n_designed]
+        T[n_designed] = np.full(len(bodies), np.inf)
+    s_best = np.min(np.array([T[i] for i in std]), axis=0)
+
+    def regret(i: int) -> float:
+        fin = np.isfinite(T[i])                           # reached where s_best is not: 0
+        r = np.where(fin, 0.0, np.where(np.isfinite(s_best), np.inf, 1.0))
+        ok = np.isfinite(s_best) & fin
+        r[ok] = T[i][ok] / s_best[ok]
+        return float(np.max(r)) + (DOMINANCE_MARGIN if i < n_designed else 0.0)
+
+    k = min(T, key=lambda i: (regret(i), float(np.median(T[i])), i))
+    good = k < n_designed and regret(k) <= 1.0
+    q = (np.quantile(T[k], [0.1, 0.5, 0.9]).tolist() if np.all(np.isfinite(T[k]))
+         else [None] * 3)                                  # None: not reached on some body
+    medians = {cands[i][1][1].name: float(np.median(T[i])) if np.all(np.isfinite(T[i]))
+               else None for i in timed}
+    return k, {'check_bodies': len(bodies), 'q10': q[0], 'median': q[1], 'q90': q[2],
+               'dominates': bool(good), 'medians': medians}
+
+
 def _candidates(prior: Prior, bodies: list[np.ndarray], lim: Limits, target: Target,
                 model: str, t_end: float, horizon: float, rate: float, seed: int
                 ) -> tuple[dict[str, Any], tuple[Any, ...], list[dict[str, Any]]]:
-    """The plan's profile: the designed multisine (the best of :func:`_design`'s candidates
-    by time to target) or a standard profile at the same limits, whichever has the smaller
-    worst criterion over the prior bodies at the horizon (the designed one on a tie).
+    """The plan's profile: one of :func:`_design`'s multisines or a standard profile at the
+    same limits.  For a precision target :func:`_robust_pick` decides (time to target on
+    bodies drawn from the prior); for a duration target the smallest worst criterion over
+    the prior bodies at the horizon (the designed one on a tie).
 
-    Returns the winner's design (``family``: ``multisine`` or the standard profile's name),
-    its :func:`_row` and the comparison rows of the others (the designed one first).
+    Returns the winner's design (``family``: ``multisine`` or the standard profile's name,
+    with ``check``: :func:`_robust_pick`'s summary), its :func:`_row` and the comparison
+    rows of the others (the best designed one first).
     """
-    best: Any = None
+    designed = []
     for par_i, prof_i in _design(prior, bodies, lim, target, model, horizon, rate, seed):
-        got = _row('designed', prof_i, bodies, prior, lim, target, model, t_end, horizon,
-                   rate, seed)
-        if best is None or got[0]['time_to_target'] < best[1][0]['time_to_target']:
-            best = ({'family': 'multisine', **par_i}, got)
+        designed.append(({'family': 'multisine', **par_i},
+                         _row('designed', prof_i, bodies, prior, lim, target, model, t_end,
+                              horizon, rate, seed)))
         if target.rel_std is None:
             break                     # a duration target: the criterion decided already
-    cands = [best] + [({'family': p.name}, _row(p.name, p, bodies, prior, lim, target, model,
-                                                   t_end, horizon, rate, seed))
-                      for p in standard_profiles(lim.max_torque)]
-    k = min(range(len(cands)), key=lambda i: (cands[i][1][0]['criterion'], i))
-    others = [{**c[1][0], 'name': c[1][1].name if i == 0 else c[1][0]['name']}
-              for i, c in enumerate(cands) if i != k]
-    return cands[k][0], cands[k][1], others
+    designed.sort(key=lambda c: c[1][0]['time_to_target'])   # stable: design order on ties
+    cands = designed + [({'family': p.name}, _row(p.name, p, bodies, prior, lim, target, model,
+                                                  t_end, horizon, rate, seed))
+                        for p in standard_profiles(lim.max_torque)]
+    nd = len(designed)
+    if target.rel_std is None:
+        cands = cands[:1] + cands[nd:]
+        nd = 1
+        k = min(range(len(cands)), key=lambda i: (cands[i][1][0]['criterion'], i))
+        check: dict[str, Any] = {}
+    else:
+        k, check = _robust_pick(cands, nd, prior, lim, target, model, t_end, rate, seed)
+    # the comparison: the best designed one (when not the pick), then the standard ones
+    shown = [i for i in [0] + list(range(nd, len(cands))) if i != k]
+    others = [{**cands[i][1][0], 'name': cands[i][1][1].name if i < nd
+               else cands[i][1][0]['name']} for i in shown]
+    return {**cands[k][0], **({'check': check} if check else {})}, cands[k][1], others
 
 
 def plan(prior: Prior, lim: Limits, target: Target, *, n_bodies: int = 3, seed: int = 0,

@@ -28,6 +28,7 @@ from ..tensor import matrix_to_theta
 from .design import (
     _DIAG_KEEP,
     DESIGN_RATE_MAX,
+    _actuator_scales,
     _grid,
     enforce_limits,
     information_at,
@@ -39,7 +40,7 @@ from .inputs import Limits, Prior, Profile, Target, make_prior
 from .profiles import _from, corner_frequency
 
 __all__ = ['Continuation', 'Replan', 'ReplanSettings', 'Replanner', 'design_next',
-           'predict_omega', 'prior_from_estimate', 'schedule_torque']
+           'predict_omega', 'prior_from_estimate', 'schedule_torque', 'with_wheel_speeds']
 
 #: Samples per period of the highest tone a re-plan may place (at the given rate).
 _SAMPLES_PER_PERIOD = 5.0
@@ -52,6 +53,8 @@ LAYOUTS = ((None, 1, 0.0, True), (0.15, 1, 0.0, True), (0.3, 1, 0.0, False))
 MIN_LEAD = 0.5
 #: Largest share of ``max_rate`` taken as the initial rate of a re-plan.
 OMEGA0_SHARE = 0.9
+#: Largest share of a wheel's ``max_speed`` taken as its initial speed in a re-plan.
+WHEEL_SPEED_SHARE = 0.99
 
 
 @dataclass(frozen=True)
@@ -126,6 +129,30 @@ def prior_from_estimate(inertia: np.ndarray, cov: np.ndarray) -> Prior:
     return make_prior(theta, std=np.sqrt(np.clip(np.diag(cov), 0.0, None)))
 
 
+def with_wheel_speeds(lim: Limits, speeds: Any) -> Limits:
+    """``lim`` with each wheel's initial speed set to its measured speed ``speeds`` (n,)
+    [rad/s] (in the order of ``lim.wheels``; a speed at or beyond ``WHEEL_SPEED_SHARE`` of
+    ``max_speed`` is taken at that share, keeping its sign), so that a design keeps every
+    wheel within its speed limit from where it is now.  ``lim`` itself when it has no wheels
+    or ``speeds`` is None.
+
+    Raises
+    ------
+    ValueError
+        One line: not one finite speed per wheel.
+    """
+    if not lim.wheels or speeds is None:
+        return lim
+    w = np.asarray(speeds, dtype=float).reshape(-1)
+    if w.size != len(lim.wheels) or not np.all(np.isfinite(w)):
+        raise ValueError(f'wheel speeds: expected {len(lim.wheels)} finite values, got '
+                         f'{w.tolist()}')
+    wheels = tuple(replace(wl, initial_speed=float(np.clip(
+        v, -WHEEL_SPEED_SHARE * wl.max_speed, WHEEL_SPEED_SHARE * wl.max_speed)))
+        for wl, v in zip(lim.wheels, w, strict=True))
+    return replace(lim, wheels=wheels)
+
+
 def _past_information(cov: np.ndarray, model: str) -> np.ndarray:
     """Information (9, 9) on ``[theta, w0]`` of the data so far: the inverse of ``cov`` on the
     model's fitted elements with a positive variance (zero elsewhere)."""
@@ -164,7 +191,8 @@ def _candidates(prior: Prior, lim: Limits, horizon: float, rate: float,
 def design_next(inertia: np.ndarray, cov: np.ndarray, omega: np.ndarray, lim: Limits,
                 target: Target, model: str, settings: ReplanSettings,
                 current: dict[str, Any] | None = None, seed: int = 0,
-                running: Any = None, keep_rate: float | None = None) -> Replan:
+                running: Any = None, keep_rate: float | None = None,
+                wheel_speeds: Any = None) -> Replan:
     """Design the next ``settings.horizon`` seconds from the current estimate.
 
     Parameters
@@ -176,7 +204,7 @@ def design_next(inertia: np.ndarray, cov: np.ndarray, omega: np.ndarray, lim: Li
     omega : numpy.ndarray, shape (3,)
         Body rate now [rad/s] (the design's initial rate, at most ``OMEGA0_SHARE max_rate``).
     lim : Limits
-        Torque, body-rate and sensor figures (``initial_omega`` is replaced by ``omega``).
+        Torque, body-rate, wheel and sensor figures (``initial_omega`` becomes ``omega``).
     target : Target
         Targeted quantities (``elements``); the criterion is their largest relative sigma.
     model : str
@@ -196,6 +224,9 @@ def design_next(inertia: np.ndarray, cov: np.ndarray, omega: np.ndarray, lim: Li
         running design is ``current`` limited anew.
     keep_rate : float, optional
         Body rate [rad/s] the running profile may reach (default ``lim.max_rate``).
+    wheel_speeds : array_like (n,), optional
+        The wheels' speeds now [rad/s]: every design keeps the wheels within their limits
+        from there (:func:`with_wheel_speeds`), and so must the running profile to be kept.
 
     Returns
     -------
@@ -213,7 +244,8 @@ def design_next(inertia: np.ndarray, cov: np.ndarray, omega: np.ndarray, lim: Li
         raise ValueError(f'body rate: expected 3 finite numbers, got {w.tolist()}')
     if speed > OMEGA0_SHARE * lim.max_rate:
         w = w * (OMEGA0_SHARE * lim.max_rate / speed)
-    lim = replace(lim, initial_omega=tuple(float(v) for v in w))
+    lim = replace(with_wheel_speeds(lim, wheel_speeds),
+                  initial_omega=tuple(float(v) for v in w))
     rate = min(DESIGN_RATE_MAX, lim.gyro_rate, lim.torque_rate)
     past = _past_information(np.asarray(cov, dtype=float), model)
     now = max(targeted_rel_std(np.asarray(cov, dtype=float), prior.inertia,
@@ -248,6 +280,12 @@ def _keep_score(running: Any, prior: Prior, lim: Limits, target: Target, model: 
     pk = peak_rate(running, [prior.inertia], lim, h, lim.torque_rate, seed)
     F = information_at(running, prior.inertia, lim, h, [h], rate, seed)[0]
     crit = _criterion(F + past, prior.inertia, target, model)
+    if lim.wheels or lim.rotors is not None:
+        t = _grid(h, lim.torque_rate)
+        share = float(np.min(_actuator_scales(t, running.torque(t, h, seed), lim)))
+        if share < 1.0 - 1e-9:
+            return math.inf, (f'; the running one would take a wheel or rotor '
+                              f'{1.0 / max(share, 1e-12):.3g} x past its limit')
     if pk > keep_rate:
         return math.inf, (f'; the running one would reach {pk:.3g} rad/s on the estimate '
                           f'(> {keep_rate:.3g})')
