@@ -194,8 +194,7 @@ def equation_weight(theta: np.ndarray, gyro_var: np.ndarray,
     (``(I S_g I + white_y_cov)^-1`` with other white noise in ``y``)."""
     Im = theta_to_matrix(theta)
     lam = np.linalg.eigvalsh(Im)            # clearly physical (the usual case): no full check
-    if not (lam[0] > 1e-6 * lam[2] and lam[0] + lam[1] >= lam[2]) and not check_physical(
-            Im).valid:
+    if not (lam[0] > 1e-6 * lam[2] and lam[0] + lam[1] >= lam[2] or check_physical(Im).valid):
         Im = nearest_physical(Im, min_moment=1e-3 * max(float(np.sum(np.abs(Im))), 1e-30))
     S = Im @ np.diag(gyro_var) @ Im
     if white_y_cov is not None:

@@ -73,9 +73,7 @@ def noise_std_from_differences(x: np.ndarray, orders: tuple[int, ...] = (2, 3, 4
             break
         d = d[:, 1:] - d[:, :-1]                      # the k-th difference, as np.diff(x, k)
         if k in orders and len(x) >= k + 2:
-            med, part = _row_medians(d)
-            # the deviations of the partitioned rows (the same values, partly ordered): the
-            # second selection takes a quarter of the time on them
+            med, part = _row_medians(d)     # (the partitioned rows: a 4x faster 2nd selection)
             mad = _row_medians(np.abs(part - med[:, None]))[0]
             best = np.minimum(best, 1.4826 * mad / math.sqrt(math.comb(2 * k, k)))
     best[~np.isfinite(best)] = 0.0
@@ -83,9 +81,8 @@ def noise_std_from_differences(x: np.ndarray, orders: tuple[int, ...] = (2, 3, 4
 
 
 def _row_medians(d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`median_rows` of ``d.T`` for a C-contiguous ``d`` (c, n): the same numbers, the
-    partition along contiguous rows (a tenth less time than along the columns of ``d.T``);
-    and the partitioned rows (c, n)."""
+    """:func:`median_rows` of ``d.T`` for a C-contiguous ``d`` (c, n) and the partitioned rows:
+    the partition along contiguous rows (a tenth less time than along the columns of ``d.T``)."""
     n = d.shape[1]
     lo, hi = (n - 1) // 2, n // 2
     p = np.partition(d, [lo, hi], axis=1)            # (a kth list, as median_rows: ties)

@@ -337,14 +337,8 @@ def cumulative_torque(t_tau: np.ndarray, tau: np.ndarray, t: np.ndarray,
             blk += np.take(cum, j, axis=0)
         else:                     # (the last slope row is 0: flat after the last sample)
             u = (t[a:b] - t_tau.take(j))[:, None]
-            blk = np.take(tau, j, axis=0)
-            blk *= u
-            blk += np.take(cum, j, axis=0)
-            quad = np.take(slope, j, axis=0)
-            quad *= 0.5
-            quad *= u
-            quad *= u
-            blk += quad
+            blk = np.take(tau, j, axis=0) * u + np.take(cum, j, axis=0)
+            blk += 0.5 * np.take(slope, j, axis=0) * u * u
         out[a:b] = blk
     return out
 
