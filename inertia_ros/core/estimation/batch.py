@@ -81,6 +81,7 @@ from typing import Any
 
 import numpy as np
 
+from .._blas import one_blas_thread
 from .._numeric import median
 from .._validate import as_noise_std, as_samples, as_times, refuse_nanoseconds
 from ..tensor import check_physical, theta_to_matrix
@@ -128,6 +129,7 @@ _HOLD_MIN_ROWS = 25                            # equations per window (at least)
 
 
 @nuisance_hook
+@one_blas_thread()                         # (medium products: a second thread costs more CPU)
 def estimate(t_gyro: Any, omega: Any, t_torque: Any, torque: Any, *,
              method: str = 'auto', model: str = 'auto', torque_bias: str = 'auto',
              symmetry_axis: Any = None, hold: str = 'auto', alpha: float = ALPHA,

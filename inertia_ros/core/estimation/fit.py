@@ -191,9 +191,11 @@ def _normal_solution(st: SufficientStats, basis: np.ndarray, bias: bool, W: np.n
 def equation_weight(theta: np.ndarray, gyro_var: np.ndarray,
                     white_y_cov: np.ndarray | None = None) -> np.ndarray:
     """Equation weight ``(I S_g I)^-1`` (3, 3), scaled to max 1, from a first-pass ``theta``
-    (``(I S_g I + white_y_cov)^-1`` with other white noise in ``y``)."""
+    (``(I S_g I + white_y_cov)^-1`` with other white noise in ``y``); a tensor that is not
+    physical or nearly singular (its weight would be) is projected first."""
     Im = theta_to_matrix(theta)
-    if not check_physical(Im).valid:
+    lam = np.linalg.eigvalsh(Im)     # a smallest moment under 1e-6 of the largest: projected
+    if not (lam[0] > 1e-6 * lam[2] and (lam[0] + lam[1] >= lam[2] or check_physical(Im).valid)):
         Im = nearest_physical(Im, min_moment=1e-3 * max(float(np.sum(np.abs(Im))), 1e-30))
     S = Im @ np.diag(gyro_var) @ Im
     if white_y_cov is not None:

@@ -73,19 +73,20 @@ def noise_std_from_differences(x: np.ndarray, orders: tuple[int, ...] = (2, 3, 4
             break
         d = d[:, 1:] - d[:, :-1]                      # the k-th difference, as np.diff(x, k)
         if k in orders and len(x) >= k + 2:
-            mad = _row_medians(np.abs(d - _row_medians(d)[:, None]))
+            med, part = _row_medians(d)     # (the partitioned rows: a 4x faster 2nd selection)
+            mad = _row_medians(np.abs(part - med[:, None]))[0]
             best = np.minimum(best, 1.4826 * mad / math.sqrt(math.comb(2 * k, k)))
     best[~np.isfinite(best)] = 0.0
     return best
 
 
-def _row_medians(d: np.ndarray) -> np.ndarray:
-    """:func:`median_rows` of ``d.T`` for a C-contiguous ``d`` (c, n): the same numbers, the
-    partition along contiguous rows (a tenth less time than along the columns of ``d.T``)."""
+def _row_medians(d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`median_rows` of ``d.T`` for a C-contiguous ``d`` (c, n) and the partitioned rows:
+    the partition along contiguous rows (a tenth less time than along the columns of ``d.T``)."""
     n = d.shape[1]
     lo, hi = (n - 1) // 2, n // 2
     p = np.partition(d, [lo, hi], axis=1)            # (a kth list, as median_rows: ties)
-    return p[:, lo] if hi == lo else (p[:, lo] + p[:, hi]) / 2.0
+    return (p[:, lo] if hi == lo else (p[:, lo] + p[:, hi]) / 2.0), p
 
 
 class StreamingNoise:

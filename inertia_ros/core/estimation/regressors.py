@@ -335,11 +335,10 @@ def cumulative_torque(t_tau: np.ndarray, tau: np.ndarray, t: np.ndarray,
             blk = np.take(tau, j, axis=0)
             blk *= (t[a:b] - t_tau.take(j))[:, None]
             blk += np.take(cum, j, axis=0)
-        else:
+        else:                     # (the last slope row is 0: flat after the last sample)
             u = (t[a:b] - t_tau.take(j))[:, None]
-            inside = j < len(t_tau) - 1
-            blk = np.take(cum, j, axis=0) + np.take(tau, j, axis=0) * u + np.where(
-                inside[:, None], 0.5 * np.take(slope, j, axis=0) * u * u, 0.0)
+            blk = np.take(tau, j, axis=0) * u + np.take(cum, j, axis=0)
+            blk += 0.5 * np.take(slope, j, axis=0) * u * u
         out[a:b] = blk
     return out
 
