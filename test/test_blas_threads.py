@@ -12,16 +12,16 @@ _USER_SET = 'OPENBLAS_NUM_THREADS' in os.environ or 'OMP_NUM_THREADS' in os.envi
 
 
 def _counts():
-    return [get() for get, _ in _blas._openblas()]
+    return [lib.num_threads for lib in _blas.blas_libraries()]
 
 
 @pytest.mark.skipif(_USER_SET, reason='the thread count set in the environment stands')
 def test_one_thread_inside_restored_after_also_nested():
     import scipy.linalg  # noqa: F401  (its own OpenBLAS, loaded lazily by ml)
-    if not _blas._openblas():
-        pytest.skip('no OpenBLAS in this process')
-    for _, put in _blas._openblas():
-        put(2)
+    if not _blas.blas_libraries():
+        pytest.skip('no BLAS threadpoolctl can control in this process')
+    for lib in _blas.blas_libraries():
+        lib.set_num_threads(2)
     before = _counts()
     with _blas.one_blas_thread():
         assert _counts() == [1] * len(before)
@@ -34,8 +34,8 @@ def test_one_thread_inside_restored_after_also_nested():
 @pytest.mark.skipif(_USER_SET, reason='the thread count set in the environment stands')
 def test_estimate_runs_on_one_thread(monkeypatch):
     """The estimate's products see one thread, and the count is back afterwards."""
-    if not _blas._openblas():
-        pytest.skip('no OpenBLAS in this process')
+    if not _blas.blas_libraries():
+        pytest.skip('no BLAS threadpoolctl can control in this process')
     seen = []
     inner = batch._estimate_direct
 
@@ -43,8 +43,8 @@ def test_estimate_runs_on_one_thread(monkeypatch):
         seen.append(_counts())
         return inner(*a, **k)
     monkeypatch.setattr(batch, '_estimate_direct', spy)
-    for _, put in _blas._openblas():
-        put(2)
+    for lib in _blas.blas_libraries():
+        lib.set_num_threads(2)
     before = _counts()
     sim = simulate(nominal_scene(10.0), seed=1)
     batch.estimate(sim.t_gyro, sim.omega, sim.t_torque, sim.torque, method='integral')
