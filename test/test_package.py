@@ -38,6 +38,7 @@ IMPORT_KEYS: dict[str, str] = {
     'yaml': 'python3-yaml',
     'matplotlib': 'python3-matplotlib',
     'tqdm': 'python3-tqdm',
+    'threadpoolctl': 'python3-threadpoolctl',
     # rosdistro has no key for the Python mcap package nor for its chunk codecs: the
     # mcap-ros2-support pip key installs mcap, which requires zstandard and lz4.
     'mcap': 'mcap-ros2-support',
