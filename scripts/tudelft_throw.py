@@ -19,6 +19,10 @@ Input: per throw a CSV, either
 
 Commands::
 
+    tudelft_throw.py index --repo CHECKOUT --out DIR
+        -> DIR/*.csv (converted throws) and DIR/index.json from the LOG*.BFL logs (needs
+           orangebox, optional: pip install orangebox==0.5.0)
+
     tudelft_throw.py convert CSV... --out DIR [--window-index index.json]
         -> DIR/NAME.mcap (/imu: Imu with angular velocity and acceleration; /joint_states:
            JointState 'flywheel' velocity) and DIR/flywheel.yaml (the wheels file)
@@ -28,7 +32,8 @@ Commands::
 
 ``index.json`` (per throw: ``csv``, ``config``, ``fit_window`` [first, end) sample indices,
 ``truth_object`` {m, cog, I}; plus ``wheel`` {axis, inertia} and ``device`` {m, x, I_prime})
-holds the truth and the authors' calibration; the research note's converter writes it.
+holds the truth and the authors' calibration; ``index --repo CHECKOUT --out DIR`` writes it
+(with the converted CSVs) from the user's checkout of the authors' repository.
 
 Metrics (as the authors): ``eps = ||lambda - lambda_true|| / ||lambda_true||`` of the sorted
 principal moments (orientation-free), ``Psi`` the largest principal-axis angle error, and the
