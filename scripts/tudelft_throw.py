@@ -19,6 +19,10 @@ Input: per throw a CSV, either
 
 Commands::
 
+    tudelft_throw.py index --repo CHECKOUT --out DIR
+        -> DIR/*.csv (converted throws) and DIR/index.json from the LOG*.BFL logs (needs
+           orangebox, optional: pip install orangebox==0.5.0)
+
     tudelft_throw.py convert CSV... --out DIR [--window-index index.json]
         -> DIR/NAME.mcap (/imu: Imu with angular velocity and acceleration; /joint_states:
            JointState 'flywheel' velocity) and DIR/flywheel.yaml (the wheels file)
@@ -28,7 +32,8 @@ Commands::
 
 ``index.json`` (per throw: ``csv``, ``config``, ``fit_window`` [first, end) sample indices,
 ``truth_object`` {m, cog, I}; plus ``wheel`` {axis, inertia} and ``device`` {m, x, I_prime})
-holds the truth and the authors' calibration; the research note's converter writes it.
+holds the truth and the authors' calibration; ``index --repo CHECKOUT --out DIR`` writes it
+(with the converted CSVs) from the user's checkout of the authors' repository.
 
 Metrics (as the authors): ``eps = ||lambda - lambda_true|| / ||lambda_true||`` of the sorted
 principal moments (orientation-free), ``Psi`` the largest principal-axis angle error, and the
@@ -40,6 +45,7 @@ import argparse
 import json
 import math
 import sys
+import types
 from pathlib import Path
 
 import numpy as np
@@ -53,11 +59,36 @@ WHEEL_AXIS = (0.0, 0.0, -1.0)
 #: frequency in the window divided by this (4th-order Butterworth: -16 dB there).
 WHEEL_CUTOFF_MARGIN = 1.6
 POLE_PAIRS = 7
+#: the authors' calibrated flywheel inertia [kg m^2] (their calibrate.py on final_calibration)
+DEFAULT_J = 1.6887711495328251e-06
+
+
+BFL_HINT = ('reading a .BFL blackbox log needs orangebox (optional, not an inertia_ros '
+             'dependency): pip install orangebox==0.5.0')
+
+
+def read_blackbox(path: Path) -> dict[str, np.ndarray]:
+    """The main-frame columns of a Betaflight/indiflight ``LOG*.BFL`` (first log in the file)
+    by orangebox (optional): name -> (N,) float array, empty fields NaN."""
+    try:
+        from orangebox import Parser
+    except ImportError:
+        raise SystemExit(f'{path}: {BFL_HINT}') from None
+    parser = Parser.load(str(path))
+    names = list(parser.field_names)
+    rows = [[np.nan if v == '' else v for v in f.data[:len(names)]] for f in parser.frames()]
+    if not rows:
+        raise SystemExit(f'{path}: no frames decoded; is it a blackbox log?')
+    d = np.array(rows, dtype=float)
+    return {n: d[:, i] for i, n in enumerate(names)}
 
 
 def read_throw_csv(path: Path) -> dict[str, np.ndarray]:
-    """A throw CSV (converted or raw blackbox) as ``t`` [s], ``w`` [rad/s], ``a`` [m/s^2],
-    ``wheel`` [rad/s]."""
+    """A throw (converted CSV, raw blackbox CSV or ``.BFL`` log) as ``t`` [s], ``w`` [rad/s],
+    ``a`` [m/s^2], ``wheel`` [rad/s]."""
+    path = Path(path)
+    if path.suffix.lower() == '.bfl':
+        return _from_blackbox(read_blackbox(path), path)
     with open(path) as f:
         header = [h.strip() for h in f.readline().split(',')]
     base = [h.split(' (')[0].strip() for h in header]
@@ -69,12 +100,19 @@ def read_throw_csv(path: Path) -> dict[str, np.ndarray]:
         a = np.column_stack([col.get(k, np.zeros(len(d))) for k in ('ax', 'ay', 'az')])
         return {'t': col['t'], 'w': np.column_stack([col['wx'], col['wy'], col['wz']]),
                 'a': a, 'wheel': col['wheel']}
+    return _from_blackbox(col, path)
+
+
+def _from_blackbox(col: dict[str, np.ndarray], path: Path) -> dict[str, np.ndarray]:
+    """Raw blackbox columns in the authors' units and axes (module docstring)."""
     need = ['time', 'gyroADC[0]', 'gyroADC[1]', 'gyroADC[2]', 'erpm[0]']
     missing = [n for n in need if n not in col]
     if missing:
         raise SystemExit(f'{path}: columns {missing} missing: expected the converted form '
-                         't,wx,wy,wz,ax,ay,az,wheel or a blackbox CSV (bb2csv)')
+                         't,wx,wy,wz,ax,ay,az,wheel or a blackbox log/CSV (bb2csv)')
     ok = np.isfinite(col['time'])
+    for n in need:
+        ok &= np.isfinite(col[n])
     g = np.column_stack([col[f'gyroADC[{i}]'] for i in range(3)])[ok]
     w = np.column_stack([-g[:, 1], g[:, 0], g[:, 2]]) * math.pi / 180.0 / 16.384
     if all(f'accSmooth[{i}]' in col for i in range(3)):
@@ -85,6 +123,12 @@ def read_throw_csv(path: Path) -> dict[str, np.ndarray]:
     wheel = col['erpm[0]'][ok] * 100.0 / POLE_PAIRS * 2.0 * math.pi / 60.0
     t = (col['time'][ok] - col['time'][ok][0]) * 1e-6
     return {'t': t, 'w': w, 'a': a, 'wheel': wheel}
+
+
+def write_csv(path: Path, s: dict[str, np.ndarray]) -> None:
+    """A throw in the converted form ``t,wx,wy,wz,ax,ay,az,wheel``."""
+    np.savetxt(path, np.column_stack([s['t'], s['w'], s['a'], s['wheel']]), delimiter=',',
+               header='t,wx,wy,wz,ax,ay,az,wheel', comments='', fmt='%.9g')
 
 
 def write_mcap(path: Path, s: dict[str, np.ndarray], start_ns: int = 1_700_000_000_000_000_000
@@ -120,10 +164,11 @@ def _steiner(m: float, r: np.ndarray) -> np.ndarray:
     return m * (float(r @ r) * np.eye(3) - np.outer(r, r))
 
 
-def combined_cog(t: np.ndarray, w: np.ndarray, a: np.ndarray) -> np.ndarray:
+def combined_cog(t: np.ndarray, w: np.ndarray, a: np.ndarray, dt: float | None = None
+                 ) -> np.ndarray:
     """Centre of mass relative to the IMU from the accelerometer in free flight:
     ``-a = w' x r + w x (w x r)`` by least squares (filtered as the authors: 20 Hz)."""
-    dt = float(np.median(np.diff(t)))
+    dt = float(np.median(np.diff(t))) if dt is None else dt
     wf = _lowpass(w, dt)
     wd = _lowpass(np.gradient(w, dt, axis=0), dt)
     af = _lowpass(a, dt)
@@ -189,6 +234,13 @@ def _estimate_unit(s: dict[str, np.ndarray], e: dict, J0: float, args: argparse.
     from inertia_ros.core.estimation.momentum import Wheel, estimate_with_momentum, wheels_momentum
 
     t, w, acc, fw = _window(s, e, args.delay, args.offset)
+    if args.cli:
+        res, Iu, cu = _estimate_cli({'t': t, 'w': w, 'a': acc, 'wheel': fw}, J0, args)
+        return res, Iu, cu, combined_cog(t, w, acc), t
+    if args.method == 'reference':
+        Ip, x = reference_fit(s, _window_bounds(e, args.offset), J0)
+        res = types.SimpleNamespace(status='-', method='authors', model='full', diagnostics={})
+        return res, Ip / J0 + np.eye(3), np.zeros((6, 6)), x, t
     window = args.window
     if args.method == 'filtered' and window is None and args.cutoff_rule == 'wheel':
         # below the flywheel's lowest rotation frequency in the window: its imbalance shakes
@@ -206,6 +258,51 @@ def _estimate_unit(s: dict[str, np.ndarray], e: dict, J0: float, args: argparse.
         return res, None, np.full((6, 6), np.nan), np.full(3, np.nan), t
     return (res, np.asarray(res.inertia) / J0, np.asarray(res.covariance) / J0 ** 2,
             combined_cog(t, w, acc), t)
+
+
+def _window_bounds(e: dict, offset: int | None) -> tuple[int, int]:
+    a0, a1 = e['fit_window']
+    return (a0 if offset is None else e['throw_start'] + offset), a1
+
+
+def _estimate_cli(s: dict[str, np.ndarray], J0: float, args: argparse.Namespace
+                  ) -> tuple[object, np.ndarray | None, np.ndarray]:
+    """One throw's window through the plain CLI: ``estimate W.mcap --wheels flywheel.yaml
+    --format json`` (plus ``--method`` when given).  Returns a result-like namespace, the
+    tensor in units of ``J0`` and a (6, 6) covariance from the report's element sigmas
+    (the JSON report states no correlations: diagonal)."""
+    import contextlib
+    import io
+    import tempfile
+
+    from inertia_ros.cli import main as cli
+
+    with tempfile.TemporaryDirectory() as d:
+        mc, wy = Path(d) / 'throw.mcap', Path(d) / 'flywheel.yaml'
+        write_mcap(mc, s)
+        wy.write_text(_wheels_yaml(J0))
+        argv = ['estimate', str(mc), '--wheels', str(wy), '--format', 'json', '--no-progress']
+        if args.method not in (None, 'auto'):
+            argv += ['--method', args.method]
+        buf = io.StringIO()
+        with contextlib.redirect_stdout(buf):
+            code = cli(argv)
+    if code != 0:
+        raise SystemExit(f'estimate {" ".join(argv[1:])}: exit {code}')
+    rep = json.loads(buf.getvalue())
+    res = types.SimpleNamespace(status=rep['status'], method=rep['method'], model=rep['model'],
+                                diagnostics=rep.get('diagnostics') or {})
+    if rep.get('inertia') is None or rep.get('inertia_std') is None:
+        return res, None, np.full((6, 6), np.nan)
+    I = np.array(rep['inertia'], dtype=float)
+    sd = _theta(np.array(rep['inertia_std'], dtype=float))
+    return res, I / J0, np.diag(sd ** 2) / J0 ** 2
+
+
+def _wheels_yaml(J: float) -> str:
+    return ('wheels:\n  - joint: flywheel\n    axis: [0.0, 0.0, -1.0]\n'
+            f'    inertia: {J!r}   # the authors\' calibration procedure on '
+            'input/final_calibration\n')
 
 
 def _theta(I: np.ndarray) -> np.ndarray:
@@ -231,6 +328,8 @@ def proof_body(idx: dict) -> tuple[float, np.ndarray]:
     """
     pb = idx['proof_body']
     m = float(pb['m'])
+    if 'I' in pb:
+        return m, np.asarray(pb['I'], dtype=float)
     a, b, c = pb.get('dims', (0.0302, 0.06, 0.07))
     return m, m / 12.0 * np.diag([a * a + c * c, a * a + b * b, b * b + c * c])
 
@@ -290,7 +389,194 @@ def calibrate(idx: dict, root: Path, args: argparse.Namespace, rng: np.random.Ge
             'x_dev_draws': xd, 'throws': {k: len(v) for k, v in sets.items()}}
 
 
+# --- the authors' conventions, read from the user's checkout (``index``) ------------------
+
+#: the authors' throw detection: the throw starts where |flywheel speed| first exceeds this
+THROW_WHEEL_SPEED = 10.0
+#: samples skipped after the throw start (their ``--offset``) and, in calibration, at the end
+THROW_OFFSET, CAL_TAIL = 300, 50
+
+
+def throw_start(wheel: np.ndarray) -> int | None:
+    """First sample ``i`` whose next sample has |flywheel speed| above 10 rad/s (their rule)."""
+    hit = np.nonzero(np.abs(wheel[1:]) > THROW_WHEEL_SPEED)[0]
+    return int(hit[0]) if len(hit) else None
+
+
+def _symmetric_basis() -> np.ndarray:
+    """(6, 3, 3) basis of symmetric matrices in ``_theta`` order."""
+    E = np.zeros((6, 3, 3))
+    for k, (i, j) in enumerate(((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))):
+        E[k, i, j] = E[k, j, i] = 1.0
+    return E
+
+
+def reference_fit(s: dict[str, np.ndarray], window: tuple[int, int], J: float
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """The authors' estimator, re-stated: ``I' = I - J 1`` [kg m^2] and the combined centre of
+    mass [m] from the samples ``window`` = [first, end) (rows of :func:`_pooled_rows`)."""
+    A, b, C, d = _pooled_rows(s, {'fit_window': window})
+    th = np.linalg.lstsq(A, J * b, rcond=None)[0]
+    return _matrix(th), np.linalg.lstsq(C, d, rcond=None)[0]
+
+
+def _cross_matrix(v: np.ndarray) -> np.ndarray:
+    """(N, 3) -> (N, 3, 3) with ``M v' = v x v'``."""
+    M = np.zeros(v.shape[:-1] + (3, 3))
+    M[..., 0, 1], M[..., 0, 2], M[..., 1, 2] = -v[..., 2], v[..., 1], -v[..., 0]
+    return M - np.swapaxes(M, -1, -2)
+
+
+def _authors_namespace(repo: Path) -> dict:
+    """Run the checkout's ``lib.calcGridObject`` (and the helpers it calls) with numpy only:
+    the functions' source is taken from the user's ``lib.py`` (which imports plotting and
+    data packages at the top, not needed here)."""
+    import ast
+
+    src = (repo / 'lib.py').read_text()
+    keep = {'calcGridObject', 'parallelAxisTheorem', 'kroneckerDelta'}
+    tree = ast.parse(src)
+    body = [n for n in tree.body if isinstance(n, ast.FunctionDef) and n.name in keep]
+    if {n.name for n in body} != keep:
+        raise SystemExit(f'{repo / "lib.py"}: {sorted(keep)} not all found; is --repo the '
+                         'tudelft/inertiaEstimation checkout?')
+    ns: dict = {'np': np}
+    exec(compile(ast.Module(body=body, type_ignores=[]), str(repo / 'lib.py'), 'exec'), ns)
+    return ns
+
+
+def _run_config(path: Path, lib_ns: dict) -> dict:
+    """The variables of one of the authors' ``config.py`` (``lib`` as the numpy-only subset)."""
+    import types
+
+    lib = types.ModuleType('lib')
+    lib.__dict__.update(lib_ns)
+    ns: dict = {'__name__': 'config', '__file__': str(path)}
+    saved = sys.modules.get('lib')
+    sys.modules['lib'] = lib
+    try:
+        exec(compile(path.read_text(), str(path), 'exec'), ns)
+    finally:
+        if saved is None:
+            sys.modules.pop('lib', None)
+        else:
+            sys.modules['lib'] = saved
+    return ns
+
+
+def _index_entry(log: Path, repo: Path, out: Path, series: str, config: str,
+                 tail: int = 0) -> tuple[dict, dict] | None:
+    """Decode one log, write its converted CSV and return its index entry and samples."""
+    s = read_throw_csv(log)
+    start = throw_start(s['wheel'])
+    if start is None:
+        print(f'{log}: no throw detected (flywheel never above {THROW_WHEEL_SPEED} rad/s); '
+              'skipped', file=sys.stderr)
+        return None
+    name = f'{series}_{config}_{log.stem}.csv'
+    write_csv(out / name, s)
+    n = len(s['t'])
+    e = {'csv': name, 'series': series, 'config': config,
+         'source': str(log.relative_to(repo)), 'throw_start': start,
+         'fit_window': [start + THROW_OFFSET, n - tail]}
+    return e, s
+
+
+def authors_calibration(cal: list[tuple[dict, dict]], cfg: dict) -> dict:
+    """The authors' ``calibrate.py`` re-stated: pooled fits with ``J = 1`` of the device-only
+    and the proof-body throws (each window ``[start + 300, end - 50)``), ``J`` the projection
+    that makes their difference the proof body's tensor moved to the combined centre of
+    mass; the device tensor is the device-only fit times ``J``."""
+    fits = {}
+    for kind in ('device_only', 'proof_body'):
+        rows = [(s, e) for e, s in cal if e['config'] == kind]
+        if not rows:
+            raise SystemExit(f'final_calibration/{kind}: no throws found')
+        parts = [_pooled_rows(s, e) for s, e in rows]
+        A = np.concatenate([p[0] for p in parts])
+        b = np.concatenate([p[1] for p in parts])
+        C = np.concatenate([p[2] for p in parts])
+        d = np.concatenate([p[3] for p in parts])
+        fits[kind] = (np.linalg.lstsq(A, b, rcond=None)[0],
+                      np.linalg.lstsq(C, d, rcond=None)[0])
+    (td, xd), (tc, xc) = fits['device_only'], fits['proof_body']
+    m_dev, m_pb = float(cfg['m_dev']), float(cfg['m_obj'])
+    sv = xd - xc
+    left = _theta(np.asarray(cfg['I_obj'], dtype=float) + _steiner(m_pb, m_dev / m_pb * sv)
+                  + _steiner(m_dev, sv))
+    right = tc - td
+    J = float(right @ left / (right @ right))
+    return {'J': J, 'I_dev': _matrix(J * td), 'x_dev': xd, 'm_dev': m_dev}
+
+
+def _pooled_rows(s: dict, e: dict) -> tuple[np.ndarray, ...]:
+    """One throw's regression rows in the authors' form (J = 1): inertia ``(A, b)``, centre
+    of mass ``(C, d)``.
+
+    Zero-phase 4th-order 20 Hz Butterworth on gyro, flywheel speed and accelerometer over the
+    whole record; the derivatives by central differences of the raw signals, then the same
+    filter; the sample step is the record's mean.  ``A theta = b`` is ``I' w' + w x (I' w) =
+    -(w x (w + f) + w' + f')`` with ``f`` the flywheel's velocity relative to the body and
+    ``I' = I - J 1``; ``C x = d`` is ``-a = w' x x + w x (w x x)``; both over the samples
+    ``e['fit_window']``.
+    """
+    t, w = s['t'], s['w']
+    dt = float(t[-1] - t[0]) / len(t)
+    f = s['wheel'][:, None] * np.array(WHEEL_AXIS)
+    sl = slice(*e['fit_window'])
+    wf, ff = _lowpass(w, dt)[sl], _lowpass(f, dt)[sl]
+    wd = _lowpass(np.gradient(w, dt, axis=0), dt)[sl]
+    fd = _lowpass(np.gradient(f, dt, axis=0), dt)[sl]
+    E = _symmetric_basis()
+    A = (np.einsum('kij,nj->nik', E, wd)
+         + np.cross(wf[:, :, None], np.einsum('kij,nj->nik', E, wf), axis=1))
+    b = -(np.cross(wf, wf + ff) + wd + fd)
+    af = _lowpass(s['a'], dt)[sl]
+    C = _cross_matrix(wd) + np.einsum('nij,njk->nik', _cross_matrix(wf), _cross_matrix(wf))
+    return A.reshape(-1, 6), b.reshape(-1), C.reshape(-1, 3), -af.reshape(-1)
+
+
+def index(args: argparse.Namespace) -> int:
+    """``index``: decode the checkout's logs, write their CSVs and ``index.json``."""
+    repo, out = Path(args.repo), Path(args.out)
+    tests = sorted((repo / 'input' / 'final_tests').glob('config_*/config.py'))
+    if not tests:
+        raise SystemExit(f'{repo}: no input/final_tests/config_*/config.py; is --repo the '
+                         'tudelft/inertiaEstimation checkout?')
+    out.mkdir(parents=True, exist_ok=True)
+    lib_ns = _authors_namespace(repo)
+    logs, cal = [], []
+    for kind in ('device_only', 'proof_body'):
+        for log in sorted((repo / 'input' / 'final_calibration' / kind).glob('*.BFL')):
+            r = _index_entry(log, repo, out, 'final_calibration', kind, tail=CAL_TAIL)
+            if r:
+                logs.append(r[0])
+                cal.append(r)
+    cfg = _run_config(repo / 'input' / 'final_calibration' / 'config.py', lib_ns)
+    c = authors_calibration(cal, cfg)
+    for conf in tests:
+        ns = _run_config(conf, lib_ns)
+        truth = {'m': float(ns['m_obj']), 'cog': np.asarray(ns['x_obj']).ravel().tolist(),
+                 'I': np.asarray(ns['I_obj'], dtype=float).tolist()}
+        for log in sorted(conf.parent.glob('*.BFL')):   # not archive/: the authors' set
+            r = _index_entry(log, repo, out, 'final_tests', str(ns['name']))
+            if r:
+                logs.append({**r[0], 'truth_object': truth})
+        print(f'{conf.parent.name}: {ns["name"]}, m {truth["m"]:.4f} kg', flush=True)
+    idx = {'source': str(repo), 'wheel': {'axis': list(WHEEL_AXIS), 'inertia': c['J']},
+           'device': {'m': c['m_dev'], 'x': c['x_dev'].tolist(), 'I_prime': c['I_dev'].tolist()},
+           'proof_body': {'m': float(cfg['m_obj']),
+                          'I': np.asarray(cfg['I_obj'], dtype=float).tolist()},
+           'logs': logs}
+    (out / 'index.json').write_text(json.dumps(idx, indent=1))
+    print(f"{out / 'index.json'}: {len(logs)} throws; flywheel J {c['J']:.6g} kg m^2 (the "
+          "authors' calibration procedure)")
+    return 0
+
+
 def bench(args: argparse.Namespace) -> int:
+    if args.method is None and not args.cli:
+        args.method = 'filtered'
     idx = json.loads(Path(args.index).read_text())
     root = Path(args.csv_root)
     rng = np.random.default_rng(args.seed)
@@ -319,7 +605,17 @@ def bench(args: argparse.Namespace) -> int:
         row: dict = {'config': e['config'], 'log': p.stem, 'status': res.status,
                      'method': res.method, 'model': res.model,
                      'cutoff_hz': res.diagnostics.get('filter_cutoff_hz')}
+        adq = res.diagnostics.get('adequacy')
+        if isinstance(adq, dict):
+            row['adequacy'] = {k: adq.get(k) for k in ('covariance', 'sigma_widened_by',
+                                                       'windows', 'residual_excess')}
+        sel = res.diagnostics.get('method_selection')
+        if isinstance(sel, dict):
+            row['candidates'] = {k: v.get('status') for k, v in
+                                 (sel.get('candidates') or {}).items() if isinstance(v, dict)}
         if Iu is not None:
+            row.update(body=_theta(Iu * J0).tolist(),
+                       body_std=(np.sqrt(np.diag(cu)) * J0).tolist())
             tr = e['truth_object']
             m, It = tr['m'], np.array(tr['I'])
 
@@ -374,19 +670,46 @@ def summary(out: list[dict]) -> None:
               f'{100 * np.median(F):.2f} %; Psi mean '
               f"{np.mean([r['psi_deg'] for r in rows]):.1f} deg; moments within 3 sigma "
               f'{np.mean(np.abs(Z) <= 3):.0%}; ok with eps > 10 %: '
-              f"{sum(1 for r in rows if r['status'] == 'ok' and r['eps'] > 0.10)}")
+              f"{sum(1 for r in rows if r['status'] == 'ok' and r['eps'] > 0.10)}"
+              + _scatter_text(rows))
+
+
+def scatter_ratio(rows: list[dict]) -> np.ndarray:
+    """Throw-to-throw scatter / median reported sigma of the whole body's tensor elements
+    (xx, yy, zz, xy, xz, yz) over throws of one configuration (the same body: its tensor does
+    not change from throw to throw); (6,), NaN without sigmas or with fewer than 3 throws."""
+    B = np.array([r['body'] for r in rows if 'body' in r])
+    S = np.array([r['body_std'] for r in rows if 'body' in r])
+    if len(B) < 3 or not np.all(np.median(S, 0) > 0):
+        return np.full(6, np.nan)
+    return B.std(0, ddof=1) / np.median(S, 0)
+
+
+def _scatter_text(rows: list[dict]) -> str:
+    if len({r['config'] for r in rows}) != 1:
+        return ''
+    q = scatter_ratio(rows)
+    return '' if np.isnan(q).all() else f'; scatter/sigma (body xx..yz) {np.round(q, 2)}'
 
 
 def convert(args: argparse.Namespace) -> int:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     J = args.flywheel_inertia
-    (out / 'flywheel.yaml').write_text(
-        'wheels:\n  - joint: flywheel\n    axis: [0.0, 0.0, -1.0]\n'
-        f'    inertia: {J!r}   # authors\' calibrate.py on input/final_calibration\n')
+    idx = json.loads(Path(args.window_index).read_text()) if args.window_index else None
+    if idx and J is None:
+        J = idx['wheel']['inertia']
+    (out / 'flywheel.yaml').write_text(_wheels_yaml(J if J is not None else DEFAULT_J))
+    windows = {Path(e['csv']).stem: e for e in idx['logs']} if idx else {}
     for c in args.csv:
         p = Path(c)
         s = read_throw_csv(p)
+        if windows:
+            if p.stem not in windows:
+                raise SystemExit(f'{p}: not in {args.window_index}; convert it without '
+                                 '--window-index')
+            a0, a1 = windows[p.stem]['fit_window']
+            s = {k: v[a0:a1] for k, v in s.items()}
         write_mcap(out / f'{p.stem}.mcap', s)
         print(f'{out / (p.stem + ".mcap")}: {len(s["t"])} samples')
     return 0
@@ -398,15 +721,20 @@ def main(argv: list[str] | None = None) -> int:
     c = sub.add_parser('convert', help='CSV -> MCAP (+ flywheel.yaml)')
     c.add_argument('csv', nargs='+')
     c.add_argument('--out', required=True)
-    c.add_argument('--flywheel-inertia', type=float, default=1.6887711495328251e-06,
-                   help='kg m^2 (default: the authors\' calibration)')
+    c.add_argument('--flywheel-inertia', type=float, default=None,
+                   help="kg m^2 (default: the index's, else the authors' published "
+                        f'{DEFAULT_J:.6g})')
+    c.add_argument('--window-index', default=None,
+                   help="index.json: cut each throw to its fit window (the authors' rule) "
+                        'and take the flywheel J from it')
     c.set_defaults(func=convert)
     b = sub.add_parser('bench', help='estimate every throw and compare with the truth')
     b.add_argument('--csv-root', required=True)
     b.add_argument('--index', required=True)
-    b.add_argument('--method', default='filtered',
-                   help='estimation method (default filtered: the filtered form with the '
-                        'cutoff from --cutoff-rule)')
+    b.add_argument('--method', default=None,
+                   help='estimation method (default: filtered with the cutoff from '
+                        "--cutoff-rule; with --cli the CLI's default); 'reference': the "
+                        "authors' pipeline re-stated (20 Hz filter, differences, OLS)")
     b.add_argument('--torque-bias', default='off')
     b.add_argument('--window', type=float, default=None,
                    help='window [s] of the method (filtered: the filter time constant)')
@@ -436,8 +764,18 @@ def main(argv: list[str] | None = None) -> int:
     b.add_argument('--prefilter', type=float, default=0.0,
                    help='zero-phase 4th-order Butterworth cutoff [Hz] on gyro and flywheel '
                         'speed before the estimate (0: none; the authors use 20 Hz)')
+    b.add_argument('--cli', action='store_true',
+                   help='estimate each window through the plain CLI (estimate W.mcap --wheels '
+                        'flywheel.yaml, defaults only; --method if given); --window, '
+                        '--cutoff-rule, --prefilter, --torque-bias do not apply')
     b.add_argument('--out')
     b.set_defaults(func=bench)
+    x = sub.add_parser('index', help="decode the authors' checkout (BFL, needs orangebox) "
+                                     'into CSVs and index.json')
+    x.add_argument('--repo', required=True,
+                   help='checkout of github.com/tudelft/inertiaEstimation (read only)')
+    x.add_argument('--out', required=True, help='directory for the CSVs and index.json')
+    x.set_defaults(func=index)
     args = ap.parse_args(argv)
     return args.func(args)
 

@@ -111,8 +111,9 @@ def test_clone_to_mcap_to_cli_and_bench(tmp_path: Path, capsys: pytest.CaptureFi
 def test_real_tosses_ratios_and_axes(tmp_path: Path) -> None:
     """The real tosses: >= 100 with ratios; median Iy/Iz and Ix/Iz within 1 sigma of the
     pendulum truth; principal axes within 5 deg of the phone axes (median); the tosses'
-    robust scatter about their median within 1.5x their median stated sigma (it was 2.1x
-    before the covariance carried the gyroscopic noise walk; measured 1.05, 1.07)."""
+    robust scatter about their median within [0.5, 1.5]x their median stated sigma (issue 27
+    asks [0.5, 2]; it was 2.1x before the covariance carried the gyroscopic noise walk;
+    measured 1.05, 1.07 on 2026-11-27)."""
     mod = _load()
     res = tmp_path / 'r.json'
     assert mod.main(['bench', '--repo', str(REAL), '--out', str(res)]) == 0
@@ -124,4 +125,5 @@ def test_real_tosses_ratios_and_axes(tmp_path: Path) -> None:
     assert np.all(np.median([r['axis_angle_deg'] for r in rows], axis=0) < 5.0)
     R = np.array([r['ratios'] for r in rows])
     mad = 1.4826 * np.median(np.abs(R - np.median(R, axis=0)), axis=0)
-    assert np.all(mad <= 1.5 * np.median([r['ratios_std'] for r in rows], axis=0))
+    sig = np.median([r['ratios_std'] for r in rows], axis=0)
+    assert np.all((mad >= 0.5 * sig) & (mad <= 1.5 * sig)), mad / sig

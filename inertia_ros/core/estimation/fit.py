@@ -10,7 +10,8 @@
 * the covariance is the sandwich ``H^-1 M H^-T`` with the exact noise model of the anchored
   equations (white gyro noise plus the integrated torque noise of each torque interval),
   inflated (never deflated) by the excess of the residuals over that model; the ``hac``
-  equations use the Newey-West meat of their scores.
+  equations use the Newey-West meat of their scores, corrected on short records
+  (:func:`hac_small_sample`).
 """
 from __future__ import annotations
 
@@ -24,7 +25,8 @@ from .noise import gyroscopic_walk_cov
 from .regressors import MOMENTUM_BASIS, metric
 from .statistics import SufficientStats
 
-__all__ = ['Fit', 'equation_weight', 'fit_two_pass', 'fit_weighted', 'solve_symmetric']
+__all__ = ['Fit', 'equation_weight', 'fit_two_pass', 'fit_weighted', 'hac_small_sample',
+           'solve_symmetric']
 
 
 @dataclass
@@ -102,7 +104,71 @@ def _hac_meat(st: SufficientStats, T: np.ndarray, p: int, W: np.ndarray,
         wgt = 1.0 - lag / (st.hac_lag + 1.0)
         Gl = scores[lag:].T @ scores[:-lag]
         meat += wgt * (Gl + Gl.T)
+    if st.hac_shapes is not None:
+        g = np.sqrt(hac_small_sample(X[..., :p], W, e, st.hac_lag, st.hac_shapes))
+        meat = meat * g[:, None] * g[None, :]
     return meat
+
+
+def hac_small_sample(X: np.ndarray, W: np.ndarray, e: np.ndarray, lag: int,
+                     shapes: np.ndarray) -> np.ndarray:
+    """Per-parameter factor (>= 1) by which the Newey-West variance is too small on a short record.
+
+    With few equations per correlation time the Bartlett estimate is biased low: the kernel
+    down-weights the correlated lags and the residuals, fitted to the same equations, are
+    smaller than the errors.  Under a working model of the error -- stationary, the pooled
+    axis covariance ``E = e'e / n`` (3, 3) times an autocorrelation ``rho`` fitted to the
+    residuals' own autocovariance at lags ``0..2 lag`` as a non-negative mix of ``shapes`` --
+    the true variance ``diag(H^-1 Z' S Z H^-1)`` and the expected Newey-West one (the same with
+    ``S`` replaced by the kernel-weighted covariance of the residuals ``M S M'``) are exact;
+    their ratio is the factor (Bell-McCaffrey style bias reduction).  Dense ``3n x 3n``:
+    called only for short records (:data:`.filtered.HAC_SMALL_SAMPLE_MAX` equations).
+
+    Parameters
+    ----------
+    X : ndarray, shape (n, 3, p)
+        Regressor blocks.
+    W : ndarray, shape (3, 3)
+        Equation weight.
+    e : ndarray, shape (n, 3)
+        Residuals.
+    lag : int
+        Bartlett lag [equations].
+    shapes : ndarray, shape (k, m)
+        Candidate autocorrelations of the error at lags ``0..m-1`` (``shapes[:, 0] = 1``).
+
+    Returns
+    -------
+    ndarray, shape (p,)
+        Variance factors, each >= 1.
+    """
+    from scipy.optimize import nnls
+
+    n, _, p = X.shape
+    m = min(2 * lag, n - 1)
+    acov = np.array([np.sum(e[k:] * e[:n - k]) / n for k in range(m + 1)])
+    basis = np.zeros((m + 1, len(shapes)))
+    basis[:min(m + 1, shapes.shape[1])] = shapes.T[:m + 1]
+    mix = nnls(basis, acov)[0]
+    rho = mix @ shapes
+    if not rho[0] > 0:
+        return np.ones(p)
+    rho = rho / rho[0]
+    d = np.abs(np.subtract.outer(np.arange(n), np.arange(n)))
+    R = np.where(d < len(rho), rho[np.minimum(d, len(rho) - 1)], 0.0)
+    K = np.kron(np.where(d <= lag, 1.0 - d / (lag + 1.0), 0.0), np.ones((3, 3)))
+    S = np.kron(R, e.T @ e / n)                               # working error covariance
+    Xf = X.reshape(3 * n, p)
+    Z = np.einsum('rs,nsp->nrp', W, X).reshape(3 * n, p)
+    Hi = solve_symmetric(Z.T @ Xf, np.eye(p))
+    AS = (Hi @ Z.T) @ S                                       # (p, 3n)
+    XAS = Xf @ AS
+    Eres = S - XAS - XAS.T + Xf @ (AS @ (Z @ Hi.T)) @ Xf.T    # E[residuals'] = M S M'
+    true = np.diag(Hi @ (Z.T @ S @ Z) @ Hi.T)
+    est = np.diag(Hi @ (Z.T @ (K * Eres) @ Z) @ Hi.T)
+    with np.errstate(divide='ignore', invalid='ignore'):
+        f = np.where(est > 0, true / est, 1.0)
+    return np.maximum(np.nan_to_num(f, nan=1.0, posinf=1.0), 1.0)
 
 
 def fit_weighted(st: SufficientStats, basis: np.ndarray, bias: bool, W: np.ndarray,

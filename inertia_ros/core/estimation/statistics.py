@@ -49,6 +49,10 @@ class SufficientStats:
         HAC lag (``kind='hac'``).
     A : ndarray, shape (n, 3, 10), optional
         The blocks themselves, kept for the HAC covariance.
+    hac_shapes : ndarray, shape (2, m), optional
+        Candidate autocorrelations of the equation error at lags ``0..m-1`` (the ``filtered``
+        method's torque-like and gyro-like shapes), for the HAC small-sample correction
+        (:func:`.fit.hac_small_sample`).
     walk_time : float
         ``sum`` over segments of ``n_s * duration_s / 6`` [s].
     torque_dt : float
@@ -76,6 +80,7 @@ class SufficientStats:
     omega_m2: np.ndarray | None = None
     gyro_dt: float = 0.0
     white_y_cov: np.ndarray | None = None
+    hac_shapes: np.ndarray | None = None
 
 
 #: Mean rows per range from which :func:`range_sums` sums range by range (BLAS row sums);
@@ -347,7 +352,7 @@ def sufficient_stats(eq: Equations, segment: float | None, t_tau: np.ndarray, ta
     n = len(eq.t)
     if eq.kind != 'anchored':
         return SufficientStats(lift(gram(eq.V)), None, n, n, 0, eq.kind, eq.eiv_var, eq.weighted,
-                               eq.hac_lag, eq.A)
+                               eq.hac_lag, eq.A, hac_shapes=eq.info.get('hac_error_shapes'))
     raw = shared_raw(eq, t_tau, tau_end, torque_var)
     starts = segment_starts(eq.t, eq.breaks, segment)
     bounds = np.append(starts, n)
