@@ -43,7 +43,7 @@ from .online_stated import StatedAligner, StatedInputs
 from .recursive import RecursiveEstimator
 from .result import InertiaEstimate
 
-__all__ = ['MomentumRecursiveEstimator']
+__all__ = ['MomentumInput', 'MomentumRecursiveEstimator']
 
 _MAX_BUFFER = 400_000        # samples a stream may wait for the others (then half are dropped)
 
@@ -69,41 +69,28 @@ class _Buffer:
             self.v = [a[:, i:] if a.ndim == 3 else a[i:] for a in self.v]
 
 
-class MomentumRecursiveEstimator(RecursiveEstimator):
-    """:class:`~.recursive.RecursiveEstimator` with internal momentum (wheels, rotors) input.
+class MomentumInput:
+    """The one reduction of the momentum input, shared by the online estimators (a mixin).
 
-    Parameters
-    ----------
-    names : sequence of str
-        The uncertain inputs whose one-sigma changes every :meth:`add_momentum` block gives
-        (e.g. ``inertia:rw1``, ``k_f:m1``); empty: none.
-    other_torque : bool
-        True: another known torque arrives through :meth:`add_torque` and the equations wait
-        for it; False: the momentum input is the only known torque.
-    hold : {'zoh', 'linear', 'auto'}
-        Hold of the other torque between its samples (``torque_hold``).  The equivalent
-        torque fed to the :class:`~.recursive.RecursiveEstimator` is always held over its
-        grid intervals: the other torque's hold is applied once, when it is reduced.
-        ``auto``: both reductions (the other torque held, and linear) on the same rows, as
-        the base estimator's two accumulators (:mod:`.online_hold`, the second as
-        ``OnlineAligner.tau_alt``), chosen by the batch rule (:func:`.selection.select_hold`)
-        in ``diagnostics['hold_selection']``; without another torque nothing is held (the
-        momentum is known at its samples), so there is nothing to choose.
-    **kwargs
-        The other options of :class:`~.recursive.RecursiveEstimator`.  ``torque_scale_std``
-        scales the other torque only, never the momentum: it is one more stated input
-        (``torque_scale``); ``gyro_scale_std`` too (``gyro_scale``: the rate in both sides).
+    Buffers the gyro, the momentum input and the other torque, and emits every covered
+    grid interval's equivalent torque (with the other torque's hold applied, and the
+    stated inputs' one-sigma changes as extra columns) to ``self._take(grid, tau, alt, x,
+    t_gyro, w_gyro)``: :class:`MomentumRecursiveEstimator` (its accumulator) and
+    :class:`MomentumTrackingEstimator` (its Kalman filter) differ only there.  The
+    equivalent torque's noise is :meth:`_reduced_noise`.
     """
 
-    def __init__(self, names: Sequence[str] = (), other_torque: bool = True,
-                 hold: str = 'zoh', **kwargs: Any) -> None:
+    def _options(self, mode: str, names: Sequence[str], other_torque: bool, hold: str,
+                 kwargs: dict[str, Any]) -> dict[str, Any]:
+        """Check the options against the table (``mode``), keep the momentum input's and
+        return the others without the scales (stated inputs here, never a scale of y)."""
         from .config import require
         from .options import HOLDS
         from .selection import SelectionPolicy
 
-        require('recursive', 'wheels_torque' if other_torque else 'wheels',
+        require(mode, 'wheels_torque' if other_torque else 'wheels',
                 dict({'model': 'full', 'torque_bias': False}, **kwargs, hold=hold))
-        self._hold_auto = hold == 'auto'
+        kwargs = dict(kwargs)
         scale = kwargs.pop('torque_scale_std', 0.0)
         # the gyro's scales the measured rate in both sides, w x h included: a stated input
         # like the others (:mod:`.online_stated`), not a scale of y
@@ -114,13 +101,10 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
         self.torque_hold = hold if self.other_torque else HOLDS[0]
         self.torque_scale_std = float(scale) if self.other_torque else 0.0
         self.gyro_scale_std = float(gscale)
-        # the equivalent torque is held over each grid interval: integrated as held, whatever
-        # the other torque's hold (which _other_on has applied already); 'auto' keeps both
-        self._kwargs = dict(kwargs, hold='auto' if self.torque_hold == 'auto' else HOLDS[0])
-        super().__init__(**self._kwargs)
+        return kwargs
 
     def reset(self) -> None:
-        """Forget everything (also the stated inputs' posterior)."""
+        """Forget everything: the estimator's state, the buffers, the stated inputs'."""
         super().reset()
         p = len(getattr(self, 'names', ()))
         self._g = _Buffer((3,))                       # gyro: w
@@ -131,10 +115,6 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
         st = StatedInputs(getattr(self, 'names', ()), getattr(self, 'torque_scale_std', 0.0),
                           getattr(self, 'gyro_scale_std', 0.0))
         self._stated = st if len(st.names) else None
-        if self._stated is not None:
-            self._align = StatedAligner(3 * len(st.names))
-            for acc in self._accs.values():
-                acc.widen(13 + 3 * len(st.names))
         self._h_noise = StreamingNoise(floor=False)
         self._tr_noise = StreamingNoise(floor=False)
         self._o_noise = StreamingNoise(floor=False)
@@ -302,6 +282,7 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
             return np.column_stack([np.interp(grid, tm, y[:, k]) for k in range(3)])
         own = interval_torque(grid, wg, hg, lin(tq) if has_tr else None)
         other, other_lin = self._other_on(grid) if self.other_torque else (None, None)
+        x = None
         if self._stated is not None:  # the stated inputs' one-sigma changes, held alike
             x = [interval_torque(grid, wg, hermite(tm, dh[i], run_slopes(tm, dh[i], gaps),
                                                    grid), lin(dtq[i]) if has_tr else None)
@@ -311,18 +292,13 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
             if self._stated.gscale:
                 c = np.cross(wg, hg)
                 x.append(-0.5 * (c[1:] + c[:-1]))
-            self._align.take_extra(grid[:-1], np.concatenate(x, axis=1))
-        out = own if other is None else own + other
+            x = np.concatenate(x, axis=1)
         self._walk(hg[:-1], wg[:-1])
         gi = (self._g.t >= grid[0]) & (self._g.t <= grid[-1])
-        t_in = self._g.t[gi]
-        w_in = self._g.v[0][gi]
+        t_in, w_in = self._g.t[gi], self._g.v[0][gi]
         fresh = t_in > (self._last_t_in if self._last_t_in is not None else -np.inf)
-        super().add_torque(grid[:-1], out)
-        if other_lin is not None:             # hold 'auto': the other torque linear too
-            self._palt.append(own + other_lin)
-        if np.any(fresh):
-            super().add_gyro(t_in[fresh], w_in[fresh])
+        self._take(grid, own if other is None else own + other,
+                   None if other_lin is None else own + other_lin, x, t_in[fresh], w_in[fresh])
         self._cursor = float(grid[-1])
         self._trim()
 
@@ -373,19 +349,83 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
             return 1.0
         return max(1.0, float(np.median(self._m_dt)) / self._gyro_dt())
 
+    def _reduced_noise(self, tau_dt: float) -> tuple[np.ndarray, np.ndarray]:
+        """The equivalent torque's white-noise variance (3,) [N^2 m^2] on grid intervals of
+        ``tau_dt`` [s] (the batch's) and the white noise (3, 3) [N^2 m^2 s^2] of each
+        equation's right-hand side (the momentum samples' own, shared by ``share`` gyro
+        samples)."""
+        share = self._share()
+        cov = np.diag(self._h_noise.variance()) if self._h_noise.count >= 6 else np.zeros((3, 3))
+        var = np.zeros(3)
+        for nv, dts in ((self._o_noise, self._o_dt), (self._tr_noise, self._m_dt)):
+            if nv.count >= 6 and dts:
+                var = var + nv.variance() * float(np.median(dts)) / tau_dt
+        return var + walk_variance(self._walk_h, self._walk_w, self._walk_n, self._gyro_var(),
+                                   cov, share), cov * share
+
+class MomentumRecursiveEstimator(MomentumInput, RecursiveEstimator):
+    """:class:`~.recursive.RecursiveEstimator` with internal momentum (wheels, rotors) input.
+
+    Parameters
+    ----------
+    names : sequence of str
+        The uncertain inputs whose one-sigma changes every :meth:`add_momentum` block gives
+        (e.g. ``inertia:rw1``, ``k_f:m1``); empty: none.
+    other_torque : bool
+        True: another known torque arrives through :meth:`add_torque` and the equations wait
+        for it; False: the momentum input is the only known torque.
+    hold : {'zoh', 'linear', 'auto'}
+        Hold of the other torque between its samples (``torque_hold``).  The equivalent
+        torque fed to the :class:`~.recursive.RecursiveEstimator` is always held over its
+        grid intervals: the other torque's hold is applied once, when it is reduced.
+        ``auto``: both reductions (the other torque held, and linear) on the same rows, as
+        the base estimator's two accumulators (:mod:`.online_hold`, the second as
+        ``OnlineAligner.tau_alt``), chosen by the batch rule (:func:`.selection.select_hold`)
+        in ``diagnostics['hold_selection']``; without another torque nothing is held (the
+        momentum is known at its samples), so there is nothing to choose.
+    **kwargs
+        The other options of :class:`~.recursive.RecursiveEstimator`.  ``torque_scale_std``
+        scales the other torque only, never the momentum: it is one more stated input
+        (``torque_scale``); ``gyro_scale_std`` too (``gyro_scale``: the rate in both sides).
+    """
+
+    def __init__(self, names: Sequence[str] = (), other_torque: bool = True,
+                 hold: str = 'zoh', **kwargs: Any) -> None:
+        from .options import HOLDS
+
+        self._hold_auto = hold == 'auto'
+        kwargs = self._options('recursive', names, other_torque, hold, kwargs)
+        # the equivalent torque is held over each grid interval: integrated as held, whatever
+        # the other torque's hold (which _other_on has applied already); 'auto' keeps both
+        self._kwargs = dict(kwargs, hold='auto' if self.torque_hold == 'auto' else HOLDS[0])
+        super().__init__(**self._kwargs)
+
+    def reset(self) -> None:
+        """Forget everything (also the stated inputs' posterior)."""
+        super().reset()
+        if self._stated is not None:
+            self._align = StatedAligner(3 * len(self._stated.names))
+            for acc in self._accs.values():
+                acc.widen(13 + 3 * len(self._stated.names))
+
+    def _take(self, grid: np.ndarray, tau: np.ndarray, alt: np.ndarray | None,
+              x: np.ndarray | None, t_in: np.ndarray, w_in: np.ndarray) -> None:
+        """One reduced run: the equivalent torque (G - 1, 3) held from ``grid[:-1]``, its
+        linear-hold twin ``alt`` (hold 'auto'), the stated columns ``x`` and the gyro."""
+        if x is not None:
+            self._align.take_extra(grid[:-1], x)
+        RecursiveEstimator.add_torque(self, grid[:-1], tau)
+        if alt is not None:             # hold 'auto': the other torque linear too
+            self._palt.append(alt)
+        if len(t_in):
+            RecursiveEstimator.add_gyro(self, t_in, w_in)
+
     def _torque_variance(self) -> np.ndarray | None:
         """The equivalent torque's white-noise variance (3,) [N^2 m^2], as the batch's."""
         if self._walk_n == 0 or self._align.tau_dt <= 0:
             return None
-        share = self._share()
-        cov = np.diag(self._h_noise.variance()) if self._h_noise.count >= 6 else np.zeros((3, 3))
-        self._white_y_cov = cov * share
-        var = np.zeros(3)
-        for nv, dts in ((self._o_noise, self._o_dt), (self._tr_noise, self._m_dt)):
-            if nv.count >= 6 and dts:
-                var = var + nv.variance() * float(np.median(dts)) / self._align.tau_dt
-        return var + walk_variance(self._walk_h, self._walk_w, self._walk_n, self._gyro_var(),
-                                   cov, share)
+        var, self._white_y_cov = self._reduced_noise(self._align.tau_dt)
+        return var
 
     def estimate(self) -> InertiaEstimate:
         """The current estimate (see :meth:`.RecursiveEstimator.estimate`), with the momentum
