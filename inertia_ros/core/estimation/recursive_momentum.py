@@ -37,13 +37,18 @@ from typing import Any
 import numpy as np
 
 from .align import gap_starts, hermite, run_slopes
+from .config import substitutions
 from .momentum import Momentum, held_over, interval_torque, walk_sums, walk_variance
 from .noise import StreamingNoise
 from .online_stated import StatedAligner, StatedInputs
 from .recursive import RecursiveEstimator
+from .regressors import gyroscopic_matrix, momentum_matrix
 from .result import InertiaEstimate
+from .tracking import TrackingEstimator
+from .tracking_hold import HoldChoice
+from .tracking_input import StreamInput
 
-__all__ = ['MomentumInput', 'MomentumRecursiveEstimator']
+__all__ = ['MomentumInput', 'MomentumRecursiveEstimator', 'MomentumTrackingEstimator']
 
 _MAX_BUFFER = 400_000        # samples a stream may wait for the others (then half are dropped)
 
@@ -88,8 +93,8 @@ class MomentumInput:
         from .options import HOLDS
         from .selection import SelectionPolicy
 
-        require(mode, 'wheels_torque' if other_torque else 'wheels',
-                dict({'model': 'full', 'torque_bias': False}, **kwargs, hold=hold))
+        self._opts = require(mode, 'wheels_torque' if other_torque else 'wheels',
+                             dict({'model': 'full', 'torque_bias': False}, **kwargs, hold=hold))
         kwargs = dict(kwargs)
         scale = kwargs.pop('torque_scale_std', 0.0)
         # the gyro's scales the measured rate in both sides, w x h included: a stated input
@@ -293,7 +298,7 @@ class MomentumInput:
                 c = np.cross(wg, hg)
                 x.append(-0.5 * (c[1:] + c[:-1]))
             x = np.concatenate(x, axis=1)
-        self._walk(hg[:-1], wg[:-1])
+        self._add_walk(hg[:-1], wg[:-1])
         gi = (self._g.t >= grid[0]) & (self._g.t <= grid[-1])
         t_in, w_in = self._g.t[gi], self._g.v[0][gi]
         fresh = t_in > (self._last_t_in if self._last_t_in is not None else -np.inf)
@@ -335,7 +340,7 @@ class MomentumInput:
             oi = max(int(np.searchsorted(self._o.t, c, side='right')) - 1, 0)
             self._o.keep_from(oi)
 
-    def _walk(self, hg: np.ndarray, wg: np.ndarray) -> None:
+    def _add_walk(self, hg: np.ndarray, wg: np.ndarray) -> None:
         """Accumulate the grid sums of the ``n x h`` and ``w x e`` torque-noise walks."""
         H, W, n = walk_sums(hg, wg)
         self._walk_h += H
@@ -450,4 +455,143 @@ class MomentumRecursiveEstimator(MomentumInput, RecursiveEstimator):
                               '(build with other_torque=False when there is none)')
         if self._stated is not None:
             est = self._stated.widen(self, est)
+        return est
+
+
+class MomentumTrackingEstimator(MomentumInput, TrackingEstimator):
+    """:class:`~.tracking.TrackingEstimator` with internal momentum (wheels, rotors) input.
+
+    The momentum input is reduced as for :class:`MomentumRecursiveEstimator` (the one road,
+    :class:`MomentumInput`): its equivalent torque, held over the grid intervals, is the
+    filter's torque stream, and its noise the filter's: the momentum samples' own white noise
+    in every equation (added to ``R``; the filter's momentum is the body's less the anchor
+    sample's momentum error, so the errors do not walk) and the equivalent torque's white
+    noise in the momentum's walk.  The stated inputs (``names``; ``torque_scale`` of the
+    other torque; ``gyro_scale``) are filter states with the prior N(0, 1) [stated sigmas],
+    never forgotten: their one-sigma changes of the impulse are columns of the equations (the
+    gyro scale's linearised at the current tensor, as :mod:`.online_stated`'s), so the
+    covariance carries them, whole (``diagnostics['input_uncertainty']``).
+
+    Parameters
+    ----------
+    names, other_torque, hold
+        As :class:`MomentumRecursiveEstimator`'s (``hold='auto'``: a twin filter under the
+        linear hold of the other torque and a :class:`MomentumRecursiveEstimator` judge).
+    **kwargs
+        The other options of :class:`~.tracking.TrackingEstimator`.
+    """
+
+    def __init__(self, names: Sequence[str] = (), other_torque: bool = True,
+                 hold: str = 'zoh', **kwargs: Any) -> None:
+        self._kind = 'wheels_torque' if other_torque else 'wheels'
+        self._mconfig, self._requested = dict(kwargs, names=names, other_torque=other_torque), hold
+        kwargs = self._options('tracking', names, other_torque, hold, kwargs)
+        self.nu = len(StatedInputs(names, self.torque_scale_std, self.gyro_scale_std).names)
+        self._learnt = int(self.gyro_scale_std > 0)
+        # the equivalent torque is held over the grid intervals ('auto': the other torque's)
+        super().__init__(**kwargs, hold='auto' if self.torque_hold == 'auto' else 'zoh')
+        self._substituted = substitutions('tracking', self._kind, self._opts)
+
+    def reset(self) -> None:
+        """Forget everything (the torque stream carries the stated columns too)."""
+        super().reset()
+        self._tau = np.empty((0, 3 + 3 * self.nu))
+
+    def _hold_choice(self) -> HoldChoice:
+        """Hold 'auto': the twin under the other torque's linear hold; the judge reduces it
+        both ways (:class:`MomentumRecursiveEstimator`, ``hold='auto'``)."""
+        judge = MomentumRecursiveEstimator(
+            other_torque=True, hold='auto', gyro_noise=self._config['gyro_noise'],
+            torque_bias='on' if self.torque_bias == 'on' else 'off')
+        return HoldChoice(MomentumTrackingEstimator(**self._mconfig, hold='linear'),
+                          self.torque_bias, self._config['gyro_noise'], judge)
+
+    def add_gyro(self, t: Any, omega: Any) -> None:
+        """Add gyro samples (:meth:`MomentumInput.add_gyro`; the twin's too)."""
+        MomentumInput.add_gyro(self, t, omega)
+        if self._choice is not None:
+            self._choice.add_gyro(t, omega)
+
+    def add_torque(self, t: Any, tau: Any) -> None:
+        """Add samples of the other torque (:meth:`MomentumInput.add_torque`; the twin's)."""
+        MomentumInput.add_torque(self, t, tau)
+        if self._choice is not None:
+            self._choice.add_torque(t, tau)
+
+    def add_momentum(self, m: Momentum) -> None:
+        """Add a momentum input block (:meth:`MomentumInput.add_momentum`; the twin's)."""
+        MomentumInput.add_momentum(self, m)
+        if self._choice is not None:
+            self._choice.add_momentum(m)
+
+    def _take(self, grid: np.ndarray, tau: np.ndarray, alt: np.ndarray | None,
+              x: np.ndarray | None, t_in: np.ndarray, w_in: np.ndarray) -> None:
+        """One reduced run: the equivalent torque (and the stated columns) held from
+        ``grid[:-1]`` into the filter's torque stream, then the gyro samples it covers."""
+        self._tq_dts = np.concatenate([self._tq_dts, np.diff(grid)])[-64:]
+        self._ts = np.concatenate([self._ts, grid[:-1]])
+        self._tau = np.concatenate([self._tau, tau if x is None else np.hstack([tau, x])])
+        self._last_tau_in = float(grid[-2])
+        if len(t_in):
+            StreamInput.add_gyro(self, t_in, w_in)
+        else:
+            self._process()
+
+    def _gyro_var(self) -> np.ndarray:
+        """The gyro white-noise variance (3,) [rad^2/s^2] the filter uses."""
+        return self._nv if self._nv is not None else np.zeros(3)
+
+    def _gyro_dt(self) -> float:
+        """The nominal gyro interval [s]."""
+        return float(np.median(self._g_dts)) if len(self._g_dts) else 0.0
+
+    def _refresh_noise(self) -> None:
+        """The filter's noise levels; the torque's is the reduction's (:meth:`_reduced_noise`),
+        which also gives each equation's white noise."""
+        super()._refresh_noise()
+        tdt = float(np.median(self._tq_dts)) if len(self._tq_dts) else 0.0
+        if self._noise_at == self.samples_used and self._walk_n and tdt > 0:
+            self._tv, self._white_y_cov = self._reduced_noise(tdt)
+
+    def _u_columns(self, w: np.ndarray, m: np.ndarray, S: np.ndarray) -> np.ndarray:
+        """The stated inputs' columns (3, nu) of a block's equation: ``-S_j`` (the block
+        mean of each input's one-sigma impulse change since the anchor), for the gyro scale
+        ``-g (L(w) theta + 2 Q(m) theta - Wc)`` (:mod:`.online_stated`'s, at the estimate)."""
+        C = -S.reshape(-1, 3).T
+        if self.gyro_scale_std:
+            th = self.basis @ self.x[:self.k]
+            C[:, -1] = -self.gyro_scale_std * ((momentum_matrix(w) + 2.0 * gyroscopic_matrix(m))
+                                               @ th + C[:, -1])
+        return C
+
+    def _u_propagation(self, m_end: np.ndarray, S_end: np.ndarray) -> np.ndarray:
+        """The momentum's change (3, nu) per stated input over a block: ``S_j``, for the
+        gyro scale ``g (2 Q(m) theta - Wc)``."""
+        F = S_end.reshape(-1, 3).T.copy()
+        if self.gyro_scale_std:
+            th = self.basis @ self.x[:self.k]
+            F[:, -1] = self.gyro_scale_std * (2.0 * gyroscopic_matrix(m_end) @ th - F[:, -1])
+        return F
+
+    def estimate(self) -> InertiaEstimate:
+        """:meth:`.TrackingEstimator.estimate` with the momentum input's record and the
+        stated inputs' posterior (``diagnostics['input_uncertainty']``)."""
+        est = super().estimate()
+        diag = est.diagnostics
+        diag['momentum'] = {'samples': self.momentum_samples, 'other_torque': self.other_torque,
+                            'h_noise_std': self._h_noise.std()}
+        if self._requested == 'auto' and not self.other_torque:
+            diag['hold'] = 'zoh'
+            diag['hold_selection'] = {'requested': 'auto', 'chosen': 'zoh', 'reason': (
+                'no other torque: the momentum input is not held, nothing to choose')}
+        if self._stated is not None and self._warm is None:
+            u = slice(self.k + self.nb, self.n - 3)     # d theta (6,) per stated sigma
+            D = self.basis @ self.P[:self.k, u] @ np.linalg.inv(self.P[u, u])
+            sd = np.sqrt(np.maximum(np.diag(self.P[u, u]), 0.0))
+            diag['input_uncertainty'] = {nm: {
+                'theta_change': D[:, j], 'profiled_sigmas': float(self.x[u][j]),
+                'posterior_sigmas': float(sd[j])} for j, nm in enumerate(self._stated.names)}
+            diag['calibration'] = {'torque_scale_std': self.torque_scale_std,
+                                   'gyro_scale_std': self.gyro_scale_std,
+                                   'gyro_sensitivity': 'a filter state (learnt)'}
         return est

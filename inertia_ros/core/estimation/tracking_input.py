@@ -14,7 +14,9 @@ from typing import Any
 import numpy as np
 
 from .._validate import as_sample_block, require_after
+from .noise import gyroscopic_walk_cov
 from .options import GAP_FACTOR
+from .regressors import momentum_matrix
 
 __all__ = ['StreamInput']
 
@@ -22,6 +24,7 @@ _DT_HISTORY = 64          # recent sample intervals kept per stream for the nomi
 _MAX_BUFFER = 400_000     # gyro samples kept waiting for torque
 _WARM_KEEP = 5.0          # start-up samples kept while undetermined [warmup lengths]
 _NOISE_EVERY = 500        # gyro samples between re-readings of the noise levels
+_REFRESH = 0.25           # data time between re-derivations of the weights [s]
 
 
 class StreamInput:
@@ -168,3 +171,32 @@ class StreamInput:
         j = int(np.searchsorted(self._ts, self._prev[0], side='right')) - 1
         if j > 0:
             self._ts, self._tau = self._ts[j:], self._tau[j:]
+
+    def _cached(self) -> tuple[np.ndarray, np.ndarray]:
+        """The weights ``R`` and the gyro variance, re-derived (with the momentum's walk and
+        the nominal sample intervals) every :data:`_REFRESH` s of data or when the weights'
+        tensor was set: they move slowly, and deriving them costs more than a block."""
+        t = self._prev[0]
+        if self._R is None or t - self._R_at >= _REFRESH or self._R_for is not self._R_theta:
+            self._R, self._nv_R = self._weight()
+            self._R_at, self._R_for = t, self._R_theta
+            self._gdt = float(np.median(self._g_dts)) if len(self._g_dts) else 0.0
+            self._tdt = float(np.median(self._tq_dts)) if len(self._tq_dts) else 0.0
+            self._walk = self._momentum_walk(self._nv_R)
+            E = momentum_matrix(np.eye(3)) @ self.basis           # (3, 3, k): L(e_c) T
+            self._B = np.einsum('c,cik,ij,cjl->kl', self._nv_R, E, np.linalg.inv(self._R), E)
+        return self._R, self._nv_R
+
+    def _momentum_walk(self, nv: np.ndarray) -> np.ndarray:
+        """Variance rate of the momentum [N^2 m^2 s]: integrated torque noise and the gyro
+        noise integrated by the gyroscopic term (:func:`.noise.gyroscopic_walk_cov`)."""
+        tdt = float(np.median(self._tq_dts)) if len(self._tq_dts) else 0.0
+        if tdt <= 0:
+            return np.zeros((3, 3))
+        gdt = float(np.median(self._g_dts)) if len(self._g_dts) else 0.0
+        from ..tensor import theta_to_matrix
+
+        I = theta_to_matrix(self.basis @ self.x[:self.k], check_finite=False)
+        m2 = self._m2_sum / max(self._m2_n, 1.0)
+        G = gyroscopic_walk_cov(I, nv, m2, gdt, tdt) if np.all(np.isfinite(I)) else 0.0
+        return tdt * (np.diag(self._tv) + G)
