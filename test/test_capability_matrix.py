@@ -313,15 +313,7 @@ def mismatched(kind: str) -> list[dict]:
 
 
 #: adequacy cells the table supports that miss the mismatch today (measured)
-KNOWN_ADEQUACY = {
-    ('tracking', 'torque'): 'an unmeasured 0.05 N m sine disturbance (a quarter of the applied '
-                            'torque): insufficient_excitation on the second seed (model_mismatch '
-                            'with residual excess 8.2 and 5.9 on the others)',
-    **dict.fromkeys([('tracking', 'wheels'), ('tracking', 'wheels_torque')],
-                    'flagged on every seed but as partially_identifiable (residual excess '
-                    '255-330): the change test fires every 0.3 s and its inflations leave '
-                    'off-diagonal elements undetermined, so never model_mismatch'),
-}
+KNOWN_ADEQUACY: dict[tuple[str, str], str] = {}
 
 
 @pytest.mark.slow

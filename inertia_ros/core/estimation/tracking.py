@@ -502,18 +502,16 @@ class TrackingEstimator(StreamInput, StateOutput):
         """Inflate the prior covariance of the tensor after a change; the momentum is kept (a
         payload attached without impulse conserves it, the rate jumps), unless the change is
         found again within ``EXCESS_TIME``: then the momentum jumped too (a rate kept
-        continuous, ``dI w``), and its covariance is inflated by that much."""
+        continuous, ``dI w``), and its covariance is inflated by that much.  Nothing is
+        inflated at the third change within ``4 EXCESS_TIME``: that is a mismatch."""
+        c = self.changes
+        if len(c) > 2 and c[-1] - c[-3] < 4.0 * EXCESS_TIME:
+            return                 # found again and again: the model fails (a mismatch)
         s = self._scale() * self.change_inflation
         self.P[:self.k, :self.k] += np.eye(self.k) * s ** 2
         if len(self.changes) > 1 and self.changes[-1] - self.changes[-2] < EXCESS_TIME:
             self.P[self.n - 3:, self.n - 3:] += np.eye(3) * float(
                 2.0 * s * np.linalg.norm(self._prev[1])) ** 2
-
-    def _note_excess(self, ratio: float, dt: float) -> None:
-        """Running mean of the innovation excess (NIS / dof) over about ``EXCESS_TIME`` s."""
-        a = math.exp(-dt / EXCESS_TIME)
-        self._excess_w = a * self._excess_w + (1 - a)
-        self._excess += (1 - a) / self._excess_w * (ratio - self._excess)
 
     def _predict(self, t: np.ndarray, w: np.ndarray, y_end: np.ndarray, m_end: np.ndarray,
                  nv: np.ndarray, corr: tuple[np.ndarray, ...] | None = None,

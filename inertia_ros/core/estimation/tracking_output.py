@@ -38,6 +38,12 @@ class StateOutput:
         s = float(np.mean(theta[:3]))
         return s if s > 0 and math.isfinite(s) else 1.0
 
+    def _note_excess(self, ratio: float, dt: float) -> None:
+        """Running mean of the innovation excess (NIS / dof) over about ``EXCESS_TIME`` s."""
+        a = math.exp(-dt / EXCESS_TIME)
+        self._excess_w = a * self._excess_w + (1 - a)
+        self._excess += (1 - a) / self._excess_w * (ratio - self._excess)
+
     def _covariance(self) -> np.ndarray:
         """Covariance (p, p) of ``[psi, d]`` against the current tensor.
 
