@@ -256,3 +256,36 @@ def test_tracking_follows_a_payload_step_on_a_wheel_driven_body() -> None:
         assert max(est.changes) < 12.5, est.changes
         z = (e.theta - new) / e.theta_std
         assert e.status == 'ok' and np.all(np.abs(z) < 3.0), (e.status, z)
+
+
+def test_tracking_states_the_wheel_inertias() -> None:
+    """Issue 26: the wheels' stated inertia sigmas (5 %, ``names``) are states of the tracker,
+    considered at their prior: on the capability matrix's wheel records with each wheel's
+    inertia off by +-1 stated sigma (signs +, -, +-), every diagonal sigma grows at least
+    4x (measured 4.9-12.9x), each input's ``theta_change`` is recorded and the RMS z of the
+    six elements over seeds 0-2 falls from 4.4 (unstated) to 2.6 (measured; not yet
+    in [0.5, 2]: the considered inputs are not profiled as the recursive mode does)."""
+    from test_capability_matrix import BASE, IDX, _wheel_inputs, _wheel_scene, feed, records
+
+    from inertia_ros.core.estimation.momentum import Wheel
+    from inertia_ros.core.estimation.recursive_momentum import MomentumTrackingEstimator
+    from inertia_ros.core.scene import Scene
+
+    wheels = Scene.from_dict(_wheel_scene()).wheels.wheels
+    z = {0.0: [], 0.05: []}
+    for i, rec in enumerate(records('wheels')):
+        out = {}
+        for std in z:
+            sign = (1.0, -1.0, 1.0 if i % 2 == 0 else -1.0)
+            ws = [Wheel(w.joint, w.axis, w.inertia * (1 + sign[j] * 0.05), w.inertia * std)
+                  for j, w in enumerate(wheels)]
+            names = tuple(f'inertia:{w.joint}' for w in ws) if std else ()
+            est = MomentumTrackingEstimator(names=names, other_torque=False, window=1000.0,
+                                            **BASE)
+            out[std] = e = feed(est, dict(rec, inputs=lambda t, s, ws=ws: _wheel_inputs(
+                t, s, ws)))
+            z[std].append((e.theta - rec['truth'][IDX]) / e.theta_std)
+        assert set(out[0.05].diagnostics['input_uncertainty']) == set(names)
+        assert np.all(out[0.05].theta_std[:3] >= 4.0 * out[0.0].theta_std[:3])
+    rms = {std: float(np.sqrt(np.mean(np.square(v)))) for std, v in z.items()}
+    assert rms[0.05] < 3.0 and rms[0.05] < 0.7 * rms[0.0], rms

@@ -487,7 +487,7 @@ class MomentumTrackingEstimator(MomentumInput, TrackingEstimator):
         self._mconfig, self._requested = dict(kwargs, names=names, other_torque=other_torque), hold
         kwargs = self._options('tracking', names, other_torque, hold, kwargs)
         self.nu = len(StatedInputs(names, self.torque_scale_std, self.gyro_scale_std).names)
-        self._learnt = int(self.gyro_scale_std > 0)
+        self._learnt = self._nl = int(self.gyro_scale_std > 0)     # the gyro scale learnt
         # the equivalent torque is held over the grid intervals ('auto': the other torque's)
         super().__init__(**kwargs, hold='auto' if self.torque_hold == 'auto' else 'zoh')
         self._substituted = substitutions('tracking', self._kind, self._opts)

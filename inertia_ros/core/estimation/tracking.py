@@ -188,7 +188,8 @@ class TrackingEstimator(StreamInput, StateOutput):
     _kind = 'torque'                 # the input kind (the capability table's column)
     nu = 0                           # stated-input states (:class:`.recursive_momentum.
     _white_y_cov = None              # MomentumTrackingEstimator`) and white noise of y
-    _learnt = 0                      # the last of them learnt (the gyro scale), not considered
+    _learnt = 0                      # the last of them learnt, the others considered
+    _nl = 0                          # the last of them non-linear (the gyro scale)
 
     def __init__(self, window: float = 10.0, model: str = 'full',
                  torque_bias: bool | str = 'off', hold: str = 'zoh', symmetry_axis: Any = None,
@@ -335,7 +336,8 @@ class TrackingEstimator(StreamInput, StateOutput):
         self._prev = (float(t[0]), w[0].copy())
         H, y = self._equations(t[1:], w[1:], self._nv)
         keep = np.r_[:self.k + self.nb, self.n - 3:self.n]    # the stated inputs at 0
-        H = H[:, :, keep]
+        ui = np.arange(self.k + self.nb, self.n - 3)
+        H, Hu = H[:, :, keep], H[:, :, ui]
         theta = None
         for _ in range(2):
             R, _nv = self._weight(theta)
@@ -347,8 +349,13 @@ class TrackingEstimator(StreamInput, StateOutput):
         # the fit weighs white noise only: the momentum's walk over the start-up (the
         # integrated torque noise) inflates it further, by its share of the noise
         walk = float(np.trace(self._momentum_walk(self._nv))) * float(t[-1] - t[0])
-        cov[np.ix_(keep, keep)] = solve_symmetric(Hw.T @ Hw, np.eye(len(keep))) \
-            * _PRIOR_INFLATION * (1.0 + walk / float(np.trace(R)))
+        inv = solve_symmetric(Hw.T @ Hw, np.eye(len(keep)))
+        # the fit at the stated inputs' 0 moves by D u with them (x - x0 = -D u)
+        D = inv @ Hw.T @ np.einsum('ij,nik->njk', Wc, Hu).reshape(len(Hw), len(ui))
+        cov[np.ix_(keep, keep)] = inv * _PRIOR_INFLATION * (1.0 + walk / float(np.trace(R))) \
+            + D @ D.T
+        cov[np.ix_(keep, ui)] = -D
+        cov[np.ix_(ui, keep)] = -D.T
         se = np.sqrt(np.maximum(np.diag(self.basis @ cov[:self.k, :self.k] @ self.basis.T),
                                 0.0))
         if not (np.all(theta[:3] > 0) and np.all(se[:3] < 0.5 * theta[:3])):
@@ -367,21 +374,6 @@ class TrackingEstimator(StreamInput, StateOutput):
         se = np.sqrt(np.maximum(np.diag(self.basis @ self.P[:self.k, :self.k]
                                         @ self.basis.T), 0.0))
         return bool(np.all(theta[:3] > 0) and np.all(se[:3] < _SETTLED * theta[:3]))
-
-    def _reanchor(self, t: float, w: np.ndarray) -> None:
-        """Across a gap: anchor at ``(t, w)`` with the momentum ``L = I w`` of the current
-        tensor (covariance from the tensor's and the gyro noise's)."""
-        R, _nv = self._cached()
-        A = np.zeros((3, self.n))
-        A[:, :self.k] = momentum_matrix(w) @ self.basis
-        L = slice(self.n - 3, self.n)
-        AP = A @ self.P
-        self.x[L] = A @ self.x
-        self.P[L, :] = AP
-        self.P[:, L] = AP.T
-        self.P[L, L] = AP @ A.T + R
-        self._prev = (t, w.copy())
-        self.gaps += 1
 
     # ------------------------------------------------------------------------ the filter
     def _weight(self, theta: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -420,6 +412,10 @@ class TrackingEstimator(StreamInput, StateOutput):
         if self.nb:
             H[:, :, self.k:self.k + 3] = -(t - s)[:, None, None] * eye
         H[:, :, self.n - 3:] = -eye
+        q = self.nu - self._nl            # the impulse's inputs: minus their impulse changes
+        if q:
+            H[:, :, self.k + self.nb:self.k + self.nb + q] = -(
+                T[1:, 3:3 + 3 * q] - T[0, 3:3 + 3 * q]).reshape(n, q, 3).transpose(0, 2, 1)
         return H, y
 
     def _block(self, t: np.ndarray, w: np.ndarray) -> None:

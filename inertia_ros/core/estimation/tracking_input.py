@@ -1,10 +1,11 @@
 """The input side of :class:`.tracking.TrackingEstimator`: streams to blocks.
 
 :class:`StreamInput` buffers the gyro samples until the torque covers them, keeps the
-streams' nominal intervals and noise levels, collects the start-up samples, cuts the
-covered samples into blocks of ``block`` seconds and handles the gaps of either stream
-(re-anchoring after them).  The filter itself (:meth:`_initialise`, :meth:`_block`,
-:meth:`_reanchor`) is the estimator's; this mixin only decides what reaches it and when.
+streams' nominal intervals and noise levels (and the filter's weights from them), collects
+the start-up samples, cuts the covered samples into blocks of ``block`` seconds and handles
+the gaps of either stream (re-anchoring after them, :meth:`_reanchor`).  The filter itself
+(:meth:`_initialise`, :meth:`_block`) is the estimator's; this mixin decides what reaches it
+and when.
 """
 from __future__ import annotations
 
@@ -200,3 +201,18 @@ class StreamInput:
         m2 = self._m2_sum / max(self._m2_n, 1.0)
         G = gyroscopic_walk_cov(I, nv, m2, gdt, tdt) if np.all(np.isfinite(I)) else 0.0
         return tdt * (np.diag(self._tv) + G)
+
+    def _reanchor(self, t: float, w: np.ndarray) -> None:
+        """Across a gap: anchor at ``(t, w)`` with the momentum ``L = I w`` of the current
+        tensor (covariance from the tensor's and the gyro noise's)."""
+        R, _nv = self._cached()
+        A = np.zeros((3, self.n))
+        A[:, :self.k] = momentum_matrix(w) @ self.basis
+        L = slice(self.n - 3, self.n)
+        AP = A @ self.P
+        self.x[L] = A @ self.x
+        self.P[L, :] = AP
+        self.P[:, L] = AP.T
+        self.P[L, L] = AP @ A.T + R
+        self._prev = (t, w.copy())
+        self.gaps += 1
