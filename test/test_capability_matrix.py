@@ -201,11 +201,7 @@ def cells(supported: bool):
 
 
 #: supported cells that fail the accuracy / z check today (issue 26 findings; measured)
-KNOWN: dict[tuple[str, str, str], str] = {
-    ('tracking', 'rotors', 'gyro_scale_std'): 'the filter learns the gyro scale from the '
-    "rotors' weak w x h at 0.25 posterior sigma, wrong by about 1.4 sigma: RMS z 3.2, "
-    'largest error 2.3 %',
-}
+KNOWN: dict[tuple[str, str, str], str] = {}
 
 
 def known(cell: tuple[str, str, str]) -> str | None:

@@ -42,7 +42,7 @@ from .momentum import Momentum, held_over, interval_torque, walk_sums, walk_vari
 from .noise import StreamingNoise
 from .online_stated import StatedAligner, StatedInputs
 from .recursive import RecursiveEstimator
-from .regressors import gyroscopic_matrix, momentum_matrix
+from .regressors import cumulative_monomials, gyroscopic_matrix, momentum_matrix
 from .result import InertiaEstimate
 from .tracking import TrackingEstimator
 from .tracking_hold import HoldChoice
@@ -563,6 +563,15 @@ class MomentumTrackingEstimator(MomentumInput, TrackingEstimator):
             C[:, -1] = -self.gyro_scale_std * ((momentum_matrix(w) + 2.0 * gyroscopic_matrix(m))
                                                @ th + C[:, -1])
         return C
+
+    def _gyro_column(self, t: np.ndarray, w: np.ndarray, theta: np.ndarray) -> np.ndarray:
+        """The gyro scale's column (n, 3) of the start-up equations at ``theta`` (6,)."""
+        tt = np.concatenate([[self._prev[0]], t])
+        M = cumulative_monomials(tt, np.vstack([self._prev[1], w]), self._nv,
+                                 end_correction=False)[1:]
+        T = self._cum(tt)
+        return -self.gyro_scale_std * ((momentum_matrix(w) + 2.0 * gyroscopic_matrix(M))
+                                       @ theta - (T[1:, -3:] - T[0, -3:]))
 
     def _u_propagation(self, m_end: np.ndarray, S_end: np.ndarray) -> np.ndarray:
         """The momentum's change (3, nu) per stated input over a block: ``S_j``, for the

@@ -349,6 +349,8 @@ class TrackingEstimator(StreamInput, StateOutput):
         # the fit weighs white noise only: the momentum's walk over the start-up (the
         # integrated torque noise) inflates it further, by its share of the noise
         walk = float(np.trace(self._momentum_walk(self._nv))) * float(t[-1] - t[0])
+        if self._nl:                      # the gyro scale's column at the fitted tensor
+            Hu[:, :, -1] = self._gyro_column(t[1:], w[1:], theta)
         inv = solve_symmetric(Hw.T @ Hw, np.eye(len(keep)))
         # the fit at the stated inputs' 0 moves by D u with them (x - x0 = -D u)
         D = inv @ Hw.T @ np.einsum('ij,nik->njk', Wc, Hu).reshape(len(Hw), len(ui))
