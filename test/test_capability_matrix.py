@@ -41,7 +41,10 @@ from inertia_ros.core.estimation.momentum import (
 )
 from inertia_ros.core.estimation.options import MAX_RESIDUAL_EXCESS
 from inertia_ros.core.estimation.recursive import RecursiveEstimator
-from inertia_ros.core.estimation.recursive_momentum import MomentumRecursiveEstimator
+from inertia_ros.core.estimation.recursive_momentum import (
+    MomentumRecursiveEstimator,
+    MomentumTrackingEstimator,
+)
 from inertia_ros.core.estimation.rotors import rotors_momentum
 from inertia_ros.core.estimation.tracking import TrackingEstimator
 from inertia_ros.core.estimation.windowed import BatchWindow
@@ -148,6 +151,9 @@ def make_online(mode: str, kind: str, opts: dict):
         return MomentumRecursiveEstimator(other_torque=kind == 'wheels_torque', **opts)
     if mode == 'recursive':
         return RecursiveEstimator(**opts)
+    if mode == 'tracking' and kind in ('wheels', 'rotors', 'wheels_torque'):
+        return MomentumTrackingEstimator(other_torque=kind == 'wheels_torque', window=1000.0,
+                                         **opts)
     if mode == 'tracking':
         return TrackingEstimator(window=1000.0, **opts)
     momentum = kind in ('wheels', 'rotors', 'wheels_torque')
@@ -303,11 +309,7 @@ def mismatched(kind: str) -> list[dict]:
 
 
 #: adequacy cells the table supports that miss the mismatch today (measured)
-KNOWN_ADEQUACY = {
-    ('tracking', 'torque'): 'an unmeasured 0.05 N m sine disturbance (a quarter of the applied '
-                            'torque): status ok on 2/3 seeds with residual excess 62 and 36 '
-                            '(partially_identifiable, 109, on the second)',
-}
+KNOWN_ADEQUACY: dict[tuple[str, str], str] = {}
 
 
 @pytest.mark.slow

@@ -178,30 +178,31 @@ def test_node_joint_states_topic_is_remappable_and_checked(node, tmp_path):
 
 
 def test_node_actuator_parameter_errors(node, tmp_path):
-    """A missing or invalid file, both files, or method tracking: one line naming the cause."""
+    """A missing or invalid file or both files: one line naming the cause."""
     bad = tmp_path / 'bad.yaml'
     bad.write_text('rotors:\n  - {joint: a, position: [0, 0], spin: 1, k_f: 1, k_m: 0}\n')
     cases = [({'wheels_file': str(tmp_path / 'missing.yaml')}, "'wheels_file'"),
              ({'rotors_file': str(bad)}, 'position: must be a list of 3 numbers'),
              ({'wheels_file': str(ROOT / 'config' / 'wheels' / 'wheels.yaml'),
-               'rotors_file': str(ROTORS_FILE)}, 'use one of them'),
-             ({'rotors_file': str(ROTORS_FILE), 'method': 'tracking'},
-              "need method 'recursive' or 'batch'")]
+               'rotors_file': str(ROTORS_FILE)}, 'use one of them')]
     for overrides, match in cases:
         with pytest.raises(ValueError) as err:
             node(**overrides)
         assert match in str(err.value) and '\n' not in str(err.value), str(err.value)
 
 
-def test_node_rotors_with_method_batch(node):
+@pytest.mark.parametrize('method', ['batch', 'tracking'])
+def test_node_rotors_with_method_batch(node, method):
     """Issue 26: the same quadrotor log with ``method: batch`` (a 30 s window re-solved by the
-    batch momentum estimator): ok, every element within 3 sigma.  On f0eb6ad refused."""
+    batch momentum estimator) or ``tracking`` (the Kalman tracker on the same reduction):
+    ok, every element within 3 sigma.  On f0eb6ad (tracking: d5ad26d) refused."""
     d = dict(load_scene(ROOT / 'config' / 'scenes' / 'quadrotor.yaml').source, duration=6.0)
     sc = Scene.from_dict(d)
     sim = simulate(sc, 3)
-    n = node(rotors_file=str(ROTORS_FILE), torque_topic='none', torque_bias='auto',
-             method='batch')
+    n = node(rotors_file=str(ROTORS_FILE), torque_topic='none',
+             torque_bias='auto' if method == 'batch' else 'off', method=method)
     est = feed(n, sim, [w.joint for w in sc.wheels.wheels])
     z = (est.theta - sim.inertia[THETA_IDX]) / est.theta_std
     assert est.status == 'ok' and np.all(np.abs(z) < 3), (est.status, z)
-    assert est.method == 'integral' and 'input_uncertainty' in est.diagnostics
+    assert est.method == ('integral' if method == 'batch' else 'tracking')
+    assert 'input_uncertainty' in est.diagnostics

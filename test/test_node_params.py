@@ -345,8 +345,9 @@ def test_node_hold_default_is_auto_by_evidence() -> None:
 def test_node_batch_method_takes_wheels() -> None:
     """Issue 26: with a wheels file the node's ``method: batch`` builds a ``BatchWindow``
     that takes the wheels' momentum (the batch momentum estimator at each re-solve), with
-    the other torque unless ``torque_topic`` is 'none'; ``method: tracking`` is one line.
-    On f0eb6ad ``batch`` was refused ("need method 'recursive'")."""
+    the other torque unless ``torque_topic`` is 'none'; ``method: tracking`` the tracker on
+    the same momentum reduction.  On f0eb6ad ``batch`` was refused ("need method
+    'recursive'"), on d5ad26d ``tracking``."""
     from inertia_ros.core.estimation.windowed import BatchWindow
     from inertia_ros.io.rotors import load_actuators
     from inertia_ros.nodes.selection import make_estimator
@@ -358,5 +359,8 @@ def test_node_batch_method_takes_wheels() -> None:
     assert isinstance(est, BatchWindow) and est.momentum and est.other_torque
     alone = make_estimator(dict(cfg, torque_topic='none'), acts)()
     assert alone.momentum and not alone.other_torque
-    with pytest.raises(ValueError, match="need method 'recursive' or 'batch'"):
-        make_estimator(dict(cfg, method='tracking'), acts)
+    from inertia_ros.core.estimation.recursive_momentum import MomentumTrackingEstimator
+
+    track = make_estimator(dict(cfg, method='tracking', torque_topic='none'), acts)()
+    assert isinstance(track, MomentumTrackingEstimator) and not track.other_torque
+    assert track.names == acts.names

@@ -223,3 +223,69 @@ def test_tracking_auto_hold_locks_the_hold_of_the_source(kind: str, chosen: str)
         np.testing.assert_array_less(np.abs(e.theta - fixed.theta), 0.02 * fixed.theta_std)
         z = (e.theta - matrix_to_theta(rec.inertia)) / e.theta_std
         assert np.max(np.abs(z)) < 4.0, z
+
+
+def test_tracking_follows_a_payload_step_on_a_wheel_driven_body() -> None:
+    """Issue 26: wheels without any other torque (the scene simulator's three reaction wheels,
+    test_capability_matrix's scene, 30 s), the tensor +20 % at 12 s with the rate continuous:
+    the tracker on the wheel momentum (``MomentumTrackingEstimator``, memory 5 s) finds the
+    step within 0.5 s (twice: the second time the momentum's jump ``dI w`` too) and at the
+    end reads the new tensor within 3 sigma (measured |z| <= 0.7, error 0.02 %), status ok,
+    seeds 0-1.  On d5ad26d wheels were refused in tracking mode."""
+    from test_capability_matrix import BASE, _wheel_inputs, _wheel_scene, feed
+
+    from inertia_ros.core.estimation.momentum import Wheel
+    from inertia_ros.core.estimation.recursive_momentum import MomentumTrackingEstimator
+    from inertia_ros.core.inertia import matrix_to_theta
+    from inertia_ros.core.scene import Scene
+    from inertia_ros.core.simulation import simulate
+
+    d = dict(_wheel_scene(), duration=30.0, inertia_change={
+        'time': 12.0, 'inertia': [0.144, 0.12, 0.096, 0.0048, -0.0036, 0.0024]})
+    sc = Scene.from_dict(d)
+    ws = [Wheel(w.joint, w.axis, w.inertia) for w in sc.wheels.wheels]
+    new = matrix_to_theta(sc.inertia_change.inertia)
+    for seed in range(2):
+        r = simulate(sc, seed)
+        rec = {'tg': r.t_gyro, 'w': r.omega, 'tt': np.zeros(0), 'tau': np.zeros((0, 3)),
+               'mom': True, 't_wheel': r.t_wheel, 'speed': r.wheel_speed,
+               'inputs': lambda t, s: _wheel_inputs(t, s, ws)}
+        est = MomentumTrackingEstimator(other_torque=False, window=5.0, **BASE)
+        e = feed(est, rec)
+        assert 1 <= len(est.changes) <= 2 and 12.0 <= min(est.changes), est.changes
+        assert max(est.changes) < 12.5, est.changes
+        z = (e.theta - new) / e.theta_std
+        assert e.status == 'ok' and np.all(np.abs(z) < 3.0), (e.status, z)
+
+
+def test_tracking_states_the_wheel_inertias() -> None:
+    """Issue 26: the wheels' stated inertia sigmas (5 %, ``names``) are states of the tracker,
+    considered at their prior: on the capability matrix's wheel records with each wheel's
+    inertia off by +-1 stated sigma (signs +, -, +-), every diagonal sigma grows at least
+    4x (measured 4.9-12.9x), each input's ``theta_change`` is recorded and the RMS z of the
+    six elements over seeds 0-2 falls from 4.4 (unstated) to 2.6 (measured; not yet
+    in [0.5, 2]: the considered inputs are not profiled as the recursive mode does)."""
+    from test_capability_matrix import BASE, IDX, _wheel_inputs, _wheel_scene, feed, records
+
+    from inertia_ros.core.estimation.momentum import Wheel
+    from inertia_ros.core.estimation.recursive_momentum import MomentumTrackingEstimator
+    from inertia_ros.core.scene import Scene
+
+    wheels = Scene.from_dict(_wheel_scene()).wheels.wheels
+    z = {0.0: [], 0.05: []}
+    for i, rec in enumerate(records('wheels')):
+        out = {}
+        for std in z:
+            sign = (1.0, -1.0, 1.0 if i % 2 == 0 else -1.0)
+            ws = [Wheel(w.joint, w.axis, w.inertia * (1 + sign[j] * 0.05), w.inertia * std)
+                  for j, w in enumerate(wheels)]
+            names = tuple(f'inertia:{w.joint}' for w in ws) if std else ()
+            est = MomentumTrackingEstimator(names=names, other_torque=False, window=1000.0,
+                                            **BASE)
+            out[std] = e = feed(est, dict(rec, inputs=lambda t, s, ws=ws: _wheel_inputs(
+                t, s, ws)))
+            z[std].append((e.theta - rec['truth'][IDX]) / e.theta_std)
+        assert set(out[0.05].diagnostics['input_uncertainty']) == set(names)
+        assert np.all(out[0.05].theta_std[:3] >= 4.0 * out[0.0].theta_std[:3])
+    rms = {std: float(np.sqrt(np.mean(np.square(v)))) for std, v in z.items()}
+    assert rms[0.05] < 3.0 and rms[0.05] < 0.7 * rms[0.0], rms

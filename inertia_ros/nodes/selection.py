@@ -10,7 +10,10 @@ from collections.abc import Callable
 from typing import Any
 
 from inertia_ros.core.estimation.recursive import RecursiveEstimator
-from inertia_ros.core.estimation.recursive_momentum import MomentumRecursiveEstimator
+from inertia_ros.core.estimation.recursive_momentum import (
+    MomentumRecursiveEstimator,
+    MomentumTrackingEstimator,
+)
 from inertia_ros.core.estimation.tracking import TrackingEstimator
 from inertia_ros.core.estimation.windowed import BatchWindow, OnlineEstimator
 
@@ -51,7 +54,8 @@ def make_estimator(cfg: dict[str, Any], actuators: Any = None
     actuators : inertia_ros.io.rotors.ActuatorInput, optional
         Wheels or rotors on ``joint_states``: a
         :class:`~inertia_ros.core.estimation.recursive_momentum.MomentumRecursiveEstimator`
-        with their uncertain inputs, or (``method='batch'``) a ``BatchWindow`` with
+        with their uncertain inputs (``method='tracking'``: a ``MomentumTrackingEstimator``),
+        or (``method='batch'``) a ``BatchWindow`` with
         ``momentum=True`` (another torque only when ``torque_topic`` is not 'none').
 
     Returns
@@ -67,9 +71,6 @@ def make_estimator(cfg: dict[str, Any], actuators: Any = None
         From the core, naming the offending setting.
     """
     axis = cfg['symmetry_axis'] or None
-    if (cfg.get('wheels_file') or cfg.get('rotors_file')) and cfg['method'] == 'tracking':
-        raise ValueError("wheels_file / rotors_file need method 'recursive' or 'batch' (the "
-                         'tracking filter takes a torque stream only)')
     if cfg['method'] == 'recursive':
         # model selection ('auto') re-run about once a second, its choice reused in between:
         # the per-update cost (and so the latency) stays that of one fit
@@ -86,13 +87,17 @@ def make_estimator(cfg: dict[str, Any], actuators: Any = None
             other = not no_torque_topic(cfg)
             return lambda: MomentumRecursiveEstimator(names=names, other_torque=other, **kwargs)
         return lambda: RecursiveEstimator(**kwargs)
-    if cfg['method'] == 'tracking' and no_torque_topic(cfg):
+    if cfg['method'] == 'tracking' and no_torque_topic(cfg) and actuators is None:
         return torque_free_estimator(cfg)
     if cfg['method'] == 'tracking':
         # hold 'auto': a twin filter until the batch rule settles (core tracking_hold)
         kwargs = dict(window=float(cfg['window']) or TRACKING_DEFAULT_WINDOW,
                       model=cfg['model'], torque_bias=cfg['torque_bias'], hold=cfg['hold'],
                       symmetry_axis=axis, **_calibration(cfg))
+        if actuators is not None:   # the momentum input reduced as the recursive mode's
+            kwargs.update(names=actuators.names, other_torque=not no_torque_topic(cfg))
+            MomentumTrackingEstimator(**kwargs)  # validates
+            return lambda: MomentumTrackingEstimator(**kwargs)
         TrackingEstimator(**kwargs)  # validates
         return lambda: TrackingEstimator(**kwargs)
     # the batch window holds the torque: its re-solve at every update compares no holds

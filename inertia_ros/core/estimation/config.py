@@ -71,7 +71,6 @@ _NO_NUISANCE = 'nuisance terms are fitted by the batch estimator only; use batch
 _TORQUE_SCALE_MOM = (SUBSTITUTED + 'torque_scale_std=0: no torque stream to scale (the '
                      'wheel/rotor momentum is never scaled by it; state the wheel inertia_std '
                      'or rotor k_f_std/k_m_std/inertia_std for that)')
-_TRACK_INPUT = 'the tracking filter takes a torque stream only; use recursive mode'
 
 
 def _row(torque: str = YES, wheels: str = YES, rotors: str = YES, torque_free: str = YES,
@@ -126,8 +125,9 @@ CAPABILITIES: dict[str, dict[str, dict[str, str]]] = {
         'gyro_scale_std': _row(), 'adequacy': _row(),
     },
     'tracking': {
-        'input': _mom(_TRACK_INPUT, torque_free='the tracking filter needs torque for the '
-                                                'scale; use recursive mode (ratios and axes)'),
+        # wheels and rotors: the momentum input reduced as the recursive mode's (one road)
+        'input': _row(torque_free='the tracking filter needs torque for the scale; use '
+                                  'recursive mode (ratios and axes)'),
         # a twin filter under the other hold until the batch rule decides (tracking_hold.py)
         'hold_auto': _row(),
         'hold_zoh': _row(), 'hold_linear': _row(),
@@ -138,7 +138,8 @@ CAPABILITIES: dict[str, dict[str, dict[str, str]]] = {
         'torque_bias_auto': _all(SUBSTITUTED + "torque_bias='off' (no test); give 'on' or "
                                  "'off' explicitly, or use recursive mode"),
         'nuisance': _all(_NO_NUISANCE),
-        'torque_scale_std': _row(), 'gyro_scale_std': _row(), 'adequacy': _row(),
+        'torque_scale_std': _row(wheels=_TORQUE_SCALE_MOM, rotors=_TORQUE_SCALE_MOM),
+        'gyro_scale_std': _row(), 'adequacy': _row(),
     },
     # each re-solve is the batch estimator on the window (the momentum inputs: its
     # estimate_with_momentum), so the cells are the batch ones: derived, not copied

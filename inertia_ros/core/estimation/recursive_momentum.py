@@ -37,13 +37,18 @@ from typing import Any
 import numpy as np
 
 from .align import gap_starts, hermite, run_slopes
+from .config import substitutions
 from .momentum import Momentum, held_over, interval_torque, walk_sums, walk_variance
 from .noise import StreamingNoise
 from .online_stated import StatedAligner, StatedInputs
 from .recursive import RecursiveEstimator
+from .regressors import cumulative_monomials, gyroscopic_matrix, momentum_matrix
 from .result import InertiaEstimate
+from .tracking import TrackingEstimator
+from .tracking_hold import HoldChoice
+from .tracking_input import StreamInput
 
-__all__ = ['MomentumRecursiveEstimator']
+__all__ = ['MomentumInput', 'MomentumRecursiveEstimator', 'MomentumTrackingEstimator']
 
 _MAX_BUFFER = 400_000        # samples a stream may wait for the others (then half are dropped)
 
@@ -69,41 +74,28 @@ class _Buffer:
             self.v = [a[:, i:] if a.ndim == 3 else a[i:] for a in self.v]
 
 
-class MomentumRecursiveEstimator(RecursiveEstimator):
-    """:class:`~.recursive.RecursiveEstimator` with internal momentum (wheels, rotors) input.
+class MomentumInput:
+    """The one reduction of the momentum input, shared by the online estimators (a mixin).
 
-    Parameters
-    ----------
-    names : sequence of str
-        The uncertain inputs whose one-sigma changes every :meth:`add_momentum` block gives
-        (e.g. ``inertia:rw1``, ``k_f:m1``); empty: none.
-    other_torque : bool
-        True: another known torque arrives through :meth:`add_torque` and the equations wait
-        for it; False: the momentum input is the only known torque.
-    hold : {'zoh', 'linear', 'auto'}
-        Hold of the other torque between its samples (``torque_hold``).  The equivalent
-        torque fed to the :class:`~.recursive.RecursiveEstimator` is always held over its
-        grid intervals: the other torque's hold is applied once, when it is reduced.
-        ``auto``: both reductions (the other torque held, and linear) on the same rows, as
-        the base estimator's two accumulators (:mod:`.online_hold`, the second as
-        ``OnlineAligner.tau_alt``), chosen by the batch rule (:func:`.selection.select_hold`)
-        in ``diagnostics['hold_selection']``; without another torque nothing is held (the
-        momentum is known at its samples), so there is nothing to choose.
-    **kwargs
-        The other options of :class:`~.recursive.RecursiveEstimator`.  ``torque_scale_std``
-        scales the other torque only, never the momentum: it is one more stated input
-        (``torque_scale``); ``gyro_scale_std`` too (``gyro_scale``: the rate in both sides).
+    Buffers the gyro, the momentum input and the other torque, and emits every covered
+    grid interval's equivalent torque (with the other torque's hold applied, and the
+    stated inputs' one-sigma changes as extra columns) to ``self._take(grid, tau, alt, x,
+    t_gyro, w_gyro)``: :class:`MomentumRecursiveEstimator` (its accumulator) and
+    :class:`MomentumTrackingEstimator` (its Kalman filter) differ only there.  The
+    equivalent torque's noise is :meth:`_reduced_noise`.
     """
 
-    def __init__(self, names: Sequence[str] = (), other_torque: bool = True,
-                 hold: str = 'zoh', **kwargs: Any) -> None:
+    def _options(self, mode: str, names: Sequence[str], other_torque: bool, hold: str,
+                 kwargs: dict[str, Any]) -> dict[str, Any]:
+        """Check the options against the table (``mode``), keep the momentum input's and
+        return the others without the scales (stated inputs here, never a scale of y)."""
         from .config import require
         from .options import HOLDS
         from .selection import SelectionPolicy
 
-        require('recursive', 'wheels_torque' if other_torque else 'wheels',
-                dict({'model': 'full', 'torque_bias': False}, **kwargs, hold=hold))
-        self._hold_auto = hold == 'auto'
+        self._opts = require(mode, 'wheels_torque' if other_torque else 'wheels',
+                             dict({'model': 'full', 'torque_bias': False}, **kwargs, hold=hold))
+        kwargs = dict(kwargs)
         scale = kwargs.pop('torque_scale_std', 0.0)
         # the gyro's scales the measured rate in both sides, w x h included: a stated input
         # like the others (:mod:`.online_stated`), not a scale of y
@@ -114,13 +106,10 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
         self.torque_hold = hold if self.other_torque else HOLDS[0]
         self.torque_scale_std = float(scale) if self.other_torque else 0.0
         self.gyro_scale_std = float(gscale)
-        # the equivalent torque is held over each grid interval: integrated as held, whatever
-        # the other torque's hold (which _other_on has applied already); 'auto' keeps both
-        self._kwargs = dict(kwargs, hold='auto' if self.torque_hold == 'auto' else HOLDS[0])
-        super().__init__(**self._kwargs)
+        return kwargs
 
     def reset(self) -> None:
-        """Forget everything (also the stated inputs' posterior)."""
+        """Forget everything: the estimator's state, the buffers, the stated inputs'."""
         super().reset()
         p = len(getattr(self, 'names', ()))
         self._g = _Buffer((3,))                       # gyro: w
@@ -131,10 +120,6 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
         st = StatedInputs(getattr(self, 'names', ()), getattr(self, 'torque_scale_std', 0.0),
                           getattr(self, 'gyro_scale_std', 0.0))
         self._stated = st if len(st.names) else None
-        if self._stated is not None:
-            self._align = StatedAligner(3 * len(st.names))
-            for acc in self._accs.values():
-                acc.widen(13 + 3 * len(st.names))
         self._h_noise = StreamingNoise(floor=False)
         self._tr_noise = StreamingNoise(floor=False)
         self._o_noise = StreamingNoise(floor=False)
@@ -302,6 +287,7 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
             return np.column_stack([np.interp(grid, tm, y[:, k]) for k in range(3)])
         own = interval_torque(grid, wg, hg, lin(tq) if has_tr else None)
         other, other_lin = self._other_on(grid) if self.other_torque else (None, None)
+        x = None
         if self._stated is not None:  # the stated inputs' one-sigma changes, held alike
             x = [interval_torque(grid, wg, hermite(tm, dh[i], run_slopes(tm, dh[i], gaps),
                                                    grid), lin(dtq[i]) if has_tr else None)
@@ -311,18 +297,13 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
             if self._stated.gscale:
                 c = np.cross(wg, hg)
                 x.append(-0.5 * (c[1:] + c[:-1]))
-            self._align.take_extra(grid[:-1], np.concatenate(x, axis=1))
-        out = own if other is None else own + other
-        self._walk(hg[:-1], wg[:-1])
+            x = np.concatenate(x, axis=1)
+        self._add_walk(hg[:-1], wg[:-1])
         gi = (self._g.t >= grid[0]) & (self._g.t <= grid[-1])
-        t_in = self._g.t[gi]
-        w_in = self._g.v[0][gi]
+        t_in, w_in = self._g.t[gi], self._g.v[0][gi]
         fresh = t_in > (self._last_t_in if self._last_t_in is not None else -np.inf)
-        super().add_torque(grid[:-1], out)
-        if other_lin is not None:             # hold 'auto': the other torque linear too
-            self._palt.append(own + other_lin)
-        if np.any(fresh):
-            super().add_gyro(t_in[fresh], w_in[fresh])
+        self._take(grid, own if other is None else own + other,
+                   None if other_lin is None else own + other_lin, x, t_in[fresh], w_in[fresh])
         self._cursor = float(grid[-1])
         self._trim()
 
@@ -359,7 +340,7 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
             oi = max(int(np.searchsorted(self._o.t, c, side='right')) - 1, 0)
             self._o.keep_from(oi)
 
-    def _walk(self, hg: np.ndarray, wg: np.ndarray) -> None:
+    def _add_walk(self, hg: np.ndarray, wg: np.ndarray) -> None:
         """Accumulate the grid sums of the ``n x h`` and ``w x e`` torque-noise walks."""
         H, W, n = walk_sums(hg, wg)
         self._walk_h += H
@@ -373,19 +354,83 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
             return 1.0
         return max(1.0, float(np.median(self._m_dt)) / self._gyro_dt())
 
+    def _reduced_noise(self, tau_dt: float) -> tuple[np.ndarray, np.ndarray]:
+        """The equivalent torque's white-noise variance (3,) [N^2 m^2] on grid intervals of
+        ``tau_dt`` [s] (the batch's) and the white noise (3, 3) [N^2 m^2 s^2] of each
+        equation's right-hand side (the momentum samples' own, shared by ``share`` gyro
+        samples)."""
+        share = self._share()
+        cov = np.diag(self._h_noise.variance()) if self._h_noise.count >= 6 else np.zeros((3, 3))
+        var = np.zeros(3)
+        for nv, dts in ((self._o_noise, self._o_dt), (self._tr_noise, self._m_dt)):
+            if nv.count >= 6 and dts:
+                var = var + nv.variance() * float(np.median(dts)) / tau_dt
+        return var + walk_variance(self._walk_h, self._walk_w, self._walk_n, self._gyro_var(),
+                                   cov, share), cov * share
+
+class MomentumRecursiveEstimator(MomentumInput, RecursiveEstimator):
+    """:class:`~.recursive.RecursiveEstimator` with internal momentum (wheels, rotors) input.
+
+    Parameters
+    ----------
+    names : sequence of str
+        The uncertain inputs whose one-sigma changes every :meth:`add_momentum` block gives
+        (e.g. ``inertia:rw1``, ``k_f:m1``); empty: none.
+    other_torque : bool
+        True: another known torque arrives through :meth:`add_torque` and the equations wait
+        for it; False: the momentum input is the only known torque.
+    hold : {'zoh', 'linear', 'auto'}
+        Hold of the other torque between its samples (``torque_hold``).  The equivalent
+        torque fed to the :class:`~.recursive.RecursiveEstimator` is always held over its
+        grid intervals: the other torque's hold is applied once, when it is reduced.
+        ``auto``: both reductions (the other torque held, and linear) on the same rows, as
+        the base estimator's two accumulators (:mod:`.online_hold`, the second as
+        ``OnlineAligner.tau_alt``), chosen by the batch rule (:func:`.selection.select_hold`)
+        in ``diagnostics['hold_selection']``; without another torque nothing is held (the
+        momentum is known at its samples), so there is nothing to choose.
+    **kwargs
+        The other options of :class:`~.recursive.RecursiveEstimator`.  ``torque_scale_std``
+        scales the other torque only, never the momentum: it is one more stated input
+        (``torque_scale``); ``gyro_scale_std`` too (``gyro_scale``: the rate in both sides).
+    """
+
+    def __init__(self, names: Sequence[str] = (), other_torque: bool = True,
+                 hold: str = 'zoh', **kwargs: Any) -> None:
+        from .options import HOLDS
+
+        self._hold_auto = hold == 'auto'
+        kwargs = self._options('recursive', names, other_torque, hold, kwargs)
+        # the equivalent torque is held over each grid interval: integrated as held, whatever
+        # the other torque's hold (which _other_on has applied already); 'auto' keeps both
+        self._kwargs = dict(kwargs, hold='auto' if self.torque_hold == 'auto' else HOLDS[0])
+        super().__init__(**self._kwargs)
+
+    def reset(self) -> None:
+        """Forget everything (also the stated inputs' posterior)."""
+        super().reset()
+        if self._stated is not None:
+            self._align = StatedAligner(3 * len(self._stated.names))
+            for acc in self._accs.values():
+                acc.widen(13 + 3 * len(self._stated.names))
+
+    def _take(self, grid: np.ndarray, tau: np.ndarray, alt: np.ndarray | None,
+              x: np.ndarray | None, t_in: np.ndarray, w_in: np.ndarray) -> None:
+        """One reduced run: the equivalent torque (G - 1, 3) held from ``grid[:-1]``, its
+        linear-hold twin ``alt`` (hold 'auto'), the stated columns ``x`` and the gyro."""
+        if x is not None:
+            self._align.take_extra(grid[:-1], x)
+        RecursiveEstimator.add_torque(self, grid[:-1], tau)
+        if alt is not None:             # hold 'auto': the other torque linear too
+            self._palt.append(alt)
+        if len(t_in):
+            RecursiveEstimator.add_gyro(self, t_in, w_in)
+
     def _torque_variance(self) -> np.ndarray | None:
         """The equivalent torque's white-noise variance (3,) [N^2 m^2], as the batch's."""
         if self._walk_n == 0 or self._align.tau_dt <= 0:
             return None
-        share = self._share()
-        cov = np.diag(self._h_noise.variance()) if self._h_noise.count >= 6 else np.zeros((3, 3))
-        self._white_y_cov = cov * share
-        var = np.zeros(3)
-        for nv, dts in ((self._o_noise, self._o_dt), (self._tr_noise, self._m_dt)):
-            if nv.count >= 6 and dts:
-                var = var + nv.variance() * float(np.median(dts)) / self._align.tau_dt
-        return var + walk_variance(self._walk_h, self._walk_w, self._walk_n, self._gyro_var(),
-                                   cov, share)
+        var, self._white_y_cov = self._reduced_noise(self._align.tau_dt)
+        return var
 
     def estimate(self) -> InertiaEstimate:
         """The current estimate (see :meth:`.RecursiveEstimator.estimate`), with the momentum
@@ -410,4 +455,152 @@ class MomentumRecursiveEstimator(RecursiveEstimator):
                               '(build with other_torque=False when there is none)')
         if self._stated is not None:
             est = self._stated.widen(self, est)
+        return est
+
+
+class MomentumTrackingEstimator(MomentumInput, TrackingEstimator):
+    """:class:`~.tracking.TrackingEstimator` with internal momentum (wheels, rotors) input.
+
+    The momentum input is reduced as for :class:`MomentumRecursiveEstimator` (the one road,
+    :class:`MomentumInput`): its equivalent torque, held over the grid intervals, is the
+    filter's torque stream, and its noise the filter's: the momentum samples' own white noise
+    in every equation (added to ``R``; the filter's momentum is the body's less the anchor
+    sample's momentum error, so the errors do not walk) and the equivalent torque's white
+    noise in the momentum's walk.  The stated inputs (``names``; ``torque_scale`` of the
+    other torque; ``gyro_scale``) are filter states with the prior N(0, 1) [stated sigmas],
+    never forgotten: their one-sigma changes of the impulse are columns of the equations (the
+    gyro scale's linearised at the current tensor, as :mod:`.online_stated`'s), so the
+    covariance carries them, whole (``diagnostics['input_uncertainty']``).
+
+    Parameters
+    ----------
+    names, other_torque, hold
+        As :class:`MomentumRecursiveEstimator`'s (``hold='auto'``: a twin filter under the
+        linear hold of the other torque and a :class:`MomentumRecursiveEstimator` judge).
+    **kwargs
+        The other options of :class:`~.tracking.TrackingEstimator`.
+    """
+
+    def __init__(self, names: Sequence[str] = (), other_torque: bool = True,
+                 hold: str = 'zoh', **kwargs: Any) -> None:
+        self._kind = 'wheels_torque' if other_torque else 'wheels'
+        self._mconfig, self._requested = dict(kwargs, names=names, other_torque=other_torque), hold
+        kwargs = self._options('tracking', names, other_torque, hold, kwargs)
+        self.nu = len(StatedInputs(names, self.torque_scale_std, self.gyro_scale_std).names)
+        self._learnt = self._nl = int(self.gyro_scale_std > 0)     # the gyro scale learnt
+        # the equivalent torque is held over the grid intervals ('auto': the other torque's)
+        super().__init__(**kwargs, hold='auto' if self.torque_hold == 'auto' else 'zoh')
+        self._substituted = substitutions('tracking', self._kind, self._opts)
+
+    def reset(self) -> None:
+        """Forget everything (the torque stream carries the stated columns too)."""
+        super().reset()
+        self._tau = np.empty((0, 3 + 3 * self.nu))
+
+    def _hold_choice(self) -> HoldChoice:
+        """Hold 'auto': the twin under the other torque's linear hold; the judge reduces it
+        both ways (:class:`MomentumRecursiveEstimator`, ``hold='auto'``)."""
+        judge = MomentumRecursiveEstimator(
+            other_torque=True, hold='auto', gyro_noise=self._config['gyro_noise'],
+            torque_bias='on' if self.torque_bias == 'on' else 'off')
+        return HoldChoice(MomentumTrackingEstimator(**self._mconfig, hold='linear'),
+                          self.torque_bias, self._config['gyro_noise'], judge)
+
+    def add_gyro(self, t: Any, omega: Any) -> None:
+        """Add gyro samples (:meth:`MomentumInput.add_gyro`; the twin's too)."""
+        MomentumInput.add_gyro(self, t, omega)
+        if self._choice is not None:
+            self._choice.add_gyro(t, omega)
+
+    def add_torque(self, t: Any, tau: Any) -> None:
+        """Add samples of the other torque (:meth:`MomentumInput.add_torque`; the twin's)."""
+        MomentumInput.add_torque(self, t, tau)
+        if self._choice is not None:
+            self._choice.add_torque(t, tau)
+
+    def add_momentum(self, m: Momentum) -> None:
+        """Add a momentum input block (:meth:`MomentumInput.add_momentum`; the twin's)."""
+        MomentumInput.add_momentum(self, m)
+        if self._choice is not None:
+            self._choice.add_momentum(m)
+
+    def _take(self, grid: np.ndarray, tau: np.ndarray, alt: np.ndarray | None,
+              x: np.ndarray | None, t_in: np.ndarray, w_in: np.ndarray) -> None:
+        """One reduced run: the equivalent torque (and the stated columns) held from
+        ``grid[:-1]`` into the filter's torque stream, then the gyro samples it covers."""
+        self._tq_dts = np.concatenate([self._tq_dts, np.diff(grid)])[-64:]
+        self._ts = np.concatenate([self._ts, grid[:-1]])
+        self._tau = np.concatenate([self._tau, tau if x is None else np.hstack([tau, x])])
+        self._last_tau_in = float(grid[-2])
+        if len(t_in):
+            StreamInput.add_gyro(self, t_in, w_in)
+        else:
+            self._process()
+
+    def _gyro_var(self) -> np.ndarray:
+        """The gyro white-noise variance (3,) [rad^2/s^2] the filter uses."""
+        return self._nv if self._nv is not None else np.zeros(3)
+
+    def _gyro_dt(self) -> float:
+        """The nominal gyro interval [s]."""
+        return float(np.median(self._g_dts)) if len(self._g_dts) else 0.0
+
+    def _refresh_noise(self) -> None:
+        """The filter's noise levels; the torque's is the reduction's (:meth:`_reduced_noise`),
+        which also gives each equation's white noise."""
+        super()._refresh_noise()
+        tdt = float(np.median(self._tq_dts)) if len(self._tq_dts) else 0.0
+        if self._noise_at == self.samples_used and self._walk_n and tdt > 0:
+            self._tv, self._white_y_cov = self._reduced_noise(tdt)
+
+    def _u_columns(self, w: np.ndarray, m: np.ndarray, S: np.ndarray) -> np.ndarray:
+        """The stated inputs' columns (3, nu) of a block's equation: ``-S_j`` (the block
+        mean of each input's one-sigma impulse change since the anchor), for the gyro scale
+        ``-g (L(w) theta + 2 Q(m) theta - Wc)`` (:mod:`.online_stated`'s, at the estimate)."""
+        C = -S.reshape(-1, 3).T
+        if self.gyro_scale_std:
+            th = self.basis @ self.x[:self.k]
+            C[:, -1] = -self.gyro_scale_std * ((momentum_matrix(w) + 2.0 * gyroscopic_matrix(m))
+                                               @ th + C[:, -1])
+        return C
+
+    def _gyro_column(self, t: np.ndarray, w: np.ndarray, theta: np.ndarray) -> np.ndarray:
+        """The gyro scale's column (n, 3) of the start-up equations at ``theta`` (6,)."""
+        tt = np.concatenate([[self._prev[0]], t])
+        M = cumulative_monomials(tt, np.vstack([self._prev[1], w]), self._nv,
+                                 end_correction=False)[1:]
+        T = self._cum(tt)
+        return -self.gyro_scale_std * ((momentum_matrix(w) + 2.0 * gyroscopic_matrix(M))
+                                       @ theta - (T[1:, -3:] - T[0, -3:]))
+
+    def _u_propagation(self, m_end: np.ndarray, S_end: np.ndarray) -> np.ndarray:
+        """The momentum's change (3, nu) per stated input over a block: ``S_j``, for the
+        gyro scale ``g (2 Q(m) theta - Wc)``."""
+        F = S_end.reshape(-1, 3).T.copy()
+        if self.gyro_scale_std:
+            th = self.basis @ self.x[:self.k]
+            F[:, -1] = self.gyro_scale_std * (2.0 * gyroscopic_matrix(m_end) @ th - F[:, -1])
+        return F
+
+    def estimate(self) -> InertiaEstimate:
+        """:meth:`.TrackingEstimator.estimate` with the momentum input's record and the
+        stated inputs' posterior (``diagnostics['input_uncertainty']``)."""
+        est = super().estimate()
+        diag = est.diagnostics
+        diag['momentum'] = {'samples': self.momentum_samples, 'other_torque': self.other_torque,
+                            'h_noise_std': self._h_noise.std()}
+        if self._requested == 'auto' and not self.other_torque:
+            diag['hold'] = 'zoh'
+            diag['hold_selection'] = {'requested': 'auto', 'chosen': 'zoh', 'reason': (
+                'no other torque: the momentum input is not held, nothing to choose')}
+        if self._stated is not None and self._warm is None:
+            u = slice(self.k + self.nb, self.n - 3)     # d theta (6,) per stated sigma
+            D = self.basis @ self.P[:self.k, u] @ np.linalg.inv(self.P[u, u])
+            sd = np.sqrt(np.maximum(np.diag(self.P[u, u]), 0.0))
+            diag['input_uncertainty'] = {nm: {
+                'theta_change': D[:, j], 'profiled_sigmas': float(self.x[u][j]),
+                'posterior_sigmas': float(sd[j])} for j, nm in enumerate(self._stated.names)}
+            diag['calibration'] = {'torque_scale_std': self.torque_scale_std,
+                                   'gyro_scale_std': self.gyro_scale_std,
+                                   'gyro_sensitivity': 'a filter state (learnt)'}
         return est

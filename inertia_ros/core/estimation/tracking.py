@@ -56,7 +56,7 @@ from .config import require, substitutions
 from .fit import solve_symmetric
 from .model import model_basis
 from .model import symmetry_axis as unit_axis
-from .noise import StreamingNoise, gyroscopic_walk_cov
+from .noise import StreamingNoise
 from .options import (
     ALPHA,
 )
@@ -72,7 +72,6 @@ __all__ = ['TrackingEstimator', 'chi2_upper_quantile']
 _DIFFUSE = 1e6            # prior variance of the empty filter, in squared scale units
 _PRIOR_INFLATION = 100.0  # start-up fit covariance -> the filter's prior
 _SETTLED = 0.05           # relative sigma of the moments below which the weights follow x
-_REFRESH = 0.25          # data time between re-derivations of the weights [s]
 
 
 def chi2_upper_quantile(dof: int, level: float) -> float:
@@ -186,6 +185,12 @@ class TrackingEstimator(StreamInput, StateOutput):
         Only ``'off'``: any other value is refused by :func:`.config.require` (one line).
     """
 
+    _kind = 'torque'                 # the input kind (the capability table's column)
+    nu = 0                           # stated-input states (:class:`.recursive_momentum.
+    _white_y_cov = None              # MomentumTrackingEstimator`) and white noise of y
+    _learnt = 0                      # the last of them learnt, the others considered
+    _nl = 0                          # the last of them non-linear (the gyro scale)
+
     def __init__(self, window: float = 10.0, model: str = 'full',
                  torque_bias: bool | str = 'off', hold: str = 'zoh', symmetry_axis: Any = None,
                  gyro_noise: Any = None, block: float = 0.1, warmup: float | None = None,
@@ -193,11 +198,11 @@ class TrackingEstimator(StreamInput, StateOutput):
                  torque_scale_std: float = 0.0, gyro_scale_std: float = 0.0,
                  alpha: float = ALPHA, nuisance: Any = 'off') -> None:
         config = {k: v for k, v in locals().items() if k not in ('self', 'hold')}
-        opts = require('tracking', 'torque', dict(
+        opts = require('tracking', self._kind, dict(
             model=model, torque_bias=torque_bias, hold=hold, symmetry_axis=symmetry_axis,
             alpha=alpha, torque_scale_std=torque_scale_std, gyro_scale_std=gyro_scale_std,
             nuisance=nuisance))
-        self._substituted = substitutions('tracking', 'torque', opts)   # for the warnings
+        self._substituted = substitutions('tracking', self._kind, opts)   # for the warnings
         if not (isinstance(window, (int, float)) and math.isfinite(window) and window > 0):
             raise ValueError(f'window: must be a positive number of seconds, got {window!r}')
         torque_bias = opts.torque_bias
@@ -220,7 +225,7 @@ class TrackingEstimator(StreamInput, StateOutput):
         self.basis = model_basis(self.model, self.axis)
         self.k = self.basis.shape[1]
         self.nb = 3 if torque_bias == 'on' else 0
-        self.n = self.k + self.nb + 3
+        self.n = self.k + self.nb + self.nu + 3
         self.block = float(block)
         self.warmup = float(warmup) if warmup is not None else min(self.window / 5.0, 2.0)
         self.change_level = float(change_level)
@@ -266,10 +271,13 @@ class TrackingEstimator(StreamInput, StateOutput):
         self._tdt = 0.0                     # nominal torque interval [s]
         self._walk = np.zeros((3, 3))       # momentum variance rate [N^2 m^2 s]
         self._B = np.zeros((self.k, self.k))  # gyro noise's own information per block
-        self._choice = HoldChoice(TrackingEstimator(**self._config, hold='linear'),
-                                  self.torque_bias, self._config['gyro_noise']) \
-            if self._hold_auto else None          # hold 'auto' not locked yet
+        self._choice = self._hold_choice() if self._hold_auto else None   # not locked yet
         self._restart()
+
+    def _hold_choice(self) -> HoldChoice | None:
+        """Hold 'auto': the twin filter under the linear hold and the judge."""
+        return HoldChoice(TrackingEstimator(**self._config, hold='linear'), self.torque_bias,
+                          self._config['gyro_noise'])
 
     def add_gyro(self, t: Any, omega: Any) -> None:
         """Add gyro samples (:meth:`.StreamInput.add_gyro`; the twin's too, hold 'auto')."""
@@ -327,21 +335,37 @@ class TrackingEstimator(StreamInput, StateOutput):
         w = np.concatenate([x[1] for x in self._warm])
         self._prev = (float(t[0]), w[0].copy())
         H, y = self._equations(t[1:], w[1:], self._nv)
+        keep = np.r_[:self.k + self.nb, self.n - 3:self.n]    # the stated inputs at 0
+        ui = np.arange(self.k + self.nb, self.n - 3)
+        H, Hu = H[:, :, keep], H[:, :, ui]
         theta = None
         for _ in range(2):
             R, _nv = self._weight(theta)
             Wc = np.linalg.cholesky(np.linalg.inv(R))
-            Hw = np.einsum('ij,nik->njk', Wc, H).reshape(-1, self.n)
+            Hw = np.einsum('ij,nik->njk', Wc, H).reshape(-1, len(keep))
             x0 = np.linalg.lstsq(Hw, (y @ Wc).reshape(-1), rcond=None)[0]
             theta = self.basis @ x0[:self.k]
-        cov = solve_symmetric(Hw.T @ Hw, np.eye(self.n)) * _PRIOR_INFLATION
+        cov = np.eye(self.n)                                  # the stated inputs' prior
+        # the fit weighs white noise only: the momentum's walk over the start-up (the
+        # integrated torque noise) inflates it further, by its share of the noise
+        walk = float(np.trace(self._momentum_walk(self._nv))) * float(t[-1] - t[0])
+        if self._nl:                      # the gyro scale's column at the fitted tensor
+            Hu[:, :, -1] = self._gyro_column(t[1:], w[1:], theta)
+        inv = solve_symmetric(Hw.T @ Hw, np.eye(len(keep)))
+        # the fit at the stated inputs' 0 moves by D u with them (x - x0 = -D u)
+        D = inv @ Hw.T @ np.einsum('ij,nik->njk', Wc, Hu).reshape(len(Hw), len(ui))
+        cov[np.ix_(keep, keep)] = inv * _PRIOR_INFLATION * (1.0 + walk / float(np.trace(R))) \
+            + D @ D.T
+        cov[np.ix_(keep, ui)] = -D
+        cov[np.ix_(ui, keep)] = -D.T
         se = np.sqrt(np.maximum(np.diag(self.basis @ cov[:self.k, :self.k] @ self.basis.T),
                                 0.0))
         if not (np.all(theta[:3] > 0) and np.all(se[:3] < 0.5 * theta[:3])):
             self._prev = None
             return
-        self.x, self.P = x0, 0.5 * (cov + cov.T)
-        self._warm = None
+        self.x, self.P = np.zeros(self.n), 0.5 * (cov + cov.T)
+        self.x[keep] = x0
+        self._warm, self._since = None, float(t[0])
         self._run(t[1:], w[1:])
         self._armed = self.updates
         self._trim_torque()
@@ -353,28 +377,7 @@ class TrackingEstimator(StreamInput, StateOutput):
                                         @ self.basis.T), 0.0))
         return bool(np.all(theta[:3] > 0) and np.all(se[:3] < _SETTLED * theta[:3]))
 
-    def _reanchor(self, t: float, w: np.ndarray) -> None:
-        """Across a gap: anchor at ``(t, w)`` with the momentum ``L = I w`` of the current
-        tensor (covariance from the tensor's and the gyro noise's)."""
-        R, _nv = self._cached()
-        A = np.zeros((3, self.n))
-        A[:, :self.k] = momentum_matrix(w) @ self.basis
-        L = slice(self.k + self.nb, self.n)
-        AP = A @ self.P
-        self.x[L] = A @ self.x
-        self.P[L, :] = AP
-        self.P[:, L] = AP.T
-        self.P[L, L] = AP @ A.T + R
-        self._prev = (t, w.copy())
-        self.gaps += 1
-
     # ------------------------------------------------------------------------ the filter
-    def _scale(self) -> float:
-        """Tensor scale [kg m^2]: mean principal-diagonal element of the estimate (or 1)."""
-        theta = self.basis @ self.x[:self.k]
-        s = float(np.mean(theta[:3]))
-        return s if s > 0 and math.isfinite(s) else 1.0
-
     def _weight(self, theta: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Equation error covariance ``R = I S_g I`` (3, 3) at ``theta`` (default: the
         state's; None before any fit: isotropic) and the gyro variance (3,)."""
@@ -392,6 +395,8 @@ class TrackingEstimator(StreamInput, StateOutput):
             top = max(float(lam[-1]), 1e-12)
             I = (V * np.clip(lam, 0.1 * top, top)) @ V.T
         R = I @ np.diag(np.maximum(nv, 1e-30)) @ I
+        if self._white_y_cov is not None:               # the momentum input's own noise
+            R = R + self._white_y_cov
         return 0.5 * (R + R.T), nv
 
     def _equations(self, t: np.ndarray, w: np.ndarray, nv: np.ndarray
@@ -400,15 +405,19 @@ class TrackingEstimator(StreamInput, StateOutput):
         s, ws = self._prev
         tt = np.concatenate([[s], t])
         M = cumulative_monomials(tt, np.vstack([ws, w]), nv, end_correction=False)[1:]
-        T = cumulative_torque(self._ts, self._tau, tt, self.hold)
-        y = T[1:] - T[0]
+        T = self._cum(tt)
+        y = T[1:, :3] - T[0, :3]
         n = len(t)
         H = np.zeros((n, 3, self.n))
         H[:, :, :self.k] = (momentum_matrix(w) + gyroscopic_matrix(M)) @ self.basis
         eye = np.eye(3)
         if self.nb:
             H[:, :, self.k:self.k + 3] = -(t - s)[:, None, None] * eye
-        H[:, :, self.k + self.nb:] = -eye
+        H[:, :, self.n - 3:] = -eye
+        q = self.nu - self._nl            # the impulse's inputs: minus their impulse changes
+        if q:
+            H[:, :, self.k + self.nb:self.k + self.nb + q] = -(
+                T[1:, 3:3 + 3 * q] - T[0, 3:3 + 3 * q]).reshape(n, q, 3).transpose(0, 2, 1)
         return H, y
 
     def _block(self, t: np.ndarray, w: np.ndarray) -> None:
@@ -424,28 +433,39 @@ class TrackingEstimator(StreamInput, StateOutput):
         s, ws = self._prev
         tt = np.concatenate([[s], t])
         M = cumulative_monomials(tt, np.vstack([ws, w]), nv, end_correction=False)
-        T = cumulative_torque(self._ts, self._tau, tt, self.hold)
+        T = self._cum(tt)
         n = len(t)
         H = self._regressor(w.mean(axis=0), M[1:].mean(axis=0), float(np.mean(t - s)))
-        nu = (T[1:].mean(axis=0) - T[0]) - H @ self.x
+        if self.nu:                      # the stated inputs' columns
+            H[:, self.k + self.nb:self.n - 3] = self._u_columns(
+                w.mean(axis=0), M[1:].mean(axis=0), T[1:, 3:].mean(axis=0) - T[0, 3:])
+        nu = (T[1:, :3].mean(axis=0) - T[0, :3]) - H @ self.x
+        # the momentum's walk within the block (integrated torque noise since the anchor):
+        # the mean of n walk samples, sum_bc min(tau_b, tau_c) / n^2 times its rate
+        R = R / n + self._walk * float((t - s) @ (2.0 * np.arange(n - 1, -1, -1) + 1.0)) / n ** 2
         PH = self.P @ H.T
-        S = H @ PH + R / n
+        S = H @ PH + R
         nis = float(nu @ np.linalg.solve(S, nu))
         if self._changed(nis, 3):
             self.changes.append(float(t[0]))
+            self._since = float(t[0])                     # the memory starts again
             self._R_theta = self.basis @ self.x[:self.k]     # weights held until settled
             self._armed = 1 << 62
             self._inflate()
             self._Beff = np.zeros((self.k, self.k))
             PH = self.P @ H.T
-            S = H @ PH + R / n
+            S = H @ PH + R
         K = np.linalg.solve(S, PH.T).T
+        K[self.k + self.nb:self.n - 3 - self._learnt] = 0.0   # considered inputs: not learnt
         self.x = self.x + K @ nu
-        P = self.P - K @ PH.T
+        KHP = K @ PH.T
+        P = self.P - KHP - KHP.T + K @ S @ K.T            # any gain (Schmidt-Kalman)
         self.P = 0.5 * (P + P.T)
         self._note_excess(nis / 3.0, float(t[-1] - s))
         self._Beff = self._Beff * math.exp(-float(t[-1] - s) / self.window) + self._B
-        self._predict(t, w, T[-1] - T[0], M[-1], nv)
+        C = np.zeros((self.n, 3))          # the walk to the end against the block's mean one
+        C[self.n - 3:] = -float(np.mean(t - s)) * self._walk
+        self._predict(t, w, T[-1] - T[0], M[-1], nv, (K, C, S, nu))
         self.updates += 1
         if self.changes and self.changes[-1] == float(t[0]):
             self._trend = _Trend(2.0 * self.window, self.k + self.nb)   # the jump is no trend
@@ -459,8 +479,13 @@ class TrackingEstimator(StreamInput, StateOutput):
         H[:, :self.k] = (momentum_matrix(w) + gyroscopic_matrix(m)) @ self.basis
         if self.nb:
             H[:, self.k:self.k + 3] = -dt * np.eye(3)
-        H[:, self.k + self.nb:] = -np.eye(3)
+        H[:, self.n - 3:] = -np.eye(3)
         return H
+
+    def _cum(self, tt: np.ndarray) -> np.ndarray:
+        """Held integral (n, 3 + extra) of the torque stream (and any stated columns)."""
+        return cumulative_torque(self._ts, self._tau, tt, self.hold,
+                                 out=np.empty((len(tt), self._tau.shape[1])))
 
     def _changed(self, nis: float, dof: int) -> bool:
         """Whether the block's normalised innovation exceeds its change threshold."""
@@ -472,64 +497,45 @@ class TrackingEstimator(StreamInput, StateOutput):
         return nis > q
 
     def _inflate(self) -> None:
-        """Inflate the prior covariance of the tensor after a change (the momentum is kept:
-        a payload attached without impulse conserves it, the rate jumps instead)."""
+        """Inflate the prior covariance of the tensor after a change; the momentum is kept (a
+        payload attached without impulse conserves it, the rate jumps), unless the change is
+        found again within ``EXCESS_TIME``: then the momentum jumped too (a rate kept
+        continuous, ``dI w``), and its covariance is inflated by that much.  Nothing is
+        inflated at the third change within ``4 EXCESS_TIME``: that is a mismatch."""
+        c = self.changes
+        if len(c) > 2 and c[-1] - c[-3] < 4.0 * EXCESS_TIME:
+            return                 # found again and again: the model fails (a mismatch)
         s = self._scale() * self.change_inflation
         self.P[:self.k, :self.k] += np.eye(self.k) * s ** 2
-
-    def _note_excess(self, ratio: float, dt: float) -> None:
-        """Running mean of the innovation excess (NIS / dof) over about ``EXCESS_TIME`` s."""
-        a = math.exp(-dt / EXCESS_TIME)
-        self._excess_w = a * self._excess_w + (1 - a)
-        self._excess += (1 - a) / self._excess_w * (ratio - self._excess)
+        if len(self.changes) > 1 and self.changes[-1] - self.changes[-2] < EXCESS_TIME:
+            self.P[self.n - 3:, self.n - 3:] += np.eye(3) * float(
+                2.0 * s * np.linalg.norm(self._prev[1])) ** 2
 
     def _predict(self, t: np.ndarray, w: np.ndarray, y_end: np.ndarray, m_end: np.ndarray,
-                 nv: np.ndarray, forget: bool = True) -> None:
+                 nv: np.ndarray, corr: tuple[np.ndarray, ...] | None = None,
+                 forget: bool = True) -> None:
         """Propagate the momentum to the block's last sample; add the process noise (the
         tensor's only with ``forget``, and only while its largest variance is below the
         squared scale: an unexcited direction does not grow without bound)."""
         dt = float(t[-1] - self._prev[0])
-        k, nb, L = self.k, self.nb, slice(self.k + self.nb, self.n)
+        k, nb, L = self.k, self.nb, slice(self.n - 3, self.n)
         F = np.eye(self.n)
         F[L, :k] = -gyroscopic_matrix(m_end) @ self.basis
         if nb:
             F[L, k:k + 3] = dt * np.eye(3)
+        if self.nu:
+            F[L, k + nb:self.n - 3] = self._u_propagation(m_end, y_end[3:])
         x = self.x.copy()
-        x[L] = F[L] @ self.x + y_end
+        x[L] = F[L] @ self.x + y_end[:3]
         P = F @ self.P @ F.T
         if forget and float(np.max(np.diag(self.P)[:k])) < self._scale() ** 2:
             grow = math.expm1(dt / self.window)      # forgetting: P_psi *= exp(dt / window)
             P[:k + nb, :k + nb] += grow * self.P[:k + nb, :k + nb]
         P[L, L] += dt * self._walk
+        if corr is not None:     # the update's noise correlated with the walk: (K, C, S, nu)
+            K, C, S, nu = corr
+            x += C @ np.linalg.solve(S, nu)
+            FKC = F @ K @ C.T
+            P -= FKC + FKC.T + C @ np.linalg.solve(S, C.T)
         self.x, self.P = x, 0.5 * (P + P.T)
         self._prev = (float(t[-1]), w[-1].copy())
-
-    def _cached(self) -> tuple[np.ndarray, np.ndarray]:
-        """The weights ``R`` and the gyro variance, re-derived (with the momentum's walk and
-        the nominal sample intervals) every :data:`_REFRESH` s of data or when the weights'
-        tensor was set: they move slowly, and deriving them costs more than a block."""
-        t = self._prev[0]
-        if self._R is None or t - self._R_at >= _REFRESH or self._R_for is not self._R_theta:
-            self._R, self._nv_R = self._weight()
-            self._R_at, self._R_for = t, self._R_theta
-            self._gdt = float(np.median(self._g_dts)) if len(self._g_dts) else 0.0
-            self._tdt = float(np.median(self._tq_dts)) if len(self._tq_dts) else 0.0
-            self._walk = self._momentum_walk(self._nv_R)
-            E = momentum_matrix(np.eye(3)) @ self.basis           # (3, 3, k): L(e_c) T
-            self._B = np.einsum('c,cik,ij,cjl->kl', self._nv_R, E, np.linalg.inv(self._R), E)
-        return self._R, self._nv_R
-
-    def _momentum_walk(self, nv: np.ndarray) -> np.ndarray:
-        """Variance rate of the momentum [N^2 m^2 s]: integrated torque noise and the gyro
-        noise integrated by the gyroscopic term (:func:`.noise.gyroscopic_walk_cov`)."""
-        tdt = float(np.median(self._tq_dts)) if len(self._tq_dts) else 0.0
-        if tdt <= 0:
-            return np.zeros((3, 3))
-        gdt = float(np.median(self._g_dts)) if len(self._g_dts) else 0.0
-        from ..tensor import theta_to_matrix
-
-        I = theta_to_matrix(self.basis @ self.x[:self.k], check_finite=False)
-        m2 = self._m2_sum / max(self._m2_n, 1.0)
-        G = gyroscopic_walk_cov(I, nv, m2, gdt, tdt) if np.all(np.isfinite(I)) else 0.0
-        return tdt * (np.diag(self._tv) + G)
-

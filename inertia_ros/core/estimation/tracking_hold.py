@@ -52,12 +52,16 @@ class HoldChoice:
         The tracker's bias option: ``'on'`` fits the bias in the judge too.
     gyro_noise : float, array_like (3,) or None
         Given gyro noise std [rad/s] (else estimated by the judge).
+    judge : object, optional
+        The judge (default a :class:`~.recursive.RecursiveEstimator`, ``hold='auto'``).
     """
 
-    def __init__(self, twin: Any, torque_bias: str, gyro_noise: Any) -> None:
+    def __init__(self, twin: Any, torque_bias: str, gyro_noise: Any,
+                 judge: Any = None) -> None:
         self.twin = twin
-        self.judge = RecursiveEstimator(model='full', hold='auto', gyro_noise=gyro_noise,
-                                        torque_bias='on' if torque_bias == 'on' else 'off')
+        self.judge = judge if judge is not None else RecursiveEstimator(
+            model='full', hold='auto', gyro_noise=gyro_noise,
+            torque_bias='on' if torque_bias == 'on' else 'off')
         self.chosen = 'zoh'
         self.record: dict[str, Any] | None = None
         self._at = -math.inf              # data time of the last judgement [s]
@@ -75,6 +79,11 @@ class HoldChoice:
         """Feed torque samples to the twin and the judge."""
         self.twin.add_torque(t, tau)
         self.judge.add_torque(t, tau)
+
+    def add_momentum(self, m: Any) -> None:
+        """Feed a momentum input block to the twin and the judge."""
+        self.twin.add_momentum(m)
+        self.judge.add_momentum(m)
 
     def decide(self, now: float | None) -> bool:
         """Judge again when :data:`JUDGE_EVERY_S` of data have come; whether to lock.

@@ -1,10 +1,11 @@
 """The input side of :class:`.tracking.TrackingEstimator`: streams to blocks.
 
 :class:`StreamInput` buffers the gyro samples until the torque covers them, keeps the
-streams' nominal intervals and noise levels, collects the start-up samples, cuts the
-covered samples into blocks of ``block`` seconds and handles the gaps of either stream
-(re-anchoring after them).  The filter itself (:meth:`_initialise`, :meth:`_block`,
-:meth:`_reanchor`) is the estimator's; this mixin only decides what reaches it and when.
+streams' nominal intervals and noise levels (and the filter's weights from them), collects
+the start-up samples, cuts the covered samples into blocks of ``block`` seconds and handles
+the gaps of either stream (re-anchoring after them, :meth:`_reanchor`).  The filter itself
+(:meth:`_initialise`, :meth:`_block`) is the estimator's; this mixin decides what reaches it
+and when.
 """
 from __future__ import annotations
 
@@ -14,7 +15,9 @@ from typing import Any
 import numpy as np
 
 from .._validate import as_sample_block, require_after
+from .noise import gyroscopic_walk_cov
 from .options import GAP_FACTOR
+from .regressors import momentum_matrix
 
 __all__ = ['StreamInput']
 
@@ -22,6 +25,7 @@ _DT_HISTORY = 64          # recent sample intervals kept per stream for the nomi
 _MAX_BUFFER = 400_000     # gyro samples kept waiting for torque
 _WARM_KEEP = 5.0          # start-up samples kept while undetermined [warmup lengths]
 _NOISE_EVERY = 500        # gyro samples between re-readings of the noise levels
+_REFRESH = 0.25           # data time between re-derivations of the weights [s]
 
 
 class StreamInput:
@@ -168,3 +172,47 @@ class StreamInput:
         j = int(np.searchsorted(self._ts, self._prev[0], side='right')) - 1
         if j > 0:
             self._ts, self._tau = self._ts[j:], self._tau[j:]
+
+    def _cached(self) -> tuple[np.ndarray, np.ndarray]:
+        """The weights ``R`` and the gyro variance, re-derived (with the momentum's walk and
+        the nominal sample intervals) every :data:`_REFRESH` s of data or when the weights'
+        tensor was set: they move slowly, and deriving them costs more than a block."""
+        t = self._prev[0]
+        if self._R is None or t - self._R_at >= _REFRESH or self._R_for is not self._R_theta:
+            self._R, self._nv_R = self._weight()
+            self._R_at, self._R_for = t, self._R_theta
+            self._gdt = float(np.median(self._g_dts)) if len(self._g_dts) else 0.0
+            self._tdt = float(np.median(self._tq_dts)) if len(self._tq_dts) else 0.0
+            self._walk = self._momentum_walk(self._nv_R)
+            E = momentum_matrix(np.eye(3)) @ self.basis           # (3, 3, k): L(e_c) T
+            self._B = np.einsum('c,cik,ij,cjl->kl', self._nv_R, E, np.linalg.inv(self._R), E)
+        return self._R, self._nv_R
+
+    def _momentum_walk(self, nv: np.ndarray) -> np.ndarray:
+        """Variance rate of the momentum [N^2 m^2 s]: integrated torque noise and the gyro
+        noise integrated by the gyroscopic term (:func:`.noise.gyroscopic_walk_cov`)."""
+        tdt = float(np.median(self._tq_dts)) if len(self._tq_dts) else 0.0
+        if tdt <= 0:
+            return np.zeros((3, 3))
+        gdt = float(np.median(self._g_dts)) if len(self._g_dts) else 0.0
+        from ..tensor import theta_to_matrix
+
+        I = theta_to_matrix(self.basis @ self.x[:self.k], check_finite=False)
+        m2 = self._m2_sum / max(self._m2_n, 1.0)
+        G = gyroscopic_walk_cov(I, nv, m2, gdt, tdt) if np.all(np.isfinite(I)) else 0.0
+        return tdt * (np.diag(self._tv) + G)
+
+    def _reanchor(self, t: float, w: np.ndarray) -> None:
+        """Across a gap: anchor at ``(t, w)`` with the momentum ``L = I w`` of the current
+        tensor (covariance from the tensor's and the gyro noise's)."""
+        R, _nv = self._cached()
+        A = np.zeros((3, self.n))
+        A[:, :self.k] = momentum_matrix(w) @ self.basis
+        L = slice(self.n - 3, self.n)
+        AP = A @ self.P
+        self.x[L] = A @ self.x
+        self.P[L, :] = AP
+        self.P[:, L] = AP.T
+        self.P[L, L] = AP @ A.T + R
+        self._prev = (t, w.copy())
+        self.gaps += 1

@@ -7,6 +7,7 @@ batch rules for status, identifiability and the stated calibration.
 """
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
@@ -31,16 +32,36 @@ class StateOutput:
     """Estimate, covariance and result of the tracker (a mixin: the state is the
     estimator's)."""
 
+    def _scale(self) -> float:
+        """Tensor scale [kg m^2]: mean principal-diagonal element of the estimate (or 1)."""
+        theta = self.basis @ self.x[:self.k]
+        s = float(np.mean(theta[:3]))
+        return s if s > 0 and math.isfinite(s) else 1.0
+
+    def _note_excess(self, ratio: float, dt: float) -> None:
+        """Running mean of the innovation excess (NIS / dof) over about ``EXCESS_TIME`` s."""
+        a = math.exp(-dt / EXCESS_TIME)
+        self._excess_w = a * self._excess_w + (1 - a)
+        self._excess += (1 - a) / self._excess_w * (ratio - self._excess)
+
     def _covariance(self) -> np.ndarray:
         """Covariance (p, p) of ``[psi, d]`` against the current tensor.
 
-        The noise part of exponentially weighted estimates is half the filter's ``P`` (the
-        sandwich ``sum w^2 / sum w`` of the weights; the recursive estimator's ``w00 / w0``);
-        the memory lags ``rate * window`` behind a tensor that changes at ``rate``
+        The noise part of exponentially weighted estimates is the filter's ``P`` times the
+        sandwich ``sum w^2 / sum w`` of the weights (the recursive estimator's ``w00 / w0``):
+        ``(1 + exp(-T / window)) / 2`` after ``T`` seconds of data (since the start or the
+        last change), half once ``T`` is several memory times;
+        the stated inputs' part (``C P_uu^-1 C'``, ``C`` their cross covariance) is kept
+        whole; the memory lags ``rate * window`` behind a tensor that changes at ``rate``
         (:class:`_Trend` of the recent estimates), which is added as ``lag lag'``.
         """
         p = self.k + self.nb
-        cov = 0.5 * self.P[:p, :p]
+        half = 0.5 * (1.0 + math.exp(-(self._prev[0] - self._since) / self.window))
+        cov = half * self.P[:p, :p]
+        if self.nu:      # the stated inputs' part is no noise: kept whole (never forgotten)
+            C = self.P[:p, p:p + self.nu]
+            cov = cov + (1.0 - half) * C @ solve_symmetric(self.P[p:p + self.nu, p:p + self.nu],
+                                                           C.T)
         rate = self._trend.rate(self._prev[0]) if self._prev is not None else None
         if rate is not None:
             lag = rate * self.window
@@ -101,7 +122,7 @@ class StateOutput:
         if self._warm is not None:
             diag['reason'] = (f'start-up: {self.samples_used} gyro samples, the tensor is '
                               f'not determined yet (needs {self.warmup:g} s of excitation)')
-            tq = self._tau[-4096:]
+            tq = self._tau[-4096:, :3]
             if len(tq) >= 16 and is_torque_free(np.sqrt(np.mean(tq ** 2, axis=0)),
                                                 np.sqrt(self._tv)):
                 diag['reason'] = ('torque-free data: the tracker needs a known torque for the '
@@ -113,12 +134,13 @@ class StateOutput:
         """Identifiability, status and the :class:`InertiaEstimate` of the filter state."""
         p = self.k + self.nb
         beta, cov = self._compensated(), self._covariance()
-        recent = bool(self.changes) and self._prev is not None and \
-            self._prev[0] - self.changes[-1] < 2.0 * EXCESS_TIME
-        status = 'ok'
+        # a change found again and again is the model failing, not a payload step
+        near = [c for c in self.changes if self._prev[0] - c < 4.0 * EXCESS_TIME]
+        recent = bool(near) and self._prev[0] - near[-1] < 2.0 * EXCESS_TIME and len(near) < 3
+        status, widen = 'ok', 1.0
         if self._excess > _MISMATCH_EXCESS and not recent:
-            status = 'model_mismatch'
-            cov = cov * self._excess
+            status, widen = 'model_mismatch', self._excess
+            cov = cov * widen
             diag['reason'] = (f'the model does not explain the data: the innovations are '
                               f'{self._excess:.3g} times the noise model')
         info = solve_symmetric(cov, np.eye(p))
@@ -126,8 +148,9 @@ class StateOutput:
                 3 * self.samples_used, excess=max(self._excess, 1.0))
         add_calibration(f, self.policy, None, diag)
         theta = self.basis @ beta[:self.k]
+        # identifiable on the noise model's covariance, before the widening (the batch rule)
         se = np.sqrt(np.maximum(np.diag(self.basis @ f.cov[:self.k, :self.k]
-                                        @ self.basis.T), 0.0))
+                                        @ self.basis.T), 0.0) / widen)
         scale = max(float(np.max(theta[:3])), 0.0)
         free = se <= IDENTIFIABILITY_TOL * scale
         if scale <= 0 or not np.any(free[:3]):
