@@ -60,9 +60,9 @@ def test_online_matches_the_batch_momentum_form() -> None:
     """Same log, same segment length: the online estimate's noise sigma agrees with the batch
     ``integral`` one on the stated inputs (5 %); both profile the stated wheel inertias
     (:mod:`.online_stated`, :mod:`.stated`): each moves within its sigma of the exact-input
-    estimate (online measured 0.67 at most), and the online sigma they add is at most the
-    batch's (measured 0.65-1.0 of it: the online profile uses the whole anchored segments,
-    the batch's 0.5 s intervals)."""
+    estimate (online measured 0.67 at most), and the online sigma they add is 0.9-1.05 of the
+    batch's (measured 0.94-1.0: one profile on the same statistics, the sensitivities refits
+    on each side's; on bef3af4 0.65-1.0, two profiles on different equations)."""
     sc = Scene.from_dict(scene_dict(duration=4.0, gyro_rate=100.0))
     r = simulate(sc, 1)
     ws = [Wheel(w.joint, w.axis, w.inertia, 0.01 * w.inertia) for w in sc.wheels.wheels]
@@ -87,7 +87,8 @@ def test_online_matches_the_batch_momentum_form() -> None:
                                rtol=0.05)
     assert np.all(np.abs(o.theta - b0.theta) <= o.theta_std), (o.theta - b0.theta)
     assert np.all(np.abs(b.theta - b0.theta) <= b.theta_std), (b.theta - b0.theta)
-    assert np.all(added_o <= 1.05 * added_b), (added_o, added_b)
+    ratio = added_o / added_b
+    assert np.all((ratio >= 0.9) & (ratio <= 1.05)), ratio
     np.testing.assert_allclose(o.diagnostics['torque_noise_std'],
                                b.diagnostics['torque_noise_std'], rtol=0.05)
 
@@ -335,14 +336,13 @@ def test_online_profile_reads_the_batch_equations_with_the_inputs_corrected() ->
     them.  The online estimate over the whole record equals the batch estimate (momentum.py
     path, same 10 s segments) on the inputs corrected by the online posterior mean within
     0.1 sigma per element (measured 0.04 at most): the statistics read with the inputs
-    corrected are the corrected data's.  Against the batch's own profile it agrees within
-    1.5 sigma (measured 1.11, ixz, seed 3; 0.06 on seed 2): the two profiles fit the same
-    prior on different equations (online: the whole anchored segments under the noise
-    model's sandwich; batch: >= 0.5 s intervals with free intercepts, clustered scores),
-    so their posterior means differ by about one posterior sigma of the inputs, and the
-    least-informed element moves by its sensitivity times that.  Both find the gyro scale
-    (truth +1 sigma) within 3 of their posterior sigmas.  On 3d1889e^ the online estimator
-    propagated the inputs at the prior: no profiled value (KeyError)."""
+    corrected are the corrected data's.  Against the batch's own estimate it agrees within
+    0.1 sigma too (measured 0.039, seeds 2-5), with the same posterior means of the inputs
+    within 0.01 of their sigma: the batch profile is the online one on the statistics
+    accumulated over the whole record (on bef3af4 before it, 1.11 sigma: two profiles on
+    different equations).  Both find the gyro scale (truth +1 sigma) within 3 of their
+    posterior sigmas.  On 3d1889e^ the online estimator propagated the inputs at the prior:
+    no profiled value (KeyError)."""
     for seed in (2, 3):
         sc = Scene.from_dict(scene_dict(duration=4.0, gyro_rate=100.0))
         r = simulate(sc, seed)
@@ -366,8 +366,11 @@ def test_online_profile_reads_the_batch_equations_with_the_inputs_corrected() ->
                                     wheels_momentum(r.t_wheel, r.wheel_speed, fixed), **kw)
         assert o.status == b.status == bc.status == 'ok', (o.status, b.status, bc.status)
         np.testing.assert_array_less(np.abs(o.theta - bc.theta), 0.1 * o.theta_std)
-        np.testing.assert_array_less(np.abs(o.theta - b.theta), 1.5 * b.theta_std)
-        gb = b.diagnostics['input_uncertainty']['inputs']['gyro_scale']
+        np.testing.assert_array_less(np.abs(o.theta - b.theta), 0.1 * b.theta_std)
+        gb = b.diagnostics['input_uncertainty']['inputs']
+        ub = np.array([gb[n]['profiled_sigmas'] for n in [*names, 'gyro_scale']])
+        np.testing.assert_allclose(u, ub, rtol=0, atol=0.01)
+        gb = gb['gyro_scale']
         assert abs(u[-1] - 1.0) < 3 * rec['gyro_scale']['posterior_sigmas'], rec['gyro_scale']
         assert abs(gb['profiled_sigmas'] - 1.0) < 3 * gb['posterior_sigmas'], gb
 

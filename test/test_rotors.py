@@ -245,9 +245,10 @@ def test_cli_rotor_errors(tmp_path: Path, capsys: pytest.CaptureFixture) -> None
 def test_online_rotors_with_motor_lag_match_the_batch() -> None:
     """The node's path (MomentumRecursiveEstimator fed 0.1 s JointState blocks, the motor-lag
     state carried across them) agrees with the batch momentum form on the same log: the
-    estimate within 2 sigma (the batch profiles the stated coefficients; it stays within 3
-    sigma of the truth), the noise sigma within 5 %, the coefficients' added sigma at most
-    the online (prior) one."""
+    estimate within 0.1 sigma (measured 0.035; on bef3af4, with two profiles of the stated
+    coefficients on different equations, the bound was 2 sigma; within 3 sigma of the truth),
+    the noise sigma within 5 %, the coefficients' added sigma at most 1.05 of the online one
+    (measured 0.98-1.01)."""
     from inertia_ros.core.estimation.recursive_momentum import MomentumRecursiveEstimator
     from inertia_ros.io.rotors import ActuatorInput
 
@@ -277,11 +278,10 @@ def test_online_rotors_with_motor_lag_match_the_batch() -> None:
         e.add_momentum(act.block(r.t_wheel[kw == blk], r.wheel_speed[kw == blk]))
     o = e.estimate()
     assert o.status == 'ok' and b.status == 'ok'
-    # the batch profiles the stated coefficients (the data corrected by their posterior
-    # mean, the posterior propagated); online they are propagated at their prior: the batch
-    # estimate moves within its sigma and its added sigma is at most the online one
+    # one profile of the stated coefficients (online_stated.profile), batch on the whole
+    # record's statistics: the same posterior, so the same corrected estimate
     z = (o.theta - b.theta) / b.theta_std
-    assert np.all(np.abs(z) <= 2.0), z
+    assert np.all(np.abs(z) <= 0.1), z
     truth = r.inertia[[0, 1, 2, 0, 0, 1], [0, 1, 2, 1, 2, 2]]
     assert np.all(np.abs(b.theta - truth) <= 3.0 * b.theta_std)
     added_o = o.diagnostics['input_uncertainty']['theta_std_added']

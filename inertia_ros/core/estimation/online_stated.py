@@ -15,10 +15,10 @@ At each estimate :func:`profile` fits ``X theta (+ d t) + C (u - u0) = Y(u0)`` o
 statistics (the column ``C_j = -S_j``; the gyro scale's ``-g a (L(w) theta + 2 Q(m) theta -
 a Wc)`` with ``a = 1 / (1 + g u)``, re-linearised in Gauss-Newton steps), weighted by the
 absolute white-noise model of the fit (:func:`.fit.fit_weighted`), with the tensor and bias
-profiled out and the prior added as in :func:`.stated._posterior`: the data's information
+profiled out and the prior added: the data's information
 is the sandwich one, its meat the anchored noise model's (white gyro noise plus the
-torque-noise walk, inflated by the residual excess of the fit at the stated inputs, as the
-batch's noise scale is that fit's; never below the information), only directions the data
+torque-noise walk, scaled by the residual excess of the fit at the stated inputs: the
+noise scale is that fit's; never below the information), only directions the data
 inform at least :data:`.stated._MIN_INFORMATION` times the prior move, and the inputs'
 common scale (:meth:`StatedInputs.scale_dir`) keeps its prior.  An input far beyond its
 sigma is thus not absorbed: the fit at the stated inputs informs it little, it keeps the
@@ -28,11 +28,9 @@ in the variables), so the estimator's fit, model selection and adequacy test see
 the stated uncertainty explains; ``D cov_u D'`` (``D`` from refits at ``u_hat + e_j``) is
 added to the covariance.  The batch one reruns the estimator on corrected data; here the
 statistics are the corrected data's (equal within 0.04 sigma on the same corrected inputs).
-The two profiles fit the same prior on different equations (here the whole anchored
-segments under the noise model's sandwich; the batch's >= 0.5 s intervals with free
-intercepts and clustered scores), so their posterior means differ by up to about one
-posterior sigma of the inputs.  With ``hold='auto'`` the torque scale's column is the held
-reduction of the other torque on both sides.
+The batch (:func:`.stated.propagate`) runs this profile on the same statistics accumulated
+over the whole record, so the two posteriors agree by construction.  With ``hold='auto'``
+the torque scale's column is the held reduction of the other torque on both sides.
 """
 from __future__ import annotations
 
@@ -179,7 +177,7 @@ def profile(acc: Any, u0: np.ndarray, q_y: int, gscale: float, theta0: np.ndarra
     n_eff : float
         Equations after the segment intercepts.
     scale_dir : ndarray, shape (q,), optional
-        The inputs' common scale, kept at its prior (:func:`.stated._scale_direction`).
+        The inputs' common scale, kept at its prior (:meth:`StatedInputs.scale_dir`).
 
     Returns
     -------
@@ -207,9 +205,8 @@ def profile(acc: Any, u0: np.ndarray, q_y: int, gscale: float, theta0: np.ndarra
 def _posterior(st: Any, q: int, u0: np.ndarray, theta0: np.ndarray, bias: bool,
                nv: np.ndarray, tv: np.ndarray, scale_dir: np.ndarray | None
                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """One Gauss-Newton step of the posterior from ``u0``: the batch rule
-    (:func:`.stated._posterior`) with the information in absolute units (the white-noise
-    model's weight) and the anchored noise model's meat instead of clustered scores."""
+    """One Gauss-Newton step of the posterior from ``u0``, the information in absolute
+    units (the white-noise model's weight), the anchored noise model's meat."""
     Im_S = equation_weight(theta0, nv, st.white_y_cov)            # shape of the weight
     S = _white(theta0, nv, st.white_y_cov)
     W = Im_S / float(np.trace(Im_S @ S) / 3.0)                    # absolute: tr(W S) = 3
@@ -235,8 +232,8 @@ def _posterior(st: Any, q: int, u0: np.ndarray, theta0: np.ndarray, bias: bool,
     if not len(lam):
         return np.zeros(q), np.eye(q), np.asarray(theta0, dtype=float)
     # the data-only step (the inputs free) and its sandwich covariance in the directions
-    # the data touch; the residual excess of the fit with the inputs at u0 inflates the meat
-    # (never deflates), as the batch's noise scale is that fit's: data the stated inputs
+    # the data touch; the residual excess of the fit with the inputs at u0 scales the meat
+    # (the noise scale is that fit's; never below the information): data the stated inputs
     # cannot explain near u0 (an input far beyond its sigma) inform them little, so they
     # keep the prior and the adequacy test sees the misfit
     d = (V.T @ gu) / lam
@@ -245,7 +242,7 @@ def _posterior(st: Any, q: int, u0: np.ndarray, theta0: np.ndarray, bias: bool,
     beta_0 = pinv_n @ g[n_i]
     c = np.concatenate([-beta_0, np.zeros(q), [1.0]])
     meat, excess = _anchored_meat(st, np.eye(k), m, W, Gm, c, beta_0[:6], nv, tv)
-    Mv = _larger(V.T @ R @ meat @ R.T @ V * max(excess, 1.0), np.diag(lam))
+    Mv = _larger(V.T @ R @ meat @ R.T @ V * excess, np.diag(lam))
     J = np.diag(lam) @ np.linalg.pinv(Mv, hermitian=True) @ np.diag(lam)   # data information
     # only directions the data inform at least _MIN_INFORMATION times the prior move
     mu, Z = np.linalg.eigh(0.5 * (J + J.T))
@@ -305,8 +302,8 @@ class StatedInputs:
 
     def scale_dir(self, other_torque: bool) -> np.ndarray | None:
         """The ``u`` (q,) that scales the whole known input (momentum, its torque and the
-        other torque) by one, every part of it stated (else None): the batch rule
-        (:func:`.stated._scale_direction`) on the accumulated blocks."""
+        other torque) by one, every part of it stated (else None): least squares on the
+        accumulated blocks."""
         p = len(self._Ay)
         if not p or (other_torque and not self.torque_scale_std) or self._yy <= 0:
             return None
