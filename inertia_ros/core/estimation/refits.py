@@ -15,6 +15,7 @@ from .equations import Equations
 from .fit import Fit, fit_two_pass
 from .options import ADEQUACY_MIN_WINDOW_S, ADEQUACY_WINDOWS, MIN_EQUATIONS
 from .statistics import sufficient_stats, window_raw
+from .tails import chi2_sf
 
 __all__ = ['gyro_sensitivity', 'shift_test', 'window_adequacy']
 
@@ -62,11 +63,30 @@ def window_adequacy(eq: Equations, segment: float | None, ts: np.ndarray, tau_en
     span = float(eq.t[-1] - eq.t[0])
     n_win = min(ADEQUACY_WINDOWS, int(span // ADEQUACY_MIN_WINDOW_S))
     if eq.kind != 'anchored' or n_win < 2 or len(ts) < 2:
+        # too short for windows: a torque bias the fit found must hold over the record
+        split = bias_split_test(eq, segment, ts, gyro_var, torque_var, f) \
+            if own and f.bias and len(ts) >= 2 else None
+        return check_adequacy(*empty, f.excess, shift=shift, split=split)
+    fits, mids = _window_fits(eq, segment, ts, gyro_var, torque_var, f, n_win, f.bias)
+    if len(fits) < 2:
         return check_adequacy(*empty, f.excess, shift=shift)
+    return check_adequacy(np.array([fk.beta for fk in fits]), np.array([fk.cov for fk in fits]),
+                          np.array(mids), f.excess, shift=shift)
+
+
+def _window_fits(eq: Equations, segment: float | None, ts: np.ndarray, gyro_var: np.ndarray,
+                 torque_var: np.ndarray, f: Fit, n_win: int, bias: bool
+                 ) -> tuple[list[Fit], list[float]]:
+    """``f``'s parameter set (with the bias if ``bias``) fitted on ``n_win`` equal time windows.
+
+    Weighted as ``f`` (its tensor gives the weights), each window with its own anchored
+    segments and torque-noise statistics; windows with too few equations are left out.
+    Returns the fits and the windows' mid-times [s].
+    """
     theta0 = f.basis @ f.beta[:f.basis.shape[1]]
     cuts = np.searchsorted(eq.t, np.linspace(eq.t[0], eq.t[-1], n_win + 1)[1:-1])
     bounds = [0, *cuts.tolist(), len(eq.t)]
-    thetas, covs, mids = [], [], []
+    fits, mids = [], []
     for a, b in zip(bounds[:-1], bounds[1:], strict=True):
         if b - a < MIN_EQUATIONS:
             continue
@@ -78,14 +98,49 @@ def window_adequacy(eq: Equations, segment: float | None, ts: np.ndarray, tau_en
         st = sufficient_stats(sub, segment, tsk, float(sub.t[-1]), torque_var)
         if st.n_eff < MIN_EQUATIONS:
             continue
-        fk = fit_two_pass(st, f.basis, f.bias, gyro_var, torque_var, None, theta0)
-        thetas.append(fk.beta)
-        covs.append(fk.cov)
+        fits.append(fit_two_pass(st, f.basis, bias, gyro_var, torque_var, None, theta0))
         mids.append(0.5 * float(sub.t[0] + sub.t[-1]))
-    if len(thetas) < 2:
-        return check_adequacy(*empty, f.excess, shift=shift)
-    return check_adequacy(np.array(thetas), np.array(covs), np.array(mids), f.excess,
-                          shift=shift)
+    return fits, mids
+
+
+def bias_split_test(eq: Equations, segment: float | None, ts: np.ndarray, gyro_var: np.ndarray,
+                    torque_var: np.ndarray, f: Fit, pieces: int = 4
+                    ) -> tuple[float, int, float] | None:
+    """Wald test that one constant torque bias serves the whole record (the tensor shared).
+
+    The record is cut into ``pieces`` time pieces, each fitted with ``f``'s parameter set and
+    a torque bias; the joint fit keeps one tensor and gives each piece its own bias (the
+    pieces' information and sandwich middles summed: their segments do not cross).  Under
+    the model the biases agree; a slow unmodelled torque (fixed in space while the body
+    turns) or a gyro bias (whose effect follows the motion) makes them differ, on records too
+    short for the window test.  ``None`` when fewer than two pieces could be fitted.
+    """
+    if eq.kind != 'anchored':
+        return None
+    fits = _window_fits(eq, segment, ts, gyro_var, torque_var, f, pieces, True)[0]
+    if len(fits) < 2:
+        return None
+    k, K = f.basis.shape[1], len(fits)
+    n = k + 3 * K
+    H, g, M = np.zeros((n, n)), np.zeros(n), np.zeros((n, n))
+    for i, fk in enumerate(fits):
+        A = np.zeros((k + 3, n))
+        A[:k, :k] = np.eye(k)
+        A[k:, k + 3 * i:k + 3 * i + 3] = np.eye(3)
+        Hk = 0.5 * (fk.H + fk.H.T)
+        H += A.T @ Hk @ A
+        g += A.T @ Hk @ fk.beta
+        M += A.T @ (Hk @ fk.cov @ Hk / max(fk.excess, 1.0)) @ A
+    Hinv = np.linalg.pinv(H, rcond=1e-12, hermitian=True)
+    phi, V = Hinv @ g, Hinv @ M @ Hinv
+    D = np.zeros((3 * (K - 1), n))
+    for i in range(1, K):
+        D[3 * i - 3:3 * i, k:k + 3] = -np.eye(3)
+        D[3 * i - 3:3 * i, k + 3 * i:k + 3 * i + 3] = np.eye(3)
+    d, Vd = D @ phi, D @ V @ D.T
+    chi2 = float(d @ np.linalg.pinv(0.5 * (Vd + Vd.T), rcond=1e-12, hermitian=True) @ d)
+    dof = 3 * (K - 1)
+    return chi2, dof, chi2_sf(chi2, dof)
 
 
 def shift_test(eq: Equations, segment: float | None, ts: np.ndarray, tau_end: float,
