@@ -1,7 +1,8 @@
 """The anchored fit refitted on other views of the same equations: the batch's checks.
 
 :func:`window_adequacy` (time windows and shorter segments: the adequacy tests of
-:mod:`.adequacy`), :func:`shift_test` (the segment-shift test on segments 4x shorter) and
+:mod:`.adequacy`), :func:`shift_test` (the segment-shift test on segments 4x shorter),
+:func:`bias_split_test` (one torque bias over the record's quarters) and
 :func:`gyro_sensitivity` (the fit's derivative with respect to a gyro scale).  Each works on
 the sufficient statistics of :mod:`.statistics` and the two-pass fit of :mod:`.fit`; none
 rebuilds equations from the data.
@@ -17,7 +18,7 @@ from .options import ADEQUACY_MIN_WINDOW_S, ADEQUACY_WINDOWS, MIN_EQUATIONS
 from .statistics import sufficient_stats, window_raw
 from .tails import chi2_sf
 
-__all__ = ['gyro_sensitivity', 'shift_test', 'window_adequacy']
+__all__ = ['bias_split_test', 'gyro_sensitivity', 'shift_test', 'window_adequacy']
 
 
 def gyro_sensitivity(eq: Equations, segment: float | None, ts: np.ndarray, tau_end: float,
@@ -50,7 +51,9 @@ def window_adequacy(eq: Equations, segment: float | None, ts: np.ndarray, tau_en
     Up to :data:`ADEQUACY_WINDOWS` windows of at least :data:`ADEQUACY_MIN_WINDOW_S` each,
     weighted as the final fit (its tensor gives the weights), each with its own anchored
     segments and torque-noise statistics; and the whole record refitted with anchored
-    segments a quarter of ``segment`` (:func:`shift_test`), which needs no room for windows.
+    segments a quarter of ``segment`` (:func:`shift_test`), which needs no room for windows;
+    too short for windows, a fitted torque bias is tested per quarter (:func:`bias_split_test`).
+    Neither runs with a momentum input's equations.
     """
     p = len(f.beta)
     empty = np.zeros((0, p)), np.zeros((0, p, p)), np.zeros(0)
@@ -58,8 +61,8 @@ def window_adequacy(eq: Equations, segment: float | None, ts: np.ndarray, tau_en
     # y from the speeds) the shorter fit's covariance misses the speeds' lagged, correlated
     # errors, and the test cried wolf on correct rotor records (chi2 36/6 at 1.5 % error,
     # RMS z 0.78, test_capability_matrix rotors seed 2); there the window test decides
-    shift = shift_test(eq, segment, ts, tau_end, gyro_var, torque_var, f) \
-        if own and eq.white_y_cov is None else None
+    own = own and eq.white_y_cov is None       # (the bias split too: the same covariances)
+    shift = shift_test(eq, segment, ts, tau_end, gyro_var, torque_var, f) if own else None
     span = float(eq.t[-1] - eq.t[0])
     n_win = min(ADEQUACY_WINDOWS, int(span // ADEQUACY_MIN_WINDOW_S))
     if eq.kind != 'anchored' or n_win < 2 or len(ts) < 2:
