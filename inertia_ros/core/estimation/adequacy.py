@@ -38,7 +38,9 @@ covariance and the reason names the likely cause.
 """
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -51,8 +53,8 @@ MAX_WIDENING = 4.0
 #: stays ``ok`` (a mismatch too small to be sure of, but not to be ignored in the sigma).
 WIDEN_ALPHA = 5e-2
 
-__all__ = ['MAX_WIDENING', 'WIDEN_ALPHA', 'Adequacy', 'check_adequacy', 'segment_shift',
-           'widening', 'window_consistency']
+__all__ = ['MAX_WIDENING', 'WIDEN_ALPHA', 'Adequacy', 'bias_split', 'check_adequacy',
+           'segment_shift', 'widening', 'window_consistency']
 
 
 @dataclass(frozen=True)
@@ -242,6 +244,48 @@ def segment_shift(theta_long: np.ndarray, cov_long: np.ndarray, theta_short: np.
     chi2 = float(y @ y)
     dof = int(np.sum(keep))
     return chi2, dof, chi2_sf(chi2, dof), float(np.max(np.abs(d) / sl))
+
+
+def bias_split(fits: Sequence[Any], k: int) -> tuple[float, int, float]:
+    """Wald test that time pieces fitted with a tensor and a torque bias each share one bias.
+
+    The joint fit keeps one tensor and gives each piece its own bias: the pieces'
+    information and sandwich middles summed (their anchored segments do not cross), then
+    the Wald statistic of the bias differences.
+
+    Parameters
+    ----------
+    fits : sequence of Fit
+        Per piece (K >= 2): ``beta`` (k + 3,) = tensor parameters then the bias, its
+        information ``H`` and covariance ``cov`` (k + 3, k + 3), ``excess`` (taken out).
+    k : int
+        Tensor parameters.
+
+    Returns
+    -------
+    chi2, dof, p_value : float, int, float
+        On ``3 (K - 1)`` dof.
+    """
+    K = len(fits)
+    n = k + 3 * K
+    H, g, M = np.zeros((n, n)), np.zeros(n), np.zeros((n, n))
+    for i, fk in enumerate(fits):
+        A = np.zeros((k + 3, n))
+        A[:k, :k] = np.eye(k)
+        A[k:, k + 3 * i:k + 3 * i + 3] = np.eye(3)
+        Hk = 0.5 * (fk.H + fk.H.T)
+        H += A.T @ Hk @ A
+        g += A.T @ Hk @ fk.beta
+        M += A.T @ (Hk @ fk.cov @ Hk / max(fk.excess, 1.0)) @ A
+    Hinv = np.linalg.pinv(H, rcond=1e-12, hermitian=True)
+    phi, V = Hinv @ g, Hinv @ M @ Hinv
+    D = np.zeros((3 * (K - 1), n))
+    for i in range(1, K):
+        D[3 * i - 3:3 * i, k:k + 3] = -np.eye(3)
+        D[3 * i - 3:3 * i, k + 3 * i:k + 3 * i + 3] = np.eye(3)
+    d, Vd = D @ phi, D @ V @ D.T
+    chi2 = float(d @ np.linalg.pinv(0.5 * (Vd + Vd.T), rcond=1e-12, hermitian=True) @ d)
+    return chi2, 3 * (K - 1), chi2_sf(chi2, 3 * (K - 1))
 
 
 def check_adequacy(thetas: np.ndarray, covs: np.ndarray, t_mid: np.ndarray, excess: float,

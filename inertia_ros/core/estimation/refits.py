@@ -11,12 +11,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from .adequacy import Adequacy, check_adequacy, segment_shift
+from .adequacy import Adequacy, bias_split, check_adequacy, segment_shift
 from .equations import Equations
 from .fit import Fit, fit_two_pass
 from .options import ADEQUACY_MIN_WINDOW_S, ADEQUACY_WINDOWS, MIN_EQUATIONS
 from .statistics import sufficient_stats, window_raw
-from .tails import chi2_sf
 
 __all__ = ['bias_split_test', 'gyro_sensitivity', 'shift_test', 'window_adequacy']
 
@@ -112,8 +111,7 @@ def bias_split_test(eq: Equations, segment: float | None, ts: np.ndarray, gyro_v
     """Wald test that one constant torque bias serves the whole record (the tensor shared).
 
     The record is cut into ``pieces`` time pieces, each fitted with ``f``'s parameter set and
-    a torque bias; the joint fit keeps one tensor and gives each piece its own bias (the
-    pieces' information and sandwich middles summed: their segments do not cross).  Under
+    a torque bias; :func:`.adequacy.bias_split` tests them (one tensor, a bias each).  Under
     the model the biases agree; a slow unmodelled torque (fixed in space while the body
     turns) or a gyro bias (whose effect follows the motion) makes them differ, on records too
     short for the window test.  ``None`` when fewer than two pieces could be fitted.
@@ -123,27 +121,7 @@ def bias_split_test(eq: Equations, segment: float | None, ts: np.ndarray, gyro_v
     fits = _window_fits(eq, segment, ts, gyro_var, torque_var, f, pieces, True)[0]
     if len(fits) < 2:
         return None
-    k, K = f.basis.shape[1], len(fits)
-    n = k + 3 * K
-    H, g, M = np.zeros((n, n)), np.zeros(n), np.zeros((n, n))
-    for i, fk in enumerate(fits):
-        A = np.zeros((k + 3, n))
-        A[:k, :k] = np.eye(k)
-        A[k:, k + 3 * i:k + 3 * i + 3] = np.eye(3)
-        Hk = 0.5 * (fk.H + fk.H.T)
-        H += A.T @ Hk @ A
-        g += A.T @ Hk @ fk.beta
-        M += A.T @ (Hk @ fk.cov @ Hk / max(fk.excess, 1.0)) @ A
-    Hinv = np.linalg.pinv(H, rcond=1e-12, hermitian=True)
-    phi, V = Hinv @ g, Hinv @ M @ Hinv
-    D = np.zeros((3 * (K - 1), n))
-    for i in range(1, K):
-        D[3 * i - 3:3 * i, k:k + 3] = -np.eye(3)
-        D[3 * i - 3:3 * i, k + 3 * i:k + 3 * i + 3] = np.eye(3)
-    d, Vd = D @ phi, D @ V @ D.T
-    chi2 = float(d @ np.linalg.pinv(0.5 * (Vd + Vd.T), rcond=1e-12, hermitian=True) @ d)
-    dof = 3 * (K - 1)
-    return chi2, dof, chi2_sf(chi2, dof)
+    return bias_split(fits, f.basis.shape[1])
 
 
 def shift_test(eq: Equations, segment: float | None, ts: np.ndarray, tau_end: float,
