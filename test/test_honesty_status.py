@@ -166,7 +166,7 @@ def test_node_path_segment_shift_and_bias_split() -> None:
     """Through the node's estimator (10 Hz estimates, adequacy deferred): conforming 5 s and
     10 s records all ok (8 seeds each); a 0.01 N m disturbance fixed in space at 10 s never
     ok with |z| > 5 (10 seeds; before the online segment shift and bias split: ok 2, one at
-    |z| 15.8) and at 5 s at most 2 of 10 (before: 8, up to 15.7)."""
+    |z| 15.8) and at 5 s at most 2 of 10 (measured 1; before: 8, up to 15.7)."""
     from inertia_ros.bench.honesty import CASES, HonestyCase, run_case
     from inertia_ros.bench.truth_sim import TruthCase
     for dur in (5.0, 10.0):
