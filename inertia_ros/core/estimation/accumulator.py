@@ -16,7 +16,7 @@ import math
 
 import numpy as np
 
-from .adequacy import Adequacy, check_adequacy
+from .adequacy import Adequacy, bias_split, check_adequacy, segment_shift
 from .fit import Fit, fit_two_pass
 from .history import SegmentHistory, SegmentStats
 from .options import ADEQUACY_MIN_WINDOW_S, ADEQUACY_WINDOWS, MIN_EQUATIONS
@@ -51,7 +51,8 @@ class OnlineStats:
         Time of the last merged equation [s].
     """
 
-    def __init__(self, segment: float, window: float | None, forgetting: float) -> None:
+    def __init__(self, segment: float, window: float | None, forgetting: float,
+                 shadow: bool = True) -> None:
         self.segment = float(segment)
         self.window = window
         self.forgetting = float(forgetting)
@@ -61,11 +62,16 @@ class OnlineStats:
         #: map (dim, 13) of the variables read back by :meth:`stats` and
         #: :meth:`group_stats` (None: the first 13), e.g. the inputs corrected
         self.correction: np.ndarray | None = None
+        #: the same equations on anchored segments 4x shorter (the segment shift, the bias split;
+        #: 8x made a false alarm on a correct 50 rad/s spin, chi2 53 on 6 dof)
+        self.short = OnlineStats(segment / 4.0, window, forgetting, False) if shadow else None
         self.reset()
 
     def widen(self, dim: int) -> None:
-        """Carry ``dim - 13`` extra columns after the 13 variables (forgets everything)."""
+        """Carry ``dim - 13`` extra columns after the 13 variables (forgets everything; no
+        segment shift then: the stated inputs' errors are correlated, as in the batch)."""
         self.dim = int(dim)
+        self.short = None
         self.reset()
 
     def reset(self) -> None:
@@ -90,6 +96,8 @@ class OnlineStats:
         self.tq_n = 0.0                 # and its (decayed) count
         self.torque_seen = False        # a torque sample has been added (add_torque_power)
         self.t_last: float | None = None
+        if self.short is not None:
+            self.short.reset()
 
     # ------------------------------------------------------------------ side sums
     def add_torque_power(self, tau: np.ndarray) -> None:
@@ -97,11 +105,15 @@ class OnlineStats:
         self.tq_ss = self.tq_ss + np.einsum('ij,ij->j', tau, tau)
         self.tq_n += len(tau)
         self.torque_seen = self.torque_seen or len(tau) > 0
+        if self.short is not None:
+            self.short.add_torque_power(tau)
 
     def add_motion(self, w: np.ndarray) -> None:
         """Add gyro samples (n, 3) [rad/s] to the decayed ``sum w w'`` (gyroscopic walk)."""
         self.m2_sum = self.m2_sum + w.T @ w
         self.m2_n += len(w)
+        if self.short is not None:
+            self.short.add_motion(w)
 
     def torque_rms(self) -> np.ndarray:
         """RMS (3,) of the merged torque [N m] (decayed as the weights)."""
@@ -119,17 +131,19 @@ class OnlineStats:
     def merge(self, t: np.ndarray, V: np.ndarray, ts: np.ndarray) -> None:
         """Merge a block of equations ``V`` (n, dim) at ``t`` (n,) [s], closing anchored
         segments at their boundaries; ``ts`` (M,) are the held torque's sample times [s]."""
+        if self.short is not None:
+            self.short.merge(t, V, ts)
         while len(t):
             if self.seg_start is None:
                 self.seg_start = float(t[0])
             k = int(np.searchsorted(t, self.seg_start + self.segment, side='left'))
             if k == 0:
-                self.close(float(t[0]))
+                self._fold(float(t[0]))
                 continue
             self._merge_piece(t[:k], V[:k], ts)
             t, V = t[k:], V[k:]
             if len(t):
-                self.close(float(t[0]))
+                self._fold(float(t[0]))
 
     def _merge_piece(self, t: np.ndarray, V: np.ndarray, ts: np.ndarray) -> None:
         """Merge equations of one segment into the weighted centred statistics."""
@@ -170,6 +184,12 @@ class OnlineStats:
 
     def close(self, new_start: float) -> None:
         """Fold the current segment's statistics into the closed ones; start a new one."""
+        self._fold(new_start)
+        if self.short is not None:
+            self.short.close(new_start)
+
+    def _fold(self, new_start: float) -> None:
+        """:meth:`close` of this segmentation only (a boundary of its own length)."""
         if self.w0 > 0:
             self.Cc = self.Cc + self.C
             self.wc += self.w0
@@ -323,16 +343,56 @@ class OnlineStats:
             thetas = np.array([x[0] for x in fits])
             covs = np.array([x[1] for x in fits])
             mids = np.array([x[2] for x in fits])
-        return check_adequacy(thetas, covs, mids, f.excess)
+        ctx = {'torque_dt': torque_dt, 'gyro_dt': gyro_dt, 'white_y_cov': white_y_cov}
+        split = self._split(f, nv, tv, **ctx) if len(groups) < 2 and f.bias else None
+        return check_adequacy(thetas, covs, mids, f.excess, shift=self._shift(f, nv, tv, **ctx),
+                              split=split)
+
+    def _split(self, f: Fit, nv: np.ndarray, tv: np.ndarray, **context: object
+               ) -> tuple[float, int, float] | None:
+        """Too short for the groups: the fitted torque bias tested over up to four groups of
+        :attr:`short`'s segments (:func:`.adequacy.bias_split`, as the batch's
+        :func:`.refits.bias_split_test`); ``None`` as :meth:`_shift`."""
+        s = self.short
+        if s is None or context['white_y_cov'] is not None:
+            return None
+        s.correction = self.correction
+        k = f.basis.shape[1]
+        theta0 = f.basis @ f.beta[:k]
+        fits = []
+        for st, factor, _ in s.group_stats(nv, min_s=0.0, **context):  # type: ignore[arg-type]
+            fk = fit_two_pass(st, f.basis, True, nv, tv, None, theta0)
+            fk.cov = fk.cov * factor
+            fits.append(fk)
+        return bias_split(fits, k) if len(fits) >= 2 else None
+
+    def _shift(self, f: Fit, nv: np.ndarray, tv: np.ndarray, **context: object
+               ) -> tuple[float, int, float, float] | None:
+        """:func:`.adequacy.segment_shift` of ``f`` against the same fit of :attr:`short`
+        (segments 4x shorter), as the batch's :func:`.refits.shift_test`; ``None`` with a
+        momentum input's white noise in ``y`` or too few equations."""
+        s = self.short
+        if s is None or context['white_y_cov'] is not None or s.n_eff() < MIN_EQUATIONS:
+            return None
+        k = f.basis.shape[1]
+        theta0 = f.basis @ f.beta[:k] + (0.0 if f.offset is None else f.offset)
+        s.correction = self.correction
+        # both refitted: ``f``'s own covariance may have been widened since (a deferred test)
+        fl, fs = (fit_two_pass(a.stats(nv, a.n_eff(), True, **context),  # type: ignore[arg-type]
+                               f.basis, f.bias, nv, tv, f.offset, theta0) for a in (self, s))
+        rl, rs = ((a.w00 + a.w00c) / (a.w0 + a.wc) for a in (self, s))   # meat of weighted sums
+        return segment_shift(fl.beta[:k], fl.cov[:k, :k] * rl / max(fl.excess, 1.0),
+                             fs.beta[:k], fs.cov[:k, :k] * rs / max(fs.excess, 1.0))
 
     def group_stats(self, nv: np.ndarray, *, torque_dt: float, gyro_dt: float,
-                    white_y_cov: np.ndarray | None, gyro_scale: float = 1.0
+                    white_y_cov: np.ndarray | None, gyro_scale: float = 1.0,
+                    min_s: float = ADEQUACY_MIN_WINDOW_S
                     ) -> list[tuple[SufficientStats, float, float]]:
         """The adequacy test's groups of the kept segments, as statistics.
 
         Up to :data:`ADEQUACY_WINDOWS` consecutive groups (the open segment included), each
-        of at least :data:`ADEQUACY_MIN_WINDOW_S` and :data:`MIN_EQUATIONS`, as the batch's
-        windows (a 1 s open segment would give chi2 ~2000); arguments as :meth:`stats`.
+        of at least ``min_s`` [s] (:data:`ADEQUACY_MIN_WINDOW_S`) and :data:`MIN_EQUATIONS`, as
+        the batch's windows (a 1 s open segment would give chi2 ~2000); else as :meth:`stats`.
 
         Returns
         -------
@@ -343,7 +403,7 @@ class OnlineStats:
         gp, walk = self.segment_walk()
         groups = [g for g in self.history.groups(ADEQUACY_WINDOWS, self.open_segment(gp, walk),
                                                  self.clock)
-                  if g.neff >= MIN_EQUATIONS and g.t1 - g.t0 >= ADEQUACY_MIN_WINDOW_S]
+                  if g.neff >= MIN_EQUATIONS and g.t1 - g.t0 >= min_s]
         K = self._read_map(nv, gyro_scale)
         return [(SufficientStats(lift(K.T @ g.C @ K), lift(K.T @ g.GP @ K), int(round(g.w0)),
                                  int(round(g.neff)), 1, kind='anchored', eiv_var=nv,

@@ -1,6 +1,6 @@
 """Model adequacy: does the fitted model explain the data, and if not, what probably doesn't?
 
-Three tests, all against the noise model the standard errors come from:
+Four tests, all against the noise model the standard errors come from:
 
 Time-window consistency
     The record is cut into ``K`` consecutive windows and the same parameter set is fitted on
@@ -18,14 +18,19 @@ Segment shift
     Hausman-type test): an unmodelled slow torque or a gyro bias acts through the momentum a
     segment integrates, so the tensor moves with the segment length.  Needs no room for
     windows (short records, and the batch path only: the online path has no segment choice).
+Bias split
+    On records too short for windows, when the fit found a torque bias: the bias fitted
+    separately on four time pieces with one tensor (:func:`.refits.bias_split_test`).  An
+    unmodelled torque fixed in space turns with the body, so the constant the fit found is
+    not constant.
 Residual excess
     The weighted residual sum of squares over its noise-model prediction (``excess``, about 1
     when the model holds).  Much larger: an unmodelled torque or a wrong torque hold.
 
 Status and widening.  What the tests saw -- a failure at :data:`.options.ADEQUACY_ALPHA`, or
-either test below :data:`WIDEN_ALPHA` -- widens the covariance by one rule,
-:func:`widening` (the window scatter taken as a systematic error that does not average out,
-the segment shift's chi2 per dof, the residual excess: the largest).  A mismatch that needs
+any test below :data:`WIDEN_ALPHA` -- widens the covariance by one rule, :func:`widening`
+(the window scatter taken as a systematic error that does not average out, the segment
+shift's or bias split's chi2 per dof, the residual excess: the largest).  A mismatch needing
 at most :data:`MAX_WIDENING` (sigma x 2), without a located step, is benign: ``ok`` with the
 widened sigma and a warning saying by how much and why.  A failed test that needs more, or a
 step change, is ``model_mismatch``: the estimate is still reported with the widened
@@ -33,7 +38,9 @@ covariance and the reason names the likely cause.
 """
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -46,8 +53,8 @@ MAX_WIDENING = 4.0
 #: stays ``ok`` (a mismatch too small to be sure of, but not to be ignored in the sigma).
 WIDEN_ALPHA = 5e-2
 
-__all__ = ['MAX_WIDENING', 'WIDEN_ALPHA', 'Adequacy', 'check_adequacy', 'segment_shift',
-           'widening', 'window_consistency']
+__all__ = ['MAX_WIDENING', 'WIDEN_ALPHA', 'Adequacy', 'bias_split', 'check_adequacy',
+           'segment_shift', 'widening', 'window_consistency']
 
 
 @dataclass(frozen=True)
@@ -76,6 +83,8 @@ class Adequacy:
         :func:`segment_shift`'s test (``nan``/0/1/``nan`` when not run).
     benign : bool
         ``ok``, or the failure is covered by the widened covariance (status ``ok``).
+    split_chi2, split_dof, split_p_value : float, int, float
+        The bias split's test (``nan``/0/1 when not run).
     """
 
     ok: bool
@@ -92,10 +101,16 @@ class Adequacy:
     shift_p_value: float = 1.0
     shift_max_sigma: float = float('nan')
     benign: bool = False
+    split_chi2: float = float('nan')
+    split_dof: int = 0
+    split_p_value: float = 1.0
 
     def as_dict(self) -> dict[str, object]:
-        """The JSON-ready record for ``diagnostics['adequacy']``."""
-        return {'ok': self.ok, 'window_chi2': self.chi2, 'window_dof': self.dof,
+        """The JSON-ready record for ``diagnostics['adequacy']`` (the bias split's keys when
+        it ran)."""
+        split = {'bias_split_chi2': self.split_chi2, 'bias_split_dof': self.split_dof,
+                 'bias_split_p_value': self.split_p_value} if self.split_dof else {}
+        return split | {'ok': self.ok, 'window_chi2': self.chi2, 'window_dof': self.dof,
                 'window_p_value': self.p_value, 'windows': self.windows,
                 'residual_excess': self.excess, 'covariance_inflation': self.inflation,
                 'change_at_s': self.change_at, 'reason': self.reason,
@@ -223,17 +238,62 @@ def segment_shift(theta_long: np.ndarray, cov_long: np.ndarray, theta_short: np.
         return float('nan'), 0, 1.0, float('nan')
     ev, U = np.linalg.eigh(Cs)
     keep = ev > 1e-12 * float(np.max(ev))
+    if not np.any(keep):                               # (noise-free data)
+        return float('nan'), 0, 1.0, float('nan')
     y = (U[:, keep].T @ d) / np.sqrt(ev[keep])
     chi2 = float(y @ y)
     dof = int(np.sum(keep))
     return chi2, dof, chi2_sf(chi2, dof), float(np.max(np.abs(d) / sl))
 
 
+def bias_split(fits: Sequence[Any], k: int) -> tuple[float, int, float]:
+    """Wald test that time pieces fitted with a tensor and a torque bias each share one bias.
+
+    The joint fit keeps one tensor and gives each piece its own bias: the pieces'
+    information and sandwich middles summed (their anchored segments do not cross), then
+    the Wald statistic of the bias differences.
+
+    Parameters
+    ----------
+    fits : sequence of Fit
+        Per piece (K >= 2): ``beta`` (k + 3,) = tensor parameters then the bias, its
+        information ``H`` and covariance ``cov`` (k + 3, k + 3), ``excess`` (taken out).
+    k : int
+        Tensor parameters.
+
+    Returns
+    -------
+    chi2, dof, p_value : float, int, float
+        On ``3 (K - 1)`` dof.
+    """
+    K = len(fits)
+    n = k + 3 * K
+    H, g, M = np.zeros((n, n)), np.zeros(n), np.zeros((n, n))
+    for i, fk in enumerate(fits):
+        A = np.zeros((k + 3, n))
+        A[:k, :k] = np.eye(k)
+        A[k:, k + 3 * i:k + 3 * i + 3] = np.eye(3)
+        Hk = 0.5 * (fk.H + fk.H.T)
+        H += A.T @ Hk @ A
+        g += A.T @ Hk @ fk.beta
+        M += A.T @ (Hk @ fk.cov @ Hk / max(fk.excess, 1.0)) @ A
+    Hinv = np.linalg.pinv(H, rcond=1e-12, hermitian=True)
+    phi, V = Hinv @ g, Hinv @ M @ Hinv
+    D = np.zeros((3 * (K - 1), n))
+    for i in range(1, K):
+        D[3 * i - 3:3 * i, k:k + 3] = -np.eye(3)
+        D[3 * i - 3:3 * i, k + 3 * i:k + 3 * i + 3] = np.eye(3)
+    d, Vd = D @ phi, D @ V @ D.T
+    chi2 = float(d @ np.linalg.pinv(0.5 * (Vd + Vd.T), rcond=1e-12, hermitian=True) @ d)
+    return chi2, 3 * (K - 1), chi2_sf(chi2, 3 * (K - 1))
+
+
 def check_adequacy(thetas: np.ndarray, covs: np.ndarray, t_mid: np.ndarray, excess: float,
                    alpha: float = ADEQUACY_ALPHA,
                    max_excess: float = MAX_RESIDUAL_EXCESS,
                    common: np.ndarray | None = None,
-                   shift: tuple[float, int, float, float] | None = None) -> Adequacy:
+                   shift: tuple[float, int, float, float] | None = None,
+                   split: tuple[float, int, float] | None = None) -> Adequacy:
     """Run the tests, name the likely cause of a failure and judge whether it is covered.
 
     Parameters
@@ -250,6 +310,8 @@ def check_adequacy(thetas: np.ndarray, covs: np.ndarray, t_mid: np.ndarray, exce
         As :func:`window_consistency`: stated errors shared by the windows.
     shift : tuple, optional
         :func:`segment_shift`'s result for the fit (``None``: not run).
+    split : tuple, optional
+        ``(chi2, dof, p)`` of :func:`.refits.bias_split_test` (``None``: not run).
 
     Returns
     -------
@@ -261,6 +323,7 @@ def check_adequacy(thetas: np.ndarray, covs: np.ndarray, t_mid: np.ndarray, exce
     excess = float(excess) if np.isfinite(excess) else 1.0
     s_chi2, s_dof, s_p, s_max = shift if shift is not None else (float('nan'), 0, 1.0,
                                                                   float('nan'))
+    b_chi2, b_dof, b_p = split if split is not None else (float('nan'), 0, 1.0)
     causes = []
     if dof > 0 and pval < alpha:
         if change_at is not None:
@@ -274,20 +337,28 @@ def check_adequacy(thetas: np.ndarray, covs: np.ndarray, t_mid: np.ndarray, exce
         causes.append(f'the tensor moves by {s_max:.1f} sigma when the anchored segments are '
                       f'cut shorter (chi2 {s_chi2:.0f} on {s_dof} dof): an unmodelled slow '
                       'torque or a gyro bias')
+    if b_dof > 0 and b_p < alpha:
+        causes.append(f'the torque bias the fit found differs between parts of the record '
+                      f'(chi2 {b_chi2:.0f} on {b_dof} dof): an unmodelled torque that is not '
+                      'constant in body axes (fixed in space while the body turns) or a gyro '
+                      'bias')
     if excess > max_excess:
         causes.append(f'residuals {excess:.1f}x the noise model: unmodelled torque, a torque '
                       'that varies between its samples (try hold linear) or correlated '
                       'sensor noise')
     ok = not causes
-    suspect = (dof > 0 and pval < WIDEN_ALPHA) or (s_dof > 0 and s_p < WIDEN_ALPHA)
+    suspect = min(pval if dof > 0 else 1.0, s_p if s_dof > 0 else 1.0,
+                  b_p if b_dof > 0 else 1.0) < WIDEN_ALPHA
     factor, benign = (1.0, True) if ok and not suspect else widening(
-        chi2 / dof if dof > 0 else 1.0, len(thetas), s_chi2 / s_dof if s_dof > 0 else 1.0,
+        chi2 / dof if dof > 0 else 1.0, len(thetas),
+        max(s_chi2 / s_dof if s_dof > 0 else 1.0, b_chi2 / b_dof if b_dof > 0 else 1.0),
         excess, change_at is not None and not ok)
     benign = benign or ok
     return Adequacy(ok=ok, chi2=chi2, dof=dof, p_value=pval, windows=len(thetas),
                     excess=excess, inflation=float(factor), change_at=change_at,
                     reason='; '.join(causes), shift_chi2=s_chi2, shift_dof=s_dof,
-                    shift_p_value=s_p, shift_max_sigma=s_max, benign=benign)
+                    shift_p_value=s_p, shift_max_sigma=s_max, benign=benign,
+                    split_chi2=b_chi2, split_dof=b_dof, split_p_value=b_p)
 
 
 
@@ -303,7 +374,7 @@ def widening(window_ratio: float, windows: int, shift_ratio: float, excess: floa
       noise is taken as a systematic error each window carries, which the whole record's
       estimate keeps instead of averaging it down ``K`` times (``B`` alone left a gyro bias
       or a small unmodelled torque at RMS z 1.7-1.8 after widening);
-    - the segment shift's chi2 per dof;
+    - the segment shift's or the bias split's chi2 per dof;
     - the residual excess.
 
     Benign (``ok`` with the widened covariance) when no step change was located and the
@@ -317,7 +388,7 @@ def widening(window_ratio: float, windows: int, shift_ratio: float, excess: floa
     windows : int
         Windows that entered it.
     shift_ratio : float
-        ``chi2 / dof`` of the segment shift (1 when not run).
+        ``chi2 / dof`` of the segment shift or the bias split, the larger (1 when not run).
     excess : float
         Residual excess.
     step : bool

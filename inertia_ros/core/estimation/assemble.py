@@ -274,8 +274,8 @@ def _adequate(adequacy: AdequacyFunction, f: Fit, chosen: str, diag: dict[str, A
 
 def _suspect(a: Adequacy) -> str:
     """What a test saw below the widening level though not below the mismatch level."""
-    return (f'window p = {a.p_value:.1e}, segment shift p = {a.shift_p_value:.1e} (a small '
-            'unmodelled effect or correlated noise)')
+    return (f'window p = {a.p_value:.1e}, segment shift p = {a.shift_p_value:.1e}, bias split '
+            f'p = {a.split_p_value:.1e} (a small unmodelled effect or correlated noise)')
 
 
 def _widened_by(a: Adequacy) -> str:
@@ -284,6 +284,7 @@ def _widened_by(a: Adequacy) -> str:
              1.0 + a.windows * (a.chi2 / a.dof - 1.0) if a.dof > 0 else 0.0,
              'segment shift (chi2 per dof)': a.shift_chi2 / a.shift_dof if a.shift_dof > 0
              else 0.0,
+             'bias split (chi2 per dof)': a.split_chi2 / a.split_dof if a.split_dof else 0.0,
              'residual excess': a.excess}
     return max(cands, key=lambda k: cands[k] if np.isfinite(cands[k]) else 0.0)
 

@@ -315,8 +315,15 @@ def _auto_hold(run: Any, diag: dict[str, Any], torque_std: np.ndarray, n_gyro: i
     est = results[chosen] if chosen == 'zoh' and head is None else run(
         chosen, dict(diag, warnings=list(diag['warnings'])),
         chosen=_segment_choice(results[chosen], head is not None))
-    if head is None and record.get('p_value') is not None and record['p_value'] >= HOLD_ALPHA:
-        chosen, est = _hold_by_adequacy(run, diag, results, est, record)
+    if head is None and record.get('p_value') is not None and chosen == 'zoh' and (
+            record['p_value'] >= HOLD_ALPHA or est.status == 'model_mismatch'):
+        rec = record if record['p_value'] >= HOLD_ALPHA else {}   # (noted when it moves)
+        chosen, est = _hold_by_adequacy(run, diag, results, est, rec)
+        record.update(rec if chosen == 'linear' else {})
+    elif head is None and chosen == 'linear' and est.status == 'model_mismatch' \
+            and results['zoh'].status == 'ok':       # (the same evidence, the other way)
+        chosen, est = 'zoh', results['zoh']
+        record['adequacy'] = {'zoh_ok': True, 'linear_ok': False}
     est.diagnostics['hold'] = chosen
     est.diagnostics['hold_selection'] = {'requested': 'auto', 'residual_excess': excess,
                                          **record, 'chosen': chosen}
@@ -328,11 +335,13 @@ def _auto_hold(run: Any, diag: dict[str, Any], torque_std: np.ndarray, n_gyro: i
 def _hold_by_adequacy(run: Any, diag: dict[str, Any], results: dict[str, InertiaEstimate],
                       held: InertiaEstimate, record: dict[str, Any]
                       ) -> tuple[str, InertiaEstimate]:
-    """When the likelihoods cannot tell the holds apart: the adequacy tests may.
+    """The adequacy tests over the likelihoods: a hold whose fit fails them is not kept.
 
     The held fit failing the adequacy tests (window consistency, residual excess) while the
-    linear one passes them is evidence the likelihood difference was too small to resolve:
-    then ``linear``, else the held result.  Noted in ``record``.
+    linear one passes them is evidence the likelihood difference was too small to resolve
+    or misled (at 5 s it chose either hold on either torque): then ``linear``, else the
+    held result (and a linear choice that fails while the held fit passes is held).  Noted
+    in ``record``.
     """
     if held.diagnostics.get('adequacy', {}).get('ok', True):
         return 'zoh', held

@@ -26,7 +26,7 @@ import numpy as np
 
 from .._numeric import median
 from ..tensor import THETA_NAMES, check_physical, nearest_physical, principal_axes, theta_to_matrix
-from .adequacy import Adequacy, check_adequacy
+from .adequacy import Adequacy, check_adequacy, segment_shift
 from .equations import Equations, segment_starts
 from .fit import Fit, equation_weight, fit_weighted, solve_symmetric
 from .model import TRACE, TRACE_FREE, describe_direction, selector
@@ -342,11 +342,17 @@ def _ratios(st: SufficientStats, gyro_var: np.ndarray, diag: dict[str, Any],
     if checks is not None:
         a = checks.adequacy(f, W, gyro_var)
         diag['adequacy'] = a.as_dict()
-        if not a.ok:
-            # as the torque paths: the sigma widened to the spread the windows show
-            cov = cov * max(1.0, a.inflation / max(f.excess, 1.0))
+        # as the torque paths (assemble._adequate): widened by what the tests saw; a
+        # covered mismatch keeps the status, with a warning, a larger one is model_mismatch
+        cov = cov * max(1.0, a.inflation / max(f.excess, 1.0))
+        if not a.benign:
             status = 'model_mismatch'
             diag['reason'] = 'the model does not explain the data: ' + a.reason + '; ' + REASON
+        if a.inflation > 1.0:
+            diag['adequacy']['sigma_widened_by'] = float(np.sqrt(a.inflation))
+        if a.benign and a.inflation > 1.0:
+            diag['warnings'].append(f'sigma widened {np.sqrt(a.inflation):.3g}x: '
+                                    + (a.reason or 'window scatter suspect') + '; covered')
     cov6 = cov_scale * (TRACE_FREE @ cov @ TRACE_FREE.T)
     if checks is not None:
         cov6 = cov6 + _calibration(checks, st, f, W, gyro_var, diag)
@@ -570,6 +576,27 @@ def _plain_stats(eq: Equations, segment: float | None) -> SufficientStats:
     return sufficient_stats(eq, segment, t, float(t[-1]), np.ones(3))
 
 
+def _shift(checks: TorqueFreeChecks, gyro_var: np.ndarray, W: np.ndarray
+           ) -> tuple[float, int, float, float] | None:
+    """The segment shift of the torque-free fit (:func:`.adequacy.segment_shift`): the ratios
+    refitted with anchored segments 4x shorter, both with the exact walk covariance."""
+    eq = checks.eq
+    if eq.kind != 'anchored' or len(eq.t) < 2:
+        return None
+    span = float(eq.t[-1] - eq.t[0])
+    fits = []
+    for seg in (checks.segment, (checks.segment or span) / 4.0):
+        st, walk = torque_free_stats(eq, checks.t_gyro, checks.omega, seg)
+        st = _without_torque(st)
+        if st.n_eff < MIN_EQUATIONS:
+            return None
+        fk, _, th = _fit_ratios(st, gyro_var, W)
+        cov = fk.cov if walk is None else _walk_covariance(st, fk, W, th, gyro_var, walk,
+                                                           TRACE / 3.0)
+        fits.append((fk.beta, cov / max(fk.excess, 1.0)))
+    return segment_shift(fits[0][0], fits[0][1], fits[1][0], fits[1][1])
+
+
 def _window_adequacy(checks: TorqueFreeChecks, f: Fit, W: np.ndarray,
                      gyro_var: np.ndarray) -> Adequacy:
     """The adequacy test of the torque-free fit: window consistency.
@@ -594,8 +621,9 @@ def _window_adequacy(checks: TorqueFreeChecks, f: Fit, W: np.ndarray,
     empty = np.zeros((0, f.beta.size)), np.zeros((0, f.beta.size, f.beta.size)), np.zeros(0)
     span = float(eq.t[-1] - eq.t[0]) if len(eq.t) else 0.0
     n_win = min(ADEQUACY_WINDOWS, int(span // ADEQUACY_MIN_WINDOW_S))
+    shift = _shift(checks, gyro_var, W)
     if eq.kind != 'anchored' or n_win < 2:
-        return check_adequacy(*empty, f.excess, max_excess=np.inf)
+        return check_adequacy(*empty, f.excess, max_excess=np.inf, shift=shift)
     cuts = np.searchsorted(eq.t, np.linspace(eq.t[0], eq.t[-1], n_win + 1)[1:-1])
     bounds = [0, *cuts.tolist(), len(eq.t)]
     thetas, covs, mids, common = [], [], [], []
@@ -621,6 +649,7 @@ def _window_adequacy(checks: TorqueFreeChecks, f: Fit, W: np.ndarray,
             common.append(checks.gyro_scale_std
                           * _scale_sensitivity(sub, checks.segment, fk, W, gyro_var)[:, None])
     if len(thetas) < 2:
-        return check_adequacy(*empty, f.excess, max_excess=np.inf)
+        return check_adequacy(*empty, f.excess, max_excess=np.inf, shift=shift)
     return check_adequacy(np.array(thetas), np.array(covs), np.array(mids), f.excess,
-                          max_excess=np.inf, common=np.array(common) if common else None)
+                          max_excess=np.inf, common=np.array(common) if common else None,
+                          shift=shift)

@@ -1,7 +1,8 @@
 """The anchored fit refitted on other views of the same equations: the batch's checks.
 
 :func:`window_adequacy` (time windows and shorter segments: the adequacy tests of
-:mod:`.adequacy`), :func:`shift_test` (the segment-shift test on segments 4x shorter) and
+:mod:`.adequacy`), :func:`shift_test` (the segment-shift test on segments 4x shorter),
+:func:`bias_split_test` (one torque bias over the record's quarters) and
 :func:`gyro_sensitivity` (the fit's derivative with respect to a gyro scale).  Each works on
 the sufficient statistics of :mod:`.statistics` and the two-pass fit of :mod:`.fit`; none
 rebuilds equations from the data.
@@ -10,13 +11,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from .adequacy import Adequacy, check_adequacy, segment_shift
+from .adequacy import Adequacy, bias_split, check_adequacy, segment_shift
 from .equations import Equations
 from .fit import Fit, fit_two_pass
 from .options import ADEQUACY_MIN_WINDOW_S, ADEQUACY_WINDOWS, MIN_EQUATIONS
 from .statistics import sufficient_stats, window_raw
 
-__all__ = ['gyro_sensitivity', 'shift_test', 'window_adequacy']
+__all__ = ['bias_split_test', 'gyro_sensitivity', 'shift_test', 'window_adequacy']
 
 
 def gyro_sensitivity(eq: Equations, segment: float | None, ts: np.ndarray, tau_end: float,
@@ -49,7 +50,9 @@ def window_adequacy(eq: Equations, segment: float | None, ts: np.ndarray, tau_en
     Up to :data:`ADEQUACY_WINDOWS` windows of at least :data:`ADEQUACY_MIN_WINDOW_S` each,
     weighted as the final fit (its tensor gives the weights), each with its own anchored
     segments and torque-noise statistics; and the whole record refitted with anchored
-    segments a quarter of ``segment`` (:func:`shift_test`), which needs no room for windows.
+    segments a quarter of ``segment`` (:func:`shift_test`), which needs no room for windows;
+    too short for windows, a fitted torque bias is tested per quarter (:func:`bias_split_test`).
+    Neither runs with a momentum input's equations.
     """
     p = len(f.beta)
     empty = np.zeros((0, p)), np.zeros((0, p, p)), np.zeros(0)
@@ -57,16 +60,35 @@ def window_adequacy(eq: Equations, segment: float | None, ts: np.ndarray, tau_en
     # y from the speeds) the shorter fit's covariance misses the speeds' lagged, correlated
     # errors, and the test cried wolf on correct rotor records (chi2 36/6 at 1.5 % error,
     # RMS z 0.78, test_capability_matrix rotors seed 2); there the window test decides
-    shift = shift_test(eq, segment, ts, tau_end, gyro_var, torque_var, f) \
-        if own and eq.white_y_cov is None else None
+    own = own and eq.white_y_cov is None       # (the bias split too: the same covariances)
+    shift = shift_test(eq, segment, ts, tau_end, gyro_var, torque_var, f) if own else None
     span = float(eq.t[-1] - eq.t[0])
     n_win = min(ADEQUACY_WINDOWS, int(span // ADEQUACY_MIN_WINDOW_S))
     if eq.kind != 'anchored' or n_win < 2 or len(ts) < 2:
+        # too short for windows: a torque bias the fit found must hold over the record
+        split = bias_split_test(eq, segment, ts, gyro_var, torque_var, f) \
+            if own and f.bias and len(ts) >= 2 else None
+        return check_adequacy(*empty, f.excess, shift=shift, split=split)
+    fits, mids = _window_fits(eq, segment, ts, gyro_var, torque_var, f, n_win, f.bias)
+    if len(fits) < 2:
         return check_adequacy(*empty, f.excess, shift=shift)
+    return check_adequacy(np.array([fk.beta for fk in fits]), np.array([fk.cov for fk in fits]),
+                          np.array(mids), f.excess, shift=shift)
+
+
+def _window_fits(eq: Equations, segment: float | None, ts: np.ndarray, gyro_var: np.ndarray,
+                 torque_var: np.ndarray, f: Fit, n_win: int, bias: bool
+                 ) -> tuple[list[Fit], list[float]]:
+    """``f``'s parameter set (with the bias if ``bias``) fitted on ``n_win`` equal time windows.
+
+    Weighted as ``f`` (its tensor gives the weights), each window with its own anchored
+    segments and torque-noise statistics; windows with too few equations are left out.
+    Returns the fits and the windows' mid-times [s].
+    """
     theta0 = f.basis @ f.beta[:f.basis.shape[1]]
     cuts = np.searchsorted(eq.t, np.linspace(eq.t[0], eq.t[-1], n_win + 1)[1:-1])
     bounds = [0, *cuts.tolist(), len(eq.t)]
-    thetas, covs, mids = [], [], []
+    fits, mids = [], []
     for a, b in zip(bounds[:-1], bounds[1:], strict=True):
         if b - a < MIN_EQUATIONS:
             continue
@@ -78,14 +100,28 @@ def window_adequacy(eq: Equations, segment: float | None, ts: np.ndarray, tau_en
         st = sufficient_stats(sub, segment, tsk, float(sub.t[-1]), torque_var)
         if st.n_eff < MIN_EQUATIONS:
             continue
-        fk = fit_two_pass(st, f.basis, f.bias, gyro_var, torque_var, None, theta0)
-        thetas.append(fk.beta)
-        covs.append(fk.cov)
+        fits.append(fit_two_pass(st, f.basis, bias, gyro_var, torque_var, None, theta0))
         mids.append(0.5 * float(sub.t[0] + sub.t[-1]))
-    if len(thetas) < 2:
-        return check_adequacy(*empty, f.excess, shift=shift)
-    return check_adequacy(np.array(thetas), np.array(covs), np.array(mids), f.excess,
-                          shift=shift)
+    return fits, mids
+
+
+def bias_split_test(eq: Equations, segment: float | None, ts: np.ndarray, gyro_var: np.ndarray,
+                    torque_var: np.ndarray, f: Fit, pieces: int = 4
+                    ) -> tuple[float, int, float] | None:
+    """Wald test that one constant torque bias serves the whole record (the tensor shared).
+
+    The record is cut into ``pieces`` time pieces, each fitted with ``f``'s parameter set and
+    a torque bias; :func:`.adequacy.bias_split` tests them (one tensor, a bias each).  Under
+    the model the biases agree; a slow unmodelled torque (fixed in space while the body
+    turns) or a gyro bias (whose effect follows the motion) makes them differ, on records too
+    short for the window test.  ``None`` when fewer than two pieces could be fitted.
+    """
+    if eq.kind != 'anchored':
+        return None
+    fits = _window_fits(eq, segment, ts, gyro_var, torque_var, f, pieces, True)[0]
+    if len(fits) < 2:
+        return None
+    return bias_split(fits, f.basis.shape[1])
 
 
 def shift_test(eq: Equations, segment: float | None, ts: np.ndarray, tau_end: float,
