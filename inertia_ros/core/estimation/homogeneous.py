@@ -591,6 +591,8 @@ def _shift(checks: TorqueFreeChecks, gyro_var: np.ndarray, W: np.ndarray
         if st.n_eff < MIN_EQUATIONS:
             return None
         fk, _, th = _fit_ratios(st, gyro_var, W)
+        if not 0.0 < fk.excess < np.inf:       # the noise model broke down (noise-free data)
+            return None
         cov = fk.cov if walk is None else _walk_covariance(st, fk, W, th, gyro_var, walk,
                                                            TRACE / 3.0)
         fits.append((fk.beta, cov / max(fk.excess, 1.0)))
