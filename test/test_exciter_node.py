@@ -202,23 +202,29 @@ def _status(resets: int, reason: str = '') -> DiagnosticArray:
             KeyValue(key='last_reset_reason', value=reason)])])
 
 
-def test_node_follows_the_covariance_and_the_estimator_resets(exciter_node):
-    """Principal sigma from the covariance topic (with moments and axes), and a rising
-    ``resets`` count on the estimator's diagnostics stops the exciter."""
+def _feed_estimate(node) -> None:
+    """The estimator's answer as the exciter receives it: moments 0.9/1.0/1.2 kg m^2 on the
+    body axes with a 1 % sigma."""
     from geometry_msgs.msg import QuaternionStamped, Vector3Stamped
 
     from inertia_ros.nodes.messages import covariance_msg
 
-    node = exciter_node(target_rel_std=0.005)
-    node.rules.on_gyro(node.now_s(), np.zeros(3))
-    node._on_tick()
-    assert node.state == 'exciting' and node.commands == 1
-    node._on_diagnostics(_status(0))
     node._on_moments(Vector3Stamped(vector=messages_vec(0.9, 1.0, 1.2)))
     q = QuaternionStamped()
     q.quaternion.w = 1.0
     node._on_axes(q)
     node._on_covariance(covariance_msg(np.diag([0.9 ** 2, 1.0, 1.2 ** 2, 0, 0, 0]) * 1e-4))
+
+
+def test_node_follows_the_covariance_and_the_estimator_resets(exciter_node):
+    """Principal sigma from the covariance topic (with moments and axes), and a rising
+    ``resets`` count on the estimator's diagnostics stops the exciter."""
+    node = exciter_node(target_rel_std=0.005)
+    node.rules.on_gyro(node.now_s(), np.zeros(3))
+    node._on_tick()
+    assert node.state == 'exciting' and node.commands == 1
+    node._on_diagnostics(_status(0))
+    _feed_estimate(node)
     assert node.rel_std == pytest.approx(0.01, rel=1e-9)     # 1 % on every moment
     assert not node.rules.stopped
     node._on_diagnostics(_status(1, 'service call'))
@@ -360,20 +366,14 @@ def test_node_replans_from_the_estimate_and_swaps_its_schedule(exciter_node):
     """With an estimate at hand and one re-plan period of excitation behind, a re-plan runs
     (in a thread) and its profile replaces the scene's at the time it was designed for (the
     rate predicted then); a re-plan is never started after a stop."""
-    from geometry_msgs.msg import QuaternionStamped, Vector3Stamped
 
-    from inertia_ros.nodes.messages import covariance_msg
 
     node = exciter_node(target_rel_std=0.001, replan_period=0.5, replan_horizon=4.0,
                         max_rate=0.3)
     old = node.schedule
     node.rules.on_gyro(node.now_s(), np.zeros(3))
     node._on_tick()
-    node._on_moments(Vector3Stamped(vector=messages_vec(0.9, 1.0, 1.2)))
-    q = QuaternionStamped()
-    q.quaternion.w = 1.0
-    node._on_axes(q)
-    node._on_covariance(covariance_msg(np.diag([0.9 ** 2, 1.0, 1.2 ** 2, 0, 0, 0]) * 1e-4))
+    _feed_estimate(node)
     book = node._replan[0]
     end = time.monotonic() + 30.0
     while node.schedule is old and time.monotonic() < end:
@@ -398,12 +398,10 @@ def test_node_replans_within_the_wheels_limits_from_their_measured_speeds(excite
     file within its 600 rad/s from the speeds measured on joint_states (560, -560 and 560
     rad/s: 40 rad/s of room, where 4 s at 0.1 N m could swing a 1.2e-3 kg m^2 wheel by 333
     rad/s), integrated here over the schedule."""
-    from geometry_msgs.msg import QuaternionStamped, Vector3Stamped
     from sensor_msgs.msg import JointState
 
     from inertia_ros.core.excitation.actuators import wheel_speeds
     from inertia_ros.core.excitation.replan import with_wheel_speeds
-    from inertia_ros.nodes.messages import covariance_msg
 
     node = exciter_node(wheels=str(ROOT / 'config' / 'wheels' / 'wheels.yaml'),
                         target_rel_std=0.001, replan_period=0.5, replan_horizon=4.0,
@@ -423,11 +421,7 @@ def test_node_replans_within_the_wheels_limits_from_their_measured_speeds(excite
     old = node.schedule
     feed()
     node._on_tick()
-    node._on_moments(Vector3Stamped(vector=messages_vec(0.9, 1.0, 1.2)))
-    q = QuaternionStamped()
-    q.quaternion.w = 1.0
-    node._on_axes(q)
-    node._on_covariance(covariance_msg(np.diag([0.9 ** 2, 1.0, 1.2 ** 2, 0, 0, 0]) * 1e-4))
+    _feed_estimate(node)
     book = node._replan[0]
     end = time.monotonic() + 30.0
     while node.schedule is old and time.monotonic() < end:
