@@ -342,9 +342,12 @@ class RecursiveEstimator:
         return t, w, breaks
 
     def _test_adequacy(self, f: Fit, nv: np.ndarray, tv: np.ndarray) -> Adequacy:
-        """The window tests of ``f`` on the current statistics
-        (:meth:`.accumulator.OnlineStats.window_test`)."""
-        return self._acc.window_test(f, nv, tv, **self._context())
+        """The window tests of ``f`` (:meth:`.accumulator.OnlineStats.window_test`)."""
+        a = self._acc.window_test(f, nv, tv, **self._context())
+        if self._auto is not None and not a.ok:   # the other hold's fit may pass: kept next
+            self._auto.check_other(self._active, self._accs, f, nv, tv,
+                                   self._tau_var is not None, self._context())
+        return a
 
     def refresh(self) -> bool:
         """Run the adequacy test the last estimate deferred (``defer_adequacy``), if any: call
@@ -361,7 +364,6 @@ class RecursiveEstimator:
         """Median recent gyro sample interval [s] (0 before two samples)."""
         return self._align.g_dt      # kept by the gap rule
 
-    # -----------------------------------------------------------------------------------------
     def _gyro_var(self) -> np.ndarray:
         """Gyro white-noise variance per axis [rad^2/s^2]: given, or the streaming estimate."""
         if self._gyro_noise is not None:
