@@ -80,6 +80,40 @@ def test_bias_split_decides_and_widens() -> None:
     assert b.ok and b.benign and b.inflation == pytest.approx(21.0 / 9)
 
 
+def test_few_dof_shift_or_split_beyond_twice_sigma_is_a_mismatch() -> None:
+    """A bias split on 3 dof (the node's two groups of a 5 s record) at chi2 14 (p 0.003,
+    4.7 per dof: sigma x 2.2) is model_mismatch, not ok widened (before: ok; the node's 5 s
+    disturbance record seed 3 so at |z| 6.0); at chi2 8.7 (2.9 per dof) still ok widened.
+    The segment shift likewise."""
+    from inertia_ros.core.estimation.tails import chi2_sf
+    a = check_adequacy(*_windows(1.0, K=0), excess=1.0, split=(14.1, 3, chi2_sf(14.1, 3)))
+    assert not a.ok and not a.benign and 'torque bias the fit found differs' in a.reason, a
+    b = check_adequacy(*_windows(1.0, K=0), excess=1.0, split=(8.7, 3, chi2_sf(8.7, 3)))
+    assert b.ok and b.benign and b.inflation == pytest.approx(2.9)
+    s = check_adequacy(*_windows(1.0, K=0), excess=1.0, shift=(26.0, 6, chi2_sf(26.0, 6), 3.0))
+    assert not s.ok and 'anchored segments are cut shorter' in s.reason, s
+
+
+def test_stale_adequacy_verdict_is_not_reused() -> None:
+    """The node's schedule (tests every 10 estimates, deferred): a verdict that saw fewer than
+    90 % of an estimate's samples is replaced by a test of that estimate's data; a fresher
+    one is reused (before: reused for 9 estimates, then reported once more when deferred)."""
+    from inertia_ros.core.estimation.schedule import Reselection
+    calls = []
+
+    def test(f, nv, tv):
+        calls.append(f)
+        return f'verdict {f}'
+    s = Reselection(10, True)
+    z = np.zeros(3)
+    for k, n in enumerate((1000, 1050, 1111, 1112, 1200, 1240)):
+        s.tick()
+        s.window_adequacy(k, z, z, test, n)
+    assert calls == [0, 3, 5], calls
+    s.tick()
+    assert s.window_adequacy(6, z, z, test, 1250) == "verdict 5"
+
+
 # ---- seeded Monte Carlo on the reference simulator, estimate() with its defaults
 
 def _outcomes(truth, seeds):

@@ -272,7 +272,6 @@ class RecursiveEstimator:
         do); the statistics, so the estimate, do not depend on the cut (up to rounding)."""
         self._process()
 
-    # -----------------------------------------------------------------------------------------
     def _process(self) -> None:
         """Turn buffered gyro samples covered by torque into equations and merge them."""
         self._flush_single()
@@ -456,7 +455,8 @@ class RecursiveEstimator:
 
         def adequacy(f: Fit, chosen: str) -> Adequacy:
             """Window consistency over the kept segments and the residual excess."""
-            return self._schedule.window_adequacy(f, nv, tv, self._test_adequacy)
+            n = self.samples_used
+            return self._schedule.window_adequacy(f, nv, tv, self._test_adequacy, n)
 
         def gyro_sensitivity(f: Fit) -> np.ndarray:
             """``d beta / d g``: refit of the statistics of a gyro read 1e-4 larger."""
