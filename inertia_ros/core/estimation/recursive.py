@@ -108,8 +108,8 @@ class RecursiveEstimator:
     defer_adequacy : bool
         A test estimate (every ``reselect_every``-th) reports the previous adequacy verdict and
         leaves its own test to :meth:`refresh` (the node: after publishing), for the estimates
-        that follow: each verdict one estimate later, the tensor unchanged.  The first test, and
-        one not refreshed, run inside :meth:`estimate`.  Default False.
+        that follow (the tensor unchanged).  Default False.  The first test, one not refreshed
+        and one whose verdict is stale (:data:`.schedule.STALE_FRACTION`) run in estimate().
     nuisance : str
         Only ``'off'``: any other value is refused by :func:`.config.require` (one line).
     """
