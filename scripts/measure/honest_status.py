@@ -1,6 +1,6 @@
 """Status and sigma on the reference simulator (issue 27 items 3-4): estimate() defaults or CLI.
 
-    python scripts/measure/honest_status.py CASE SEEDS DURATION [api|cli]
+    python scripts/measure/honest_status.py CASE SEEDS DURATION [api|cli|node] [KEY=VALUE ...]
 
 CASE: conforming, continuous, a case of ``bench.honesty.CASES`` (disturbance, gyro_bias,
 payload_change, ...), or a peer-like sine profile ``sine_{x,y,z,iso}_{AMPLITUDE}[_LEVEL]``
@@ -8,6 +8,8 @@ payload_change, ...), or a peer-like sine profile ``sine_{x,y,z,iso}_{AMPLITUDE}
 disturbance fixed in inertial axes of LEVEL x (1, -0.75, 0.5) N m, 2e-4 when not given;
 ``_nodist`` for none).  Prints the statuses, RMS z over all records and over the ok ones,
 max |z| of the ok ones, the ok records with some |z| > 5 and the median error.
+``KEY=VALUE`` options go to the estimator of the path (``node``: over the honesty benchmark's
+node options, e.g. ``hold=auto``, the node's default; numbers are read as floats).
 """
 
 import sys
@@ -34,10 +36,21 @@ def case_named(name: str, duration: float) -> TruthCase:
     return t.with_(t_change=duration / 2) if t.t_change is not None else t
 
 
+def _option(arg: str) -> tuple[str, object]:
+    """``KEY=VALUE`` as a pair (the value a float when it reads as one)."""
+    key, _, value = arg.partition('=')
+    try:
+        return key, float(value)
+    except ValueError:
+        return key, value
+
+
 def main() -> None:
     name, n, dur = sys.argv[1], int(sys.argv[2]), float(sys.argv[3])
     path = sys.argv[4] if len(sys.argv) > 4 else 'api'
-    out = run_case(name, HonestyCase(case_named(name, dur)), range(n), (path,))
+    opts = dict(_option(a) for a in sys.argv[5:])
+    case = HonestyCase(case_named(name, dur), options=opts, node=opts)
+    out = run_case(name, case, range(n), (path,))
     st: dict[str, int] = {}
     for o in out:
         st[o.status] = st.get(o.status, 0) + 1
@@ -46,7 +59,7 @@ def main() -> None:
     z_ok = np.concatenate([o.z[np.isfinite(o.z)] for o in ok]) if ok else np.zeros(0)
     errs = [o.rel_error for o in out if np.isfinite(o.rel_error)] or [float('nan')]
     maxz = [float(np.nanmax(np.abs(o.z), initial=0.0)) for o in out]
-    print(f'{name} {path} {n} x {dur:g} s: {st} RMS z all {np.sqrt(np.mean(z_all ** 2)):.2f} '
+    print(f'{name} {path} {" ".join(sys.argv[5:])} {n} x {dur:g} s: {st} RMS z all {np.sqrt(np.mean(z_all ** 2)):.2f} '
           f'ok {np.sqrt(np.mean(z_ok ** 2)) if z_ok.size else float("nan"):.2f} '
           f'max|z| ok {np.max(np.abs(z_ok)) if z_ok.size else float("nan"):.1f} '
           f'(all: {min(maxz):.1f}-{max(maxz):.1f}) ok with |z|>5: {sum(o.defect for o in out)} '

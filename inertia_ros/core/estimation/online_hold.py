@@ -32,7 +32,7 @@ from typing import Any
 import numpy as np
 
 from .align import OnlineAligner
-from .fit import equation_weight, fit_two_pass
+from .fit import Fit, equation_weight, fit_two_pass
 from .options import HOLDS
 from .regressors import cumulative_torque, gram, lift, metric
 from .selection import HOLD_ALPHA, hold_rule, select_hold
@@ -45,6 +45,10 @@ HOLD_MIN_ROWS = 25
 #: Closed windows kept (the batch's ``_HOLD_WINDOWS``); beyond, neighbours are merged in
 #: pairs (8 to 16 windows compared).
 HOLD_MAX_WINDOWS = 16
+
+#: How the adequacy tests override the likelihoods (``hold_selection['adequacy']``).
+_ADEQUACY_RULE = ('a hold whose fit fails the adequacy tests is left for the other when the '
+                  "other's fit passes them")
 
 _ZOH = np.arange(13)
 _LIN = np.r_[np.arange(10), 13, 14, 15]
@@ -191,6 +195,9 @@ class AutoHold:
         self.windows = HoldWindows()
         self.chosen = 'zoh'
         self.record: dict[str, Any] | None = None
+        #: the hold the adequacy tests chose (:meth:`check_other`), over the likelihoods
+        self.preferred: str | None = None
+        self.by_adequacy: dict[str, bool] | None = None
 
     def rows(self, align: OnlineAligner, t: np.ndarray, V: np.ndarray,
              breaks: list[int]) -> dict[str, np.ndarray]:
@@ -233,6 +240,29 @@ class AutoHold:
                                                self.windows, bias, nv, tv, white_y_cov)
             self.record = dict(rec, selected_at_samples=samples)
         out = {'requested': 'auto', **(self.record or {}), 'chosen': self.chosen}
+        if self.preferred is not None and not torque_free:
+            self.chosen = out['chosen'] = self.preferred
+            out['adequacy'] = dict(self.by_adequacy or {}, rule=_ADEQUACY_RULE)
         if reused:
             out['reused'] = True
         return self.chosen != before, out
+
+    def check_other(self, active: str, accs: dict[str, Any], f: Fit, nv: np.ndarray,
+                    tv: np.ndarray, walk_noise: bool, context: dict[str, Any]) -> None:
+        """The ``active`` hold's fit ``f`` failed the adequacy tests: fit the same parameter
+        set on the other hold's statistics (``accs[h]``: :class:`.accumulator.OnlineStats`)
+        and test it; when it passes, it is :attr:`preferred` from the next estimate on, over
+        the likelihoods (the batch's ``_hold_by_adequacy``).  One more fit and adequacy test,
+        only after a failed test.  ``nv``, ``tv`` (3,): gyro [rad^2/s^2] and torque
+        [N^2 m^2] noise variances; ``walk_noise`` and ``context`` as
+        :meth:`.accumulator.OnlineStats.stats`.
+        """
+        other = 'linear' if active == 'zoh' else 'zoh'
+        acc = accs[other]
+        g = fit_two_pass(acc.stats(nv, acc.n_eff(), walk_noise, **context), f.basis, f.bias,
+                         nv, tv, f.offset)
+        g.cov = g.cov * ((acc.w00 + acc.w00c) / (acc.w0 + acc.wc))
+        ok = bool(np.all(np.isfinite(g.beta))) and acc.window_test(g, nv, tv, **context).ok
+        self.by_adequacy = {f'{active}_ok': False, f'{other}_ok': ok}
+        if ok:
+            self.preferred = other

@@ -45,6 +45,7 @@ from .fit import _anchored_meat, equation_weight, fit_two_pass
 from .model import model_basis
 from .options import MIN_EQUATIONS, MIN_GYRO_SAMPLES
 from .regressors import MOMENTUM_BASIS, VARIABLE_MAP
+from .schedule import STALE_FRACTION
 from .stated import _MIN_INFORMATION, _larger, widened
 
 __all__ = ['StatedAligner', 'StatedInputs', 'correction_map', 'profile', 'sensitivities']
@@ -282,6 +283,7 @@ class StatedInputs:
         self.u = np.zeros(len(self.names))               # the last posterior mean
         self.cov_u = np.eye(len(self.names))
         self.theta: np.ndarray | None = None              # the last estimate's tensor
+        self.profiled_at = 0                               # samples the profile saw
         #: (model and hold, D (q, 6), data span [s]) of the last sensitivities
         self.cache: tuple[str, np.ndarray, float] | None = None
         p = len(names)
@@ -331,11 +333,14 @@ class StatedInputs:
         posterior mean and tensor) and read every accumulator with them corrected.  With
         ``reselect_every`` > 1 the profile runs with the model selection (on every
         ``reselect_every``-th estimate, the first included) and its posterior is reused in
-        between, as the selection's verdicts are."""
-        due = est._schedule.estimates % est.reselect_every == 0 or self.theta is None
-        if not due:
+        between, as the selection's verdicts are (and, as they are, not when stale:
+        :data:`.schedule.STALE_FRACTION`)."""
+        n = est.samples_used
+        if est._schedule.estimates % est.reselect_every and self.theta is not None \
+                and n - self.profiled_at <= STALE_FRACTION * n:
             return
         est._process()
+        self.profiled_at = est.samples_used
         tv = est._torque_variance()
         tv = tv if tv is not None else np.zeros(3)
         nv = est._gyro_var()

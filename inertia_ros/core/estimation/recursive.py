@@ -108,8 +108,8 @@ class RecursiveEstimator:
     defer_adequacy : bool
         A test estimate (every ``reselect_every``-th) reports the previous adequacy verdict and
         leaves its own test to :meth:`refresh` (the node: after publishing), for the estimates
-        that follow: each verdict one estimate later, the tensor unchanged.  The first test, and
-        one not refreshed, run inside :meth:`estimate`.  Default False.
+        that follow (the tensor unchanged).  Default False.  The first test, one not refreshed
+        and one whose verdict is stale (:data:`.schedule.STALE_FRACTION`) run in estimate().
     nuisance : str
         Only ``'off'``: any other value is refused by :func:`.config.require` (one line).
     """
@@ -272,7 +272,6 @@ class RecursiveEstimator:
         do); the statistics, so the estimate, do not depend on the cut (up to rounding)."""
         self._process()
 
-    # -----------------------------------------------------------------------------------------
     def _process(self) -> None:
         """Turn buffered gyro samples covered by torque into equations and merge them."""
         self._flush_single()
@@ -342,9 +341,12 @@ class RecursiveEstimator:
         return t, w, breaks
 
     def _test_adequacy(self, f: Fit, nv: np.ndarray, tv: np.ndarray) -> Adequacy:
-        """The window tests of ``f`` on the current statistics
-        (:meth:`.accumulator.OnlineStats.window_test`)."""
-        return self._acc.window_test(f, nv, tv, **self._context())
+        """The window tests of ``f`` (:meth:`.accumulator.OnlineStats.window_test`)."""
+        a = self._acc.window_test(f, nv, tv, **self._context())
+        if self._auto is not None and not a.ok:   # the other hold's fit may pass: kept next
+            self._auto.check_other(self._active, self._accs, f, nv, tv,
+                                   self._tau_var is not None, self._context())
+        return a
 
     def refresh(self) -> bool:
         """Run the adequacy test the last estimate deferred (``defer_adequacy``), if any: call
@@ -361,7 +363,6 @@ class RecursiveEstimator:
         """Median recent gyro sample interval [s] (0 before two samples)."""
         return self._align.g_dt      # kept by the gap rule
 
-    # -----------------------------------------------------------------------------------------
     def _gyro_var(self) -> np.ndarray:
         """Gyro white-noise variance per axis [rad^2/s^2]: given, or the streaming estimate."""
         if self._gyro_noise is not None:
@@ -454,7 +455,8 @@ class RecursiveEstimator:
 
         def adequacy(f: Fit, chosen: str) -> Adequacy:
             """Window consistency over the kept segments and the residual excess."""
-            return self._schedule.window_adequacy(f, nv, tv, self._test_adequacy)
+            n = self.samples_used
+            return self._schedule.window_adequacy(f, nv, tv, self._test_adequacy, n)
 
         def gyro_sensitivity(f: Fit) -> np.ndarray:
             """``d beta / d g``: refit of the statistics of a gyro read 1e-4 larger."""

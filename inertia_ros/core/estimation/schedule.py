@@ -4,8 +4,13 @@ Model selection (``model`` or ``torque_bias`` ``'auto'``) and the window adequac
 several fits; the online estimators run them on every ``every``-th estimate and reuse their
 verdicts in between (one fit per estimate otherwise).  With ``defer`` a test estimate reports
 the previous adequacy verdict and leaves its own test to :meth:`Reselection.refresh` (the
-node calls it after publishing).  The schedule owns its state; the tests themselves are
-passed in as callables.
+node calls it after publishing).  A verdict on fewer than ``1 - STALE_FRACTION`` of the
+samples an estimate has is not reused: the test runs on that estimate's data (on a short
+record the last second changes what the tests see; from ``every / STALE_FRACTION`` estimates
+on, never); nor is a model selection (nor the stated inputs' profile,
+:mod:`.online_stated`: one from the first second of a 4 s wheel log left the fit's residuals
+12x the noise model at its end, which the reused verdict hid).  The schedule owns its state;
+the tests themselves are passed in as callables.
 """
 from __future__ import annotations
 
@@ -20,7 +25,10 @@ from .fit import Fit
 from .result import InertiaEstimate
 from .selection import SelectionPolicy
 
-__all__ = ['Reselection']
+__all__ = ['STALE_FRACTION', 'Reselection']
+
+#: Largest share of an estimate's samples its adequacy verdict may not have seen.
+STALE_FRACTION = 0.1
 
 #: The window adequacy test of a fit: ``test(f, gyro_var, torque_var)``.
 AdequacyTest = Callable[[Fit, np.ndarray, np.ndarray], Adequacy]
@@ -48,12 +56,14 @@ class Reselection:
         """Forget every verdict."""
         self.adequacy: Adequacy | None = None   # last adequacy result, reused between tests
         self.adequacy_left = 0
-        #: deferred adequacy test: (estimate serial, final fit, gyro and torque noise variances)
-        self.due: tuple[int, Fit, np.ndarray, np.ndarray] | None = None
+        #: deferred adequacy test: (estimate serial, final fit, gyro and torque noise variances,
+        #: samples)
+        self.due: tuple[int, Fit, np.ndarray, np.ndarray, int] | None = None
+        self.tested_at = 0               # samples the adequacy verdict saw
         self.estimates = 0               # estimate() calls (serial of the last one)
         # model selection reused between re-selections: (torque_bias, model, its record)
         self.selection: tuple[str, str, dict[str, Any]] | None = None
-        self.selection_left = 0
+        self.selection_left = self.selected_at = 0   # (and the samples it saw)
 
     def reset_verdicts(self) -> None:
         """Drop the reused selection and adequacy verdicts (the statistics they judged changed:
@@ -66,18 +76,20 @@ class Reselection:
         self.estimates += 1
 
     def window_adequacy(self, f: Fit, nv: np.ndarray, tv: np.ndarray,
-                        test: AdequacyTest) -> Adequacy:
-        """The adequacy verdict for ``f``: ``test`` run every ``every`` estimates, reused in
-        between (with ``defer`` also at a test estimate, the test left to :meth:`refresh`)."""
-        if self.due is not None and self.due[0] != self.estimates:
-            self.due = None         # owed by an earlier estimate: test these data
+                        test: AdequacyTest, samples: int = 0) -> Adequacy:
+        """The adequacy verdict for ``f`` (fitted on ``samples`` samples): ``test`` run every
+        ``every`` estimates, reused in between (with ``defer`` also at a test estimate, the
+        test left to :meth:`refresh`) unless stale (:data:`STALE_FRACTION`)."""
+        if (self.due is not None and self.due[0] != self.estimates) or (
+                samples - self.tested_at > STALE_FRACTION * samples):
+            self.due = None         # owed by an earlier estimate, or stale: test these data
         elif self.adequacy is not None and self.adequacy_left > 0:
             self.adequacy_left -= 1
             return self.adequacy
         elif self.defer and self.adequacy is not None:
-            self.due = (self.estimates, f, nv, tv)   # the last call's fit wins
+            self.due = (self.estimates, f, nv, tv, samples)   # the last call's fit wins
             return self.adequacy
-        self.adequacy = test(f, nv, tv)
+        self.adequacy, self.tested_at = test(f, nv, tv), samples
         self.adequacy_left = self.every - 1
         return self.adequacy
 
@@ -85,7 +97,7 @@ class Reselection:
         """Run the deferred adequacy test, if any; True when one ran."""
         if self.due is None:
             return False
-        (_, f, nv, tv), self.due = self.due, None
+        (_, f, nv, tv, self.tested_at), self.due = self.due, None
         self.adequacy = test(f, nv, tv)
         self.adequacy_left = self.every - 1
         return True
@@ -96,7 +108,8 @@ class Reselection:
         """Model selection (the last choice reused between re-selections) and the result
         (:func:`.assemble.conclude`)."""
         auto = model == 'auto' or torque_bias == 'auto'
-        if auto and self.selection is not None and self.selection_left > 0:
+        fresh = samples_used - self.selected_at <= STALE_FRACTION * samples_used
+        if auto and self.selection is not None and self.selection_left > 0 and fresh:
             self.selection_left -= 1
             bias, chosen, record = self.selection
             est = conclude(fit, chosen, bias, axis, policy,
@@ -114,5 +127,5 @@ class Reselection:
             est.diagnostics['model_selection'] = record
             self.selection = ('on' if est.model.endswith('+bias') else 'off',
                               est.model.removesuffix('+bias'), record)
-            self.selection_left = self.every - 1
+            self.selection_left, self.selected_at = self.every - 1, samples_used
         return est
