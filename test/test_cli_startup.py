@@ -57,6 +57,22 @@ def test_integral_estimate_of_a_log_imports_no_scipy() -> None:
     assert not {'numpy.ma', 'inertia_ros.core.estimation.ml'} & names
 
 
+def test_momentum_input_estimate_imports_no_excitation_designer() -> None:
+    """``estimate --rotors`` reads its actuator file without the excitation designer (its
+    package imports ``scipy.optimize``: ~0.3 s of CPU, a quarter of the sample rotor log's
+    whole process)."""
+    proc = subprocess.run([sys.executable, '-X', 'importtime', '-m', 'inertia_ros', 'estimate',
+                           'bags/quadrotor.mcap', '--rotors', 'bags/quadrotor_rotors.yaml',
+                           '--format', 'json', '--no-progress'], capture_output=True,
+                          text=True, cwd=ROOT, check=False)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert '"status":' in proc.stdout
+    names = {line.rsplit('|', 1)[1].strip() for line in proc.stderr.splitlines()
+             if line.startswith('import time:') and '|' in line}
+    assert 'inertia_ros.io.rotors' in names
+    assert not {'inertia_ros.core.excitation', 'scipy.optimize'} & names
+
+
 def test_version_imports_no_numerical_stack() -> None:
     """``--version`` answers without loading any command module."""
     proc, names = _imported('--version')
