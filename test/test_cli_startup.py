@@ -41,8 +41,8 @@ def test_command_help_imports_no_numerical_stack(command: str) -> None:
 def test_integral_estimate_of_a_log_imports_no_scipy() -> None:
     """The estimate of a long log (the integral method) loads no scipy at all: its p-values
     are closed-form and its range sums numpy (scipy's base alone, which scipy.sparse pulls
-    in, costs ~0.1 s of a whole process that has 0.9 s for an hour-long log); nor numpy.ma
-    or the ml module."""
+    in, costs ~0.1 s of a whole process that has 0.9 s for an hour-long log); nor numpy.ma,
+    the ml module or the stated- and momentum-input modules."""
     proc = subprocess.run([sys.executable, '-X', 'importtime', '-m', 'inertia_ros', 'estimate',
                            'bags/default.mcap', '--method', 'integral', '--format', 'json',
                            '--no-progress'], capture_output=True, text=True, cwd=ROOT,
@@ -53,8 +53,26 @@ def test_integral_estimate_of_a_log_imports_no_scipy() -> None:
              if line.startswith('import time:') and '|' in line}
     assert 'numpy' in names
     assert not {n for n in names if n.split('.')[0] == 'scipy'}
-    # nor numpy.ma (np.median and np.unique load it: ~7 ms), nor the ml refinement
-    assert not {'numpy.ma', 'inertia_ros.core.estimation.ml'} & names
+    # nor numpy.ma (np.median and np.unique load it: ~7 ms), nor the ml refinement, nor the
+    # stated-input and momentum-input modules (~8 ms)
+    assert not {'numpy.ma', 'inertia_ros.core.estimation.ml', 'inertia_ros.core.estimation.stated',
+                'inertia_ros.core.estimation.momentum'} & names
+
+
+def test_momentum_input_estimate_imports_no_excitation_designer() -> None:
+    """``estimate --rotors`` reads its actuator file without the excitation designer (its
+    package imports ``scipy.optimize``: ~0.3 s of CPU, a quarter of the sample rotor log's
+    whole process)."""
+    proc = subprocess.run([sys.executable, '-X', 'importtime', '-m', 'inertia_ros', 'estimate',
+                           'bags/quadrotor.mcap', '--rotors', 'bags/quadrotor_rotors.yaml',
+                           '--format', 'json', '--no-progress'], capture_output=True,
+                          text=True, cwd=ROOT, check=False)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert '"status":' in proc.stdout
+    names = {line.rsplit('|', 1)[1].strip() for line in proc.stderr.splitlines()
+             if line.startswith('import time:') and '|' in line}
+    assert 'inertia_ros.io.rotors' in names
+    assert not {'inertia_ros.core.excitation', 'scipy.optimize'} & names
 
 
 def test_version_imports_no_numerical_stack() -> None:

@@ -15,10 +15,11 @@ def _naive_ranges(V: np.ndarray, bounds: np.ndarray) -> np.ndarray:
 
 
 @pytest.mark.parametrize('n, n_ranges', [(5000, 3), (5000, 20), (5000, 400), (5000, 4999),
-                                         (7, 7), (0, 3)])
+                                         (7, 7), (0, 3), (140_000, 800)])
 def test_range_sums_equal_python_sums(n: int, n_ranges: int) -> None:
     """Few long ranges (BLAS row sums) and many short ones (reduceat), some empty, on a column
-    view of a wider array (as the equations hand them over): the sums to 1e-12."""
+    view of a wider array (as the equations hand them over); a long record's ranges of ~175
+    rows (BLAS sums there): the sums to 1e-12."""
     rng = np.random.default_rng(n + n_ranges)
     V = rng.normal(size=(n, 13))[:, :10]
     inner = np.sort(rng.integers(0, n + 1, size=n_ranges - 1))

@@ -254,8 +254,13 @@ PAIRED_CALLS = {'default': {}, 'ml, hold zoh': {'hold': 'zoh'},
 PAIRED_TARGETS = {'default': 2.0}
 
 
-def bench_paired(other: str, runs: int = 25, rounds: int = 3) -> dict[str, list]:
-    """Time :data:`PAIRED_CALLS` on the nominal 60 s record in this tree and ``other``.
+#: ``--long``: the default call on longer nominal records (seconds: timed calls per round).
+LONG_RECORDS = {300.0: 7, 3600.0: 5}
+
+
+def bench_paired(other: str, runs: int = 25, rounds: int = 3, seconds: float = 60.0,
+                 calls: dict[str, dict] | None = None) -> dict[str, list]:
+    """Time :data:`PAIRED_CALLS` (or ``calls``) on a nominal record in this tree and ``other``.
 
     Each round runs ``other`` and then this tree, each in a fresh interpreter with its own
     bytecode cache (median of ``runs`` calls after a warm-up), so both meet the same machine
@@ -270,6 +275,10 @@ def bench_paired(other: str, runs: int = 25, rounds: int = 3) -> dict[str, list]
         Root of another source tree of the package (e.g. a ``git worktree`` of an old commit).
     runs, rounds : int
         Timed calls per median; alternating rounds.
+    seconds : float
+        Length of the nominal record (60 s; ``--long``: :data:`LONG_RECORDS`).
+    calls : dict, optional
+        The calls to time (default :data:`PAIRED_CALLS`).
 
     Returns
     -------
@@ -282,12 +291,14 @@ def bench_paired(other: str, runs: int = 25, rounds: int = 3) -> dict[str, list]
     import sys
     import tempfile
 
-    sim = simulate(nominal_scene(60.0), seed=1)
+    calls = PAIRED_CALLS if calls is None else calls
+    sim = simulate(nominal_scene(seconds), seed=1)
+    print(f'nominal record of {seconds:g} s ({len(sim.t_gyro)} gyro samples), {runs} calls')
     res: dict[str, list] = {'other': [], 'this': [], 'other_cpu': [], 'this_cpu': []}
     with tempfile.TemporaryDirectory(prefix='inertia_paired_') as tmp:
         rec = os.path.join(tmp, 'record.npz')
         np.savez(rec, tg=sim.t_gyro, w=sim.omega, ts=sim.t_torque, tau=sim.torque)
-        cmd = [sys.executable, '-c', _PAIRED_TIMER, rec, str(runs), json.dumps(PAIRED_CALLS)]
+        cmd = [sys.executable, '-c', _PAIRED_TIMER, rec, str(runs), json.dumps(calls)]
         for r in range(rounds):
             for name, tree in (('other', other), ('this', ROOT)):
                 env = process_env(pycache=os.path.join(tmp, 'pyc_' + name), tree=tree)
@@ -301,12 +312,12 @@ def bench_paired(other: str, runs: int = 25, rounds: int = 3) -> dict[str, list]
                 row = ', '.join(f'{k} {v:.1f} ms' if v is not None else f'{k} -'
                                 for k, v in got['wall'].items())
                 print(f'  round {r + 1} {name:5s} {row}')
-    for label in PAIRED_CALLS:
-        _print_ratio(label, res)
+    for label in calls:
+        _print_ratio(label, res, target=seconds == 60.0)   # the issue's target: per 60 s
     return res
 
 
-def _print_ratio(label: str, res: dict[str, list]) -> None:
+def _print_ratio(label: str, res: dict[str, list], target: bool = True) -> None:
     """One line of :func:`bench_paired`: both trees' wall and CPU medians, ``other / this``."""
     parts = []
     for kind in ('', '_cpu'):
@@ -316,13 +327,14 @@ def _print_ratio(label: str, res: dict[str, list]) -> None:
             return
         parts.append(f'{"cpu" if kind else "wall"}: other {min(a):6.1f}-{max(a):6.1f} ms, '
                      f'this {min(b):6.1f}-{max(b):6.1f} ms, {np.median(a) / np.median(b):.2f}x')
-    target = PAIRED_TARGETS.get(label)
+    goal = PAIRED_TARGETS.get(label) if target else None
     print(f'  {label:20s} ' + '; '.join(parts)
-          + (f' (target {target:g}x)' if target is not None else ''))
+          + (f' (target {goal:g}x)' if goal is not None else ''))
 
 
 def main(argv: list[str] | None = None) -> int:
-    """``python -m inertia_ros.bench.estimators [--runs N] [--seeds N] [--hour] [--vs TREE]``.
+    """``python -m inertia_ros.bench.estimators [--runs N] [--seeds N] [--hour] [--vs TREE
+    [--long]]``.
 
     The default method's per-record time and efficiency alone (:func:`bench_default_record`);
     with ``--vs``, its time paired with another source tree's (:func:`bench_paired`).
@@ -339,6 +351,8 @@ def main(argv: list[str] | None = None) -> int:
                    'source tree and in TREE (e.g. a git worktree of an older commit), '
                    'alternating')
     p.add_argument('--rounds', type=int, default=3, help='alternating rounds with --vs (3)')
+    p.add_argument('--long', action='store_true', help='with --vs: also the default call on '
+                   'the 300 s and 3600 s records (7 and 5 calls per round)')
     a = p.parse_args(argv)
     keep_freed_memory()               # as the CLI and the nodes run
     if a.runs < 20 or a.seeds < 2 or a.rounds < 1:
@@ -351,6 +365,8 @@ def main(argv: list[str] | None = None) -> int:
                     'inertia_ros/core/estimation there); make one with git worktree add')
         try:
             bench_paired(a.vs, a.runs, a.rounds)
+            for seconds, n in (LONG_RECORDS.items() if a.long else ()):
+                bench_paired(a.vs, n, a.rounds, seconds, {'default': {}})
         except RuntimeError as exc:
             p.exit(1, f'{p.prog}: error: {exc}\n')
         return 0

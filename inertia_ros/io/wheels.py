@@ -17,12 +17,15 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from ..core.estimation.momentum import Wheel
-from ..core.excitation.actuators import WheelLimit
 from .actuator_yaml import check_entry, check_top, joint_name, number, std_of, vector3
 from .yaml_input import read_yaml
+
+if TYPE_CHECKING:   # imported where used: core.excitation's package imports the designer and
+    # scipy.optimize, ~0.3 s of CPU that every `estimate --wheels/--rotors` paid
+    from ..core.excitation.actuators import WheelLimit
 
 __all__ = ['load_wheel_limits', 'load_wheels', 'wheel_limits_from_dict', 'wheels_from_dict']
 
@@ -94,6 +97,8 @@ def wheel_limits_from_dict(d: Any, where: str = 'wheels', *,
         As :func:`wheels_from_dict`; a missing needed limit; a wrong number of initial speeds
         or one at or over its wheel's ``max_speed``: one line naming the file and the entry.
     """
+    from ..core.excitation.actuators import WheelLimit
+
     wheels = wheels_from_dict(d, where)
     items = d['wheels']
     w0 = [0.0] * len(wheels) if initial_speed is None else list(initial_speed)

@@ -57,6 +57,13 @@ from .filtered import MAX_NOISE_SHARE as _MAX_NOISE_SHARE
 from .options import ML_AUTO_MAX_SAMPLES
 from .regressors import cumulative_torque
 
+#: Welch segments the residual spectrum averages at most: on longer records an evenly spread
+#: subset of them (the 1024-sample segments of 11 min at 200 Hz, 2.2 min at 1 kHz).  The
+#: spectrum is an average: with 3 x 256 segments its spread is ~4 % a bin and a bin may lie
+#: 1.18x above its reference by chance (:func:`_threshold`; 1.07x with the 1405 segments of
+#: an hour at 200 Hz), while the time grows with the segments.
+MAX_SEGMENTS = 256
+
 __all__ = ['DEFAULT_RULE', 'choose', 'lowest_rotation_hz', 'residual_spectrum',
            'spectral_evidence']
 
@@ -126,32 +133,53 @@ def residual_spectrum(tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.nda
         Frequencies [Hz] and the residual's one-sided spectral density summed over the axes
         [N^2 m^2 s^2 / Hz].
     segments : int
-        Welch segments averaged (the estimate's chi-square spread: ``2 segments`` dof).
+        Welch segments averaged (the estimate's chi-square spread: ``2 segments`` dof): all
+        of them up to :data:`MAX_SEGMENTS`, else that many spread evenly over the record.
     """
     # the gyro samples inside the torque's coverage: one run of the sorted stamps (views)
     a, b = _inside(tg, ts)
-    t, wi = tg[a:b], w[a:b]
-    h = wi @ inertia.T
-    gyro = np.empty_like(h)                                # w x (I w), as np.cross
-    gyro[:, 0] = wi[:, 1] * h[:, 2] - wi[:, 2] * h[:, 1]
-    gyro[:, 1] = wi[:, 2] * h[:, 0] - wi[:, 0] * h[:, 2]
-    gyro[:, 2] = wi[:, 0] * h[:, 1] - wi[:, 1] * h[:, 0]
-    r = np.empty_like(h)
-    r[0] = 0.0
-    inc = gyro[1:] + gyro[:-1]
-    inc *= 0.5
-    inc *= np.diff(t)[:, None]
-    np.cumsum(inc, axis=0, out=r[1:])                      # int w x I w dt (trapezoid)
-    r += h
-    if len(ts) >= 2:                                       # - int tau dt, held or linear
-        r -= cumulative_torque(ts, tau, t, hold)
-    if bias is not None:
-        r -= np.outer(t - t[0], np.asarray(bias, dtype=float))
+    t = tg[a:b]
     fs = 1.0 / median(np.diff(t))
     nper = int(2 ** np.floor(np.log2(max(len(t) / 4.0, 16.0))))
     nper = min(nper, 1024)
-    f, p, segments = _welch(r, fs, nper)
-    return f, p, segments
+    step = max(nper // 2, 1)
+    n_seg = max((len(t) - nper) // step + 1, 0)
+    if n_seg <= MAX_SEGMENTS:
+        r = _residual(t, w[a:b], ts, tau, inertia, bias, hold, t[0])
+        return _welch(r, fs, nper)
+    # a long record: an evenly spread subset of the same segments, each residual from its own
+    # start (the integral's constant and the bias's ramp are removed by the detrending)
+    first = step * np.round(np.linspace(0, n_seg - 1, MAX_SEGMENTS)).astype(np.intp)
+    rows = (a + first)[:, None] + np.arange(nper)                   # (K, nper)
+    r = _residual(tg[rows], w[rows], ts, tau, inertia, bias, hold, t[0])
+    f, p = _welch_power(r.transpose(2, 0, 1), fs, nper)
+    return f, p, MAX_SEGMENTS
+
+
+def _residual(t: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.ndarray,
+              inertia: np.ndarray, bias: Any, hold: str, t0: float) -> np.ndarray:
+    """``I w + int w x I w dt - int tau dt - d (t - t0)`` along the last-but-one axis.
+
+    ``t`` (..., n), ``w`` (..., n, 3): one run of samples or (K, n) pieces of runs, each
+    piece's gyroscopic integral from its own first sample (trapezoid); returns (..., n, 3).
+    """
+    h = w @ inertia.T
+    gyro = np.empty_like(h)                                # w x (I w), as np.cross
+    gyro[..., 0] = w[..., 1] * h[..., 2] - w[..., 2] * h[..., 1]
+    gyro[..., 1] = w[..., 2] * h[..., 0] - w[..., 0] * h[..., 2]
+    gyro[..., 2] = w[..., 0] * h[..., 1] - w[..., 1] * h[..., 0]
+    r = np.empty_like(h)
+    r[..., 0, :] = 0.0
+    inc = gyro[..., 1:, :] + gyro[..., :-1, :]
+    inc *= 0.5
+    inc *= np.diff(t, axis=-1)[..., None]
+    np.cumsum(inc, axis=-2, out=r[..., 1:, :])             # int w x I w dt (trapezoid)
+    r += h
+    if len(ts) >= 2:                                       # - int tau dt, held or linear
+        r -= cumulative_torque(ts, tau, t.reshape(-1), hold).reshape(r.shape)
+    if bias is not None:
+        r -= (t - t0)[..., None] * np.asarray(bias, dtype=float)
+    return r
 
 
 def _inside(tg: np.ndarray, ts: np.ndarray) -> tuple[int, int]:
@@ -169,21 +197,26 @@ def _welch(x: np.ndarray, fs: float, nper: int) -> tuple[np.ndarray, np.ndarray,
     at once: a strided view of the columns, one detrending product and one ``rfft``."""
     step = max(nper // 2, 1)
     n_seg = max((len(x) - nper) // step + 1, 0)
-    win = np.hanning(nper + 1)[:-1] if nper > 1 else np.ones(1)   # periodic Hann
-    u = np.arange(nper) - 0.5 * (nper - 1)
     xt = np.ascontiguousarray(x.T)                                  # (3, n)
     s0, s1 = xt.strides
     segs = np.lib.stride_tricks.as_strided(xt, (3, n_seg, nper), (s0, step * s1, s1),
                                            writeable=False)         # (3, segments, nper)
+    return (*_welch_power(segs, fs, nper), n_seg)
+
+
+def _welch_power(segs: np.ndarray, fs: float, nper: int) -> tuple[np.ndarray, np.ndarray]:
+    """Frequencies [Hz] and the density of :func:`_welch` from its segments (3, K, nper)."""
+    win = np.hanning(nper + 1)[:-1] if nper > 1 else np.ones(1)   # periodic Hann
+    u = np.arange(nper) - 0.5 * (nper - 1)
     seg = segs - segs.mean(axis=2, keepdims=True)
     seg -= ((segs @ u) / (u @ u))[..., None] * u
     seg *= win
     spec = np.fft.rfft(seg, axis=2)
     pw = spec.real ** 2
     pw += spec.imag ** 2
-    p = np.sum(pw, axis=(0, 1)) / (n_seg * fs * float(win @ win))
+    p = np.sum(pw, axis=(0, 1)) / (segs.shape[1] * fs * float(win @ win))
     p[1:-1] *= 2.0                       # one-sided (nper even)
-    return np.fft.rfftfreq(nper, 1.0 / fs), p, n_seg
+    return np.fft.rfftfreq(nper, 1.0 / fs), p
 
 
 def _threshold(segments: int, bins: int) -> float:

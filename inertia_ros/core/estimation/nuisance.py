@@ -63,7 +63,6 @@ from .options import (
 )
 from .regressors import cumulative_torque
 from .result import InertiaEstimate
-from .stated import lhs_columns
 from .uncertainty import widen
 
 __all__ = ['NuisanceFit', 'apply_nuisance', 'fit_nuisance', 'nuisance_hook', 'with_nuisance']
@@ -194,6 +193,9 @@ def _design(d: _Data, terms: tuple[str, ...], theta: np.ndarray,
     The gyro is read as ``w_meas - bias``; the gyro-bias columns are the increment's
     linearisation at ``theta``.
     """
+    # imported here: stated (and momentum, ~8 ms) stay off the default estimate's start-up
+    from .stated import lhs_columns
+
     w = d.w - bias
     cols = [lhs_columns(d.tg, w)]                               # the tensor's, (N, 3, 6)
     cols.append(-d.tg[:, None, None] * np.eye(3))              # constant disturbance d
