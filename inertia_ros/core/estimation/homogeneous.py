@@ -579,12 +579,13 @@ def _plain_stats(eq: Equations, segment: float | None) -> SufficientStats:
 def _shift(checks: TorqueFreeChecks, gyro_var: np.ndarray, W: np.ndarray
            ) -> tuple[float, int, float, float] | None:
     """The segment shift of the torque-free fit (:func:`.adequacy.segment_shift`): the ratios
-    refitted with anchored segments 4x shorter, both with the exact walk covariance."""
+    refitted with anchored segments 4x shorter, both with the exact walk covariance; a stated
+    gyro scale moves the two fits differently, so its share of their difference is added."""
     eq = checks.eq
     if eq.kind != 'anchored' or len(eq.t) < 2:
         return None
     span = float(eq.t[-1] - eq.t[0])
-    fits = []
+    fits, sens = [], []
     for seg in (checks.segment, (checks.segment or span) / 4.0):
         st, walk = torque_free_stats(eq, checks.t_gyro, checks.omega, seg)
         st = _without_torque(st)
@@ -596,7 +597,13 @@ def _shift(checks: TorqueFreeChecks, gyro_var: np.ndarray, W: np.ndarray
         cov = fk.cov if walk is None else _walk_covariance(st, fk, W, th, gyro_var, walk,
                                                            TRACE / 3.0)
         fits.append((fk.beta, cov / max(fk.excess, 1.0)))
-    return segment_shift(fits[0][0], fits[0][1], fits[1][0], fits[1][1])
+        if checks.gyro_scale_std:
+            sens.append(_scale_sensitivity(eq, seg, fk, W, gyro_var))
+    cov_short = fits[1][1]
+    if sens:
+        dg = checks.gyro_scale_std * (sens[1] - sens[0])
+        cov_short = cov_short + np.outer(dg, dg)
+    return segment_shift(fits[0][0], fits[0][1], fits[1][0], cov_short)
 
 
 def _window_adequacy(checks: TorqueFreeChecks, f: Fit, W: np.ndarray,
