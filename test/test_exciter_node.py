@@ -44,9 +44,12 @@ def listener():
     rclpy.init(context=ctx, domain_id=DOMAIN_ID)
     node = Node('test_exciter_listener', context=ctx)
     rec = {'cmd': [], 'imu': [], 'diag': []}
-    node.create_subscription(WrenchStamped, 'torque_command', rec['cmd'].append, 100)
+    # deep queues: under load the single-threaded listener falls behind the 1 kHz gyro and a
+    # shallow queue dropped commands (336 of 438 received), which the count check reads as
+    # a defect of the exciter
+    node.create_subscription(WrenchStamped, 'torque_command', rec['cmd'].append, 10_000)
     node.create_subscription(Imu, 'imu', rec['imu'].append, sensor_qos(1000))
-    node.create_subscription(DiagnosticArray, '/diagnostics', rec['diag'].append, 100)
+    node.create_subscription(DiagnosticArray, '/diagnostics', rec['diag'].append, 10_000)
     exe = SingleThreadedExecutor(context=ctx)
     exe.add_node(node)
     yield exe, rec
@@ -110,6 +113,16 @@ def _exciter_statuses(rec):
     return [s for arr in rec['diag'] for s in arr.status if s.name == 'exciter: excitation']
 
 
+def _drain(exe, rec, quiet: float = 0.5, limit: float = 10.0) -> None:
+    """Take what the listener's queues still hold (until nothing arrives for ``quiet`` s)."""
+    end, last, count = time.monotonic() + limit, time.monotonic(), -1
+    while time.monotonic() < end and time.monotonic() - last < quiet:
+        exe.spin_once(timeout_sec=0.01)
+        n = sum(len(v) for v in rec.values())
+        if n != count:
+            count, last = n, time.monotonic()
+
+
 @pytest.mark.slow
 def test_closed_loop_three_processes_stop_within_limits(listener, tmp_path):
     """Simulator (closed loop) + estimator + exciter: the exciter stops at the target, its
@@ -150,6 +163,7 @@ def test_closed_loop_three_processes_stop_within_limits(listener, tmp_path):
         stop_processes(procs)
         for log in logs:
             log.close()
+    _drain(exe, rec)
     text = ''.join((tmp_path / f'{n}.log').read_text()[-1500:] for n in cmds)
     assert stopped_at is not None, 'the exciter never stopped\n' + text
     final = [s for s in _exciter_statuses(rec) if s.values[0].value == 'stopped'][-1]
@@ -160,7 +174,11 @@ def test_closed_loop_three_processes_stop_within_limits(listener, tmp_path):
     assert torque.shape[0] > 50, text
     assert np.abs(torque).max() <= max_torque + 1e-12
     assert np.all(torque[-1] == 0.0)                 # the final zero, and nothing after it
-    assert int(values['commands']) == torque.shape[0]
+    # every command the exciter counted, less those sent before discovery matched the
+    # listener (up to ~2 s under load): a gap-free tail, none received that it did not count
+    stamps = np.array([m.header.stamp.sec + 1e-9 * m.header.stamp.nanosec for m in rec['cmd']])
+    assert torque.shape[0] <= int(values['commands'])
+    assert np.diff(stamps).max() < 0.2, np.diff(stamps).max()
     omega = np.array([[m.angular_velocity.x, m.angular_velocity.y, m.angular_velocity.z]
                       for m in rec['imu']])
     assert omega.shape[0] > 500, text
