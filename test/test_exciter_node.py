@@ -113,6 +113,12 @@ def _exciter_statuses(rec):
     return [s for arr in rec['diag'] for s in arr.status if s.name == 'exciter: excitation']
 
 
+def _gap_free(cmds, gap: float = 0.2) -> None:
+    """The received commands' stamps leave no gap over ``gap`` [s] (none lost mid-stream)."""
+    stamps = np.array([m.header.stamp.sec + 1e-9 * m.header.stamp.nanosec for m in cmds])
+    assert len(stamps) > 1 and np.diff(stamps).max() < gap, np.diff(stamps).max()
+
+
 def _drain(exe, rec, quiet: float = 0.5, limit: float = 10.0) -> None:
     """Take what the listener's queues still hold (until nothing arrives for ``quiet`` s)."""
     end, last, count = time.monotonic() + limit, time.monotonic(), -1
@@ -176,9 +182,8 @@ def test_closed_loop_three_processes_stop_within_limits(listener, tmp_path):
     assert np.all(torque[-1] == 0.0)                 # the final zero, and nothing after it
     # every command the exciter counted, less those sent before discovery matched the
     # listener (up to ~2 s under load): a gap-free tail, none received that it did not count
-    stamps = np.array([m.header.stamp.sec + 1e-9 * m.header.stamp.nanosec for m in rec['cmd']])
     assert torque.shape[0] <= int(values['commands'])
-    assert np.diff(stamps).max() < 0.2, np.diff(stamps).max()
+    _gap_free(rec['cmd'])
     omega = np.array([[m.angular_velocity.x, m.angular_velocity.y, m.angular_velocity.z]
                       for m in rec['imu']])
     assert omega.shape[0] > 500, text
@@ -335,7 +340,10 @@ def test_exciter_stops_when_no_estimator_answers(listener, tmp_path):
     values = {kv.key: kv.value for kv in final.values}   # published at the stop
     assert values['stop_reason'] == 'estimator_lost' and final.level == b'\x02', values
     assert 2.0 <= float(values['elapsed']) < 4.0, values
-    assert len(rec['cmd']) == n_at_stop == int(values['commands']), text
+    # nothing after the stop; the commands received are a gap-free tail of those it counted
+    # (the first ones can go out before discovery matches the listener: 61 of 101 once)
+    assert len(rec['cmd']) == n_at_stop <= int(values['commands']), text
+    _gap_free(rec['cmd'])
     cmd = rec['cmd'][-1].wrench.torque
     assert (cmd.x, cmd.y, cmd.z) == (0.0, 0.0, 0.0)
 
