@@ -574,10 +574,20 @@ def index(args: argparse.Namespace) -> int:
     return 0
 
 
+def _read_index(path: str) -> dict:
+    """``index.json`` as written by ``index`` (a one-line exit when it cannot be read)."""
+    try:
+        return json.loads(Path(path).read_text())
+    except (OSError, ValueError) as exc:
+        raise SystemExit(f'{path}: cannot read the throws index ({exc.__class__.__name__}); '
+                         'write it with: tudelft_throw.py index --repo CHECKOUT --out DIR'
+                         ) from None
+
+
 def bench(args: argparse.Namespace) -> int:
     if args.method is None and not args.cli:
         args.method = 'filtered'
-    idx = json.loads(Path(args.index).read_text())
+    idx = _read_index(args.index)
     root = Path(args.csv_root)
     rng = np.random.default_rng(args.seed)
     draws = args.draws
@@ -696,7 +706,7 @@ def convert(args: argparse.Namespace) -> int:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     J = args.flywheel_inertia
-    idx = json.loads(Path(args.window_index).read_text()) if args.window_index else None
+    idx = _read_index(args.window_index) if args.window_index else None
     if idx and J is None:
         J = idx['wheel']['inertia']
     (out / 'flywheel.yaml').write_text(_wheels_yaml(J if J is not None else DEFAULT_J))
