@@ -9,11 +9,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from flywheel_throw import flywheel_throw
 
 from conftest import ROOT
 from inertia_ros.cli import main
-from inertia_ros.core.scene import Scene
-from inertia_ros.core.simulation import simulate
 
 SCRIPT = ROOT / 'scripts' / 'tudelft_throw.py'
 #: ``index.json`` of the user's converted TU Delft throws (set to run the real-data test).
@@ -30,15 +29,7 @@ def _load():
 
 def _throw(tmp_path: Path) -> tuple[Path, np.ndarray]:
     """A simulated throw written as a raw blackbox CSV in the authors' units and axes."""
-    J = 1.7e-6
-    sc = Scene.from_dict({
-        'duration': 0.5, 'body': {'inertia': [2.0e-4, 1.2e-4, 2.6e-4, 5e-6, -3e-6, 4e-6]},
-        'initial_omega': [8.0, -12.0, 15.0], 'torque': [],
-        'gyro': {'rate': 4000.0, 'noise_std': 0.0},
-        'wheels': {'rate': 4000.0, 'list': [
-            {'joint': 'flywheel', 'axis': [0, 0, -1], 'inertia': J,
-             'speed': {'offset': 1200.0, 'amplitude': 60.0, 'frequency': 3.0}}]}})
-    r = simulate(sc, 0)
+    r = flywheel_throw(0.5, 60.0)
     w = r.omega                                  # body frame [rad/s]
     g = np.column_stack([w[:, 1], -w[:, 0], w[:, 2]]) * 16.384 * 180.0 / math.pi
     erpm = r.wheel_speed[:, 0] / (100.0 / 7 * 2 * math.pi / 60)
