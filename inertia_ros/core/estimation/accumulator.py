@@ -23,7 +23,7 @@ from .options import ADEQUACY_MIN_WINDOW_S, ADEQUACY_WINDOWS, MIN_EQUATIONS
 from .regressors import gram, lift
 from .statistics import SufficientStats
 
-__all__ = ['OnlineStats']
+__all__ = ['OnlineStats', 'noise_map']
 
 
 class OnlineStats:
@@ -415,8 +415,8 @@ class OnlineStats:
 
     def _read_map(self, nv: np.ndarray, gyro_scale: float) -> np.ndarray:
         """The map (dim, 13) from the accumulated variables to the 13 read back: the
-        :attr:`correction` (or the first 13), then :func:`_noise_map`."""
-        K = _noise_map(nv, gyro_scale)
+        :attr:`correction` (or the first 13), then :func:`noise_map`."""
+        K = noise_map(nv, gyro_scale)
         if self.correction is not None:
             return self.correction @ K
         return K if self.dim == 13 else np.eye(self.dim, 13) @ K
@@ -428,7 +428,7 @@ class OnlineStats:
         return self.C + self.Cc, self.GPc + gp, self.walkc + walk
 
 
-def _noise_map(nv: np.ndarray, gyro_scale: float = 1.0) -> np.ndarray:
+def noise_map(nv: np.ndarray, gyro_scale: float = 1.0) -> np.ndarray:
     """The linear map (13, 13) of the variables ``[w, m, t, T]`` applying the gyro-noise
     correction ``m_c -> m_c - sigma_c^2 s`` (``nv`` (3,) [rad^2/s^2]) and, for
     ``gyro_scale`` != 1, a gyro read that many times larger (``w`` and ``m`` scale)."""

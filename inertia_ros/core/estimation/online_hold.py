@@ -31,6 +31,7 @@ from typing import Any
 
 import numpy as np
 
+from .accumulator import noise_map
 from .align import OnlineAligner
 from .fit import Fit, equation_weight, fit_two_pass
 from .options import HOLDS
@@ -123,8 +124,7 @@ class HoldWindows:
         common equation weight and ``nv`` (3,) the gyro noise variance [rad^2/s^2] (the
         squared-rate integrals' correction, as :meth:`.accumulator.OnlineStats.stats`).
         """
-        K = np.eye(13)
-        K[9, 3:6] = -nv
+        K = noise_map(nv)
         out: dict[str, list[float]] = {'zoh': [], 'linear': []}
         for _, _, C, _ in self.closed:
             for h, cols in (('zoh', _ZOH), ('linear', _LIN)):

@@ -40,11 +40,12 @@ from typing import Any
 import numpy as np
 
 from ..tensor import theta_to_matrix
+from .accumulator import noise_map
 from .align import OnlineAligner
 from .fit import _anchored_meat, equation_weight, fit_two_pass
 from .model import model_basis
 from .options import MIN_EQUATIONS, MIN_GYRO_SAMPLES
-from .regressors import MOMENTUM_BASIS, VARIABLE_MAP
+from .regressors import MOMENTUM_BASIS, VARIABLE_MAP, cumulative_torque
 from .schedule import STALE_FRACTION
 from .stated import _MIN_INFORMATION, _larger, widened
 
@@ -75,11 +76,8 @@ class StatedAligner(OnlineAligner):
 
     def _cum(self, t: np.ndarray) -> np.ndarray:
         """Held integral (n, e) of the extra torques from ``xs[0]`` to ``t`` (n,) [s]."""
-        cum = np.zeros_like(self.xtau)
-        if len(self.xs) > 1:
-            cum[1:] = np.cumsum(self.xtau[:-1] * np.diff(self.xs)[:, None], axis=0)
-        j = np.clip(np.searchsorted(self.xs, t, side='right') - 1, 0, len(self.xs) - 1)
-        return cum[j] + self.xtau[j] * (t - self.xs[j])[:, None]
+        return cumulative_torque(self.xs, self.xtau, t, 'zoh',
+                                 out=np.empty((len(t), self.xtau.shape[1])))
 
     def variables(self, t: np.ndarray, w: np.ndarray, hold: str) -> np.ndarray:
         """The 13 variables (:meth:`.align.OnlineAligner.variables`) and the extra integrals."""
@@ -113,19 +111,11 @@ def correction_map(u: np.ndarray, q_y: int, gscale: float) -> np.ndarray:
     return P
 
 
-def _noise_map(nv: np.ndarray) -> np.ndarray:
-    """The gyro-noise correction of the squared-rate integrals (13, 13), as the
-    accumulator's (:func:`.accumulator._noise_map`)."""
-    K = np.eye(13)
-    K[9, 3:6] = -nv
-    return K
-
-
 def _blocks(u0: np.ndarray, q_y: int, gscale: float, nv: np.ndarray, theta0: np.ndarray,
             bias: bool) -> np.ndarray:
     """The equation blocks' map E (dim, 3, m + 1) of ``[theta, (d), u, y]`` at ``u0``."""
     q = len(u0)
-    P = correction_map(u0, q_y, gscale) @ _noise_map(nv)          # (dim, 13)
+    P = correction_map(u0, q_y, gscale) @ noise_map(nv)          # (dim, 13)
     dim = P.shape[0]
     cols = [np.arange(6)] + ([np.arange(6, 9)] if bias else [])
     nb = 6 + 3 * bias
