@@ -85,6 +85,8 @@ class MomentumInput:
     equivalent torque's noise is :meth:`_reduced_noise`.
     """
 
+    _choice: Any = None     # the tracker's hold-'auto' twin and judge, fed the same blocks
+
     def _options(self, mode: str, names: Sequence[str], other_torque: bool, hold: str,
                  kwargs: dict[str, Any]) -> dict[str, Any]:
         """Check the options against the table (``mode``), keep the momentum input's and
@@ -103,6 +105,7 @@ class MomentumInput:
         SelectionPolicy(torque_scale_std=scale, gyro_scale_std=gscale)     # validates
         self.names = tuple(names)
         self.other_torque = bool(other_torque)
+        self._requested = hold
         self.torque_hold = hold if self.other_torque else HOLDS[0]
         self.torque_scale_std = float(scale) if self.other_torque else 0.0
         self.gyro_scale_std = float(gscale)
@@ -143,6 +146,8 @@ class MomentumInput:
         self._g.add(ta, wa)
         self._advance()
         self._cap(self._g)
+        if self._choice is not None:
+            self._choice.add_gyro(t, omega)
 
     def add_torque(self, t: Any, tau: Any) -> None:
         """Add samples of the other known torque [N m] (``other_torque=True`` only)."""
@@ -160,6 +165,8 @@ class MomentumInput:
         self._o_noise.add(xa)
         self._o_dt = (self._o_dt + np.diff(self._o.t[-len(ta) - 1:]).tolist())[-64:]
         self._advance()
+        if self._choice is not None:
+            self._choice.add_torque(t, tau)
 
     def add_wheels(self, t: Any, h: Any) -> None:
         """Add internal angular momentum samples ``h`` (n, 3) [N m s], body frame, at ``t``
@@ -199,6 +206,8 @@ class MomentumInput:
         self.momentum_samples += k
         self._advance()
         self._cap(self._m)
+        if self._choice is not None:
+            self._choice.add_momentum(m)
 
     # ------------------------------------------------------------------ the grid
     def _horizon(self) -> float | None:
@@ -348,6 +357,20 @@ class MomentumInput:
         self._walk_n += n
 
     # ------------------------------------------------------------------ noise and estimate
+    def _record(self, diag: dict[str, Any]) -> None:
+        """The momentum input's record in ``diag`` (``diagnostics['momentum']``) and, with
+        ``hold='auto'`` and no other torque, the hold that was not chosen."""
+        diag['momentum'] = {'samples': self.momentum_samples,
+                            'h_noise_std': self._h_noise.std(),
+                            'gyro_per_wheel_sample': self._share(),
+                            'other_torque': self.other_torque}
+        if self._requested == 'auto' and not self.other_torque:
+            diag['hold'] = 'zoh'
+            diag['hold_selection'] = {
+                'requested': 'auto', 'chosen': 'zoh', 'statistic': None, 'p_value': None,
+                'reason': 'no other torque: the momentum input is not held (known at its '
+                          'samples), so there is no hold to choose'}
+
     def _share(self) -> float:
         """Gyro samples per momentum sample (those sharing one momentum sample's noise)."""
         if not self._m_dt or self._gyro_dt() <= 0:
@@ -398,7 +421,6 @@ class MomentumRecursiveEstimator(MomentumInput, RecursiveEstimator):
                  hold: str = 'zoh', **kwargs: Any) -> None:
         from .options import HOLDS
 
-        self._hold_auto = hold == 'auto'
         kwargs = self._options('recursive', names, other_torque, hold, kwargs)
         # the equivalent torque is held over each grid interval: integrated as held, whatever
         # the other torque's hold (which _other_on has applied already); 'auto' keeps both
@@ -440,16 +462,7 @@ class MomentumRecursiveEstimator(MomentumInput, RecursiveEstimator):
             self._stated.update(self)
         est = super().estimate()
         diag = est.diagnostics
-        diag['momentum'] = {'samples': self.momentum_samples,
-                            'h_noise_std': self._h_noise.std(),
-                            'gyro_per_wheel_sample': self._share(),
-                            'other_torque': self.other_torque}
-        if self._hold_auto and not self.other_torque:
-            diag['hold'] = 'zoh'
-            diag['hold_selection'] = {
-                'requested': 'auto', 'chosen': 'zoh', 'statistic': None, 'p_value': None,
-                'reason': 'no other torque: the momentum input is not held (known at its '
-                          'samples), so there is no hold to choose'}
+        self._record(diag)
         if est.status == 'insufficient_data' and self.other_torque and len(self._o.t) == 0:
             diag['reason'] = ('no other torque sample yet: the momentum input waits for it '
                               '(build with other_torque=False when there is none)')
@@ -484,7 +497,7 @@ class MomentumTrackingEstimator(MomentumInput, TrackingEstimator):
     def __init__(self, names: Sequence[str] = (), other_torque: bool = True,
                  hold: str = 'zoh', **kwargs: Any) -> None:
         self._kind = 'wheels_torque' if other_torque else 'wheels'
-        self._mconfig, self._requested = dict(kwargs, names=names, other_torque=other_torque), hold
+        self._mconfig = dict(kwargs, names=names, other_torque=other_torque)
         kwargs = self._options('tracking', names, other_torque, hold, kwargs)
         self.nu = len(StatedInputs(names, self.torque_scale_std, self.gyro_scale_std).names)
         self._learnt = self._nl = int(self.gyro_scale_std > 0)     # the gyro scale learnt
@@ -505,24 +518,6 @@ class MomentumTrackingEstimator(MomentumInput, TrackingEstimator):
             torque_bias='on' if self.torque_bias == 'on' else 'off')
         return HoldChoice(MomentumTrackingEstimator(**self._mconfig, hold='linear'),
                           self.torque_bias, self._config['gyro_noise'], judge)
-
-    def add_gyro(self, t: Any, omega: Any) -> None:
-        """Add gyro samples (:meth:`MomentumInput.add_gyro`; the twin's too)."""
-        MomentumInput.add_gyro(self, t, omega)
-        if self._choice is not None:
-            self._choice.add_gyro(t, omega)
-
-    def add_torque(self, t: Any, tau: Any) -> None:
-        """Add samples of the other torque (:meth:`MomentumInput.add_torque`; the twin's)."""
-        MomentumInput.add_torque(self, t, tau)
-        if self._choice is not None:
-            self._choice.add_torque(t, tau)
-
-    def add_momentum(self, m: Momentum) -> None:
-        """Add a momentum input block (:meth:`MomentumInput.add_momentum`; the twin's)."""
-        MomentumInput.add_momentum(self, m)
-        if self._choice is not None:
-            self._choice.add_momentum(m)
 
     def _take(self, grid: np.ndarray, tau: np.ndarray, alt: np.ndarray | None,
               x: np.ndarray | None, t_in: np.ndarray, w_in: np.ndarray) -> None:
@@ -587,12 +582,7 @@ class MomentumTrackingEstimator(MomentumInput, TrackingEstimator):
         stated inputs' posterior (``diagnostics['input_uncertainty']``)."""
         est = super().estimate()
         diag = est.diagnostics
-        diag['momentum'] = {'samples': self.momentum_samples, 'other_torque': self.other_torque,
-                            'h_noise_std': self._h_noise.std()}
-        if self._requested == 'auto' and not self.other_torque:
-            diag['hold'] = 'zoh'
-            diag['hold_selection'] = {'requested': 'auto', 'chosen': 'zoh', 'reason': (
-                'no other torque: the momentum input is not held, nothing to choose')}
+        self._record(diag)
         if self._stated is not None and self._warm is None:
             u = slice(self.k + self.nb, self.n - 3)     # d theta (6,) per stated sigma
             D = self.basis @ self.P[:self.k, u] @ np.linalg.inv(self.P[u, u])
