@@ -63,6 +63,7 @@ from .options import (
 from .regressors import cumulative_monomials, cumulative_torque, gyroscopic_matrix, momentum_matrix
 from .result import InertiaEstimate
 from .selection import SelectionPolicy
+from .tails import chi2_sf
 from .tracking_hold import HoldChoice
 from .tracking_input import StreamInput
 from .tracking_output import EXCESS_TIME, StateOutput
@@ -75,10 +76,8 @@ _SETTLED = 0.05           # relative sigma of the moments below which the weight
 
 
 def chi2_upper_quantile(dof: int, level: float) -> float:
-    """Upper ``level`` quantile of the chi-square distribution, without scipy.
-
-    Exact (bisection on the closed-form tail) for 3 degrees of freedom, the block test's;
-    the Wilson-Hilferty approximation otherwise (within 2 % for ``dof >= 30``).
+    """Upper ``level`` quantile of the chi-square distribution, without scipy: bisection on
+    the exact tail :func:`.tails.chi2_sf`.
 
     Parameters
     ----------
@@ -92,19 +91,13 @@ def chi2_upper_quantile(dof: int, level: float) -> float:
     float
         ``q`` with ``P(chi2_dof > q) = level``.
     """
-    def bisect(tail: Any, hi: float) -> float:
-        lo = 0.0
-        for _ in range(80):
-            mid = 0.5 * (lo + hi)
-            lo, hi = (mid, hi) if tail(mid) > level else (lo, mid)
-        return 0.5 * (lo + hi)
-
-    if dof == 3:
-        return bisect(lambda x: math.erfc(math.sqrt(x / 2.0))
-                      + math.sqrt(2.0 * x / math.pi) * math.exp(-x / 2.0), 400.0)
-    z = bisect(lambda x: 0.5 * math.erfc(x / math.sqrt(2.0)), 40.0)
-    a = 2.0 / (9.0 * dof)
-    return dof * (1.0 - a + z * math.sqrt(a)) ** 3
+    lo, hi = 0.0, 400.0
+    while chi2_sf(hi, dof) > level:
+        lo, hi = hi, 2.0 * hi
+    for _ in range(80):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if chi2_sf(mid, dof) > level else (lo, mid)
+    return 0.5 * (lo + hi)
 
 
 class _Trend:
