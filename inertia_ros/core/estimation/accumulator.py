@@ -13,6 +13,7 @@ variables and feeds them here; the fit reads the statistics back.
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 
@@ -312,15 +313,20 @@ class OnlineStats:
         squared-rate integrals scale exactly; for the gyro-scale sensitivity).  ``torque_dt``,
         ``gyro_dt`` [s] and ``white_y_cov`` (3, 3) are the noise model's stream figures.
         """
-        K = self._read_map(nv, gyro_scale)
-        C_all = lift(K.T @ (self.C + self.Cc) @ K)
         gp, walk = self.segment_walk()
-        CP = lift(K.T @ (self.GPc + gp) @ K) if walk_noise else None
-        return SufficientStats(C_all, CP, int(round(self.w0 + self.wc)), int(round(n_eff)), 1,
-                               kind='anchored', eiv_var=nv, weighted=True,
-                               walk_time=self.walkc + walk, torque_dt=torque_dt,
-                               omega_m2=self.omega_m2(), gyro_dt=gyro_dt,
-                               white_y_cov=white_y_cov)
+        return self._read(self._read_map(nv, gyro_scale), self.C + self.Cc,
+                          self.GPc + gp if walk_noise else None, self.w0 + self.wc, n_eff,
+                          self.walkc + walk, nv, torque_dt=torque_dt, gyro_dt=gyro_dt,
+                          white_y_cov=white_y_cov)
+
+    def _read(self, K: np.ndarray, C: np.ndarray, GP: np.ndarray | None, w0: float,
+              n_eff: float, walk: float, nv: np.ndarray, **context: Any) -> SufficientStats:
+        """Centred Grams (dim, dim) ``C`` and ``GP`` (None: no torque noise) of ``w0``
+        weighted equations read through ``K`` (:meth:`_read_map`) as statistics."""
+        return SufficientStats(lift(K.T @ C @ K), None if GP is None else lift(K.T @ GP @ K),
+                               int(round(w0)), int(round(n_eff)), 1, kind='anchored',
+                               eiv_var=nv, weighted=True, walk_time=walk,
+                               omega_m2=self.omega_m2(), **context)
 
     def window_test(self, f: Fit, nv: np.ndarray, tv: np.ndarray, *, torque_dt: float,
                     gyro_dt: float, white_y_cov: np.ndarray | None) -> Adequacy:
@@ -405,12 +411,9 @@ class OnlineStats:
                                                  self.clock)
                   if g.neff >= MIN_EQUATIONS and g.t1 - g.t0 >= min_s]
         K = self._read_map(nv, gyro_scale)
-        return [(SufficientStats(lift(K.T @ g.C @ K), lift(K.T @ g.GP @ K), int(round(g.w0)),
-                                 int(round(g.neff)), 1, kind='anchored', eiv_var=nv,
-                                 weighted=True, walk_time=g.walk, torque_dt=torque_dt,
-                                 omega_m2=self.omega_m2(), gyro_dt=gyro_dt,
-                                 white_y_cov=white_y_cov), g.w00 / g.w0, 0.5 * (g.t0 + g.t1))
-                for g in groups]
+        return [(self._read(K, g.C, g.GP, g.w0, g.neff, g.walk, nv, torque_dt=torque_dt,
+                            gyro_dt=gyro_dt, white_y_cov=white_y_cov),
+                 g.w00 / g.w0, 0.5 * (g.t0 + g.t1)) for g in groups]
 
 
     def _read_map(self, nv: np.ndarray, gyro_scale: float) -> np.ndarray:

@@ -97,12 +97,8 @@ class HoldWindows:
             k = min(len(X), self.rows - self._n)
             piece, X = X[:k], X[k:]
             m = piece.mean(axis=0)
-            D = piece - m[None]
-            n_old = self._n
-            delta = m - self._mean
-            self._C = self._C + gram(D) + (n_old * k / (n_old + k)) * np.outer(delta, delta)
-            self._mean = self._mean + delta * (k / (n_old + k))
-            self._n = n_old + k
+            self._n, self._mean, self._C, _ = _pair((self._n, self._mean, self._C, False),
+                                                    (k, m, gram(piece - m[None]), False))
             if self._n >= self.rows:
                 self._close()
                 self._n, self._mean, self._C = 0, np.zeros(16), np.zeros((16, 16))

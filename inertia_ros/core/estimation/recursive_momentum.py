@@ -307,7 +307,10 @@ class MomentumInput:
                 c = np.cross(wg, hg)
                 x.append(-0.5 * (c[1:] + c[:-1]))
             x = np.concatenate(x, axis=1)
-        self._add_walk(hg[:-1], wg[:-1])
+        H, W, n = walk_sums(hg[:-1], wg[:-1])    # the n x h and w x e torque-noise walks
+        self._walk_h += H
+        self._walk_w += W
+        self._walk_n += n
         gi = (self._g.t >= grid[0]) & (self._g.t <= grid[-1])
         t_in, w_in = self._g.t[gi], self._g.v[0][gi]
         fresh = t_in > (self._last_t_in if self._last_t_in is not None else -np.inf)
@@ -348,13 +351,6 @@ class MomentumInput:
         if self.other_torque:
             oi = max(int(np.searchsorted(self._o.t, c, side='right')) - 1, 0)
             self._o.keep_from(oi)
-
-    def _add_walk(self, hg: np.ndarray, wg: np.ndarray) -> None:
-        """Accumulate the grid sums of the ``n x h`` and ``w x e`` torque-noise walks."""
-        H, W, n = walk_sums(hg, wg)
-        self._walk_h += H
-        self._walk_w += W
-        self._walk_n += n
 
     # ------------------------------------------------------------------ noise and estimate
     def _record(self, diag: dict[str, Any]) -> None:
