@@ -26,6 +26,9 @@ from .statistics import SufficientStats
 
 __all__ = ['OnlineStats', 'noise_map']
 
+#: The sums decayed by the weights' factor at each merge (their squares' sums by its square).
+_DECAYED = ('Cc', 'walkc', 'tq_ss', 'tq_n', 'm2_sum', 'm2_n', 'wc', 'neffc')
+
 
 class OnlineStats:
     """Weighted, segment-centred statistics of the anchored equations, merged block by block.
@@ -172,16 +175,10 @@ class OnlineStats:
         self.mean = self.mean + delta * (wb / total)
         self.w0 = total
         self.w00 = old * old * self.w00 + float(np.sum(wts * wts))
-        self.Cc = old * self.Cc
+        for name in _DECAYED:
+            setattr(self, name, old * getattr(self, name))
         self.GPc = old * old * self.GPc
-        self.walkc *= old
-        self.tq_ss = old * self.tq_ss
-        self.tq_n *= old
-        self.m2_sum = old * self.m2_sum
-        self.m2_n *= old
-        self.wc *= old
         self.w00c *= old * old
-        self.neffc *= old
 
     def close(self, new_start: float) -> None:
         """Fold the current segment's statistics into the closed ones; start a new one."""
@@ -216,7 +213,6 @@ class OnlineStats:
     def _walk_reset(self) -> None:
         """Empty the open segment's torque-noise accumulators (see :meth:`walk_add`)."""
         self._wk_s: float | None = None   # start of the open torque interval [s]
-        self._wk_ok = True                # a torque sample at or before the segment's start
         self._wk_ntt = 0                  # torque samples of the segment up to the last gyro
         self._wk_n = 0                    # gyro samples of the segment
         self._wk_t0 = self._wk_tl = 0.0   # first and last gyro time of the segment [s]
@@ -241,10 +237,8 @@ class OnlineStats:
         """
         n = len(t)
         if self._wk_s is None:
+            # (never before the first torque sample: such gyro samples are dropped)
             i = int(np.searchsorted(ts, t[0], side='right')) - 1
-            if i < 0:                      # cannot happen: such gyro samples are dropped
-                self._wk_ok = False
-                i = 0
             self._wk_s = float(ts[i])
             # the first segment's torque list starts at the first torque sample, later ones
             # at the last torque sample at or before their start
@@ -289,7 +283,7 @@ class OnlineStats:
     def segment_walk(self) -> tuple[np.ndarray, float]:
         """Torque-noise Gram (dim x dim) and walk time of the open segment (as statistics)."""
         d = self.dim
-        if self._wk_n == 0 or not self.torque_seen or self._wk_ntt < 2 or not self._wk_ok:
+        if self._wk_n == 0 or not self.torque_seen or self._wk_ntt < 2:
             return np.zeros((d, d)), 0.0
         S, hQ = self._wk_S, self._wk_hQ
         RR = self._wk_h2 * np.outer(S, S) + np.outer(S, hQ) + np.outer(hQ, S) + self._wk_QQ \
