@@ -458,7 +458,7 @@ class TrackingEstimator(StreamInput, StateOutput):
         self._Beff = self._Beff * math.exp(-float(t[-1] - s) / self.window) + self._B
         C = np.zeros((self.n, 3))          # the walk to the end against the block's mean one
         C[self.n - 3:] = -float(np.mean(t - s)) * self._walk
-        self._predict(t, w, T[-1] - T[0], M[-1], nv, (K, C, S, nu))
+        self._predict(t, w, T[-1] - T[0], M[-1], (K, C, S, nu))
         self.updates += 1
         if self.changes and self.changes[-1] == float(t[0]):
             self._trend = _Trend(2.0 * self.window, self.k + self.nb)   # the jump is no trend
@@ -505,11 +505,12 @@ class TrackingEstimator(StreamInput, StateOutput):
                 2.0 * s * np.linalg.norm(self._prev[1])) ** 2
 
     def _predict(self, t: np.ndarray, w: np.ndarray, y_end: np.ndarray, m_end: np.ndarray,
-                 nv: np.ndarray, corr: tuple[np.ndarray, ...] | None = None,
-                 forget: bool = True) -> None:
+                 corr: tuple[np.ndarray, ...]) -> None:
         """Propagate the momentum to the block's last sample; add the process noise (the
-        tensor's only with ``forget``, and only while its largest variance is below the
-        squared scale: an unexcited direction does not grow without bound)."""
+        tensor's only while its largest variance is below the squared scale: an unexcited
+        direction does not grow without bound) and take out the update's noise correlated
+        with the walk (``corr``: the update's gain, that correlation, innovation covariance
+        and innovation)."""
         dt = float(t[-1] - self._prev[0])
         k, nb, L = self.k, self.nb, slice(self.n - 3, self.n)
         F = np.eye(self.n)
@@ -521,14 +522,13 @@ class TrackingEstimator(StreamInput, StateOutput):
         x = self.x.copy()
         x[L] = F[L] @ self.x + y_end[:3]
         P = F @ self.P @ F.T
-        if forget and float(np.max(np.diag(self.P)[:k])) < self._scale() ** 2:
+        if float(np.max(np.diag(self.P)[:k])) < self._scale() ** 2:
             grow = math.expm1(dt / self.window)      # forgetting: P_psi *= exp(dt / window)
             P[:k + nb, :k + nb] += grow * self.P[:k + nb, :k + nb]
         P[L, L] += dt * self._walk
-        if corr is not None:     # the update's noise correlated with the walk: (K, C, S, nu)
-            K, C, S, nu = corr
-            x += C @ np.linalg.solve(S, nu)
-            FKC = F @ K @ C.T
-            P -= FKC + FKC.T + C @ np.linalg.solve(S, C.T)
+        K, C, S, nu = corr
+        x += C @ np.linalg.solve(S, nu)
+        FKC = F @ K @ C.T
+        P -= FKC + FKC.T + C @ np.linalg.solve(S, C.T)
         self.x, self.P = x, 0.5 * (P + P.T)
         self._prev = (float(t[-1]), w[-1].copy())
