@@ -314,15 +314,16 @@ class RecursiveEstimator:
     def _take_torque(self) -> None:
         """Move the pending torque samples into the held stream; update the torque noise."""
         new_t = np.concatenate(self._pt)
-        new_tau = np.concatenate(self._ptau)
+        new_tau = np.concatenate(self._ptau)     # (n, 3) and any extra held columns
         alt = np.concatenate(self._palt) if self._palt else None
         self._pt, self._ptau, self._palt = [], [], []
         self._align.take(new_t, new_tau, alt)
+        tau = np.ascontiguousarray(new_tau[:, :3])
         for h, acc in self._accs.items():
-            acc.add_torque_power(alt if h == 'linear' and alt is not None else new_tau)
+            acc.add_torque_power(alt if h == 'linear' and alt is not None else tau)
         # the same robust estimator as batch, on the recent samples whatever the block size
         # (the variance itself is taken in estimate())
-        self._tau_nv.add(new_tau)
+        self._tau_nv.add(tau)
 
     def _ready_gyro(self) -> tuple[np.ndarray, np.ndarray, list[int]]:
         """Buffered gyro samples now covered by torque (the rest stays buffered), with gaps.

@@ -24,7 +24,7 @@ changes of ``h`` and of the torque with every block; ``torque_scale_std`` of the
 ``gyro_scale_std``) are profiled under their prior as the batch does (:mod:`.stated`): the
 equivalent torque of each input's change (for the gyro scale the ``w x h`` part) is held over
 the same grid intervals and carried as extra columns of the same equations
-(:class:`.online_stated.StatedAligner`), so their cross products accumulate with the same
+(:class:`.align.OnlineAligner`'s extra columns), so their cross products accumulate with the same
 forgetting; each estimate fits them with the tensor under the prior, reads the statistics with
 the inputs corrected by the posterior mean and adds ``D cov_u D'``
 (:mod:`.online_stated`, ``diagnostics['input_uncertainty']``).
@@ -36,11 +36,11 @@ from typing import Any
 
 import numpy as np
 
-from .align import gap_starts, hermite, run_slopes
+from .align import OnlineAligner, gap_starts, hermite, run_slopes
 from .config import substitutions
 from .momentum import Momentum, held_over, interval_torque, walk_sums, walk_variance
 from .noise import StreamingNoise
-from .online_stated import StatedAligner, StatedInputs
+from .online_stated import StatedInputs
 from .recursive import RecursiveEstimator
 from .regressors import cumulative_monomials, gyroscopic_matrix, momentum_matrix
 from .result import InertiaEstimate
@@ -427,7 +427,7 @@ class MomentumRecursiveEstimator(MomentumInput, RecursiveEstimator):
         """Forget everything (also the stated inputs' posterior)."""
         super().reset()
         if self._stated is not None:
-            self._align = StatedAligner(3 * len(self._stated.names))
+            self._align = OnlineAligner(3 * len(self._stated.names))
             for acc in self._accs.values():
                 acc.widen(13 + 3 * len(self._stated.names))
 
@@ -435,9 +435,9 @@ class MomentumRecursiveEstimator(MomentumInput, RecursiveEstimator):
               x: np.ndarray | None, t_in: np.ndarray, w_in: np.ndarray) -> None:
         """One reduced run: the equivalent torque (G - 1, 3) held from ``grid[:-1]``, its
         linear-hold twin ``alt`` (hold 'auto'), the stated columns ``x`` and the gyro."""
-        if x is not None:
-            self._align.take_extra(grid[:-1], x)
-        RecursiveEstimator.add_torque(self, grid[:-1], tau)
+        self._pt.append(grid[:-1])         # the stated columns held alike, after the torque
+        self._ptau.append(tau if x is None else np.hstack([tau, x]))
+        self._last_tau_in, self._new_torque = float(grid[-2]), True
         if alt is not None:             # hold 'auto': the other torque linear too
             self._palt.append(alt)
         if len(t_in):
