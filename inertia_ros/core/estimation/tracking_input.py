@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from .._validate import as_sample_block, require_after
+from .align import gap_starts
 from .noise import gyroscopic_walk_cov
 from .options import GAP_FACTOR
 from .regressors import momentum_matrix
@@ -162,7 +163,7 @@ class StreamInput:
             return None
         a = max(int(np.searchsorted(self._ts, self._prev[0], side='right')) - 1, 0)
         b = int(np.searchsorted(self._ts, t, side='left'))
-        long = np.flatnonzero(np.diff(self._ts[a:b + 1]) > GAP_FACTOR * self._tdt)
+        long = gap_starts(self._ts[a:b + 1], self._tdt)        # the one gap rule
         return float(self._ts[a + long[-1] + 1]) if len(long) else None
 
     def _trim_torque(self) -> None:
