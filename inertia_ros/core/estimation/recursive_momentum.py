@@ -42,7 +42,7 @@ from .momentum import Momentum, held_over, interval_torque, walk_sums, walk_vari
 from .noise import StreamingNoise
 from .online_stated import StatedInputs
 from .recursive import RecursiveEstimator
-from .regressors import cumulative_monomials, gyroscopic_matrix, momentum_matrix
+from .regressors import gyroscopic_matrix, momentum_matrix
 from .result import InertiaEstimate
 from .tracking import TrackingEstimator
 from .tracking_hold import HoldChoice
@@ -501,11 +501,6 @@ class MomentumTrackingEstimator(MomentumInput, TrackingEstimator):
         super().__init__(**kwargs, hold='auto' if self.torque_hold == 'auto' else 'zoh')
         self._substituted = substitutions('tracking', self._kind, self._opts)
 
-    def reset(self) -> None:
-        """Forget everything (the torque stream carries the stated columns too)."""
-        super().reset()
-        self._tau = np.empty((0, 3 + 3 * self.nu))
-
     def _hold_choice(self) -> HoldChoice:
         """Hold 'auto': the twin under the other torque's linear hold; the judge reduces it
         both ways (:class:`MomentumRecursiveEstimator`, ``hold='auto'``)."""
@@ -555,14 +550,12 @@ class MomentumTrackingEstimator(MomentumInput, TrackingEstimator):
                                                @ th + C[:, -1])
         return C
 
-    def _gyro_column(self, t: np.ndarray, w: np.ndarray, theta: np.ndarray) -> np.ndarray:
-        """The gyro scale's column (n, 3) of the start-up equations at ``theta`` (6,)."""
-        tt = np.concatenate([[self._prev[0]], t])
-        M = cumulative_monomials(tt, np.vstack([self._prev[1], w]), self._nv,
-                                 end_correction=False)[1:]
-        T = self._cum(tt)
+    def _gyro_column(self, w: np.ndarray, M: np.ndarray, Wc: np.ndarray, theta: np.ndarray
+                     ) -> np.ndarray:
+        """The gyro scale's column (n, 3) of the start-up equations at ``theta`` (6,), from
+        their rates ``w`` (n, 3), monomial integrals ``M`` (n, 6) and ``Wc`` (n, 3)."""
         return -self.gyro_scale_std * ((momentum_matrix(w) + 2.0 * gyroscopic_matrix(M))
-                                       @ theta - (T[1:, -3:] - T[0, -3:]))
+                                       @ theta - Wc)
 
     def _u_propagation(self, m_end: np.ndarray, S_end: np.ndarray) -> np.ndarray:
         """The momentum's change (3, nu) per stated input over a block: ``S_j``, for the

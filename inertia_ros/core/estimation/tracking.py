@@ -234,7 +234,7 @@ class TrackingEstimator(StreamInput, StateOutput):
         self._gt: list[np.ndarray] = []
         self._gw: list[np.ndarray] = []
         self._ts = np.empty(0)
-        self._tau = np.empty((0, 3))
+        self._tau = np.empty((0, 3 + 3 * self.nu))   # and the stated inputs' columns
         self._g_dts = np.empty(0)
         self._tq_dts = np.empty(0)
         self._gyro_nv = StreamingNoise(floor=True)
@@ -327,7 +327,7 @@ class TrackingEstimator(StreamInput, StateOutput):
         t = np.concatenate([x[0] for x in self._warm])
         w = np.concatenate([x[1] for x in self._warm])
         self._prev = (float(t[0]), w[0].copy())
-        H, y = self._equations(t[1:], w[1:], self._nv)
+        H, y, M, T = self._equations(t[1:], w[1:], self._nv)
         keep = np.r_[:self.k + self.nb, self.n - 3:self.n]    # the stated inputs at 0
         ui = np.arange(self.k + self.nb, self.n - 3)
         H, Hu = H[:, :, keep], H[:, :, ui]
@@ -343,7 +343,7 @@ class TrackingEstimator(StreamInput, StateOutput):
         # integrated torque noise) inflates it further, by its share of the noise
         walk = float(np.trace(self._momentum_walk(self._nv))) * float(t[-1] - t[0])
         if self._nl:                      # the gyro scale's column at the fitted tensor
-            Hu[:, :, -1] = self._gyro_column(t[1:], w[1:], theta)
+            Hu[:, :, -1] = self._gyro_column(w[1:], M, T[1:, -3:] - T[0, -3:], theta)
         inv = solve_symmetric(Hw.T @ Hw, np.eye(len(keep)))
         # the fit at the stated inputs' 0 moves by D u with them (x - x0 = -D u)
         D = inv @ Hw.T @ np.einsum('ij,nik->njk', Wc, Hu).reshape(len(Hw), len(ui))
@@ -393,8 +393,9 @@ class TrackingEstimator(StreamInput, StateOutput):
         return 0.5 * (R + R.T), nv
 
     def _equations(self, t: np.ndarray, w: np.ndarray, nv: np.ndarray
-                   ) -> tuple[np.ndarray, np.ndarray]:
-        """Equations ``H`` (n, 3, nx), ``y`` (n, 3) of the samples after the anchor."""
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Equations ``H`` (n, 3, nx), ``y`` (n, 3) of the samples after the anchor, and the
+        integrals they come from: monomials (n, 6) and held torque (n + 1, 3 + 3 nu)."""
         s, ws = self._prev
         tt = np.concatenate([[s], t])
         M = cumulative_monomials(tt, np.vstack([ws, w]), nv, end_correction=False)[1:]
@@ -411,7 +412,7 @@ class TrackingEstimator(StreamInput, StateOutput):
         if q:
             H[:, :, self.k + self.nb:self.k + self.nb + q] = -(
                 T[1:, 3:3 + 3 * q] - T[0, 3:3 + 3 * q]).reshape(n, q, 3).transpose(0, 2, 1)
-        return H, y
+        return H, y, M, T
 
     def _block(self, t: np.ndarray, w: np.ndarray) -> None:
         """Fold one block in, test it, propagate the momentum to its last sample.
