@@ -36,14 +36,17 @@ from typing import Any
 
 import numpy as np
 
+from .._validate import as_sample_block, require_after
 from .align import OnlineAligner, gap_starts, hermite, run_slopes
-from .config import substitutions
+from .config import require, substitutions
 from .momentum import Momentum, held_over, interval_torque, walk_sums, walk_variance
 from .noise import StreamingNoise
 from .online_stated import StatedInputs
+from .options import HOLDS
 from .recursive import RecursiveEstimator
 from .regressors import gyroscopic_matrix, momentum_matrix
 from .result import InertiaEstimate
+from .selection import SelectionPolicy
 from .tracking import TrackingEstimator
 from .tracking_hold import HoldChoice
 from .tracking_input import StreamInput
@@ -91,10 +94,6 @@ class MomentumInput:
                  kwargs: dict[str, Any]) -> dict[str, Any]:
         """Check the options against the table (``mode``), keep the momentum input's and
         return the others without the scales (stated inputs here, never a scale of y)."""
-        from .config import require
-        from .options import HOLDS
-        from .selection import SelectionPolicy
-
         self._opts = require(mode, 'wheels_torque' if other_torque else 'wheels',
                              dict({'model': 'full', 'torque_bias': False}, **kwargs, hold=hold))
         kwargs = dict(kwargs)
@@ -136,8 +135,6 @@ class MomentumInput:
     # ------------------------------------------------------------------ input
     def add_gyro(self, t: Any, omega: Any) -> None:
         """Add gyro samples (as :meth:`.RecursiveEstimator.add_gyro`)."""
-        from .._validate import as_sample_block, require_after
-
         ta, wa = as_sample_block(np.atleast_1d(np.asarray(t, dtype=float)),
                                  np.asarray(omega, dtype=float).reshape(-1, 3), 'omega')
         if len(ta) == 0:
@@ -151,8 +148,6 @@ class MomentumInput:
 
     def add_torque(self, t: Any, tau: Any) -> None:
         """Add samples of the other known torque [N m] (``other_torque=True`` only)."""
-        from .._validate import as_sample_block, require_after
-
         if not self.other_torque:
             raise ValueError('torque: this estimator was built with other_torque=False (the '
                              'momentum input is the only known torque)')
@@ -415,8 +410,6 @@ class MomentumRecursiveEstimator(MomentumInput, RecursiveEstimator):
 
     def __init__(self, names: Sequence[str] = (), other_torque: bool = True,
                  hold: str = 'zoh', **kwargs: Any) -> None:
-        from .options import HOLDS
-
         kwargs = self._options('recursive', names, other_torque, hold, kwargs)
         # the equivalent torque is held over each grid interval: integrated as held, whatever
         # the other torque's hold (which _other_on has applied already); 'auto' keeps both

@@ -52,6 +52,7 @@ from typing import Any
 import numpy as np
 
 from .._validate import as_noise_std
+from ..tensor import theta_to_matrix
 from .config import require, substitutions
 from .fit import solve_symmetric
 from .model import model_basis
@@ -374,8 +375,6 @@ class TrackingEstimator(StreamInput, StateOutput):
     def _weight(self, theta: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Equation error covariance ``R = I S_g I`` (3, 3) at ``theta`` (default: the
         state's; None before any fit: isotropic) and the gyro variance (3,)."""
-        from ..tensor import theta_to_matrix
-
         nv = self._nv
         if theta is None and self._warm is not None:
             I = np.eye(3)                                # first pass: unit weights

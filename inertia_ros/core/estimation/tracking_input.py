@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from .._validate import as_sample_block, require_after
+from ..tensor import theta_to_matrix
 from .align import gap_starts
 from .noise import gyroscopic_walk_cov
 from .options import GAP_FACTOR
@@ -196,8 +197,6 @@ class StreamInput:
         if tdt <= 0:
             return np.zeros((3, 3))
         gdt = float(np.median(self._g_dts)) if len(self._g_dts) else 0.0
-        from ..tensor import theta_to_matrix
-
         I = theta_to_matrix(self.basis @ self.x[:self.k], check_finite=False)
         m2 = self._m2_sum / max(self._m2_n, 1.0)
         G = gyroscopic_walk_cov(I, nv, m2, gdt, tdt) if np.all(np.isfinite(I)) else 0.0
