@@ -13,6 +13,7 @@ variables and feeds them here; the fit reads the statistics back.
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 
@@ -23,7 +24,10 @@ from .options import ADEQUACY_MIN_WINDOW_S, ADEQUACY_WINDOWS, MIN_EQUATIONS
 from .regressors import gram, lift
 from .statistics import SufficientStats
 
-__all__ = ['OnlineStats']
+__all__ = ['OnlineStats', 'noise_map']
+
+#: The sums decayed by the weights' factor at each merge (their squares' sums by its square).
+_DECAYED = ('Cc', 'walkc', 'tq_ss', 'tq_n', 'm2_sum', 'm2_n', 'wc', 'neffc')
 
 
 class OnlineStats:
@@ -171,16 +175,10 @@ class OnlineStats:
         self.mean = self.mean + delta * (wb / total)
         self.w0 = total
         self.w00 = old * old * self.w00 + float(np.sum(wts * wts))
-        self.Cc = old * self.Cc
+        for name in _DECAYED:
+            setattr(self, name, old * getattr(self, name))
         self.GPc = old * old * self.GPc
-        self.walkc *= old
-        self.tq_ss = old * self.tq_ss
-        self.tq_n *= old
-        self.m2_sum = old * self.m2_sum
-        self.m2_n *= old
-        self.wc *= old
         self.w00c *= old * old
-        self.neffc *= old
 
     def close(self, new_start: float) -> None:
         """Fold the current segment's statistics into the closed ones; start a new one."""
@@ -215,7 +213,6 @@ class OnlineStats:
     def _walk_reset(self) -> None:
         """Empty the open segment's torque-noise accumulators (see :meth:`walk_add`)."""
         self._wk_s: float | None = None   # start of the open torque interval [s]
-        self._wk_ok = True                # a torque sample at or before the segment's start
         self._wk_ntt = 0                  # torque samples of the segment up to the last gyro
         self._wk_n = 0                    # gyro samples of the segment
         self._wk_t0 = self._wk_tl = 0.0   # first and last gyro time of the segment [s]
@@ -240,10 +237,8 @@ class OnlineStats:
         """
         n = len(t)
         if self._wk_s is None:
+            # (never before the first torque sample: such gyro samples are dropped)
             i = int(np.searchsorted(ts, t[0], side='right')) - 1
-            if i < 0:                      # cannot happen: such gyro samples are dropped
-                self._wk_ok = False
-                i = 0
             self._wk_s = float(ts[i])
             # the first segment's torque list starts at the first torque sample, later ones
             # at the last torque sample at or before their start
@@ -288,7 +283,7 @@ class OnlineStats:
     def segment_walk(self) -> tuple[np.ndarray, float]:
         """Torque-noise Gram (dim x dim) and walk time of the open segment (as statistics)."""
         d = self.dim
-        if self._wk_n == 0 or not self.torque_seen or self._wk_ntt < 2 or not self._wk_ok:
+        if self._wk_n == 0 or not self.torque_seen or self._wk_ntt < 2:
             return np.zeros((d, d)), 0.0
         S, hQ = self._wk_S, self._wk_hQ
         RR = self._wk_h2 * np.outer(S, S) + np.outer(S, hQ) + np.outer(hQ, S) + self._wk_QQ \
@@ -312,15 +307,20 @@ class OnlineStats:
         squared-rate integrals scale exactly; for the gyro-scale sensitivity).  ``torque_dt``,
         ``gyro_dt`` [s] and ``white_y_cov`` (3, 3) are the noise model's stream figures.
         """
-        K = self._read_map(nv, gyro_scale)
-        C_all = lift(K.T @ (self.C + self.Cc) @ K)
         gp, walk = self.segment_walk()
-        CP = lift(K.T @ (self.GPc + gp) @ K) if walk_noise else None
-        return SufficientStats(C_all, CP, int(round(self.w0 + self.wc)), int(round(n_eff)), 1,
-                               kind='anchored', eiv_var=nv, weighted=True,
-                               walk_time=self.walkc + walk, torque_dt=torque_dt,
-                               omega_m2=self.omega_m2(), gyro_dt=gyro_dt,
-                               white_y_cov=white_y_cov)
+        return self._read(self._read_map(nv, gyro_scale), self.C + self.Cc,
+                          self.GPc + gp if walk_noise else None, self.w0 + self.wc, n_eff,
+                          self.walkc + walk, nv, torque_dt=torque_dt, gyro_dt=gyro_dt,
+                          white_y_cov=white_y_cov)
+
+    def _read(self, K: np.ndarray, C: np.ndarray, GP: np.ndarray | None, w0: float,
+              n_eff: float, walk: float, nv: np.ndarray, **context: Any) -> SufficientStats:
+        """Centred Grams (dim, dim) ``C`` and ``GP`` (None: no torque noise) of ``w0``
+        weighted equations read through ``K`` (:meth:`_read_map`) as statistics."""
+        return SufficientStats(lift(K.T @ C @ K), None if GP is None else lift(K.T @ GP @ K),
+                               int(round(w0)), int(round(n_eff)), 1, kind='anchored',
+                               eiv_var=nv, weighted=True, walk_time=walk,
+                               omega_m2=self.omega_m2(), **context)
 
     def window_test(self, f: Fit, nv: np.ndarray, tv: np.ndarray, *, torque_dt: float,
                     gyro_dt: float, white_y_cov: np.ndarray | None) -> Adequacy:
@@ -405,18 +405,15 @@ class OnlineStats:
                                                  self.clock)
                   if g.neff >= MIN_EQUATIONS and g.t1 - g.t0 >= min_s]
         K = self._read_map(nv, gyro_scale)
-        return [(SufficientStats(lift(K.T @ g.C @ K), lift(K.T @ g.GP @ K), int(round(g.w0)),
-                                 int(round(g.neff)), 1, kind='anchored', eiv_var=nv,
-                                 weighted=True, walk_time=g.walk, torque_dt=torque_dt,
-                                 omega_m2=self.omega_m2(), gyro_dt=gyro_dt,
-                                 white_y_cov=white_y_cov), g.w00 / g.w0, 0.5 * (g.t0 + g.t1))
-                for g in groups]
+        return [(self._read(K, g.C, g.GP, g.w0, g.neff, g.walk, nv, torque_dt=torque_dt,
+                            gyro_dt=gyro_dt, white_y_cov=white_y_cov),
+                 g.w00 / g.w0, 0.5 * (g.t0 + g.t1)) for g in groups]
 
 
     def _read_map(self, nv: np.ndarray, gyro_scale: float) -> np.ndarray:
         """The map (dim, 13) from the accumulated variables to the 13 read back: the
-        :attr:`correction` (or the first 13), then :func:`_noise_map`."""
-        K = _noise_map(nv, gyro_scale)
+        :attr:`correction` (or the first 13), then :func:`noise_map`."""
+        K = noise_map(nv, gyro_scale)
         if self.correction is not None:
             return self.correction @ K
         return K if self.dim == 13 else np.eye(self.dim, 13) @ K
@@ -428,7 +425,7 @@ class OnlineStats:
         return self.C + self.Cc, self.GPc + gp, self.walkc + walk
 
 
-def _noise_map(nv: np.ndarray, gyro_scale: float = 1.0) -> np.ndarray:
+def noise_map(nv: np.ndarray, gyro_scale: float = 1.0) -> np.ndarray:
     """The linear map (13, 13) of the variables ``[w, m, t, T]`` applying the gyro-noise
     correction ``m_c -> m_c - sigma_c^2 s`` (``nv`` (3,) [rad^2/s^2]) and, for
     ``gyro_scale`` != 1, a gyro read that many times larger (``w`` and ``m`` scale)."""

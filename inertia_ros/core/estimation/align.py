@@ -141,13 +141,15 @@ class OnlineAligner:
     of the anchored equations and :meth:`trim` drops the torque samples no longer needed.
     """
 
-    def __init__(self) -> None:
+    def __init__(self, extra: int = 0) -> None:
         self.ts = np.empty(0)
-        self.tau = np.empty((0, 3))
+        #: the torque (n, 3) and ``extra`` held columns after it (the stated inputs' changes of
+        #: a momentum input's equivalent torque: :mod:`.online_stated`), integrated alike
+        self.tau = np.empty((0, 3 + extra))
         #: a second torque on the same stamps (a momentum input's equivalent torque with the
         #: other torque linear: :mod:`.online_hold`), or None
         self.tau_alt: np.ndarray | None = None
-        self.T_base = np.zeros(3)       # torque integral at self.ts[0]
+        self.T_base = np.zeros(3 + extra)       # torque integral at self.ts[0]
         self.t0: float | None = None    # time origin of the bias column
         self.prev: tuple[float, np.ndarray] | None = None   # last processed gyro sample
         self.M = np.zeros(6)            # monomial integral at the last processed sample
@@ -196,7 +198,8 @@ class OnlineAligner:
         ``m`` the raw monomial integrals: the gyro-noise correction ``m - s sigma^2`` is
         linear in the variables, applied to the statistics with the final noise estimate.
         """
-        T = self.T_base + cumulative_torque(self.ts, self.tau, t, hold)
+        T = self.T_base + cumulative_torque(self.ts, self.tau, t, hold,
+                                            out=np.empty((len(t), self.tau.shape[1])))
         M = self._monomials(t, w)
         return np.concatenate([w, M, (t - self.t0)[:, None], T], axis=1)
 
@@ -205,8 +208,8 @@ class OnlineAligner:
         gyro time), folding the integral before it into ``T_base``."""
         j = int(np.searchsorted(self.ts, t_last, side='right') - 1)
         if j > 0:
-            self.T_base = self.T_base + cumulative_torque(self.ts, self.tau,
-                                                          self.ts[j:j + 1], hold)[0]
+            self.T_base = self.T_base + cumulative_torque(
+                self.ts, self.tau, self.ts[j:j + 1], hold, out=np.empty((1, len(self.T_base))))[0]
             self.ts = self.ts[j:]
             self.tau = self.tau[j:]
             if self.tau_alt is not None:

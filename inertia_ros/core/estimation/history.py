@@ -67,9 +67,6 @@ class SegmentHistory:
     def __init__(self) -> None:
         self._segs: list[SegmentStats] = []
 
-    def __len__(self) -> int:
-        return len(self._segs)
-
     def add(self, seg: SegmentStats) -> None:
         """Append a closed segment; merge the oldest pair beyond :data:`MAX_SEGMENTS`."""
         self._segs.append(seg)

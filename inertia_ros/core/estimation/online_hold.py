@@ -31,6 +31,7 @@ from typing import Any
 
 import numpy as np
 
+from .accumulator import noise_map
 from .align import OnlineAligner
 from .fit import Fit, equation_weight, fit_two_pass
 from .options import HOLDS
@@ -96,12 +97,8 @@ class HoldWindows:
             k = min(len(X), self.rows - self._n)
             piece, X = X[:k], X[k:]
             m = piece.mean(axis=0)
-            D = piece - m[None]
-            n_old = self._n
-            delta = m - self._mean
-            self._C = self._C + gram(D) + (n_old * k / (n_old + k)) * np.outer(delta, delta)
-            self._mean = self._mean + delta * (k / (n_old + k))
-            self._n = n_old + k
+            self._n, self._mean, self._C, _ = _pair((self._n, self._mean, self._C, False),
+                                                    (k, m, gram(piece - m[None]), False))
             if self._n >= self.rows:
                 self._close()
                 self._n, self._mean, self._C = 0, np.zeros(16), np.zeros((16, 16))
@@ -123,8 +120,7 @@ class HoldWindows:
         common equation weight and ``nv`` (3,) the gyro noise variance [rad^2/s^2] (the
         squared-rate integrals' correction, as :meth:`.accumulator.OnlineStats.stats`).
         """
-        K = np.eye(13)
-        K[9, 3:6] = -nv
+        K = noise_map(nv)
         out: dict[str, list[float]] = {'zoh': [], 'linear': []}
         for _, _, C, _ in self.closed:
             for h, cols in (('zoh', _ZOH), ('linear', _LIN)):

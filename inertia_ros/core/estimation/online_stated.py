@@ -40,7 +40,7 @@ from typing import Any
 import numpy as np
 
 from ..tensor import theta_to_matrix
-from .align import OnlineAligner
+from .accumulator import noise_map
 from .fit import _anchored_meat, equation_weight, fit_two_pass
 from .model import model_basis
 from .options import MIN_EQUATIONS, MIN_GYRO_SAMPLES
@@ -48,52 +48,10 @@ from .regressors import MOMENTUM_BASIS, VARIABLE_MAP
 from .schedule import STALE_FRACTION
 from .stated import _MIN_INFORMATION, _larger, widened
 
-__all__ = ['StatedAligner', 'StatedInputs', 'correction_map', 'profile', 'sensitivities']
+__all__ = ['StatedInputs', 'correction_map', 'profile', 'sensitivities']
 
 _STEPS = 4                      # Gauss-Newton steps at most (the gyro scale's column moves)
 _TOL = 0.01                     # converged: every step below this many posterior sigmas
-
-
-class StatedAligner(OnlineAligner):
-    """:class:`.align.OnlineAligner` whose rows carry extra held-torque columns after the 13.
-
-    ``take_extra`` appends samples (k, e) of the extra torques held from their stamps (the
-    momentum input's grid, the stamps of the equivalent torque); :meth:`variables` appends
-    their cumulative integrals at the gyro times (n, e) to the 13 variables.
-    """
-
-    def __init__(self, extra: int) -> None:
-        super().__init__()
-        self.xs = np.empty(0)
-        self.xtau = np.empty((0, extra))
-        self.X_base = np.zeros(extra)          # the extra integral at xs[0]
-
-    def take_extra(self, t: np.ndarray, x: np.ndarray) -> None:
-        """Append extra torque samples ``x`` (k, e) held from ``t`` (k,) [s]."""
-        self.xs = np.concatenate([self.xs, t])
-        self.xtau = np.concatenate([self.xtau, x])
-
-    def _cum(self, t: np.ndarray) -> np.ndarray:
-        """Held integral (n, e) of the extra torques from ``xs[0]`` to ``t`` (n,) [s]."""
-        cum = np.zeros_like(self.xtau)
-        if len(self.xs) > 1:
-            cum[1:] = np.cumsum(self.xtau[:-1] * np.diff(self.xs)[:, None], axis=0)
-        j = np.clip(np.searchsorted(self.xs, t, side='right') - 1, 0, len(self.xs) - 1)
-        return cum[j] + self.xtau[j] * (t - self.xs[j])[:, None]
-
-    def variables(self, t: np.ndarray, w: np.ndarray, hold: str) -> np.ndarray:
-        """The 13 variables (:meth:`.align.OnlineAligner.variables`) and the extra integrals."""
-        V = super().variables(t, w, hold)
-        return np.concatenate([V, self.X_base + self._cum(t)], axis=1)
-
-    def trim(self, t_last: float, hold: str) -> None:
-        """As :meth:`.align.OnlineAligner.trim`, the extra stream too."""
-        super().trim(t_last, hold)
-        j = int(np.searchsorted(self.xs, t_last, side='right') - 1)
-        if j > 0:
-            self.X_base = self.X_base + self._cum(self.xs[j:j + 1])[0]
-            self.xs = self.xs[j:]
-            self.xtau = self.xtau[j:]
 
 
 def correction_map(u: np.ndarray, q_y: int, gscale: float) -> np.ndarray:
@@ -113,19 +71,11 @@ def correction_map(u: np.ndarray, q_y: int, gscale: float) -> np.ndarray:
     return P
 
 
-def _noise_map(nv: np.ndarray) -> np.ndarray:
-    """The gyro-noise correction of the squared-rate integrals (13, 13), as the
-    accumulator's (:func:`.accumulator._noise_map`)."""
-    K = np.eye(13)
-    K[9, 3:6] = -nv
-    return K
-
-
 def _blocks(u0: np.ndarray, q_y: int, gscale: float, nv: np.ndarray, theta0: np.ndarray,
             bias: bool) -> np.ndarray:
     """The equation blocks' map E (dim, 3, m + 1) of ``[theta, (d), u, y]`` at ``u0``."""
     q = len(u0)
-    P = correction_map(u0, q_y, gscale) @ _noise_map(nv)          # (dim, 13)
+    P = correction_map(u0, q_y, gscale) @ noise_map(nv)          # (dim, 13)
     dim = P.shape[0]
     cols = [np.arange(6)] + ([np.arange(6, 9)] if bias else [])
     nb = 6 + 3 * bias

@@ -65,7 +65,20 @@ from .statistics import SufficientStats
 __all__ = ['RecursiveEstimator']
 
 _MAX_BUFFER = 400_000                      # gyro samples kept waiting for torque
-_DT_HISTORY = 64        # recent sample intervals kept per stream for the nominal interval
+
+
+def _one_sample(t: Any, v: Any, last: float | None, name: str) -> float | None:
+    """The time [s] of one sample ``t``, ``v`` (3,) checked as a block would be (the node's
+    common case); None for a block."""
+    if not (isinstance(t, (float, int)) and len(v) == 3 and np.ndim(v) == 1):
+        return None
+    tf = float(t)
+    if abs(tf) > MAX_TIME_S:        # the one-sample form of refuse_nanoseconds
+        raise ValueError(f'time {tf!r} looks like nanoseconds; give seconds')
+    if not (math.isfinite(tf) and all(math.isfinite(float(x)) for x in v)):
+        raise ValueError(f'{name}: contains NaN or inf')
+    require_after(tf, last, name)
+    return tf
 
 
 class RecursiveEstimator:
@@ -194,14 +207,8 @@ class RecursiveEstimator:
         omega : array_like, shape (3,) or (n, 3)
             Angular velocity [rad/s].
         """
-        if isinstance(t, (float, int)) and len(omega) == 3 and np.ndim(omega) == 1:
-            # fast path for one sample (the node's common case)
-            tf = float(t)
-            if abs(tf) > MAX_TIME_S:        # the one-sample form of refuse_nanoseconds
-                raise ValueError(f'time {tf!r} looks like nanoseconds; give seconds')
-            if not (math.isfinite(tf) and all(math.isfinite(float(v)) for v in omega)):
-                raise ValueError('omega: contains NaN or inf')
-            require_after(tf, self._last_t_in, 'omega')
+        tf = _one_sample(t, omega, self._last_t_in, 'omega')
+        if tf is not None:              # fast path for one sample
             self._last_t_in = tf
             self._single_t.append(tf)
             self._single_w.append(omega)
@@ -221,7 +228,6 @@ class RecursiveEstimator:
             self._process()
         elif self._n_buf > _MAX_BUFFER:
             # torque stream stalled: keep the newest samples only
-            self._flush_single()
             t = np.concatenate(self._gt)
             w = np.concatenate(self._gw)
             self.samples_dropped += len(t) - _MAX_BUFFER // 2
@@ -246,13 +252,8 @@ class RecursiveEstimator:
         tau : array_like, shape (3,) or (n, 3)
             Torque about the centre of mass [N m].
         """
-        if isinstance(t, (float, int)) and len(tau) == 3 and np.ndim(tau) == 1:
-            tf = float(t)
-            if abs(tf) > MAX_TIME_S:        # the one-sample form of refuse_nanoseconds
-                raise ValueError(f'time {tf!r} looks like nanoseconds; give seconds')
-            if not (math.isfinite(tf) and all(math.isfinite(float(v)) for v in tau)):
-                raise ValueError('torque: contains NaN or inf')
-            require_after(tf, self._last_tau_in, 'torque')
+        tf = _one_sample(t, tau, self._last_tau_in, 'torque')
+        if tf is not None:
             self._last_tau_in = tf
             self._new_torque = True
             self._pt.append(np.array([tf]))
@@ -313,15 +314,16 @@ class RecursiveEstimator:
     def _take_torque(self) -> None:
         """Move the pending torque samples into the held stream; update the torque noise."""
         new_t = np.concatenate(self._pt)
-        new_tau = np.concatenate(self._ptau)
+        new_tau = np.concatenate(self._ptau)     # (n, 3) and any extra held columns
         alt = np.concatenate(self._palt) if self._palt else None
         self._pt, self._ptau, self._palt = [], [], []
         self._align.take(new_t, new_tau, alt)
+        tau = np.ascontiguousarray(new_tau[:, :3])
         for h, acc in self._accs.items():
-            acc.add_torque_power(alt if h == 'linear' and alt is not None else new_tau)
+            acc.add_torque_power(alt if h == 'linear' and alt is not None else tau)
         # the same robust estimator as batch, on the recent samples whatever the block size
         # (the variance itself is taken in estimate())
-        self._tau_nv.add(new_tau)
+        self._tau_nv.add(tau)
 
     def _ready_gyro(self) -> tuple[np.ndarray, np.ndarray, list[int]]:
         """Buffered gyro samples now covered by torque (the rest stays buffered), with gaps.

@@ -24,7 +24,7 @@ changes of ``h`` and of the torque with every block; ``torque_scale_std`` of the
 ``gyro_scale_std``) are profiled under their prior as the batch does (:mod:`.stated`): the
 equivalent torque of each input's change (for the gyro scale the ``w x h`` part) is held over
 the same grid intervals and carried as extra columns of the same equations
-(:class:`.online_stated.StatedAligner`), so their cross products accumulate with the same
+(:class:`.align.OnlineAligner`'s extra columns), so their cross products accumulate with the same
 forgetting; each estimate fits them with the tensor under the prior, reads the statistics with
 the inputs corrected by the posterior mean and adds ``D cov_u D'``
 (:mod:`.online_stated`, ``diagnostics['input_uncertainty']``).
@@ -36,14 +36,17 @@ from typing import Any
 
 import numpy as np
 
-from .align import gap_starts, hermite, run_slopes
-from .config import substitutions
+from .._validate import as_sample_block, require_after
+from .align import OnlineAligner, gap_starts, hermite, run_slopes
+from .config import require, substitutions
 from .momentum import Momentum, held_over, interval_torque, walk_sums, walk_variance
 from .noise import StreamingNoise
-from .online_stated import StatedAligner, StatedInputs
+from .online_stated import StatedInputs
+from .options import HOLDS
 from .recursive import RecursiveEstimator
-from .regressors import cumulative_monomials, gyroscopic_matrix, momentum_matrix
+from .regressors import gyroscopic_matrix, momentum_matrix
 from .result import InertiaEstimate
+from .selection import SelectionPolicy
 from .tracking import TrackingEstimator
 from .tracking_hold import HoldChoice
 from .tracking_input import StreamInput
@@ -85,14 +88,12 @@ class MomentumInput:
     equivalent torque's noise is :meth:`_reduced_noise`.
     """
 
+    _choice: Any = None     # the tracker's hold-'auto' twin and judge, fed the same blocks
+
     def _options(self, mode: str, names: Sequence[str], other_torque: bool, hold: str,
                  kwargs: dict[str, Any]) -> dict[str, Any]:
         """Check the options against the table (``mode``), keep the momentum input's and
         return the others without the scales (stated inputs here, never a scale of y)."""
-        from .config import require
-        from .options import HOLDS
-        from .selection import SelectionPolicy
-
         self._opts = require(mode, 'wheels_torque' if other_torque else 'wheels',
                              dict({'model': 'full', 'torque_bias': False}, **kwargs, hold=hold))
         kwargs = dict(kwargs)
@@ -103,6 +104,7 @@ class MomentumInput:
         SelectionPolicy(torque_scale_std=scale, gyro_scale_std=gscale)     # validates
         self.names = tuple(names)
         self.other_torque = bool(other_torque)
+        self._requested = hold
         self.torque_hold = hold if self.other_torque else HOLDS[0]
         self.torque_scale_std = float(scale) if self.other_torque else 0.0
         self.gyro_scale_std = float(gscale)
@@ -133,8 +135,6 @@ class MomentumInput:
     # ------------------------------------------------------------------ input
     def add_gyro(self, t: Any, omega: Any) -> None:
         """Add gyro samples (as :meth:`.RecursiveEstimator.add_gyro`)."""
-        from .._validate import as_sample_block, require_after
-
         ta, wa = as_sample_block(np.atleast_1d(np.asarray(t, dtype=float)),
                                  np.asarray(omega, dtype=float).reshape(-1, 3), 'omega')
         if len(ta) == 0:
@@ -143,11 +143,11 @@ class MomentumInput:
         self._g.add(ta, wa)
         self._advance()
         self._cap(self._g)
+        if self._choice is not None:
+            self._choice.add_gyro(t, omega)
 
     def add_torque(self, t: Any, tau: Any) -> None:
         """Add samples of the other known torque [N m] (``other_torque=True`` only)."""
-        from .._validate import as_sample_block, require_after
-
         if not self.other_torque:
             raise ValueError('torque: this estimator was built with other_torque=False (the '
                              'momentum input is the only known torque)')
@@ -160,6 +160,8 @@ class MomentumInput:
         self._o_noise.add(xa)
         self._o_dt = (self._o_dt + np.diff(self._o.t[-len(ta) - 1:]).tolist())[-64:]
         self._advance()
+        if self._choice is not None:
+            self._choice.add_torque(t, tau)
 
     def add_wheels(self, t: Any, h: Any) -> None:
         """Add internal angular momentum samples ``h`` (n, 3) [N m s], body frame, at ``t``
@@ -199,6 +201,8 @@ class MomentumInput:
         self.momentum_samples += k
         self._advance()
         self._cap(self._m)
+        if self._choice is not None:
+            self._choice.add_momentum(m)
 
     # ------------------------------------------------------------------ the grid
     def _horizon(self) -> float | None:
@@ -298,7 +302,10 @@ class MomentumInput:
                 c = np.cross(wg, hg)
                 x.append(-0.5 * (c[1:] + c[:-1]))
             x = np.concatenate(x, axis=1)
-        self._add_walk(hg[:-1], wg[:-1])
+        H, W, n = walk_sums(hg[:-1], wg[:-1])    # the n x h and w x e torque-noise walks
+        self._walk_h += H
+        self._walk_w += W
+        self._walk_n += n
         gi = (self._g.t >= grid[0]) & (self._g.t <= grid[-1])
         t_in, w_in = self._g.t[gi], self._g.v[0][gi]
         fresh = t_in > (self._last_t_in if self._last_t_in is not None else -np.inf)
@@ -340,14 +347,21 @@ class MomentumInput:
             oi = max(int(np.searchsorted(self._o.t, c, side='right')) - 1, 0)
             self._o.keep_from(oi)
 
-    def _add_walk(self, hg: np.ndarray, wg: np.ndarray) -> None:
-        """Accumulate the grid sums of the ``n x h`` and ``w x e`` torque-noise walks."""
-        H, W, n = walk_sums(hg, wg)
-        self._walk_h += H
-        self._walk_w += W
-        self._walk_n += n
-
     # ------------------------------------------------------------------ noise and estimate
+    def _record(self, diag: dict[str, Any]) -> None:
+        """The momentum input's record in ``diag`` (``diagnostics['momentum']``) and, with
+        ``hold='auto'`` and no other torque, the hold that was not chosen."""
+        diag['momentum'] = {'samples': self.momentum_samples,
+                            'h_noise_std': self._h_noise.std(),
+                            'gyro_per_wheel_sample': self._share(),
+                            'other_torque': self.other_torque}
+        if self._requested == 'auto' and not self.other_torque:
+            diag['hold'] = 'zoh'
+            diag['hold_selection'] = {
+                'requested': 'auto', 'chosen': 'zoh', 'statistic': None, 'p_value': None,
+                'reason': 'no other torque: the momentum input is not held (known at its '
+                          'samples), so there is no hold to choose'}
+
     def _share(self) -> float:
         """Gyro samples per momentum sample (those sharing one momentum sample's noise)."""
         if not self._m_dt or self._gyro_dt() <= 0:
@@ -396,9 +410,6 @@ class MomentumRecursiveEstimator(MomentumInput, RecursiveEstimator):
 
     def __init__(self, names: Sequence[str] = (), other_torque: bool = True,
                  hold: str = 'zoh', **kwargs: Any) -> None:
-        from .options import HOLDS
-
-        self._hold_auto = hold == 'auto'
         kwargs = self._options('recursive', names, other_torque, hold, kwargs)
         # the equivalent torque is held over each grid interval: integrated as held, whatever
         # the other torque's hold (which _other_on has applied already); 'auto' keeps both
@@ -409,7 +420,7 @@ class MomentumRecursiveEstimator(MomentumInput, RecursiveEstimator):
         """Forget everything (also the stated inputs' posterior)."""
         super().reset()
         if self._stated is not None:
-            self._align = StatedAligner(3 * len(self._stated.names))
+            self._align = OnlineAligner(3 * len(self._stated.names))
             for acc in self._accs.values():
                 acc.widen(13 + 3 * len(self._stated.names))
 
@@ -417,9 +428,9 @@ class MomentumRecursiveEstimator(MomentumInput, RecursiveEstimator):
               x: np.ndarray | None, t_in: np.ndarray, w_in: np.ndarray) -> None:
         """One reduced run: the equivalent torque (G - 1, 3) held from ``grid[:-1]``, its
         linear-hold twin ``alt`` (hold 'auto'), the stated columns ``x`` and the gyro."""
-        if x is not None:
-            self._align.take_extra(grid[:-1], x)
-        RecursiveEstimator.add_torque(self, grid[:-1], tau)
+        self._pt.append(grid[:-1])         # the stated columns held alike, after the torque
+        self._ptau.append(tau if x is None else np.hstack([tau, x]))
+        self._last_tau_in, self._new_torque = float(grid[-2]), True
         if alt is not None:             # hold 'auto': the other torque linear too
             self._palt.append(alt)
         if len(t_in):
@@ -440,16 +451,7 @@ class MomentumRecursiveEstimator(MomentumInput, RecursiveEstimator):
             self._stated.update(self)
         est = super().estimate()
         diag = est.diagnostics
-        diag['momentum'] = {'samples': self.momentum_samples,
-                            'h_noise_std': self._h_noise.std(),
-                            'gyro_per_wheel_sample': self._share(),
-                            'other_torque': self.other_torque}
-        if self._hold_auto and not self.other_torque:
-            diag['hold'] = 'zoh'
-            diag['hold_selection'] = {
-                'requested': 'auto', 'chosen': 'zoh', 'statistic': None, 'p_value': None,
-                'reason': 'no other torque: the momentum input is not held (known at its '
-                          'samples), so there is no hold to choose'}
+        self._record(diag)
         if est.status == 'insufficient_data' and self.other_torque and len(self._o.t) == 0:
             diag['reason'] = ('no other torque sample yet: the momentum input waits for it '
                               '(build with other_torque=False when there is none)')
@@ -484,18 +486,13 @@ class MomentumTrackingEstimator(MomentumInput, TrackingEstimator):
     def __init__(self, names: Sequence[str] = (), other_torque: bool = True,
                  hold: str = 'zoh', **kwargs: Any) -> None:
         self._kind = 'wheels_torque' if other_torque else 'wheels'
-        self._mconfig, self._requested = dict(kwargs, names=names, other_torque=other_torque), hold
+        self._mconfig = dict(kwargs, names=names, other_torque=other_torque)
         kwargs = self._options('tracking', names, other_torque, hold, kwargs)
         self.nu = len(StatedInputs(names, self.torque_scale_std, self.gyro_scale_std).names)
         self._learnt = self._nl = int(self.gyro_scale_std > 0)     # the gyro scale learnt
         # the equivalent torque is held over the grid intervals ('auto': the other torque's)
         super().__init__(**kwargs, hold='auto' if self.torque_hold == 'auto' else 'zoh')
         self._substituted = substitutions('tracking', self._kind, self._opts)
-
-    def reset(self) -> None:
-        """Forget everything (the torque stream carries the stated columns too)."""
-        super().reset()
-        self._tau = np.empty((0, 3 + 3 * self.nu))
 
     def _hold_choice(self) -> HoldChoice:
         """Hold 'auto': the twin under the other torque's linear hold; the judge reduces it
@@ -505,24 +502,6 @@ class MomentumTrackingEstimator(MomentumInput, TrackingEstimator):
             torque_bias='on' if self.torque_bias == 'on' else 'off')
         return HoldChoice(MomentumTrackingEstimator(**self._mconfig, hold='linear'),
                           self.torque_bias, self._config['gyro_noise'], judge)
-
-    def add_gyro(self, t: Any, omega: Any) -> None:
-        """Add gyro samples (:meth:`MomentumInput.add_gyro`; the twin's too)."""
-        MomentumInput.add_gyro(self, t, omega)
-        if self._choice is not None:
-            self._choice.add_gyro(t, omega)
-
-    def add_torque(self, t: Any, tau: Any) -> None:
-        """Add samples of the other torque (:meth:`MomentumInput.add_torque`; the twin's)."""
-        MomentumInput.add_torque(self, t, tau)
-        if self._choice is not None:
-            self._choice.add_torque(t, tau)
-
-    def add_momentum(self, m: Momentum) -> None:
-        """Add a momentum input block (:meth:`MomentumInput.add_momentum`; the twin's)."""
-        MomentumInput.add_momentum(self, m)
-        if self._choice is not None:
-            self._choice.add_momentum(m)
 
     def _take(self, grid: np.ndarray, tau: np.ndarray, alt: np.ndarray | None,
               x: np.ndarray | None, t_in: np.ndarray, w_in: np.ndarray) -> None:
@@ -564,14 +543,12 @@ class MomentumTrackingEstimator(MomentumInput, TrackingEstimator):
                                                @ th + C[:, -1])
         return C
 
-    def _gyro_column(self, t: np.ndarray, w: np.ndarray, theta: np.ndarray) -> np.ndarray:
-        """The gyro scale's column (n, 3) of the start-up equations at ``theta`` (6,)."""
-        tt = np.concatenate([[self._prev[0]], t])
-        M = cumulative_monomials(tt, np.vstack([self._prev[1], w]), self._nv,
-                                 end_correction=False)[1:]
-        T = self._cum(tt)
+    def _gyro_column(self, w: np.ndarray, M: np.ndarray, Wc: np.ndarray, theta: np.ndarray
+                     ) -> np.ndarray:
+        """The gyro scale's column (n, 3) of the start-up equations at ``theta`` (6,), from
+        their rates ``w`` (n, 3), monomial integrals ``M`` (n, 6) and ``Wc`` (n, 3)."""
         return -self.gyro_scale_std * ((momentum_matrix(w) + 2.0 * gyroscopic_matrix(M))
-                                       @ theta - (T[1:, -3:] - T[0, -3:]))
+                                       @ theta - Wc)
 
     def _u_propagation(self, m_end: np.ndarray, S_end: np.ndarray) -> np.ndarray:
         """The momentum's change (3, nu) per stated input over a block: ``S_j``, for the
@@ -587,12 +564,7 @@ class MomentumTrackingEstimator(MomentumInput, TrackingEstimator):
         stated inputs' posterior (``diagnostics['input_uncertainty']``)."""
         est = super().estimate()
         diag = est.diagnostics
-        diag['momentum'] = {'samples': self.momentum_samples, 'other_torque': self.other_torque,
-                            'h_noise_std': self._h_noise.std()}
-        if self._requested == 'auto' and not self.other_torque:
-            diag['hold'] = 'zoh'
-            diag['hold_selection'] = {'requested': 'auto', 'chosen': 'zoh', 'reason': (
-                'no other torque: the momentum input is not held, nothing to choose')}
+        self._record(diag)
         if self._stated is not None and self._warm is None:
             u = slice(self.k + self.nb, self.n - 3)     # d theta (6,) per stated sigma
             D = self.basis @ self.P[:self.k, u] @ np.linalg.inv(self.P[u, u])

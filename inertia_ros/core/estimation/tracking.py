@@ -52,6 +52,7 @@ from typing import Any
 import numpy as np
 
 from .._validate import as_noise_std
+from ..tensor import theta_to_matrix
 from .config import require, substitutions
 from .fit import solve_symmetric
 from .model import model_basis
@@ -63,6 +64,7 @@ from .options import (
 from .regressors import cumulative_monomials, cumulative_torque, gyroscopic_matrix, momentum_matrix
 from .result import InertiaEstimate
 from .selection import SelectionPolicy
+from .tails import chi2_sf
 from .tracking_hold import HoldChoice
 from .tracking_input import StreamInput
 from .tracking_output import EXCESS_TIME, StateOutput
@@ -75,10 +77,8 @@ _SETTLED = 0.05           # relative sigma of the moments below which the weight
 
 
 def chi2_upper_quantile(dof: int, level: float) -> float:
-    """Upper ``level`` quantile of the chi-square distribution, without scipy.
-
-    Exact (bisection on the closed-form tail) for 3 degrees of freedom, the block test's;
-    the Wilson-Hilferty approximation otherwise (within 2 % for ``dof >= 30``).
+    """Upper ``level`` quantile of the chi-square distribution, without scipy: bisection on
+    the exact tail :func:`.tails.chi2_sf`.
 
     Parameters
     ----------
@@ -92,19 +92,13 @@ def chi2_upper_quantile(dof: int, level: float) -> float:
     float
         ``q`` with ``P(chi2_dof > q) = level``.
     """
-    def bisect(tail: Any, hi: float) -> float:
-        lo = 0.0
-        for _ in range(80):
-            mid = 0.5 * (lo + hi)
-            lo, hi = (mid, hi) if tail(mid) > level else (lo, mid)
-        return 0.5 * (lo + hi)
-
-    if dof == 3:
-        return bisect(lambda x: math.erfc(math.sqrt(x / 2.0))
-                      + math.sqrt(2.0 * x / math.pi) * math.exp(-x / 2.0), 400.0)
-    z = bisect(lambda x: 0.5 * math.erfc(x / math.sqrt(2.0)), 40.0)
-    a = 2.0 / (9.0 * dof)
-    return dof * (1.0 - a + z * math.sqrt(a)) ** 3
+    lo, hi = 0.0, 400.0
+    while chi2_sf(hi, dof) > level:
+        lo, hi = hi, 2.0 * hi
+    for _ in range(80):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if chi2_sf(mid, dof) > level else (lo, mid)
+    return 0.5 * (lo + hi)
 
 
 class _Trend:
@@ -241,7 +235,7 @@ class TrackingEstimator(StreamInput, StateOutput):
         self._gt: list[np.ndarray] = []
         self._gw: list[np.ndarray] = []
         self._ts = np.empty(0)
-        self._tau = np.empty((0, 3))
+        self._tau = np.empty((0, 3 + 3 * self.nu))   # and the stated inputs' columns
         self._g_dts = np.empty(0)
         self._tq_dts = np.empty(0)
         self._gyro_nv = StreamingNoise(floor=True)
@@ -334,7 +328,7 @@ class TrackingEstimator(StreamInput, StateOutput):
         t = np.concatenate([x[0] for x in self._warm])
         w = np.concatenate([x[1] for x in self._warm])
         self._prev = (float(t[0]), w[0].copy())
-        H, y = self._equations(t[1:], w[1:], self._nv)
+        H, y, M, T = self._equations(t[1:], w[1:], self._nv)
         keep = np.r_[:self.k + self.nb, self.n - 3:self.n]    # the stated inputs at 0
         ui = np.arange(self.k + self.nb, self.n - 3)
         H, Hu = H[:, :, keep], H[:, :, ui]
@@ -350,7 +344,7 @@ class TrackingEstimator(StreamInput, StateOutput):
         # integrated torque noise) inflates it further, by its share of the noise
         walk = float(np.trace(self._momentum_walk(self._nv))) * float(t[-1] - t[0])
         if self._nl:                      # the gyro scale's column at the fitted tensor
-            Hu[:, :, -1] = self._gyro_column(t[1:], w[1:], theta)
+            Hu[:, :, -1] = self._gyro_column(w[1:], M, T[1:, -3:] - T[0, -3:], theta)
         inv = solve_symmetric(Hw.T @ Hw, np.eye(len(keep)))
         # the fit at the stated inputs' 0 moves by D u with them (x - x0 = -D u)
         D = inv @ Hw.T @ np.einsum('ij,nik->njk', Wc, Hu).reshape(len(Hw), len(ui))
@@ -381,8 +375,6 @@ class TrackingEstimator(StreamInput, StateOutput):
     def _weight(self, theta: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Equation error covariance ``R = I S_g I`` (3, 3) at ``theta`` (default: the
         state's; None before any fit: isotropic) and the gyro variance (3,)."""
-        from ..tensor import theta_to_matrix
-
         nv = self._nv
         if theta is None and self._warm is not None:
             I = np.eye(3)                                # first pass: unit weights
@@ -400,8 +392,9 @@ class TrackingEstimator(StreamInput, StateOutput):
         return 0.5 * (R + R.T), nv
 
     def _equations(self, t: np.ndarray, w: np.ndarray, nv: np.ndarray
-                   ) -> tuple[np.ndarray, np.ndarray]:
-        """Equations ``H`` (n, 3, nx), ``y`` (n, 3) of the samples after the anchor."""
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Equations ``H`` (n, 3, nx), ``y`` (n, 3) of the samples after the anchor, and the
+        integrals they come from: monomials (n, 6) and held torque (n + 1, 3 + 3 nu)."""
         s, ws = self._prev
         tt = np.concatenate([[s], t])
         M = cumulative_monomials(tt, np.vstack([ws, w]), nv, end_correction=False)[1:]
@@ -418,7 +411,7 @@ class TrackingEstimator(StreamInput, StateOutput):
         if q:
             H[:, :, self.k + self.nb:self.k + self.nb + q] = -(
                 T[1:, 3:3 + 3 * q] - T[0, 3:3 + 3 * q]).reshape(n, q, 3).transpose(0, 2, 1)
-        return H, y
+        return H, y, M, T
 
     def _block(self, t: np.ndarray, w: np.ndarray) -> None:
         """Fold one block in, test it, propagate the momentum to its last sample.
@@ -465,7 +458,7 @@ class TrackingEstimator(StreamInput, StateOutput):
         self._Beff = self._Beff * math.exp(-float(t[-1] - s) / self.window) + self._B
         C = np.zeros((self.n, 3))          # the walk to the end against the block's mean one
         C[self.n - 3:] = -float(np.mean(t - s)) * self._walk
-        self._predict(t, w, T[-1] - T[0], M[-1], nv, (K, C, S, nu))
+        self._predict(t, w, T[-1] - T[0], M[-1], (K, C, S, nu))
         self.updates += 1
         if self.changes and self.changes[-1] == float(t[0]):
             self._trend = _Trend(2.0 * self.window, self.k + self.nb)   # the jump is no trend
@@ -512,11 +505,12 @@ class TrackingEstimator(StreamInput, StateOutput):
                 2.0 * s * np.linalg.norm(self._prev[1])) ** 2
 
     def _predict(self, t: np.ndarray, w: np.ndarray, y_end: np.ndarray, m_end: np.ndarray,
-                 nv: np.ndarray, corr: tuple[np.ndarray, ...] | None = None,
-                 forget: bool = True) -> None:
+                 corr: tuple[np.ndarray, ...]) -> None:
         """Propagate the momentum to the block's last sample; add the process noise (the
-        tensor's only with ``forget``, and only while its largest variance is below the
-        squared scale: an unexcited direction does not grow without bound)."""
+        tensor's only while its largest variance is below the squared scale: an unexcited
+        direction does not grow without bound) and take out the update's noise correlated
+        with the walk (``corr``: the update's gain, that correlation, innovation covariance
+        and innovation)."""
         dt = float(t[-1] - self._prev[0])
         k, nb, L = self.k, self.nb, slice(self.n - 3, self.n)
         F = np.eye(self.n)
@@ -528,14 +522,13 @@ class TrackingEstimator(StreamInput, StateOutput):
         x = self.x.copy()
         x[L] = F[L] @ self.x + y_end[:3]
         P = F @ self.P @ F.T
-        if forget and float(np.max(np.diag(self.P)[:k])) < self._scale() ** 2:
+        if float(np.max(np.diag(self.P)[:k])) < self._scale() ** 2:
             grow = math.expm1(dt / self.window)      # forgetting: P_psi *= exp(dt / window)
             P[:k + nb, :k + nb] += grow * self.P[:k + nb, :k + nb]
         P[L, L] += dt * self._walk
-        if corr is not None:     # the update's noise correlated with the walk: (K, C, S, nu)
-            K, C, S, nu = corr
-            x += C @ np.linalg.solve(S, nu)
-            FKC = F @ K @ C.T
-            P -= FKC + FKC.T + C @ np.linalg.solve(S, C.T)
+        K, C, S, nu = corr
+        x += C @ np.linalg.solve(S, nu)
+        FKC = F @ K @ C.T
+        P -= FKC + FKC.T + C @ np.linalg.solve(S, C.T)
         self.x, self.P = x, 0.5 * (P + P.T)
         self._prev = (float(t[-1]), w[-1].copy())

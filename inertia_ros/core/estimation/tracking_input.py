@@ -15,6 +15,8 @@ from typing import Any
 import numpy as np
 
 from .._validate import as_sample_block, require_after
+from ..tensor import theta_to_matrix
+from .align import gap_starts
 from .noise import gyroscopic_walk_cov
 from .options import GAP_FACTOR
 from .regressors import momentum_matrix
@@ -162,7 +164,7 @@ class StreamInput:
             return None
         a = max(int(np.searchsorted(self._ts, self._prev[0], side='right')) - 1, 0)
         b = int(np.searchsorted(self._ts, t, side='left'))
-        long = np.flatnonzero(np.diff(self._ts[a:b + 1]) > GAP_FACTOR * self._tdt)
+        long = gap_starts(self._ts[a:b + 1], self._tdt)        # the one gap rule
         return float(self._ts[a + long[-1] + 1]) if len(long) else None
 
     def _trim_torque(self) -> None:
@@ -195,8 +197,6 @@ class StreamInput:
         if tdt <= 0:
             return np.zeros((3, 3))
         gdt = float(np.median(self._g_dts)) if len(self._g_dts) else 0.0
-        from ..tensor import theta_to_matrix
-
         I = theta_to_matrix(self.basis @ self.x[:self.k], check_finite=False)
         m2 = self._m2_sum / max(self._m2_n, 1.0)
         G = gyroscopic_walk_cov(I, nv, m2, gdt, tdt) if np.all(np.isfinite(I)) else 0.0

@@ -16,7 +16,7 @@ from .assemble import add_calibration, assemble, status_only
 from .fit import Fit, solve_symmetric
 from .homogeneous import is_torque_free
 from .model import parameter_names
-from .options import IDENTIFIABILITY_TOL
+from .options import IDENTIFIABILITY_TOL, MAX_RESIDUAL_EXCESS
 from .result import InertiaEstimate
 
 __all__ = ['EXCESS_TIME', 'StateOutput']
@@ -24,7 +24,6 @@ __all__ = ['EXCESS_TIME', 'StateOutput']
 #: Time constant [s] of the innovation excess average (and how long after a detected change
 #: a high excess is not yet a mismatch).
 EXCESS_TIME = 2.0
-_MISMATCH_EXCESS = 1.5    # innovation excess above which the status is model_mismatch
 _EIV_MAX = 0.05           # largest entry of P B_eff for the first-order compensation
 
 
@@ -138,7 +137,7 @@ class StateOutput:
         near = [c for c in self.changes if self._prev[0] - c < 4.0 * EXCESS_TIME]
         recent = bool(near) and self._prev[0] - near[-1] < 2.0 * EXCESS_TIME and len(near) < 3
         status, widen = 'ok', 1.0
-        if self._excess > _MISMATCH_EXCESS and not recent:
+        if self._excess > MAX_RESIDUAL_EXCESS and not recent:
             status, widen = 'model_mismatch', self._excess
             cov = cov * widen
             diag['reason'] = (f'the model does not explain the data: the innovations are '
