@@ -288,3 +288,29 @@ def test_tracking_states_the_wheel_inertias() -> None:
         assert np.all(out[0.05].theta_std[:3] >= 4.0 * out[0.0].theta_std[:3])
     rms = {std: float(np.sqrt(np.mean(np.square(v)))) for std, v in z.items()}
     assert rms[0.05] < 3.0 and rms[0.05] < 0.7 * rms[0.0], rms
+
+
+def test_tracking_hold_auto_with_stated_wheels_and_an_empty_first_block() -> None:
+    """Two crashes of hold 'auto' (the node's default) on the tracker: with stated wheel
+    inertias (``names``) the hold judge was built without them and the first momentum
+    block raised a reshape ValueError; an empty first gyro block raised IndexError.  Both
+    now run: the stated wheels' record is ok with the hold judged, the empty block leaves
+    the estimate ``insufficient_data``."""
+    from test_capability_matrix import BASE, _wheel_inputs, _wheel_scene, feed, records
+
+    from inertia_ros.core.estimation.momentum import Wheel
+    from inertia_ros.core.estimation.recursive_momentum import MomentumTrackingEstimator
+    from inertia_ros.core.scene import Scene
+
+    ws = [Wheel(w.joint, w.axis, w.inertia, 0.05 * w.inertia)
+          for w in Scene.from_dict(_wheel_scene()).wheels.wheels]
+    est = MomentumTrackingEstimator(names=tuple(f'inertia:{w.joint}' for w in ws),
+                                    window=1000.0, **dict(BASE, hold='auto'))
+    e = feed(est, dict(records('wheels_torque')[0],
+                       inputs=lambda t, s: _wheel_inputs(t, s, ws)))
+    assert e.status == 'ok', e.status
+    assert e.diagnostics['hold_selection']['statistic'] is not None
+    empty = TrackingEstimator(hold='auto')
+    empty.add_gyro(np.zeros(0), np.zeros((0, 3)))
+    empty.add_torque(np.zeros(0), np.zeros((0, 3)))
+    assert empty.estimate().status == 'insufficient_data'

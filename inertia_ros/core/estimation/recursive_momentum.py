@@ -498,7 +498,8 @@ class MomentumTrackingEstimator(MomentumInput, TrackingEstimator):
         """Hold 'auto': the twin under the other torque's linear hold; the judge reduces it
         both ways (:class:`MomentumRecursiveEstimator`, ``hold='auto'``)."""
         judge = MomentumRecursiveEstimator(
-            other_torque=True, hold='auto', gyro_noise=self._config['gyro_noise'],
+            names=self._mconfig['names'], other_torque=True, hold='auto',
+            gyro_noise=self._config['gyro_noise'],
             torque_bias='on' if self.torque_bias == 'on' else 'off')
         return HoldChoice(MomentumTrackingEstimator(**self._mconfig, hold='linear'),
                           self.torque_bias, self._config['gyro_noise'], judge)

@@ -70,8 +70,8 @@ class HoldChoice:
 
     def add_gyro(self, t: Any, omega: Any) -> None:
         """Feed gyro samples to the twin and the judge (validated by the tracker first)."""
-        if self._t0 is None:
-            self._t0 = float(t) if isinstance(t, (int, float)) else float(t[0])
+        if self._t0 is None and np.size(t):
+            self._t0 = float(np.ravel(t)[0])
         self.twin.add_gyro(t, omega)
         self.judge.add_gyro(t, omega)
 
