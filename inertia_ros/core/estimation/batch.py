@@ -196,20 +196,44 @@ def estimate(t_gyro: Any, omega: Any, t_torque: Any, torque: Any, *,
     ts = as_times(t_torque, 't_torque')
     _ = [refuse_nanoseconds(t, name) for t, name in ((tg, 't_gyro'), (ts, 't_torque'))]
     tau = as_samples(torque, len(ts), 'torque', 't_torque')
+    return estimate_arrays(tg, w, ts, tau, method=method, model=model, torque_bias=torque_bias,
+                           symmetry_axis=symmetry_axis, hold=hold, alpha=alpha,
+                           gyro_noise=gyro_noise, torque_noise=torque_noise, segment=segment,
+                           window=window, identifiability_tol=identifiability_tol,
+                           physical=physical, torque_scale_std=torque_scale_std,
+                           gyro_scale_std=gyro_scale_std, rotation_hz=rotation_hz)
+
+
+def estimate_arrays(tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.ndarray, *,
+                    method: str = 'auto', model: str = 'auto', torque_bias: str = 'auto',
+                    symmetry_axis: Any = None, hold: str = 'auto', alpha: float = ALPHA,
+                    gyro_noise: Any = None, torque_noise: Any = None,
+                    segment: float | None = None, window: float | None = None,
+                    identifiability_tol: float = IDENTIFIABILITY_TOL, physical: bool = True,
+                    torque_scale_std: float = 0.0, gyro_scale_std: float = 0.0,
+                    rotation_hz: float | None = None, white_y_cov: np.ndarray | None = None,
+                    final: bool = True) -> InertiaEstimate:
+    """:func:`estimate` on validated arrays, every input's one dispatch (a momentum input's
+    equivalent held torque too, :func:`.momentum.estimate_with_momentum`): the options
+    checked, the method choice, ``integral`` then the ``ml`` refinement.
+
+    ``white_y_cov`` (3, 3): a momentum input's white wheel noise in ``y``; ``final=False``: a
+    method other than ``auto`` and ``ml`` without the adequacy tests (a sensitivity
+    re-estimation whose tensor alone is used).
+    """
     policy, axis = _check_options(method, model, torque_bias, hold, symmetry_axis,
                                   SelectionPolicy(alpha, identifiability_tol, physical,
                                                   torque_scale_std, gyro_scale_std))
     _check_counts(tg, ts)
     if method == 'auto':      # the formulation and band by evidence (:mod:`.method_choice`)
         return _auto_method(tg, w, ts, tau, hold, gyro_noise, torque_noise, segment, window,
-                            model, torque_bias, axis, policy, rotation_hz)
-    if method == 'ml':
-        first = _estimate_direct('integral', tg, w, ts, tau, hold, gyro_noise, torque_noise,
-                                 segment, window, model, torque_bias, axis, policy, None)
-        return _maximum_likelihood(first, tg, w, ts, tau,
-                                   first.diagnostics.get('hold', hold), axis, None)
-    return _estimate_direct(method, tg, w, ts, tau, hold, gyro_noise, torque_noise, segment,
-                            window, model, torque_bias, axis, policy, None)
+                            model, torque_bias, axis, policy, rotation_hz, white_y_cov)
+    first = _estimate_direct('integral' if method == 'ml' else method, tg, w, ts, tau, hold,
+                             gyro_noise, torque_noise, segment, window, model, torque_bias,
+                             axis, policy, white_y_cov, final or method == 'ml')
+    if method != 'ml':
+        return first
+    return _refine(first, tg, w, ts, tau, first.diagnostics.get('hold', hold), axis)
 
 
 def _auto_method(tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.ndarray, hold: str,
@@ -222,15 +246,14 @@ def _auto_method(tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.ndarray,
     from .method_choice import choose
 
     first = _estimate_direct('integral', tg, w, ts, tau, hold, gyro_noise, torque_noise,
-                             segment, window, model, torque_bias, axis, policy, None,
-                             white_y_cov)
+                             segment, window, model, torque_bias, axis, policy, white_y_cov)
     used = first.diagnostics.get('hold', hold)
     return choose(
         first, (tg, w, ts, tau), used, len(tg),
         lambda f: _refine(f, tg, w, ts, tau, used, axis),
         lambda fc: _estimate_direct('filtered', tg, w, ts, tau, used, gyro_noise, torque_noise,
                                     None, window or 1.0 / fc, model, torque_bias, axis, policy,
-                                    None, white_y_cov),
+                                    white_y_cov),
         rotation_hz)
 
 
@@ -238,7 +261,6 @@ def _estimate_direct(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray,
                      tau: np.ndarray, hold: str, gyro_noise: Any, torque_noise: Any,
                      segment: float | None, window: float | None, model: str,
                      torque_bias: str, axis: np.ndarray | None, policy: SelectionPolicy,
-                     selection: dict[str, Any] | None,
                      white_y_cov: np.ndarray | None = None,
                      final: bool = True) -> InertiaEstimate:
     """Every method but ``ml``: noise levels, then :func:`_estimate_shifted` from ``t = 0``
@@ -254,8 +276,6 @@ def _estimate_direct(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray,
     gyro_std, torque_std = _noise_levels(w, tau, gyro_noise, torque_noise)
     diag: dict[str, Any] = {'gyro_noise_std': gyro_std, 'torque_noise_std': torque_std,
                             'warnings': []}
-    if selection is not None:
-        diag['method_selection'] = selection
 
     def run(h: str, d: dict[str, Any], head: int | None = None, final: bool = True,
             chosen: tuple[float | None, dict[str, Any]] | None = None,
@@ -660,19 +680,6 @@ def _homogeneous(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau
     eq = equations_for(meth, tg, w, ts, tau, mask, breaks, hold, gyro_var, window)
     return torque_free_checked(eq, tg[mask], w[mask], segment, gyro_var, diag, base,
                                policy.gyro_scale_std, policy.torque_scale_std)
-
-
-def _maximum_likelihood(first: InertiaEstimate, tg: np.ndarray, w: np.ndarray, ts: np.ndarray,
-                        tau: np.ndarray, hold: str, axis: np.ndarray | None,
-                        selection: dict[str, Any] | None) -> InertiaEstimate:
-    """Refine an ``integral`` estimate by maximum likelihood (:func:`.ml.refine`).
-
-    ``selection`` (the ``method='auto'`` record) goes to ``diagnostics['method_selection']``.
-    """
-    res = _refine(first, tg, w, ts, tau, hold, axis)
-    if selection is not None:
-        res.diagnostics['method_selection'] = selection
-    return res
 
 
 def _refine(first: InertiaEstimate, tg: np.ndarray, w: np.ndarray, ts: np.ndarray,
