@@ -93,7 +93,8 @@ from .equations import Equations, build_equations, is_prefix, shared_integral_eq
 from .filtered import equations_for
 from .fit import Fit, equation_weight, fit_two_pass
 from .homogeneous import is_torque_free, torque_free_checked
-from .model import model_basis, symmetry_axis
+from .model import model_basis
+from .model import symmetry_axis as unit_axis
 from .noise import isotropy_floor, noise_std_from_differences
 from .nuisance import nuisance_hook
 from .options import (
@@ -221,10 +222,17 @@ def estimate_arrays(tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.ndarr
     method other than ``auto`` and ``ml`` without the adequacy tests (a sensitivity
     re-estimation whose tensor alone is used).
     """
-    policy, axis = _check_options(method, model, torque_bias, hold, symmetry_axis,
-                                  SelectionPolicy(alpha, identifiability_tol, physical,
-                                                  torque_scale_std, gyro_scale_std))
-    _check_counts(tg, ts)
+    # :func:`.config.require` checked the other options (a bool torque_bias it takes: here)
+    check_choice('method', method, METHODS)
+    check_choice('torque_bias', torque_bias, TORQUE_BIAS)
+    policy = SelectionPolicy(alpha, identifiability_tol, physical, torque_scale_std,
+                             gyro_scale_std)
+    axis = unit_axis(symmetry_axis)
+    if len(tg) < 6:
+        raise ValueError(f't_gyro: {len(tg)} samples is fewer than the 6 inertia parameters')
+    if len(ts) == 1:
+        raise ValueError('t_torque: a single torque sample covers no time; give at least 2 '
+                         '(or none for torque-free data)')
     if method == 'auto':      # the formulation and band by evidence (:mod:`.method_choice`)
         return _auto_method(tg, w, ts, tau, hold, gyro_noise, torque_noise, segment, window,
                             model, torque_bias, axis, policy, rotation_hz, white_y_cov)
@@ -441,28 +449,6 @@ def _segment_choice(est: InertiaEstimate | None, from_head: bool
     if from_head and seg is None:
         return None
     return seg, est.diagnostics['segment_selection']
-
-
-def _check_counts(tg: np.ndarray, ts: np.ndarray) -> None:
-    """Enough gyro samples for the parameters; no single torque sample."""
-    if len(tg) < 6:
-        raise ValueError(f't_gyro: {len(tg)} samples is fewer than the 6 inertia parameters')
-    if len(ts) == 1:
-        raise ValueError('t_torque: a single torque sample covers no time; give at least 2 '
-                         '(or none for torque-free data)')
-
-
-def _check_options(method: str, model: str, torque_bias: str, hold: str, axis: Any,
-                   policy: SelectionPolicy) -> tuple[SelectionPolicy, np.ndarray | None]:
-    """Validate the option names (the policy checked its numbers); the policy, the unit axis."""
-    check_choice('method', method, METHODS)
-    check_choice('model', model, MODELS)
-    check_choice('torque_bias', torque_bias, TORQUE_BIAS)
-    check_choice('hold', hold, BATCH_HOLDS)
-    unit = symmetry_axis(axis)
-    if model == 'axisymmetric' and unit is None:
-        raise ValueError("symmetry_axis: required for model='axisymmetric'")
-    return policy, unit
 
 
 def _noise_levels(w: np.ndarray, tau: np.ndarray, gyro_noise: Any,

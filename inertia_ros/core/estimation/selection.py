@@ -41,7 +41,8 @@ FitFunction = Callable[..., Fit]
 
 @dataclass(frozen=True)
 class SelectionPolicy:
-    """The numbers of the identifiability and model-selection rules.
+    """The numbers of the identifiability and model-selection rules (validated once, before,
+    by :func:`.config.require`).
 
     Attributes
     ----------
@@ -62,19 +63,6 @@ class SelectionPolicy:
     physical: bool = True
     torque_scale_std: float = 0.0
     gyro_scale_std: float = 0.0
-
-    def __post_init__(self) -> None:
-        """Check the numbers (one clear ValueError each)."""
-        if not 0.0 < self.alpha < 1.0:
-            raise ValueError(f'alpha: must be in (0, 1), got {self.alpha!r}')
-        if not 0.0 < self.identifiability_tol:
-            raise ValueError(f'identifiability_tol: must be > 0, got '
-                             f'{self.identifiability_tol!r}')
-        for name in ('torque_scale_std', 'gyro_scale_std'):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not 0.0 <= v <= 0.5:
-                raise ValueError(f'{name}: must be a relative one-sigma scale uncertainty in '
-                                 f'[0, 0.5] (0.01 = 1 %), got {v!r}')
 
 
 def conditioning(fit: Fit, names: list[str]) -> dict[str, Any]:
