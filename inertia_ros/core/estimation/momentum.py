@@ -190,17 +190,9 @@ def wheel_inputs(t: Any, speed: Any, wheels: list[Wheel]) -> Momentum:
 
 
 def wheels_momentum(t: Any, speed: Any, wheels: list[Wheel]) -> Momentum:
-    """:class:`Momentum` of sampled wheel speeds (:func:`wheel_inputs`), validated, with the
-    noise covariance of ``h`` from the speeds' white noise (high-order differences per wheel).
-
-    Parameters
-    ----------
-    t : array_like, shape (K,)
-        Sample times [s].
-    speed : array_like, shape (K, n_wheels)
-        Wheel speeds [rad/s], columns in the order of ``wheels``.
-    wheels : list of Wheel
-    """
+    """:class:`Momentum` of sampled wheel speeds (:func:`wheel_inputs`, the same
+    parameters), validated, with the noise covariance of ``h`` from the speeds' white noise
+    (high-order differences per wheel)."""
     from .noise import noise_std_from_differences
 
     m = wheel_inputs(t, speed, wheels)
@@ -311,20 +303,10 @@ def equivalent_torque(tg: np.ndarray, w: np.ndarray, t_h: np.ndarray, h: np.ndar
 
 
 class Reduction:
-    """:func:`equivalent_torque` on fixed stamps for many inputs (the stated inputs'
-    re-estimations): the coverage, the grid, the interpolation weights and the rates on the
-    grid (for the same ``w`` object) are computed once; the same numbers, bit for bit.
-
-    Parameters
-    ----------
-    tg : ndarray, shape (N,)
-        Gyro times [s].
-    t_h : ndarray, shape (K,)
-        Momentum times [s].
-    ts : ndarray, shape (M,)
-        Other torque's times [s] (M = 0: none).
-    hold : {'zoh', 'linear'}
-        Hold of the other torque.
+    """:func:`equivalent_torque` on fixed stamps ``tg``, ``t_h``, ``ts`` and ``hold`` (as
+    there) for many inputs (the stated inputs' re-estimations): the coverage, the grid, the
+    interpolation weights and the rates on the grid (for the same ``w`` object) are computed
+    once; the same numbers, bit for bit.
     """
 
     def __init__(self, tg: np.ndarray, t_h: np.ndarray, ts: np.ndarray, hold: str) -> None:

@@ -27,9 +27,9 @@ from .model import describe_direction, model_basis
 from .options import ALPHA, IDENTIFIABILITY_TOL
 from .tails import chi2_sf
 
-__all__ = ['HOLD_ALPHA', 'FitFunction', 'SelectionPolicy', 'complement', 'conditioning',
-           'held_leak', 'hold_rule', 'identifiable', 'select_bias', 'select_hold', 'select_model',
-           'undetermined', 'wald']
+__all__ = ['HOLD_ALPHA', 'FitFunction', 'SelectionPolicy', 'bias_test', 'complement',
+           'conditioning', 'held_leak', 'hold_rule', 'identifiable', 'select_bias',
+           'select_hold', 'select_model', 'undetermined', 'wald']
 
 _SIGNAL_SHARE = 0.5                            # conditional signal share of a determined element
 _NULL_FRACTION = 0.01                          # signal fraction of an empty direction
@@ -195,13 +195,19 @@ def select_bias(fit: FitFunction, f: Fit, alpha: float) -> tuple[Fit, bool, dict
     kept : bool
         The bias stays.
     record : dict
-        ``wald, dof, p_value, kept``.
+        ``wald, dof, p_value, kept`` (:func:`bias_test`).
     """
-    stat, dof, pval = wald(f.beta, f.cov, np.eye(9)[6:])
-    kept = pval < alpha
-    if not kept:
+    record = bias_test(f, alpha)
+    if not record['kept']:
         f = fit(np.eye(6), False, theta0=f.basis @ f.beta[:6])
-    return f, bool(kept), {'wald': stat, 'dof': dof, 'p_value': pval, 'kept': bool(kept)}
+    return f, record['kept'], record
+
+
+def bias_test(f: Fit, alpha: float) -> dict[str, Any]:
+    """The Wald test at level ``alpha`` of ``d = 0`` on a fit ``f`` with the torque bias:
+    ``wald, dof, p_value, kept`` (the bias is kept when the test rejects)."""
+    stat, dof, pval = wald(f.beta, f.cov, np.eye(len(f.beta))[f.basis.shape[1]:])
+    return {'wald': stat, 'dof': dof, 'p_value': pval, 'kept': bool(pval < alpha)}
 
 
 def select_model(f: Fit, axis: np.ndarray | None, alpha: float) -> tuple[str, dict[str, Any]]:
