@@ -409,7 +409,8 @@ def _noise_terms(red: Reduction, w: np.ndarray, mom: Momentum, ts: np.ndarray,
     torque's noise (scaled to the grid) with the white torque noises of the ``w x h``
     integral added, and how many gyro samples share one wheel sample.
     """
-    from .noise import isotropy_floor, noise_std_from_differences
+    from .batch import _noise_levels
+    from .noise import noise_std_from_differences
 
     tg, grid = red.tg, red.grid
     tn = options.pop('torque_noise', None)
@@ -431,9 +432,7 @@ def _noise_terms(red: Reduction, w: np.ndarray, mom: Momentum, ts: np.ndarray,
     # the gyro noise n in the w x h integral is a white torque noise n x h held over each
     # grid interval (the torque-noise random walk of the anchored model); so is the wheel
     # noise e in it, w x e (times the gyro samples sharing one wheel sample)
-    gn = options.get('gyro_noise')
-    g_std = (isotropy_floor(noise_std_from_differences(w[red.inside])) if gn is None
-             else np.broadcast_to(np.asarray(gn, dtype=float), (3,)))
+    g_std = _noise_levels(w[red.inside], tau[:0], options.get('gyro_noise'), None)[0]
     sums = walk_sums(_interp_h(mom.t, mom.h, grid, red.gaps, red.basis), red.rates(w))
     walk = walk_variance(*sums, g_std ** 2, mom.noise_cov, share)
     return np.sqrt(tn ** 2 + walk), share
