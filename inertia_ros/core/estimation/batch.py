@@ -285,10 +285,11 @@ def _estimate_direct(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray,
     diag: dict[str, Any] = {'gyro_noise_std': gyro_std, 'torque_noise_std': torque_std,
                             'warnings': []}
 
-    def run(h: str, d: dict[str, Any], head: int | None = None, final: bool = True,
+    def run(h: str, head: int | None = None, final: bool = True,
             chosen: tuple[float | None, dict[str, Any]] | None = None,
             shared: dict[str, Any] | None = None) -> InertiaEstimate:
-        """The estimate with hold ``h`` (on the first ``head`` gyro samples when given;
+        """The estimate with hold ``h`` on its own copy of the diagnostics so far (on the
+        first ``head`` gyro samples when given;
         without the adequacy tests, which do not change the residual excess, unless
         ``final``; with the segment length ``chosen`` by an earlier run when given; the
         equations shared with the other hold's run through ``shared``)."""
@@ -296,15 +297,16 @@ def _estimate_direct(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray,
         m = len(ts) if head is None else int(np.searchsorted(ts, tg[n - 1], side='right')) + 1
         return _estimate_shifted(method, tg[:n] - t_origin, w[:n], ts[:m] - t_origin, tau[:m],
                                  h, gyro_std ** 2, torque_std ** 2, segment, window, model,
-                                 torque_bias, axis, policy, d, white_y_cov, final, chosen,
-                                 shared)
+                                 torque_bias, axis, policy,
+                                 dict(diag, warnings=list(diag['warnings'])), white_y_cov,
+                                 final, chosen, shared)
     if hold != 'auto':
-        return run(hold, diag, final=final)
-    return _auto_hold(run, diag, torque_std, len(tg), (tg - t_origin, w, ts - t_origin, tau,
-                                                        gyro_std ** 2, torque_std ** 2))
+        return run(hold, final=final)
+    return _auto_hold(run, torque_std, len(tg), (tg - t_origin, w, ts - t_origin, tau,
+                                                  gyro_std ** 2, torque_std ** 2))
 
 
-def _auto_hold(run: Any, diag: dict[str, Any], torque_std: np.ndarray, n_gyro: int,
+def _auto_hold(run: Any, torque_std: np.ndarray, n_gyro: int,
                data: tuple[np.ndarray, ...]) -> InertiaEstimate:
     """``hold='auto'``: both holds, the one the data support (:func:`.selection.select_hold`).
 
@@ -323,10 +325,9 @@ def _auto_hold(run: Any, diag: dict[str, Any], torque_std: np.ndarray, n_gyro: i
     results = {}
     shared: dict[str, Any] = {}          # the runs' equations (shared_integral_equations)
     for h in HOLDS:
-        d = dict(diag, warnings=list(diag['warnings']))
         # the held result is the usual answer: complete; the linear one only when chosen, and
         # at the held one's segment length (the same segmentation compares the holds fairly)
-        results[h] = run(h, d, head, final=h == 'zoh' and head is None,
+        results[h] = run(h, head, final=h == 'zoh' and head is None,
                          chosen=_segment_choice(results.get('zoh'), False), shared=shared)
         if h == 'zoh' and (results[h].model == 'homogeneous' or not np.any(torque_std > 0)):
             break
@@ -341,12 +342,11 @@ def _auto_hold(run: Any, diag: dict[str, Any], torque_std: np.ndarray, n_gyro: i
     else:
         chosen, record = select_hold(*rss, HOLD_ALPHA)
     est = results[chosen] if chosen == 'zoh' and head is None else run(
-        chosen, dict(diag, warnings=list(diag['warnings'])),
-        chosen=_segment_choice(results[chosen], head is not None))
+        chosen, chosen=_segment_choice(results[chosen], head is not None))
     if head is None and record.get('p_value') is not None and chosen == 'zoh' and (
             record['p_value'] >= HOLD_ALPHA or est.status == 'model_mismatch'):
         rec = record if record['p_value'] >= HOLD_ALPHA else {}   # (noted when it moves)
-        chosen, est = _hold_by_adequacy(run, diag, results, est, rec)
+        chosen, est = _hold_by_adequacy(run, results, est, rec)
         record.update(rec if chosen == 'linear' else {})
     elif head is None and chosen == 'linear' and est.status == 'model_mismatch' \
             and results['zoh'].status == 'ok':       # (the same evidence, the other way)
@@ -360,9 +360,8 @@ def _auto_hold(run: Any, diag: dict[str, Any], torque_std: np.ndarray, n_gyro: i
     return est
 
 
-def _hold_by_adequacy(run: Any, diag: dict[str, Any], results: dict[str, InertiaEstimate],
-                      held: InertiaEstimate, record: dict[str, Any]
-                      ) -> tuple[str, InertiaEstimate]:
+def _hold_by_adequacy(run: Any, results: dict[str, InertiaEstimate], held: InertiaEstimate,
+                      record: dict[str, Any]) -> tuple[str, InertiaEstimate]:
     """The adequacy tests over the likelihoods: a hold whose fit fails them is not kept.
 
     The held fit failing the adequacy tests (window consistency, residual excess) while the
@@ -373,8 +372,7 @@ def _hold_by_adequacy(run: Any, diag: dict[str, Any], results: dict[str, Inertia
     """
     if held.diagnostics.get('adequacy', {}).get('ok', True):
         return 'zoh', held
-    lin = run('linear', dict(diag, warnings=list(diag['warnings'])),
-              chosen=_segment_choice(results['linear'], False))
+    lin = run('linear', chosen=_segment_choice(results['linear'], False))
     ok = bool(lin.diagnostics.get('adequacy', {}).get('ok', False))
     record['adequacy'] = {'zoh_ok': False, 'linear_ok': ok,
                           'rule': 'the likelihoods cannot tell: linear when the held fit fails '
