@@ -108,18 +108,10 @@ CAPABILITIES: dict[str, dict[str, dict[str, str]]] = {
         'gyro_scale_std': _row(),
         'adequacy': _row(),
     },
-    'recursive': {
-        'input': _row(),
-        # both holds' statistics on the same rows, chosen by the batch rule (online_hold.py);
-        # with wheels/rotors the other torque's two reductions (nothing held without one)
-        'hold_auto': _row(),
-        'hold_zoh': _row(), 'hold_linear': _row(),
-        'model_auto': _row(), 'torque_bias_auto': _row(),
-        'nuisance': _all(_NO_NUISANCE),
-        'torque_scale_std': _row(wheels=_TORQUE_SCALE_MOM, rotors=_TORQUE_SCALE_MOM,
-                                 torque_free=_TF_TORQUE_SCALE),
-        'gyro_scale_std': _row(), 'adequacy': _row(),
-    },
+    # the batch cells but the nuisance terms (derived below): both holds' statistics on the
+    # same rows, chosen by the batch rule (online_hold.py); with wheels/rotors the other
+    # torque's two reductions (nothing held without one)
+    'recursive': {},
     'tracking': {
         # wheels and rotors: the momentum input reduced as the recursive mode's (one road)
         'input': _row(torque_free='the tracking filter needs torque for the scale; use '
@@ -141,6 +133,8 @@ CAPABILITIES: dict[str, dict[str, dict[str, str]]] = {
     # estimate_with_momentum), so the cells are the batch ones: derived, not copied
     'window': {},
 }
+CAPABILITIES['recursive'] = {feature: dict(row) for feature, row in CAPABILITIES['batch'].items()}
+CAPABILITIES['recursive']['nuisance'] = _all(_NO_NUISANCE)
 CAPABILITIES['window'] = {feature: dict(row) for feature, row in CAPABILITIES['batch'].items()}
 
 
