@@ -87,12 +87,12 @@ def test_adequacy_decides_when_the_likelihoods_cannot() -> None:
     for lin_ok, want in ((True, 'linear'), (False, 'zoh')):
         lin = est(lin_ok)
         record: dict = {}
-        chosen, got = _hold_by_adequacy(lambda *a, lin=lin, **k: lin, {'warnings': []},
-                                        {'linear': est(True)}, held, record)
+        chosen, got = _hold_by_adequacy(lambda *a, lin=lin, **k: lin, {'linear': est(True)},
+                                        held, record)
         assert chosen == want and got is (lin if lin_ok else held)
         assert record['adequacy']['zoh_ok'] is False and record['adequacy']['linear_ok'] is lin_ok
     adequate = est(True)           # the held fit passes: linear is not even run
-    assert _hold_by_adequacy(None, {'warnings': []}, {}, adequate, {}) == ('zoh', adequate)
+    assert _hold_by_adequacy(None, {}, adequate, {}) == ('zoh', adequate)
 
 
 def test_held_torque_keeps_zoh_and_ml() -> None:

@@ -3,7 +3,7 @@
 Public API::
 
     estimate(t_gyro, omega, t_torque, torque, *, method='auto', model='auto',
-             torque_bias='auto', symmetry_axis=None, hold='zoh', ...) -> InertiaEstimate
+             torque_bias='auto', symmetry_axis=None, hold='auto', ...) -> InertiaEstimate
     RecursiveEstimator(model='full', torque_bias=False, forgetting=1.0, window=None,
                        hold='zoh')
 

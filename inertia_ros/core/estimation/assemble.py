@@ -33,13 +33,13 @@ from .result import InertiaEstimate
 from .selection import (
     FitFunction,
     SelectionPolicy,
+    bias_test,
     conditioning,
     held_leak,
     identifiable,
     select_bias,
     select_model,
     undetermined,
-    wald,
 )
 from .uncertainty import principal_with_std, ratio_cov
 
@@ -116,11 +116,9 @@ def _partial(fit: FitFunction, f: Fit, free: np.ndarray, scale: float, torque_bi
              bias: bool, alpha: float, diag: dict[str, Any]) -> Fit:
     """The fit of a partially identifiable tensor: the bias kept only if a Wald test says so."""
     if torque_bias == 'auto' and bias:
-        k = f.basis.shape[1]
-        stat, dof, pval = wald(f.beta, f.cov, np.eye(len(f.beta))[k:])
-        diag['model_selection'] = {'bias': {'wald': stat, 'dof': dof, 'p_value': pval,
-                                            'kept': bool(pval < alpha)}}
-        if pval >= alpha:
+        test = bias_test(f, alpha)
+        diag['model_selection'] = {'bias': test}
+        if test['p_value'] >= alpha:
             held = f.offset if f.offset is not None else np.zeros(6)
             f = fit(np.eye(6)[:, free], False, held)
             f.cov = f.cov + held_leak(f, free, scale)

@@ -93,7 +93,8 @@ from .equations import Equations, build_equations, is_prefix, shared_integral_eq
 from .filtered import equations_for
 from .fit import Fit, equation_weight, fit_two_pass
 from .homogeneous import is_torque_free, torque_free_checked
-from .model import model_basis, symmetry_axis
+from .model import model_basis
+from .model import symmetry_axis as unit_axis
 from .noise import isotropy_floor, noise_std_from_differences
 from .nuisance import nuisance_hook
 from .options import (
@@ -196,20 +197,51 @@ def estimate(t_gyro: Any, omega: Any, t_torque: Any, torque: Any, *,
     ts = as_times(t_torque, 't_torque')
     _ = [refuse_nanoseconds(t, name) for t, name in ((tg, 't_gyro'), (ts, 't_torque'))]
     tau = as_samples(torque, len(ts), 'torque', 't_torque')
-    policy, axis = _check_options(method, model, torque_bias, hold, symmetry_axis,
-                                  SelectionPolicy(alpha, identifiability_tol, physical,
-                                                  torque_scale_std, gyro_scale_std))
-    _check_counts(tg, ts)
+    return estimate_arrays(tg, w, ts, tau, method=method, model=model, torque_bias=torque_bias,
+                           symmetry_axis=symmetry_axis, hold=hold, alpha=alpha,
+                           gyro_noise=gyro_noise, torque_noise=torque_noise, segment=segment,
+                           window=window, identifiability_tol=identifiability_tol,
+                           physical=physical, torque_scale_std=torque_scale_std,
+                           gyro_scale_std=gyro_scale_std, rotation_hz=rotation_hz)
+
+
+def estimate_arrays(tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.ndarray, *,
+                    method: str = 'auto', model: str = 'auto', torque_bias: str = 'auto',
+                    symmetry_axis: Any = None, hold: str = 'auto', alpha: float = ALPHA,
+                    gyro_noise: Any = None, torque_noise: Any = None,
+                    segment: float | None = None, window: float | None = None,
+                    identifiability_tol: float = IDENTIFIABILITY_TOL, physical: bool = True,
+                    torque_scale_std: float = 0.0, gyro_scale_std: float = 0.0,
+                    rotation_hz: float | None = None, white_y_cov: np.ndarray | None = None,
+                    final: bool = True) -> InertiaEstimate:
+    """:func:`estimate` on validated arrays, every input's one dispatch (a momentum input's
+    equivalent held torque too, :func:`.momentum.estimate_with_momentum`): the options
+    checked, the method choice, ``integral`` then the ``ml`` refinement.
+
+    ``white_y_cov`` (3, 3): a momentum input's white wheel noise in ``y``; ``final=False``: a
+    method other than ``auto`` and ``ml`` without the adequacy tests (a sensitivity
+    re-estimation whose tensor alone is used).
+    """
+    # :func:`.config.require` checked the other options (a bool torque_bias it takes: here)
+    check_choice('method', method, METHODS)
+    check_choice('torque_bias', torque_bias, TORQUE_BIAS)
+    policy = SelectionPolicy(alpha, identifiability_tol, physical, torque_scale_std,
+                             gyro_scale_std)
+    axis = unit_axis(symmetry_axis)
+    if len(tg) < 6:
+        raise ValueError(f't_gyro: {len(tg)} samples is fewer than the 6 inertia parameters')
+    if len(ts) == 1:
+        raise ValueError('t_torque: a single torque sample covers no time; give at least 2 '
+                         '(or none for torque-free data)')
     if method == 'auto':      # the formulation and band by evidence (:mod:`.method_choice`)
         return _auto_method(tg, w, ts, tau, hold, gyro_noise, torque_noise, segment, window,
-                            model, torque_bias, axis, policy, rotation_hz)
-    if method == 'ml':
-        first = _estimate_direct('integral', tg, w, ts, tau, hold, gyro_noise, torque_noise,
-                                 segment, window, model, torque_bias, axis, policy, None)
-        return _maximum_likelihood(first, tg, w, ts, tau,
-                                   first.diagnostics.get('hold', hold), axis, None)
-    return _estimate_direct(method, tg, w, ts, tau, hold, gyro_noise, torque_noise, segment,
-                            window, model, torque_bias, axis, policy, None)
+                            model, torque_bias, axis, policy, rotation_hz, white_y_cov)
+    first = _estimate_direct('integral' if method == 'ml' else method, tg, w, ts, tau, hold,
+                             gyro_noise, torque_noise, segment, window, model, torque_bias,
+                             axis, policy, white_y_cov, final or method == 'ml')
+    if method != 'ml':
+        return first
+    return _refine(first, tg, w, ts, tau, first.diagnostics.get('hold', hold), axis)
 
 
 def _auto_method(tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.ndarray, hold: str,
@@ -222,15 +254,14 @@ def _auto_method(tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.ndarray,
     from .method_choice import choose
 
     first = _estimate_direct('integral', tg, w, ts, tau, hold, gyro_noise, torque_noise,
-                             segment, window, model, torque_bias, axis, policy, None,
-                             white_y_cov)
+                             segment, window, model, torque_bias, axis, policy, white_y_cov)
     used = first.diagnostics.get('hold', hold)
     return choose(
         first, (tg, w, ts, tau), used, len(tg),
         lambda f: _refine(f, tg, w, ts, tau, used, axis),
         lambda fc: _estimate_direct('filtered', tg, w, ts, tau, used, gyro_noise, torque_noise,
                                     None, window or 1.0 / fc, model, torque_bias, axis, policy,
-                                    None, white_y_cov),
+                                    white_y_cov),
         rotation_hz)
 
 
@@ -238,7 +269,6 @@ def _estimate_direct(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray,
                      tau: np.ndarray, hold: str, gyro_noise: Any, torque_noise: Any,
                      segment: float | None, window: float | None, model: str,
                      torque_bias: str, axis: np.ndarray | None, policy: SelectionPolicy,
-                     selection: dict[str, Any] | None,
                      white_y_cov: np.ndarray | None = None,
                      final: bool = True) -> InertiaEstimate:
     """Every method but ``ml``: noise levels, then :func:`_estimate_shifted` from ``t = 0``
@@ -254,13 +284,12 @@ def _estimate_direct(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray,
     gyro_std, torque_std = _noise_levels(w, tau, gyro_noise, torque_noise)
     diag: dict[str, Any] = {'gyro_noise_std': gyro_std, 'torque_noise_std': torque_std,
                             'warnings': []}
-    if selection is not None:
-        diag['method_selection'] = selection
 
-    def run(h: str, d: dict[str, Any], head: int | None = None, final: bool = True,
+    def run(h: str, head: int | None = None, final: bool = True,
             chosen: tuple[float | None, dict[str, Any]] | None = None,
             shared: dict[str, Any] | None = None) -> InertiaEstimate:
-        """The estimate with hold ``h`` (on the first ``head`` gyro samples when given;
+        """The estimate with hold ``h`` on its own copy of the diagnostics so far (on the
+        first ``head`` gyro samples when given;
         without the adequacy tests, which do not change the residual excess, unless
         ``final``; with the segment length ``chosen`` by an earlier run when given; the
         equations shared with the other hold's run through ``shared``)."""
@@ -268,15 +297,16 @@ def _estimate_direct(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray,
         m = len(ts) if head is None else int(np.searchsorted(ts, tg[n - 1], side='right')) + 1
         return _estimate_shifted(method, tg[:n] - t_origin, w[:n], ts[:m] - t_origin, tau[:m],
                                  h, gyro_std ** 2, torque_std ** 2, segment, window, model,
-                                 torque_bias, axis, policy, d, white_y_cov, final, chosen,
-                                 shared)
+                                 torque_bias, axis, policy,
+                                 dict(diag, warnings=list(diag['warnings'])), white_y_cov,
+                                 final, chosen, shared)
     if hold != 'auto':
-        return run(hold, diag, final=final)
-    return _auto_hold(run, diag, torque_std, len(tg), (tg - t_origin, w, ts - t_origin, tau,
-                                                        gyro_std ** 2, torque_std ** 2))
+        return run(hold, final=final)
+    return _auto_hold(run, torque_std, len(tg), (tg - t_origin, w, ts - t_origin, tau,
+                                                  gyro_std ** 2, torque_std ** 2))
 
 
-def _auto_hold(run: Any, diag: dict[str, Any], torque_std: np.ndarray, n_gyro: int,
+def _auto_hold(run: Any, torque_std: np.ndarray, n_gyro: int,
                data: tuple[np.ndarray, ...]) -> InertiaEstimate:
     """``hold='auto'``: both holds, the one the data support (:func:`.selection.select_hold`).
 
@@ -295,10 +325,9 @@ def _auto_hold(run: Any, diag: dict[str, Any], torque_std: np.ndarray, n_gyro: i
     results = {}
     shared: dict[str, Any] = {}          # the runs' equations (shared_integral_equations)
     for h in HOLDS:
-        d = dict(diag, warnings=list(diag['warnings']))
         # the held result is the usual answer: complete; the linear one only when chosen, and
         # at the held one's segment length (the same segmentation compares the holds fairly)
-        results[h] = run(h, d, head, final=h == 'zoh' and head is None,
+        results[h] = run(h, head, final=h == 'zoh' and head is None,
                          chosen=_segment_choice(results.get('zoh'), False), shared=shared)
         if h == 'zoh' and (results[h].model == 'homogeneous' or not np.any(torque_std > 0)):
             break
@@ -313,12 +342,11 @@ def _auto_hold(run: Any, diag: dict[str, Any], torque_std: np.ndarray, n_gyro: i
     else:
         chosen, record = select_hold(*rss, HOLD_ALPHA)
     est = results[chosen] if chosen == 'zoh' and head is None else run(
-        chosen, dict(diag, warnings=list(diag['warnings'])),
-        chosen=_segment_choice(results[chosen], head is not None))
+        chosen, chosen=_segment_choice(results[chosen], head is not None))
     if head is None and record.get('p_value') is not None and chosen == 'zoh' and (
             record['p_value'] >= HOLD_ALPHA or est.status == 'model_mismatch'):
         rec = record if record['p_value'] >= HOLD_ALPHA else {}   # (noted when it moves)
-        chosen, est = _hold_by_adequacy(run, diag, results, est, rec)
+        chosen, est = _hold_by_adequacy(run, results, est, rec)
         record.update(rec if chosen == 'linear' else {})
     elif head is None and chosen == 'linear' and est.status == 'model_mismatch' \
             and results['zoh'].status == 'ok':       # (the same evidence, the other way)
@@ -332,9 +360,8 @@ def _auto_hold(run: Any, diag: dict[str, Any], torque_std: np.ndarray, n_gyro: i
     return est
 
 
-def _hold_by_adequacy(run: Any, diag: dict[str, Any], results: dict[str, InertiaEstimate],
-                      held: InertiaEstimate, record: dict[str, Any]
-                      ) -> tuple[str, InertiaEstimate]:
+def _hold_by_adequacy(run: Any, results: dict[str, InertiaEstimate], held: InertiaEstimate,
+                      record: dict[str, Any]) -> tuple[str, InertiaEstimate]:
     """The adequacy tests over the likelihoods: a hold whose fit fails them is not kept.
 
     The held fit failing the adequacy tests (window consistency, residual excess) while the
@@ -345,8 +372,7 @@ def _hold_by_adequacy(run: Any, diag: dict[str, Any], results: dict[str, Inertia
     """
     if held.diagnostics.get('adequacy', {}).get('ok', True):
         return 'zoh', held
-    lin = run('linear', dict(diag, warnings=list(diag['warnings'])),
-              chosen=_segment_choice(results['linear'], False))
+    lin = run('linear', chosen=_segment_choice(results['linear'], False))
     ok = bool(lin.diagnostics.get('adequacy', {}).get('ok', False))
     record['adequacy'] = {'zoh_ok': False, 'linear_ok': ok,
                           'rule': 'the likelihoods cannot tell: linear when the held fit fails '
@@ -421,28 +447,6 @@ def _segment_choice(est: InertiaEstimate | None, from_head: bool
     if from_head and seg is None:
         return None
     return seg, est.diagnostics['segment_selection']
-
-
-def _check_counts(tg: np.ndarray, ts: np.ndarray) -> None:
-    """Enough gyro samples for the parameters; no single torque sample."""
-    if len(tg) < 6:
-        raise ValueError(f't_gyro: {len(tg)} samples is fewer than the 6 inertia parameters')
-    if len(ts) == 1:
-        raise ValueError('t_torque: a single torque sample covers no time; give at least 2 '
-                         '(or none for torque-free data)')
-
-
-def _check_options(method: str, model: str, torque_bias: str, hold: str, axis: Any,
-                   policy: SelectionPolicy) -> tuple[SelectionPolicy, np.ndarray | None]:
-    """Validate the option names (the policy checked its numbers); the policy, the unit axis."""
-    check_choice('method', method, METHODS)
-    check_choice('model', model, MODELS)
-    check_choice('torque_bias', torque_bias, TORQUE_BIAS)
-    check_choice('hold', hold, BATCH_HOLDS)
-    unit = symmetry_axis(axis)
-    if model == 'axisymmetric' and unit is None:
-        raise ValueError("symmetry_axis: required for model='axisymmetric'")
-    return policy, unit
 
 
 def _noise_levels(w: np.ndarray, tau: np.ndarray, gyro_noise: Any,
@@ -660,19 +664,6 @@ def _homogeneous(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau
     eq = equations_for(meth, tg, w, ts, tau, mask, breaks, hold, gyro_var, window)
     return torque_free_checked(eq, tg[mask], w[mask], segment, gyro_var, diag, base,
                                policy.gyro_scale_std, policy.torque_scale_std)
-
-
-def _maximum_likelihood(first: InertiaEstimate, tg: np.ndarray, w: np.ndarray, ts: np.ndarray,
-                        tau: np.ndarray, hold: str, axis: np.ndarray | None,
-                        selection: dict[str, Any] | None) -> InertiaEstimate:
-    """Refine an ``integral`` estimate by maximum likelihood (:func:`.ml.refine`).
-
-    ``selection`` (the ``method='auto'`` record) goes to ``diagnostics['method_selection']``.
-    """
-    res = _refine(first, tg, w, ts, tau, hold, axis)
-    if selection is not None:
-        res.diagnostics['method_selection'] = selection
-    return res
 
 
 def _refine(first: InertiaEstimate, tg: np.ndarray, w: np.ndarray, ts: np.ndarray,

@@ -85,11 +85,6 @@ def _all(note: str) -> dict[str, str]:
     return dict.fromkeys(INPUTS, note)
 
 
-def _mom(note: str, torque: str = YES, torque_free: str = YES) -> dict[str, str]:
-    """A row refused (with ``note``) for the three momentum inputs."""
-    return _row(torque, note, note, torque_free, note)
-
-
 _TF_TORQUE_SCALE = (SUBSTITUTED + 'torque_scale_std=0: a torque scale has no effect on '
                     'torque-free equations (diagnostics.calibration records it)')
 _TF_NUISANCE = (SUBSTITUTED + "nuisance='off': no torque stream to offset or filter "
@@ -105,25 +100,18 @@ CAPABILITIES: dict[str, dict[str, dict[str, str]]] = {
         'hold_auto': _row(),
         'hold_zoh': _row(), 'hold_linear': _row(),
         'model_auto': _row(), 'torque_bias_auto': _row(),
-        'nuisance': _mom(_MOM_NUISANCE, torque_free=_TF_NUISANCE),
+        'nuisance': _row(wheels=_MOM_NUISANCE, rotors=_MOM_NUISANCE, torque_free=_TF_NUISANCE,
+                         wheels_torque=_MOM_NUISANCE),
         # the torque sensor's scale: of the other torque only (issue 26 defect 4)
         'torque_scale_std': _row(wheels=_TORQUE_SCALE_MOM, rotors=_TORQUE_SCALE_MOM,
                                  torque_free=_TF_TORQUE_SCALE),
         'gyro_scale_std': _row(),
         'adequacy': _row(),
     },
-    'recursive': {
-        'input': _row(),
-        # both holds' statistics on the same rows, chosen by the batch rule (online_hold.py);
-        # with wheels/rotors the other torque's two reductions (nothing held without one)
-        'hold_auto': _row(),
-        'hold_zoh': _row(), 'hold_linear': _row(),
-        'model_auto': _row(), 'torque_bias_auto': _row(),
-        'nuisance': _all(_NO_NUISANCE),
-        'torque_scale_std': _row(wheels=_TORQUE_SCALE_MOM, rotors=_TORQUE_SCALE_MOM,
-                                 torque_free=_TF_TORQUE_SCALE),
-        'gyro_scale_std': _row(), 'adequacy': _row(),
-    },
+    # the batch cells but the nuisance terms (derived below): both holds' statistics on the
+    # same rows, chosen by the batch rule (online_hold.py); with wheels/rotors the other
+    # torque's two reductions (nothing held without one)
+    'recursive': {},
     'tracking': {
         # wheels and rotors: the momentum input reduced as the recursive mode's (one road)
         'input': _row(torque_free='the tracking filter needs torque for the scale; use '
@@ -145,6 +133,8 @@ CAPABILITIES: dict[str, dict[str, dict[str, str]]] = {
     # estimate_with_momentum), so the cells are the batch ones: derived, not copied
     'window': {},
 }
+CAPABILITIES['recursive'] = {feature: dict(row) for feature, row in CAPABILITIES['batch'].items()}
+CAPABILITIES['recursive']['nuisance'] = _all(_NO_NUISANCE)
 CAPABILITIES['window'] = {feature: dict(row) for feature, row in CAPABILITIES['batch'].items()}
 
 

@@ -283,32 +283,13 @@ def build_equations(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray,
                     tau: np.ndarray, mask: np.ndarray, breaks: np.ndarray, hold: str,
                     gyro_var: np.ndarray, window: float | None,
                     regressors: np.ndarray | None = None) -> Equations:
-    """Equations of ``method`` from the gyro samples selected by ``mask`` (N,) bool.
+    """Equations of ``method`` (a batch method other than ``auto`` and ``ml``) from the gyro
+    samples selected by ``mask`` (N,) bool, the samples inside the torque coverage.
 
-    Parameters
-    ----------
-    method : str
-        A batch method other than ``auto`` and ``ml``.
-    tg, w, ts, tau : ndarray
-        Gyro times [s] (N,), angular velocity [rad/s] (N, 3), torque times [s] (M,) and
-        torque [N m] (M, 3).
-    mask : ndarray of bool, shape (N,)
-        Gyro samples inside the torque coverage.
-    breaks : ndarray of bool
-        Forced segment starts between the used samples.
-    hold : {'zoh', 'linear'}
-        Torque between samples.
-    gyro_var : ndarray, shape (3,)
-        Gyro white-noise variance [rad^2/s^2].
-    window : float, optional
-        Window [s] of ``integral_sliding`` and ``differential_sg``.
-    regressors : ndarray, shape (n, 10), optional
-        ``integral`` and ``integral_ls``: the regressor columns of these rows from an earlier
-        build (see :func:`integral_equations`).
-
-    Returns
-    -------
-    Equations
+    ``tg, w, ts, tau, breaks, hold`` and ``regressors`` (``integral`` and ``integral_ls``
+    only) are those of :func:`integral_equations`; ``gyro_var`` (3,) the gyro white-noise
+    variance [rad^2/s^2]; ``window`` the window [s] of ``integral_sliding`` and
+    ``differential_sg``.
     """
     # one contiguous run of samples (the common case: all, or all but the ends outside the
     # torque's coverage): views instead of fancy-indexed copies

@@ -29,7 +29,8 @@ _AXES = {'x': np.array([1.0, 0.0, 0.0]), 'y': np.array([0.0, 1.0, 0.0]),
 
 
 def symmetry_axis(value: Any) -> np.ndarray | None:
-    """Unit symmetry axis from ``'x'``/``'y'``/``'z'`` or a 3-vector, or None.
+    """Unit symmetry axis from ``'x'``/``'y'``/``'z'`` or a 3-vector, or None (validated
+    before, by :func:`.config.require`).
 
     Parameters
     ----------
@@ -44,13 +45,8 @@ def symmetry_axis(value: Any) -> np.ndarray | None:
     if value is None:
         return None
     if isinstance(value, str):
-        if value.lower() not in _AXES:
-            raise ValueError(f"symmetry_axis: must be 'x', 'y', 'z' or a 3-vector, got "
-                             f'{value!r}')
-        return _AXES[value.lower()]
+        return _AXES[value]
     v = np.asarray(value, dtype=float)
-    if v.shape != (3,) or not np.all(np.isfinite(v)) or np.linalg.norm(v) == 0:
-        raise ValueError(f'symmetry_axis: must be a finite non-zero 3-vector, got {value!r}')
     return v / np.linalg.norm(v)
 
 

@@ -36,7 +36,6 @@ from typing import Any
 import numpy as np
 
 from .._validate import unit_axis
-from .options import ALPHA, IDENTIFIABILITY_TOL
 
 __all__ = ['Momentum', 'Reduction', 'Wheel', 'as_momentum', 'equivalent_torque',
            'estimate_with_momentum', 'held_over', 'interval_torque', 'nonneg', 'speeds',
@@ -191,17 +190,9 @@ def wheel_inputs(t: Any, speed: Any, wheels: list[Wheel]) -> Momentum:
 
 
 def wheels_momentum(t: Any, speed: Any, wheels: list[Wheel]) -> Momentum:
-    """:class:`Momentum` of sampled wheel speeds (:func:`wheel_inputs`), validated, with the
-    noise covariance of ``h`` from the speeds' white noise (high-order differences per wheel).
-
-    Parameters
-    ----------
-    t : array_like, shape (K,)
-        Sample times [s].
-    speed : array_like, shape (K, n_wheels)
-        Wheel speeds [rad/s], columns in the order of ``wheels``.
-    wheels : list of Wheel
-    """
+    """:class:`Momentum` of sampled wheel speeds (:func:`wheel_inputs`, the same
+    parameters), validated, with the noise covariance of ``h`` from the speeds' white noise
+    (high-order differences per wheel)."""
     from .noise import noise_std_from_differences
 
     m = wheel_inputs(t, speed, wheels)
@@ -312,20 +303,10 @@ def equivalent_torque(tg: np.ndarray, w: np.ndarray, t_h: np.ndarray, h: np.ndar
 
 
 class Reduction:
-    """:func:`equivalent_torque` on fixed stamps for many inputs (the stated inputs'
-    re-estimations): the coverage, the grid, the interpolation weights and the rates on the
-    grid (for the same ``w`` object) are computed once; the same numbers, bit for bit.
-
-    Parameters
-    ----------
-    tg : ndarray, shape (N,)
-        Gyro times [s].
-    t_h : ndarray, shape (K,)
-        Momentum times [s].
-    ts : ndarray, shape (M,)
-        Other torque's times [s] (M = 0: none).
-    hold : {'zoh', 'linear'}
-        Hold of the other torque.
+    """:func:`equivalent_torque` on fixed stamps ``tg``, ``t_h``, ``ts`` and ``hold`` (as
+    there) for many inputs (the stated inputs' re-estimations): the coverage, the grid, the
+    interpolation weights and the rates on the grid (for the same ``w`` object) are computed
+    once; the same numbers, bit for bit.
     """
 
     def __init__(self, tg: np.ndarray, t_h: np.ndarray, ts: np.ndarray, hold: str) -> None:
@@ -428,7 +409,8 @@ def _noise_terms(red: Reduction, w: np.ndarray, mom: Momentum, ts: np.ndarray,
     torque's noise (scaled to the grid) with the white torque noises of the ``w x h``
     integral added, and how many gyro samples share one wheel sample.
     """
-    from .noise import isotropy_floor, noise_std_from_differences
+    from .batch import _noise_levels
+    from .noise import noise_std_from_differences
 
     tg, grid = red.tg, red.grid
     tn = options.pop('torque_noise', None)
@@ -450,9 +432,7 @@ def _noise_terms(red: Reduction, w: np.ndarray, mom: Momentum, ts: np.ndarray,
     # the gyro noise n in the w x h integral is a white torque noise n x h held over each
     # grid interval (the torque-noise random walk of the anchored model); so is the wheel
     # noise e in it, w x e (times the gyro samples sharing one wheel sample)
-    gn = options.get('gyro_noise')
-    g_std = (isotropy_floor(noise_std_from_differences(w[red.inside])) if gn is None
-             else np.broadcast_to(np.asarray(gn, dtype=float), (3,)))
+    g_std = _noise_levels(w[red.inside], tau[:0], options.get('gyro_noise'), None)[0]
     sums = walk_sums(_interp_h(mom.t, mom.h, grid, red.gaps, red.basis), red.rates(w))
     walk = walk_variance(*sums, g_std ** 2, mom.noise_cov, share)
     return np.sqrt(tn ** 2 + walk), share
@@ -520,6 +500,7 @@ def estimate_with_momentum(t_gyro: Any, omega: Any, t_torque: Any, torque: Any,
     w = as_samples(omega, len(tg), 'omega', 't_gyro')
     ts = as_times(t_torque, 't_torque')
     tau = as_samples(torque, len(ts), 'torque', 't_torque')
+    from .batch import estimate_arrays
     from .config import require
     from .options import HOLDS
 
@@ -547,7 +528,8 @@ def estimate_with_momentum(t_gyro: Any, omega: Any, t_torque: Any, torque: Any,
 
     def run(wi: np.ndarray, grid_i: np.ndarray, tq_i: np.ndarray, **opts: Any) -> Any:
         """The estimate on the inside gyro samples ``wi`` and an equivalent torque."""
-        base = _estimate(tg[inside], wi, grid_i, tq_i, torque_noise=tn, **opts)
+        base = estimate_arrays(tg[inside], wi, grid_i, tq_i, hold=HOLDS[0], torque_noise=tn,
+                               **opts)
         diag = dict(base.diagnostics, momentum=info)
         return replace(base, samples_dropped=base.samples_dropped + int(np.sum(~inside)),
                        diagnostics=diag)
@@ -566,42 +548,6 @@ def estimate_with_momentum(t_gyro: Any, omega: Any, t_torque: Any, torque: Any,
     if stated and res.inertia is not None and np.all(np.isfinite(res.inertia)):
         return propagate(res, run, st, options)
     return res if first is options else rerun(res, run, st, np.zeros(len(st.names)), options)
-
-
-def _estimate(tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.ndarray, *,
-              white_y_cov: np.ndarray | None = None, method: str = 'auto', model: str = 'auto',
-              torque_bias: str = 'auto', symmetry_axis: Any = None, alpha: float = ALPHA,
-              gyro_noise: Any = None, torque_noise: Any = None, segment: float | None = None,
-              window: float | None = None, identifiability_tol: float = IDENTIFIABILITY_TOL,
-              physical: bool = True, torque_scale_std: float = 0.0,
-              gyro_scale_std: float = 0.0, rotation_hz: float | None = None,
-              final: bool = True) -> Any:
-    """:func:`.batch.estimate` on the equivalent held torque, with ``white_y_cov`` (the same
-    dispatch: method choice, ``integral`` then the ``ml`` refinement; ``rotation_hz``: the
-    wheels' or rotors' lowest rotation line for ``method='auto'``, :mod:`.method_choice`;
-    ``final=False``: a method other than ``auto`` and ``ml`` without the adequacy tests, for
-    a sensitivity re-estimation whose tensor alone is used)."""
-    from . import batch
-    from .options import HOLDS
-    from .selection import SelectionPolicy
-
-    policy, axis = batch._check_options(
-        method, model, torque_bias, HOLDS[0], symmetry_axis,
-        SelectionPolicy(alpha, identifiability_tol, physical, torque_scale_std, gyro_scale_std))
-    batch._check_counts(tg, ts)
-    selection = None
-    if method == 'auto':        # the batch's choice by evidence (method_choice)
-        return batch._auto_method(tg, w, ts, tau, HOLDS[0], gyro_noise, torque_noise, segment,
-                                  window, model, torque_bias, axis, policy, rotation_hz,
-                                  white_y_cov)
-    first = batch._estimate_direct('integral' if method == 'ml' else method, tg, w, ts, tau,
-                                   HOLDS[0], gyro_noise, torque_noise, segment, window, model,
-                                   torque_bias, axis, policy,
-                                   None if method == 'ml' else selection, white_y_cov,
-                                   final or method == 'ml')
-    if method != 'ml':
-        return first
-    return batch._maximum_likelihood(first, tg, w, ts, tau, HOLDS[0], axis, selection)
 
 
 def _hold_auto(held: Any, run: Any, tg: np.ndarray, w: np.ndarray, mom: Momentum,

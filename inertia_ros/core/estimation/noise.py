@@ -167,10 +167,6 @@ _EPS[0, 1, 2] = _EPS[1, 2, 0] = _EPS[2, 0, 1] = 1.0
 _EPS[0, 2, 1] = _EPS[2, 1, 0] = _EPS[1, 0, 2] = -1.0
 
 
-def _skew(v: np.ndarray) -> np.ndarray:
-    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
-
-
 def gyroscopic_walk_cov(I: np.ndarray, gyro_var: np.ndarray, omega_m2: np.ndarray | None,
                         gyro_dt: float, torque_dt: float) -> np.ndarray:
     """Torque-noise covariance equivalent to the gyro noise the gyroscopic term integrates.

@@ -584,7 +584,8 @@ def with_nuisance(estimate_fn: Callable[..., InertiaEstimate], streams: tuple[An
     kw = dict(kw, nuisance='off')
     if len(ts) < 2 or len(tg) < 2:
         est = estimate_fn(tg, w, ts, tau, **kw)
-        est.diagnostics['nuisance'] = {'requested': _req(request), 'chosen': [],
+        est.diagnostics['nuisance'] = {'requested': request if isinstance(request, str)
+                                       else list(request), 'chosen': [],
                                        'skipped': 'torque-free data: no nuisance fit'}
         return est
     kw_fit = dict(kw)
@@ -617,10 +618,6 @@ def with_nuisance(estimate_fn: Callable[..., InertiaEstimate], streams: tuple[An
     record['theta_std_added'] = np.sqrt(np.diag(added)).tolist()
     est.diagnostics['nuisance'] = record
     return est
-
-
-def _req(request: str | tuple[str, ...]) -> str | list[str]:
-    return request if isinstance(request, str) else list(request)
 
 
 _UNITS = {'gyro_bias': 'rad/s', 'torque_delay': 's', 'damping': 'N m s/rad',

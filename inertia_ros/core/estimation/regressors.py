@@ -32,7 +32,6 @@ __all__ = [
     'MOMENTUM_MAP',
     'MONOMIAL_I',
     'MONOMIAL_J',
-    'MONOMIAL_NAMES',
     'N_REGRESSOR_VARIABLES',
     'VARIABLE_MAP',
     'blocks',
@@ -46,8 +45,6 @@ __all__ = [
     'monomials',
     'variables',
 ]
-
-MONOMIAL_NAMES: tuple[str, ...] = ('xx', 'yy', 'zz', 'xy', 'xz', 'yz')
 
 # E[k] = d I / d theta_k, shape (6, 3, 3).
 _E = theta_to_matrix(np.eye(6))
@@ -124,7 +121,7 @@ def gyroscopic_matrix(m: np.ndarray) -> np.ndarray:
     Parameters
     ----------
     m : ndarray, shape (..., 6)
-        Monomials or their integrals (:data:`MONOMIAL_NAMES` order).
+        Monomials or their integrals (``xx, yy, zz, xy, xz, yz`` order).
 
     Returns
     -------

@@ -171,19 +171,11 @@ class InertiaEstimate:
             ratios_std, identifiable, torque_bias, model, method, samples, covariance,
             diagnostics``; NaN -> None.
         """
-        return {
-            'status': self.status,
-            'inertia': to_jsonable(self.inertia),
-            'inertia_std': to_jsonable(self.inertia_std),
-            'principal_moments': to_jsonable(self.principal_moments),
-            'principal_axes': to_jsonable(self.principal_axes),
-            'ratios': to_jsonable(self.ratios),
-            'ratios_std': to_jsonable(self.ratios_std),
-            'identifiable': {k: bool(v) for k, v in self.identifiable.items()},
-            'torque_bias': to_jsonable(self.torque_bias),
-            'model': self.model,
-            'method': self.method,
-            'samples': {'used': int(self.samples_used), 'dropped': int(self.samples_dropped)},
-            'covariance': to_jsonable(self.covariance),
-            'diagnostics': to_jsonable(self.diagnostics),
-        }
+        out: dict[str, Any] = {'status': self.status}
+        for name in ('inertia', 'inertia_std', 'principal_moments', 'principal_axes', 'ratios',
+                     'ratios_std', 'identifiable', 'torque_bias', 'model', 'method'):
+            out[name] = to_jsonable(getattr(self, name))
+        out['samples'] = {'used': int(self.samples_used), 'dropped': int(self.samples_dropped)}
+        out['covariance'] = to_jsonable(self.covariance)
+        out['diagnostics'] = to_jsonable(self.diagnostics)
+        return out

@@ -28,7 +28,7 @@ from .momentum import Momentum, Reduction
 from .regressors import momentum_matrix
 from .uncertainty import widen
 
-__all__ = ['Stated', 'lhs_columns', 'propagate', 'record_inputs', 'rerun', 'widened']
+__all__ = ['Stated', 'lhs_columns', 'propagate', 'rerun', 'widened']
 
 _MIN_INFORMATION = 4.0          # data information per prior information kept
 _UPDATES = 4
@@ -202,13 +202,18 @@ def propagate(res: Any, run: Any, st: Stated, options: dict[str, Any]) -> Any:
 def widened(est: Any, D: np.ndarray, u: np.ndarray, cov_u: np.ndarray, names: list[str],
             where: str, scale: float, gscale: float) -> Any:
     """``est`` with the stated inputs' ``D' cov_u D`` added to its covariance and every
-    uncertainty derived from it (:func:`.uncertainty.widen`), and their record
-    (:func:`record_inputs`), batch and online alike.
+    uncertainty derived from it (:func:`.uncertainty.widen`), and their record, batch and
+    online alike.
 
     ``D`` (q, 6): the change of ``theta`` per stated sigma of each input; ``u`` (q,), ``cov_u``
     (q, q): their posterior mean [stated sigmas] and covariance; ``names`` (q): the inputs;
     ``where``: the equations the profile ran on; ``scale``, ``gscale``: the stated torque and
     gyro scale sigmas.
+
+    The record: ``diagnostics['input_uncertainty']`` (alias ``wheel_inertia``), each input's
+    change, profiled and posterior sigmas, the standard errors added (``D cov_u D'``), the
+    posterior covariance and the rule; the stated scales in ``diagnostics['calibration']``; a
+    ``model_mismatch`` reason says the stated sigmas do not explain it.
     """
     outer = D.T @ cov_u @ D
     per = {nm: {'theta_change': D[j], 'profiled_sigmas': float(u[j]),
@@ -217,21 +222,7 @@ def widened(est: Any, D: np.ndarray, u: np.ndarray, cov_u: np.ndarray, names: li
     out = widen(est, outer)
     if out is est:
         out = replace(est, diagnostics=dict(est.diagnostics))
-    record_inputs(out.diagnostics, per, outer, cov_u, where, scale, gscale, out.status)
-    return out
-
-
-def record_inputs(diag: dict[str, Any], per: dict[str, Any], outer: np.ndarray,
-                  cov_u: np.ndarray, where: str, scale: float, gscale: float,
-                  status: str) -> None:
-    """Write the stated inputs' record into ``diag`` (batch and online alike).
-
-    ``diagnostics['input_uncertainty']`` (alias ``wheel_inertia``): each input's record
-    ``per``, the standard errors added (from ``outer`` (6, 6), ``D cov_u D'``), the posterior
-    covariance ``cov_u`` (q, q) and the rule (``where`` the profile ran); the stated scales in
-    ``diagnostics['calibration']``; a ``model_mismatch`` reason says the stated sigmas do not
-    explain it.
-    """
+    diag = out.diagnostics
     diag['wheel_inertia'] = {
         'inputs': per, 'theta_std_added': np.sqrt(np.diag(outer)), 'posterior_cov': cov_u,
         'rule': f"stated inputs profiled under their N(0, stated sigma) prior on {where}, "
@@ -244,6 +235,7 @@ def record_inputs(diag: dict[str, Any], per: dict[str, Any], outer: np.ndarray,
                      "momentum input) and 'gyro_scale' (the rate in both sides, w x h "
                      'included) of input_uncertainty')
         diag['calibration'] = calib
-    if status == 'model_mismatch' and 'reason' in diag:
+    if out.status == 'model_mismatch' and 'reason' in diag:
         diag['reason'] = (f"{diag['reason']}; beyond what the stated wheel inertias / rotor "
                           'coefficients / sensor scales explain')
+    return out
