@@ -46,7 +46,6 @@ from .options import HOLDS
 from .recursive import RecursiveEstimator
 from .regressors import gyroscopic_matrix, momentum_matrix
 from .result import InertiaEstimate
-from .selection import SelectionPolicy
 from .tracking import TrackingEstimator
 from .tracking_hold import HoldChoice
 from .tracking_input import StreamInput
@@ -101,7 +100,6 @@ class MomentumInput:
         # the gyro's scales the measured rate in both sides, w x h included: a stated input
         # like the others (:mod:`.online_stated`), not a scale of y
         gscale = kwargs.pop('gyro_scale_std', 0.0)
-        SelectionPolicy(torque_scale_std=scale, gyro_scale_std=gscale)     # validates
         self.names = tuple(names)
         self.other_torque = bool(other_torque)
         self._requested = hold
