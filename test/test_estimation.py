@@ -231,6 +231,18 @@ def test_ml_keeps_the_integral_result_when_it_cannot_refine(nominal20):
     assert 'zoh' in lin.diagnostics['ml']['reason']
 
 
+def test_ml_ratios_std_comes_from_the_refined_covariance(nominal20):
+    """ml: the ratios' sigma is the refined covariance's (delta method on I / tr I), as every
+    other reported sigma; it kept the integral stage's, ~25 % larger on the default bag."""
+    from inertia_ros.core.estimation.uncertainty import ratio_cov
+    t_g, w, t_t, tau = add_noise(nominal20, seed=11)
+    ml = estimate(t_g, w, t_t, tau, method='ml')
+    assert ml.method == 'ml' and ml.diagnostics['ml']['refined'] is True
+    theta = matrix_to_theta(ml.inertia)
+    want = theta_to_matrix(np.sqrt(np.diag(ratio_cov(theta, ml.covariance))))
+    np.testing.assert_allclose(ml.ratios_std, want, rtol=1e-9)
+
+
 def test_ml_refine_reports_non_convergence(nominal20):
     """refine() with tol=0 never converges: converged False with a reason, finite estimate."""
     from inertia_ros.core.estimation.ml import refine

@@ -115,7 +115,7 @@ from .options import (
 from .result import InertiaEstimate
 from .selection import HOLD_ALPHA, SelectionPolicy, hold_rule, select_hold
 from .statistics import segment_rss, sufficient_stats
-from .uncertainty import principal_with_std
+from .uncertainty import principal_with_std, ratio_cov
 
 __all__ = ['BATCH_HOLDS', 'METHODS', 'ML_AUTO_MAX_SAMPLES', 'MODELS', 'TORQUE_BIAS', 'estimate',
            'model_basis']
@@ -724,8 +724,13 @@ def _refine(first: InertiaEstimate, tg: np.ndarray, w: np.ndarray, ts: np.ndarra
     diag['physical'] = {'valid': True, 'projected': False}
     if res.bias is not None:
         diag['torque_bias_std'] = np.sqrt(np.maximum(np.diag(rcov)[k:k + 3], 0.0))
+    # the ratios' sigma from the refined covariance too (it kept the integral stage's)
+    r_se = theta_to_matrix(np.sqrt(np.maximum(np.diag(ratio_cov(theta, cov6)), 0.0)),
+                           check_finite=False)
     return replace(first, method='ml', inertia=I, covariance=0.5 * (cov6 + cov6.T),
                    inertia_std=theta_to_matrix(np.sqrt(np.maximum(np.diag(cov6), 0.0)),
                                                check_finite=False),
+                   ratios_std=np.where(np.isnan(first.ratios_std), np.nan, r_se)
+                   if first.ratios_std is not None else None,
                    principal_moments=moments, principal_axes=axes, ratios=I / np.trace(I),
                    torque_bias=res.bias, diagnostics=diag)
