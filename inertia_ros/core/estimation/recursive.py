@@ -47,7 +47,12 @@ from .align import OnlineAligner
 from .assemble import status_only
 from .config import require, unapplied
 from .fit import Fit, fit_two_pass
-from .homogeneous import OnlineTorqueFreeChecks, homogeneous_estimate, is_torque_free
+from .homogeneous import (
+    OnlineTorqueFreeChecks,
+    homogeneous_estimate,
+    is_torque_free,
+    online_shift_pair,
+)
 from .model import symmetry_axis as unit_axis
 from .noise import StreamingNoise
 from .online_hold import AutoHold
@@ -441,8 +446,8 @@ class RecursiveEstimator:
             checks = OnlineTorqueFreeChecks(
                 lambda g: self._stats(nv, n_eff, g), lambda g: self._acc.group_stats(
                     nv, gyro_scale=g, **self._context()), self.policy.gyro_scale_std,
-                self.policy.torque_scale_std, self._tf_memo,
-                (self._schedule.estimates - 1) % self.reselect_every == 0)
+                self.policy.torque_scale_std, self._tf_memo, (self._schedule.estimates - 1)
+                % self.reselect_every == 0, online_shift_pair(self._acc, nv, self._context(), st))
             return homogeneous_estimate(st, nv, diag, base, cov_scale=ratio, checks=checks)
         tv = self._tau_var if self._tau_var is not None else np.zeros(3)
 
