@@ -5,7 +5,7 @@ explains the motion.  :func:`is_torque_free` is the one rule that declares a rec
 torque-free (batch and online); :func:`homogeneous_estimate` fits the ratios
 ``inertia / trace`` under ``trace = 1`` from the same statistics as the torque-driven fits;
 :func:`torque_free_stats` builds those statistics for a batch record.  Both estimators add
-the stated gyro scale and the window-consistency test (:class:`TorqueFreeChecks` on a batch
+the stated gyro scale, the window and segment-shift tests (:class:`TorqueFreeChecks` on a batch
 record's equations, :class:`OnlineTorqueFreeChecks` on the recursive estimator's statistics).
 
 The covariance carries the same noise model as the torque-driven fits: the white gyro noise
