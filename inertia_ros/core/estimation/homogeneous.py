@@ -654,9 +654,8 @@ def _shift(checks: TorqueFreeChecks, gyro_var: np.ndarray, W: np.ndarray
     fits, sens, rows = [], [], []
     w_eq = np.column_stack([np.interp(eq.t, checks.t_gyro, checks.omega[:, c]) for c in range(3)])
     for seg in (checks.segment, (checks.segment or span) / SHIFT_FACTOR):
-        st, walk = torque_free_stats(eq, checks.t_gyro, checks.omega, seg)
-        st = _without_torque(st)
-        if st.n_eff < MIN_EQUATIONS or walk is None:
+        st = _without_torque(_plain_stats(eq, seg))   # (the walk: _shift_covariance)
+        if st.n_eff < MIN_EQUATIONS:
             return None
         fk, _, th = _fit_ratios(st, gyro_var, W)
         if not 0.0 < fk.excess < np.inf:       # the noise model broke down (noise-free data)
