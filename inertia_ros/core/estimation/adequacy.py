@@ -18,7 +18,8 @@ Segment shift
     Hausman-type test): an unmodelled slow torque or a gyro bias acts through the momentum a
     segment integrates, so the tensor moves with the segment length.  Needs no room for
     windows (short records; online, the accumulator keeps the 4x shorter segmentation).  The
-    batch torque-free fit cuts 8x and tests against the difference's exact covariance.
+    torque-free fit cuts 8x and tests against the difference's exact covariance (batch and,
+    from the kept rows of the open segment, online: :mod:`.online_shift`).
 Bias split
     On records too short for windows, when the fit found a torque bias: the bias fitted
     separately on four time pieces with one tensor (:func:`.refits.bias_split_test`).  An

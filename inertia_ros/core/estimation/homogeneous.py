@@ -44,10 +44,11 @@ from .uncertainty import axis_std, moment_std
 
 #: :func:`walk_grams`: the walk's cross Grams ``K`` and their cross Grams with the white part.
 WalkGrams = tuple[np.ndarray, np.ndarray]
+#: :func:`_pair_grams`: the cross Grams of two segmentations' walk rows.
+PairGrams = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
 
 __all__ = ['OnlineTorqueFreeChecks', 'TorqueFreeChecks', 'homogeneous_estimate',
-           'is_torque_free', 'online_shift_pair', 'torque_free_checked', 'torque_free_stats',
-           'walk_grams']
+           'is_torque_free', 'torque_free_checked', 'torque_free_stats', 'walk_grams']
 
 #: The reason of every torque-free result (a mismatch's reason ends with it).
 REASON = 'no torque excitation: only ratios and principal axes are observable'
@@ -443,11 +444,10 @@ class OnlineTorqueFreeChecks:
     due : bool
         Compute both now; False: reuse ``memo``'s when it has them (the estimator's
         re-selection schedule: the node tests about once a second, as its torque fits).
-    shift_stats : callable, optional
-        ``shift_stats(g)``: with the gyro read ``g`` times larger, the statistics of
-        everything merged and of the same equations on anchored segments 4x shorter (the
-        accumulator's second segmentation), each with its covariance factor ``w00 / w0``:
-        the segment shift (:func:`_online_shift`).
+    shift : callable, optional
+        ``shift(gyro_var, W, gyro_scale_std, step)``: the segment shift of the fit with
+        weight ``W`` (:func:`.adequacy.segment_shift`'s result or ``None``), from
+        :mod:`.online_shift`.
     """
 
     stats: Callable[[float], SufficientStats]
@@ -456,7 +456,8 @@ class OnlineTorqueFreeChecks:
     torque_scale_std: float = 0.0
     memo: dict[str, Any] | None = None
     due: bool = True
-    shift_stats: Callable[[float], list[tuple[SufficientStats, float]]] | None = None
+    shift: Callable[[np.ndarray, np.ndarray, float, float],
+                    tuple[float, int, float, float] | None] | None = None
 
     def _memo(self, key: str, compute: Callable[[], Any]) -> Any:
         """``compute()``, or its value in :attr:`memo` when not :attr:`due`."""
@@ -504,57 +505,14 @@ class OnlineTorqueFreeChecks:
             if scaled:
                 fs, _, _ = _fit_ratios(_without_torque(scaled[i][0]), gyro_var, W)
                 common.append(self.gyro_scale_std * ((fs.beta - fk.beta) / step)[:, None])
-        shift = None if self.shift_stats is None else _online_shift(
-            self.shift_stats, gyro_var, W, self.gyro_scale_std, step)
+        shift = None if self.shift is None else self.shift(gyro_var, W, self.gyro_scale_std,
+                                                             step)
         if len(thetas) < 2:
             return check_adequacy(np.zeros((0, p)), np.zeros((0, p, p)), np.zeros(0),
                                   f.excess, max_excess=np.inf, shift=shift)
         return check_adequacy(np.array(thetas), np.array(covs), np.array(mids), f.excess,
                               max_excess=np.inf, common=np.array(common) if common else None,
                               shift=shift)
-
-
-def online_shift_pair(acc: Any, nv: np.ndarray, context: dict[str, Any], st: SufficientStats
-                      ) -> Callable[[float], list[tuple[SufficientStats, float]]] | None:
-    """:attr:`OnlineTorqueFreeChecks.shift_stats` of the recursive estimator's accumulator
-    ``acc`` (:class:`.accumulator.OnlineStats`; ``None`` without its 4x shorter ``short``):
-    ``nv`` (3,) the gyro noise variance, ``context`` the noise model's stream figures, ``st``
-    the statistics of the estimate (with a torque-noise Gram or without, as both fits)."""
-    if acc.short is None:
-        return None
-    return lambda g: [(a.stats(nv, a.n_eff(), st.CP is not None, gyro_scale=g, **context),
-                       (a.w00 + a.w00c) / (a.w0 + a.wc)) for a in (acc, acc.short)]
-
-
-def _online_shift(pair: Callable[[float], list[tuple[SufficientStats, float]]],
-                  gyro_var: np.ndarray, W: np.ndarray, gyro_scale_std: float,
-                  step: float = 1e-4) -> tuple[float, int, float, float] | None:
-    """The segment shift on the recursive estimator's statistics (as the torque paths'): the
-    ratios refitted with ``W`` on the merged equations and on their 4x shorter segments
-    (``pair(g)``, the gyro read ``g`` times larger), a stated gyro scale's share added; no
-    rows are kept, so the bound of :func:`.adequacy.segment_shift` replaces the exact
-    covariance of the batch's :func:`_shift`."""
-    def betas(g: float) -> list[tuple[np.ndarray, np.ndarray]] | None:
-        out = []
-        for st, factor in pair(g):
-            st = _without_torque(st)
-            if st.n_eff < MIN_EQUATIONS:
-                return None
-            fk, _, _ = _fit_ratios(st, gyro_var, W)
-            if not 0.0 < fk.excess < np.inf:
-                return None
-            out.append((fk.beta, fk.cov * factor / max(fk.excess, 1.0)))
-        return out
-
-    fits = betas(1.0)
-    if fits is None:
-        return None
-    cov_short = fits[1][1]
-    scaled = betas(1.0 + step) if gyro_scale_std else None
-    if scaled is not None:
-        dg = gyro_scale_std * ((scaled[1][0] - fits[1][0]) - (scaled[0][0] - fits[0][0])) / step
-        cov_short = cov_short + np.outer(dg, dg)
-    return segment_shift(fits[0][0], fits[0][1], fits[1][0], cov_short)
 
 
 #: What the torque-free fit's checks need (a batch record's or the recursive estimator's).
@@ -664,7 +622,8 @@ def _shift(checks: TorqueFreeChecks, gyro_var: np.ndarray, W: np.ndarray
         rows.append(_walk_rows(eq.V, eq.t, w_eq, segment_starts(eq.t, eq.breaks, seg)))
         if checks.gyro_scale_std:
             sens.append(_scale_sensitivity(eq, seg, fk, W, gyro_var))
-    cov_long, cov_short, cov_diff = _shift_covariance(fits, rows, W, gyro_var)
+    cov_long, cov_short, cov_diff = _shift_covariance(
+        fits, lambda a, b: _pair_grams(rows[a], rows[b]), W, gyro_var)
     if sens:
         dg = np.outer(*2 * [checks.gyro_scale_std * (sens[1] - sens[0])])
         cov_short, cov_diff = cov_short + dg, cov_diff + dg
@@ -672,15 +631,16 @@ def _shift(checks: TorqueFreeChecks, gyro_var: np.ndarray, W: np.ndarray
 
 
 def _shift_covariance(fits: list[tuple[Fit, np.ndarray, np.ndarray | None]],
-                      rows: list[tuple[np.ndarray, np.ndarray]], W: np.ndarray,
+                      grams: Callable[[int, int], PairGrams], W: np.ndarray,
                       gyro_var: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Covariances (p, p) of the long fit, of the short one and of their difference.
+    """Covariances (p, p) of the long fit (0), of the short one (1) and of their difference.
 
     Both fits use the same equations (segmented differently) and the same weight ``W``, so
     their sandwiches share the noise: the white gyro noise of equation ``j`` is in equation
     ``j`` of both, the walk of step ``j`` in the later equations of the segment that holds it
     in each.  ``cov(d) = C_ll + C_ss - C_ls - C_sl`` with ``C_ab = H_a^-1 M_ab H_b^-1`` and the
-    cross meats :func:`_pair_meat` (the noise model, not widened by the residual excess).
+    cross meats :func:`_pair_meat` of ``grams(a, b)`` (:func:`_pair_grams` of the two
+    segmentations' rows; the noise model, not widened by the residual excess).
     Without the cross term (``C_ss`` alone as the difference's covariance) the 8x shorter
     fit, here as efficient as the long one, made 5 false alarms in 40 conforming 20 s tumbles.
     Where the two fits share nearly all their information the difference is a cancellation
@@ -698,23 +658,30 @@ def _shift_covariance(fits: list[tuple[Fit, np.ndarray, np.ndarray | None]],
     Hinv = [solve_symmetric(f.H, np.eye(p)) for f in (fl, fs)]
 
     def cov(a: int, b: int) -> np.ndarray:
-        m = (T.T @ _pair_meat(rows[a], rows[b], W, S, Im, Sg, A) @ T)[:p, :p]
+        m = (T.T @ _pair_meat(grams(a, b), W, S, Im, Sg, A) @ T)[:p, :p]
         return Hinv[a] @ m @ Hinv[b].T
 
     c_ll, c_ls, c_ss = cov(0, 0), cov(0, 1), cov(1, 1)
     return c_ll, c_ss, c_ll + c_ss - c_ls - c_ls.T
 
 
-def _pair_meat(a: tuple[np.ndarray, np.ndarray], b: tuple[np.ndarray, np.ndarray],
-               W: np.ndarray, S: np.ndarray, Im: np.ndarray, Sg: np.ndarray,
-               A: list[np.ndarray]) -> np.ndarray:
+def _pair_grams(a: tuple[np.ndarray, np.ndarray], b: tuple[np.ndarray, np.ndarray]
+                ) -> PairGrams:
+    """The cross Grams of two segmentations' :func:`_walk_rows` ``(X, R)``: ``Xa' Xb``
+    (13, 13), ``Ra' Rb`` (30, 30), ``Xa' Rb`` (13, 30), ``Ra' Xb`` (30, 13)."""
+    (Xa, Ra), (Xb, Rb) = a, b
+    return Xa.T @ Xb, Ra.T @ Rb, Xa.T @ Rb, Ra.T @ Xb
+
+
+def _pair_meat(grams: PairGrams, W: np.ndarray, S: np.ndarray, Im: np.ndarray,
+               Sg: np.ndarray, A: list[np.ndarray]) -> np.ndarray:
     """Cross meat (10, 10) of the weighted scores of two segmentations of the same equations.
 
-    ``a``, ``b``: :func:`_walk_rows` of each.  White with white (``W S W``), walk with walk
-    (``W A_i Sg A_l' W``) and each one's white with the other's walk, as
+    ``grams``: :func:`_pair_grams` of their rows.  White with white (``W S W``), walk with
+    walk (``W A_i Sg A_l' W``) and each one's white with the other's walk, as
     :func:`_walk_covariance` does for one segmentation; the torque variable dropped.
     """
-    (Xa, Ra), (Xb, Rb) = a, b
+    Gxx, Grr, Gxr, Grx = grams
     nv = N_REGRESSOR_VARIABLES
     G13 = np.zeros((13, 13))
 
@@ -727,10 +694,10 @@ def _pair_meat(a: tuple[np.ndarray, np.ndarray], b: tuple[np.ndarray, np.ndarray
         return metric(C, M)
 
     full, head = slice(0, 13), slice(0, nv)
-    meat = lifted(Xa.T @ Xb, W @ S @ W, full, full)
-    G = (Ra.T @ Rb).reshape(3, nv, 3, nv)
-    Gab = (Xa.T @ Rb).reshape(13, 3, nv)
-    Gba = (Ra.T @ Xb).reshape(3, nv, 13)
+    meat = lifted(Gxx, W @ S @ W, full, full)
+    G = Grr.reshape(3, nv, 3, nv)
+    Gab = Gxr.reshape(13, 3, nv)
+    Gba = Grx.reshape(3, nv, 13)
     for i in range(3):
         for j in range(3):
             meat += lifted(G[i, :, j], W @ A[i] @ Sg @ A[j].T @ W, head, head)
