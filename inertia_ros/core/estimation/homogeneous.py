@@ -37,7 +37,14 @@ from .options import (
     MIN_EQUATIONS,
     TORQUE_FREE_SIGMAS,
 )
-from .regressors import MOMENTUM_BASIS, N_REGRESSOR_VARIABLES, gram, lift, metric
+from .regressors import (
+    MOMENTUM_BASIS,
+    N_REGRESSOR_VARIABLES,
+    VARIABLE_MAP,
+    gram,
+    lift,
+    metric,
+)
 from .result import InertiaEstimate
 from .statistics import SufficientStats, sufficient_stats
 from .uncertainty import axis_std, moment_std
@@ -46,6 +53,8 @@ from .uncertainty import axis_std, moment_std
 WalkGrams = tuple[np.ndarray, np.ndarray]
 #: :func:`_pair_grams`: the cross Grams of two segmentations' walk rows.
 PairGrams = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
+#: :data:`.regressors.VARIABLE_MAP` as (13, 30): ``lift(G) = _VMAP' G _VMAP`` (reshaped).
+_VMAP = VARIABLE_MAP.reshape(13, 30)
 
 __all__ = ['OnlineTorqueFreeChecks', 'TorqueFreeChecks', 'homogeneous_estimate',
            'is_torque_free', 'torque_free_checked', 'torque_free_stats', 'walk_grams']
@@ -683,26 +692,20 @@ def _pair_meat(grams: PairGrams, W: np.ndarray, S: np.ndarray, Im: np.ndarray,
     """
     Gxx, Grr, Gxr, Grx = grams
     nv = N_REGRESSOR_VARIABLES
-    G13 = np.zeros((13, 13))
-
-    def lifted(block: np.ndarray, M: np.ndarray, rows: slice, cols: slice) -> np.ndarray:
-        G13[:] = 0.0
-        G13[rows, cols] = block
-        C = lift(G13)
-        C[..., 9, :] = 0.0
-        C[..., :, 9] = 0.0
-        return metric(C, M)
-
-    full, head = slice(0, 13), slice(0, nv)
-    meat = lifted(Gxx, W @ S @ W, full, full)
-    G = Grr.reshape(3, nv, 3, nv)
-    Gab = Gxr.reshape(13, 3, nv)
-    Gba = Grx.reshape(3, nv, 13)
-    for i in range(3):
-        for j in range(3):
-            meat += lifted(G[i, :, j], W @ A[i] @ Sg @ A[j].T @ W, head, head)
-        meat += lifted(Gab[:, i], W @ Im @ Sg @ A[i].T @ W, full, head)
-        meat += lifted(Gba[i], W @ A[i] @ Sg @ Im @ W, head, full)
+    B = np.zeros((16, 13, 13))                  # each term's Gram of the 13 variables ...
+    WA = W @ np.array(A)                        # (3, 3, 3): W A_i
+    WAS = WA @ Sg
+    B[0] = Gxx
+    B[1:10, :nv, :nv] = Grr.reshape(3, nv, 3, nv).transpose(0, 2, 1, 3).reshape(9, nv, nv)
+    B[10:13, :, :nv] = Gxr.reshape(13, 3, nv).transpose(1, 0, 2)
+    B[13:16, :nv, :] = Grx.reshape(3, nv, 13)
+    M = np.concatenate([(W @ S @ W)[None],                                 # ... its metric
+                        np.einsum('irs,jus->ijru', WAS, WA).reshape(9, 3, 3),
+                        W @ Im @ Sg @ WA.transpose(0, 2, 1), WAS @ (Im @ W)])
+    L = (_VMAP.T @ B @ _VMAP).reshape(16, 3, 10, 3, 10)      # lift() of each
+    meat = np.einsum('krs,krqsp->qp', M, L)
+    meat[9, :] = 0.0
+    meat[:, 9] = 0.0
     return meat
 
 
