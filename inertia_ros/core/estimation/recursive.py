@@ -47,10 +47,11 @@ from .align import OnlineAligner
 from .assemble import status_only
 from .config import require, unapplied
 from .fit import Fit, fit_two_pass
-from .homogeneous import OnlineTorqueFreeChecks, homogeneous_estimate, is_torque_free
+from .homogeneous import homogeneous_estimate, is_torque_free
 from .model import symmetry_axis as unit_axis
 from .noise import StreamingNoise
 from .online_hold import AutoHold
+from .online_shift import ShiftRows, online_checks
 from .options import (
     ALPHA,
     HOLDS,
@@ -185,6 +186,7 @@ class RecursiveEstimator:
         self._accs = {h: OnlineStats(self.segment, self.window, self.forgetting)
                       for h in (HOLDS if self.hold == 'auto' else (self.hold,))}
         self._auto = AutoHold() if self.hold == 'auto' else None
+        self._shift_rows = ShiftRows(self.segment, self.window is None and self.forgetting == 1)
         self._active = 'zoh' if self.hold == 'auto' else self.hold    # the hold estimated
         self._tau_var: np.ndarray | None = None
         self._schedule.reset()            # the re-selection schedule's verdicts
@@ -301,6 +303,7 @@ class RecursiveEstimator:
                 acc.close(float(t[k]))
                 lo = k
             acc.merge(t[lo:], Vs[h][lo:], self._align.ts)
+        self._shift_rows.merge(t, V, breaks)
         self.samples_used += len(t)
         if self._auto is not None:
             self._auto.fold(self._align, float(t[-1]))
@@ -440,12 +443,8 @@ class RecursiveEstimator:
         ratio = (self._acc.w00 + self._acc.w00c) / (self._acc.w0 + self._acc.wc)
         if is_torque_free(torque_rms, tq_std):
             diag['warnings'] += unapplied('recursive', self.policy)
-            checks = OnlineTorqueFreeChecks(
-                lambda g: self._stats(nv, n_eff, g), lambda g: self._acc.group_stats(
-                    nv, gyro_scale=g, **self._context()), self.policy.gyro_scale_std,
-                self.policy.torque_scale_std, self._tf_memo,
-                (self._schedule.estimates - 1) % self.reselect_every == 0)
-            return homogeneous_estimate(st, nv, diag, base, cov_scale=ratio, checks=checks)
+            return homogeneous_estimate(st, nv, diag, base, cov_scale=ratio,
+                                        checks=online_checks(self, nv, n_eff, st))
         tv = self._tau_var if self._tau_var is not None else np.zeros(3)
 
         def fit(basis: np.ndarray, bias: bool, offset: np.ndarray | None = None,
