@@ -10,6 +10,11 @@ RMS z of the six elements over 3 seeds in [0.5, 2] (torque-free: the ratios).  A
 cell runs too, and is checked the same way.  A stated
 calibration uncertainty is checked with a scale error of +-1 stated sigma (2 %) put into the
 data: the RMS z must stay in [0.5, 2].  The docs/DESIGN.md table is the generated one.
+A cell per mode x input also turns every supported feature on at once, as a user's defaults
+and files do (:func:`test_every_feature_at_once`; the node's parameters through its
+selection: :func:`test_node_parameters_with_stated_files`), on one record with a dropout,
+fed in the node's 0.1 s blocks with empty and one-sample blocks: the crashes that need two
+features at once.
 """
 from __future__ import annotations
 
@@ -45,6 +50,7 @@ from inertia_ros.core.estimation.recursive_momentum import (
     MomentumRecursiveEstimator,
     MomentumTrackingEstimator,
 )
+from inertia_ros.core.estimation.result import STATUSES
 from inertia_ros.core.estimation.rotors import rotors_momentum
 from inertia_ros.core.estimation.tracking import TrackingEstimator
 from inertia_ros.core.estimation.windowed import BatchWindow
@@ -145,15 +151,17 @@ def run(mode: str, kind: str, opts: dict, rec: dict):
     return feed(est, rec)
 
 
-def make_online(mode: str, kind: str, opts: dict):
-    """The online estimator of ``mode`` for ``kind`` input."""
+def make_online(mode: str, kind: str, opts: dict, names: tuple[str, ...] = ()):
+    """The online estimator of ``mode`` for ``kind`` input (``names``: the actuators'
+    stated inputs, as the node gives them)."""
     if mode == 'recursive' and kind in ('wheels', 'rotors', 'wheels_torque'):
-        return MomentumRecursiveEstimator(other_torque=kind == 'wheels_torque', **opts)
+        return MomentumRecursiveEstimator(names=names, other_torque=kind == 'wheels_torque',
+                                          **opts)
     if mode == 'recursive':
         return RecursiveEstimator(**opts)
     if mode == 'tracking' and kind in ('wheels', 'rotors', 'wheels_torque'):
-        return MomentumTrackingEstimator(other_torque=kind == 'wheels_torque', window=1000.0,
-                                         **opts)
+        return MomentumTrackingEstimator(names=names, other_torque=kind == 'wheels_torque',
+                                         window=1000.0, **opts)
     if mode == 'tracking':
         return TrackingEstimator(window=1000.0, **opts)
     momentum = kind in ('wheels', 'rotors', 'wheels_torque')
@@ -396,3 +404,213 @@ def test_every_cell_is_in_the_table() -> None:
         assert set(CAPABILITIES[mode]) == set(FEATURES)
         for feature in FEATURES:
             assert set(CAPABILITIES[mode][feature]) == set(INPUTS)
+
+
+# ------------------------------------------------------------------ every feature at once
+#: what a user turns on together: the node's and the CLI's defaults ('auto' hold, model and
+#: torque bias) and every stated calibration uncertainty (the actuator files' sigmas below)
+COMBINED = {'hold': 'auto', 'model': 'auto', 'torque_bias': 'auto',
+            'torque_scale_std': SCALE_STD, 'gyro_scale_std': SCALE_STD}
+#: the stated one-sigma of each wheel's inertia and of each rotor's k_f, k_m and J
+#: (fractions, as bags/wheels_wheels.yaml and bags/quadrotor_rotors.yaml state them)
+WHEEL_STD, ROTOR_STD = 0.01, {'k_f': 0.01, 'k_m': 0.02, 'inertia': 0.03}
+GAP = (0.4, 0.5)                    # the dropout: at 40 % of the record, 0.5 s of every stream
+NODE_BLOCK = 0.1                    # s, the node's hand-over at its default 10 Hz
+MIN_SAMPLES = 20                    # gyro samples under which an estimate may be refused
+
+
+@functools.cache
+def stated_record(kind: str) -> tuple[dict, object]:
+    """Seed 0 of ``kind`` (the cached record) with the actuators stating their sigmas (the
+    momentum and its blocks carry the stated inputs) and a :data:`GAP` in every stream;
+    and the :class:`~inertia_ros.io.rotors.ActuatorInput` (None without actuators)."""
+    rec = dict(records(kind)[0])
+    act = None
+    if kind == 'rotors':
+        rs = Scene.from_dict(_scene_source(ROOT / 'config' / 'scenes' / 'quadrotor.yaml')
+                             ).wheels.rotors
+        act = ActuatorInput('rotors', 'inline', rotors=dataclass_replace(rs, rotors=tuple(
+            dataclass_replace(r, **{f'{c}_std': s * getattr(r, c) for c, s in ROTOR_STD.items()})
+            for r in rs.rotors)))
+    elif kind in ('wheels', 'wheels_torque'):
+        act = ActuatorInput('wheels', 'inline', wheels=[
+            Wheel(w.joint, w.axis, w.inertia, WHEEL_STD * w.inertia)
+            for w in Scene.from_dict(_wheel_scene()).wheels.wheels])
+    t0 = GAP[0] * rec['tg'][-1]
+    for t, values in (('tg', ('w',)), ('tt', ('tau',)), ('t_wheel', ('speed',))):
+        if rec.get(t) is not None:
+            keep = (rec[t] < t0) | (rec[t] >= t0 + GAP[1])
+            rec.update({t: rec[t][keep]}, **{v: rec[v][keep] for v in values})
+    if act is not None:
+        rec['mom'] = act.record(rec['t_wheel'], rec['speed'])
+        rec['inputs'] = act.block
+    return rec, act
+
+
+def node_blocks(rec: dict):
+    """The record cut as the node hands it over: :data:`NODE_BLOCK` s blocks of each stream,
+    and at the start and after the gap first an empty block, then a block of one sample of
+    each stream.  Yields ``(phase, gyro, torque, joints)``, each a ``(t, values)`` pair (the
+    joints None without actuators); ``phase`` is True for the two blocks and the first
+    regular one after each start."""
+    streams = [(rec['tg'], rec['w']), (rec['tt'], rec['tau'])]
+    streams.append((rec['t_wheel'], rec['speed']) if rec['mom'] is not None else None)
+    gap = np.flatnonzero(np.diff(rec['tg']) > 0.25)[0] + 1    # the GAP's end, gyro index
+    starts = (0.0, float(rec['tg'][gap]))
+    stops = (starts[1], float(rec['tg'][-1]) + 1.0)
+
+    def cut(a: float, b: float, one: bool = False) -> list:
+        out = []
+        for s in streams:
+            if s is None:
+                out.append(None)
+                continue
+            k = np.flatnonzero((s[0] >= a) & (s[0] < b))[:1 if one else None]
+            out.append((s[0][k], s[1][k]))
+        return out
+
+    for start, stop in zip(starts, stops, strict=True):
+        yield (True, *cut(start, start))                     # empty
+        one = cut(start, stop, one=True)
+        yield (True, *one)
+        first = max(float(x[0][0]) for x in one if x is not None and len(x[0]))
+        edges = np.append(np.arange(first + 1e-9, stop, NODE_BLOCK), stop)
+        for i, (a, b) in enumerate(zip(edges[:-1], edges[1:], strict=True)):
+            yield (i == 0, *cut(a, b))
+
+
+def feed_node_blocks(est, kind: str, rec: dict, refresh: bool = False):
+    """Feed ``est`` as the node does (:func:`node_blocks`; torque-free: zero torque at the
+    gyro stamps; actuators alone: no torque stream), estimating after every block of the
+    start and the gap and at the end.  A ``ValueError`` (one line) is allowed from an
+    estimate while fewer than :data:`MIN_SAMPLES` gyro samples were given (the online
+    protocol's "too little data", which the node reports as ``insufficient_data``); any
+    other exception fails.  Returns the statuses and the last estimate."""
+    statuses, n = [], 0
+    for phase, gyro, torque, joints in node_blocks(rec):
+        est.add_gyro(*gyro)
+        n += len(gyro[0])
+        if joints is not None:
+            est.add_momentum(rec['inputs'](*joints))
+        if kind == 'torque_free':
+            est.add_torque(gyro[0], np.zeros_like(gyro[1]))
+        elif kind in ('torque', 'wheels_torque'):
+            est.add_torque(*torque)
+        if hasattr(est, 'merge'):
+            est.merge()
+        if not phase:
+            continue
+        try:
+            statuses.append(est.estimate().status)
+        except ValueError as exc:
+            assert n < MIN_SAMPLES and '\n' not in str(exc), (n, str(exc))
+            statuses.append('refused')
+        if refresh and hasattr(est, 'refresh'):
+            est.refresh()
+    last = est.estimate()
+    return statuses + [last.status], last
+
+
+def check_combined(kind: str, statuses: list[str], e, names: tuple[str, ...] = ()) -> None:
+    """Every status documented; the final estimate one (the record is long enough), the
+    stated gyro scale and actuator ``names`` taken (``diagnostics.calibration``,
+    ``input_uncertainty``); where it is ``ok`` (``scale_unobservable`` torque-free) the truth
+    within 5 sigma."""
+    assert set(statuses) - {'refused'} <= set(STATUSES), statuses
+    assert e.status != 'insufficient_data', (e.status, e.diagnostics.get('reason'))
+    assert e.diagnostics['calibration']['gyro_scale_std'] == SCALE_STD
+    stated = e.diagnostics.get('input_uncertainty') or {}
+    assert set(names) <= set(stated.get('inputs', stated)), (names, list(stated))
+    truth = records(kind)[0]['truth']
+    if e.status == 'scale_unobservable':
+        ratios = truth[IDX] / np.trace(truth)
+        z = (e.ratios[IDX] - ratios) / e.ratios_std[IDX]
+    elif e.status == 'ok':
+        z = (e.theta - truth[IDX]) / e.theta_std
+    else:
+        return
+    assert np.all(np.abs(z) < 5.0), (e.status, np.round(z, 2))
+
+
+def nuisance_fitted(mode: str, kind: str) -> bool:
+    """Whether the table supports the nuisance terms for ``mode`` and ``kind``."""
+    return refusal(mode, kind, 'nuisance') is None
+
+
+def combined_options(mode: str, kind: str) -> tuple[dict, list[str]]:
+    """:data:`COMBINED` plus the nuisance terms where the table supports them; and the
+    table's refusals of the features a user could still ask for (nuisance elsewhere)."""
+    opts = dict(COMBINED)
+    if nuisance_fitted(mode, kind):
+        opts['nuisance'] = 'auto'
+    return opts, [f for f in FEATURES if refusal(mode, kind, f) is not None]
+
+
+@pytest.mark.parametrize('mode, kind', [
+    # the nuisance fit (batch and window, torque: ~2-4 s each) is slow
+    pytest.param(m, k, marks=pytest.mark.slow) if k == 'torque' and nuisance_fitted(m, k)
+    else (m, k) for m in MODES for k in INPUTS])
+def test_every_feature_at_once(mode, kind) -> None:
+    """Every feature the table supports, at once, as a user sets them (hold, model and
+    torque bias 'auto', the stated gyro and torque scale sigmas, the actuators' stated
+    sigmas, the nuisance terms where fitted) on one record with a 0.5 s dropout, fed as the
+    mode is fed (batch: the arrays; online: the node's 0.1 s blocks with an empty and a
+    one-sample block at the start and after the gap): no exception, every status
+    documented, the truth within 5 sigma when ok.  A feature or input the table refuses
+    is refused with its one line.  Before 6c2ae2e the tracker with hold 'auto' and stated
+    wheel inertias raised a reshape ValueError on the first momentum block, and an empty
+    first gyro block raised IndexError (fixed in 6c2ae2e)."""
+    opts, refused = combined_options(mode, kind)
+    if 'input' in refused:
+        with pytest.raises(ValueError) as info:
+            require(mode, kind, opts)
+        assert str(info.value) == refusal(mode, kind, 'input')
+        return
+    rec, act = stated_record(kind)
+    names = act.names if act is not None else ()
+    if 'nuisance' in refused and kind == ONLINE_KIND[kind]:
+        with pytest.raises(ValueError) as info:
+            (functools.partial(run, mode, kind, rec=rec) if mode == 'batch' else
+             functools.partial(make_online, mode, kind, names=names))(
+                opts=dict(opts, nuisance='auto'))
+        assert str(info.value) == refusal(mode, kind, 'nuisance')
+    if mode == 'batch':
+        e = run(mode, kind, opts, rec)
+        statuses = [e.status]
+    else:
+        statuses, e = feed_node_blocks(make_online(mode, kind, opts, names), kind, rec)
+    check_combined(kind, statuses, e, names)
+
+
+#: the actuator files a user gives the node, with stated sigmas (the matrix's wheels and
+#: quadrotor rotors: same joints, axes, positions and coefficients)
+NODE_FILES = {'wheels': ('bags/wheels_wheels.yaml', ''),
+              'rotors': ('', 'bags/quadrotor_rotors.yaml'),
+              'wheels_torque': ('bags/wheels_wheels.yaml', '')}
+
+
+@pytest.mark.parametrize('method, kind', [(m, k) for m in ('recursive', 'tracking', 'batch')
+                                          for k in INPUTS])
+def test_node_parameters_with_stated_files(method, kind) -> None:
+    """The node's estimator (:func:`inertia_ros.nodes.selection.make_estimator`, no ROS) at
+    its default parameters with ``model: auto`` and both scale sigmas, the wheels or rotors
+    file stating every sigma (``torque_topic: none`` when the actuators or nothing are the
+    known torque), fed as the node feeds it (merge before, refresh after each estimate):
+    no exception, every status documented, the truth within 5 sigma when ok."""
+    from inertia_ros.io.rotors import load_actuators
+    from inertia_ros.nodes.params import ESTIMATOR
+    from inertia_ros.nodes.selection import make_estimator
+
+    cfg = {name: spec.default for name, spec in ESTIMATOR.items()}
+    cfg.update(method=method, model='auto', torque_scale_std=SCALE_STD,
+               gyro_scale_std=SCALE_STD)
+    assert (cfg['hold'], cfg['torque_bias']) == ('auto', 'auto')
+    act = None
+    if kind in NODE_FILES:
+        act = load_actuators(*(str(ROOT / f) if f else '' for f in NODE_FILES[kind]))
+        assert len(act.names) == (3 if act.kind == 'wheels' else 12), act.names
+    if kind in ('wheels', 'rotors', 'torque_free'):
+        cfg['torque_topic'] = 'none'
+    rec = dict(stated_record(kind)[0], inputs=act.block if act is not None else None)
+    statuses, e = feed_node_blocks(make_estimator(cfg, act)(), kind, rec, refresh=True)
+    check_combined(kind, statuses, e, act.names if act is not None else ())

@@ -196,6 +196,21 @@ def _one_line_error(code: int, err: str, pattern: str) -> None:
     assert pattern in lines[0], lines[0]
 
 
+@pytest.mark.parametrize('bag, option, kind', [
+    ('wheels.mcap', ('--wheels', 'bags/wheels_wheels.yaml'), 'wheels'),
+    ('quadrotor.mcap', ('--rotors', 'bags/quadrotor_rotors.yaml'), 'rotors')])
+def test_nuisance_with_actuators_is_the_table_refusal(bag: str, option: tuple[str, str],
+                                                      kind: str,
+                                                      capsys: pytest.CaptureFixture) -> None:
+    """``--nuisance`` with ``--wheels``/``--rotors`` is refused with the capability table's
+    one line (issue 26: one refusal, from the table), exit 2; it was the CLI's own wording."""
+    from inertia_ros.core.estimation.config import refusal
+
+    code, _, err = run_json(capsys, str(ROOT / 'bags' / bag), option[0], str(ROOT / option[1]),
+                            '--nuisance', 'auto')
+    _one_line_error(code, err, f"--nuisance: {refusal('batch', kind, 'nuisance')}")
+
+
 def test_unusable_inputs_give_one_line(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
     """Missing file, not an MCAP, no topics, wrong type, empty stream: exit 2, one line."""
     code, rep, err = run_json(capsys, str(tmp_path / 'nope.mcap'))

@@ -115,6 +115,27 @@ def test_torque_free_data_skip_the_fit() -> None:
     assert 'torque-free' in est.diagnostics['nuisance']['skipped']
 
 
+@pytest.mark.parametrize('stream', ['zeros', 'noise'])
+def test_torque_free_found_from_the_torque_stream_skips_the_fit(stream: str) -> None:
+    """A torque stream that is zero (the node's ``torque_topic: none`` feeds zeros; a log
+    whose torque topic carries zeros, as bags/quadrotor.mcap's) or noise only is torque-free
+    data: the capability table's ``runs as nuisance='off'``, said by ``skipped``.  Before,
+    the fit ran on the homogeneous equations: with zeros the whitener of its zero residuals
+    raised LinAlgError ('Matrix is not positive definite': ``estimate --nuisance auto`` on
+    bags/quadrotor.mcap without ``--rotors`` stopped with exit 2, the batch window raised),
+    with noise it chose gyro_lowpass (p < 1e-10) on data that have no torque to filter."""
+    d = copy.deepcopy(BASE)
+    d.pop('torque')
+    d['initial_omega'] = [0.3, 0.5, -0.2]
+    r = simulate(Scene.from_dict(d), seed=0)
+    tau = (np.zeros_like(r.torque) if stream == 'zeros' else
+           1e-3 * np.random.default_rng(0).standard_normal(r.torque.shape))
+    est = estimate(r.t_gyro, r.omega, r.t_torque, tau, method='integral', nuisance='auto')
+    assert est.status == 'scale_unobservable', est.status
+    record = est.diagnostics['nuisance']
+    assert 'torque-free' in record['skipped'] and record['chosen'] == [], record
+
+
 @pytest.mark.parametrize('value, expected', [
     ('auto', 'auto'), ('off', 'off'), ('damping,gyro_bias', ('gyro_bias', 'damping')),
     (['gyro_lowpass'], ('gyro_lowpass',))])

@@ -331,9 +331,11 @@ def _estimate(args: argparse.Namespace, log: Any) -> Any:
 
     nuisance = getattr(args, 'nuisance', 'off')
     if args.wheels is not None or args.rotors is not None:
-        if nuisance != 'off':
-            raise UserError('--nuisance: not available with --wheels or --rotors yet; drop '
-                            'one of them')
+        if nuisance != 'off':           # the capability table's line
+            from inertia_ros.core.estimation.config import refusal
+
+            kind = 'wheels' if args.wheels is not None else 'rotors'
+            raise UserError(f"--nuisance: {refusal('batch', kind, 'nuisance')}")
         return _estimate_wheels(args, log)
     try:
         return estimate(log.omega.t, log.omega.values, log.torque.t, log.torque.values,

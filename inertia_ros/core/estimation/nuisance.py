@@ -52,6 +52,7 @@ import numpy as np
 from .._validate import as_samples, as_times
 from ..tensor import theta_to_matrix
 from .align import cross_matrices, cumtrapz, gap_starts
+from .homogeneous import is_torque_free
 from .noise import noise_std_from_differences
 from .options import (
     ALPHA,
@@ -582,15 +583,17 @@ def with_nuisance(estimate_fn: Callable[..., InertiaEstimate], streams: tuple[An
     tau = as_samples(streams[3], len(ts), 'torque', 't_torque')
     request = kw['nuisance']
     kw = dict(kw, nuisance='off')
-    if len(ts) < 2 or len(tg) < 2:
+    kw_fit = dict(kw)
+    if kw_fit.get('torque_noise') is None and len(ts) >= 2:   # the raw stream's, not filtered
+        kw_fit['torque_noise'] = noise_std_from_differences(tau)
+    # torque-free (no stream, or zeros or noise only: the estimate's rule): nothing to fit
+    if len(ts) < 2 or len(tg) < 2 or is_torque_free(np.sqrt(np.mean(tau ** 2, axis=0)),
+                                                    np.asarray(kw_fit['torque_noise'])):
         est = estimate_fn(tg, w, ts, tau, **kw)
         est.diagnostics['nuisance'] = {'requested': request if isinstance(request, str)
                                        else list(request), 'chosen': [],
                                        'skipped': 'torque-free data: no nuisance fit'}
         return est
-    kw_fit = dict(kw)
-    if kw_fit.get('torque_noise') is None:          # the raw stream's noise, not the filtered
-        kw_fit['torque_noise'] = noise_std_from_differences(tau)
     done: dict[tuple[str, ...], InertiaEstimate] = {}
 
     def corrected(f: NuisanceFit, options: dict[str, Any]) -> InertiaEstimate:
