@@ -579,13 +579,13 @@ def _statistics(eq: Equations, segment: float | None,
     stats)}, fit)``, the lengths filled in as the fits need them.
     """
     tried: dict[Any, tuple[Any, Fit]] = {}
-    known: dict[Any, Any] = {}                        # the searched candidates' statistics
     searched = eq.kind == 'anchored' and segment is None
     if searched:
         segment, rec = chosen if chosen is not None else _choose_segment(
-            eq, ts, tau_end, gyro_var, torque_var, bias, tried, known)
+            eq, ts, tau_end, gyro_var, torque_var, bias, tried)
         diag['segment_selection'] = rec = dict(rec)
     st, first = tried.pop(segment, (None, None))
+    known = {k: v[0] for k, v in tried.items()}      # the candidates' statistics
     tried.clear()
     if st is None:
         st = sufficient_stats(eq, segment, ts, tau_end, torque_var)
@@ -602,9 +602,10 @@ def _statistics(eq: Equations, segment: float | None,
                 seg0 = None if c == 'whole' else float(c)
             else:
                 seg0, rec['without_bias'] = _choose_segment(
-                    eq, ts, tau_end, gyro_var, torque_var, False, None, known)
-            s0 = st if seg0 == segment else (
-                known.get(seg0) if len(eq.t) <= _SELECT_MAX_ROWS else None)   # (not a head's)
+                    eq, ts, tau_end, gyro_var, torque_var, False, tried, known)
+            s0 = tried.pop(seg0, (None,))[0] if seg0 != segment else st
+            s0 = known.get(seg0) if s0 is None else s0
+            tried.clear()
             known.clear()
             segments[b] = (seg0, s0 if s0 is not None else sufficient_stats(
                 eq, seg0, ts, tau_end, torque_var))
@@ -654,8 +655,7 @@ def _choose_segment(eq: Equations, ts: np.ndarray, tau_end: float, gyro_var: np.
     records are searched on their first ``_SELECT_MAX_ROWS`` equations (the optimum depends on
     the dynamics, not on the record length).  ``tried`` receives every candidate's statistics
     and general-model fit (``{segment: (stats, fit)}``) when the whole record was searched;
-    ``known`` (``{segment: stats}`` of the searched part) keeps the candidates' statistics
-    for another search of the same equations (the length without the bias).
+    ``known`` gives statistics an earlier search of the whole record computed.
     """
     if len(eq.t) > _SELECT_MAX_ROWS:
         sub = eq.head(_SELECT_MAX_ROWS)
@@ -669,11 +669,8 @@ def _choose_segment(eq: Equations, ts: np.ndarray, tau_end: float, gyro_var: np.
     scores: dict[str, float] = {}
     best, best_score = None, np.inf
     for cand in cands:
-        st = None if known is None else known.get(cand)
-        if st is None:
-            st = sufficient_stats(sub, cand, ts, tau_end, torque_var)
-            if known is not None:
-                known[cand] = st
+        st = (known or {}).get(cand) if sub is eq else None
+        st = st if st is not None else sufficient_stats(sub, cand, ts, tau_end, torque_var)
         if st.n_eff < 3 * (6 + 3):
             continue
         f = fit_two_pass(st, np.eye(6), bias, gyro_var, torque_var)
