@@ -35,6 +35,7 @@ from .selection import (
     SelectionPolicy,
     bias_test,
     conditioning,
+    held_by_test,
     held_leak,
     identifiable,
     select_bias,
@@ -126,8 +127,12 @@ def _partial(fit: FitFunction, f: Fit, free: np.ndarray, scale: float, torque_bi
 
 
 def _select(fit: FitFunction, f: Fit, model: str, torque_bias: str, axis: np.ndarray | None,
-            alpha: float, diag: dict[str, Any]) -> tuple[Fit, str]:
-    """Bias first, then the parameter set (Wald tests at ``alpha``); returns the final fit."""
+            alpha: float, diag: dict[str, Any], by_test: bool = False
+            ) -> tuple[Fit, str, np.ndarray | None]:
+    """Bias first, then the parameter set (Wald tests at ``alpha``); returns the final fit,
+    the model's name and, for a restricted model a test chose (``model='auto'``, or
+    ``by_test``: an earlier test's choice reused), the covariance its held elements add
+    (:func:`.selection.held_by_test`; ``None``: a model the user stated holds them exactly)."""
     selection: dict[str, Any] = {}
     bias_on = torque_bias == 'on'
     if torque_bias == 'auto':
@@ -136,11 +141,17 @@ def _select(fit: FitFunction, f: Fit, model: str, torque_bias: str, axis: np.nda
     if model == 'auto':
         chosen, record = select_model(f, axis, alpha)
         selection.update(record)
+    held = None
+    if chosen != 'full':
+        theta0 = f.basis @ f.beta[:6]
+        basis = model_basis(chosen, axis)
+        full, f = f, fit(basis, bias_on, theta0=theta0)
+        if model == 'auto' or by_test:
+            held = held_by_test(f, full)
+            selection.update(held_sigma_from='full fit', held_covariance_added=held)
     if selection:
         diag['model_selection'] = selection
-    if chosen != 'full':
-        f = fit(model_basis(chosen, axis), bias_on, theta0=f.basis @ f.beta[:6])
-    return f, chosen
+    return f, chosen, held
 
 
 #: ``adequacy(final_fit, model_name) -> Adequacy``: the model-adequacy tests of a final fit.
@@ -153,7 +164,8 @@ SensitivityFunction = Callable[[Fit], np.ndarray]
 def conclude(fit: FitFunction, model: str, torque_bias: str, axis: np.ndarray | None,
              policy: SelectionPolicy, diag: dict[str, Any], base: dict[str, Any],
              adequacy: AdequacyFunction | None = None,
-             gyro_sensitivity: SensitivityFunction | None = None) -> InertiaEstimate:
+             gyro_sensitivity: SensitivityFunction | None = None,
+             by_test: bool = False) -> InertiaEstimate:
     """Identifiability, model selection and the result, given ``fit(basis, bias) -> Fit``.
 
     Parameters
@@ -176,6 +188,9 @@ def conclude(fit: FitFunction, model: str, torque_bias: str, axis: np.ndarray | 
     gyro_sensitivity : callable, optional
         ``d beta / d g`` of the final fit for ``policy.gyro_scale_std`` (see
         :func:`add_calibration`).
+    by_test : bool
+        A restricted ``model`` is an earlier test's choice (reused), not the user's: its held
+        elements keep the full fit's covariance as with ``model='auto'``.
 
     Returns
     -------
@@ -206,10 +221,10 @@ def conclude(fit: FitFunction, model: str, torque_bias: str, axis: np.ndarray | 
     if not np.all(free):
         f = _partial(fit, f, free, scale, torque_bias, gen_bias, policy.alpha, diag)
         return assemble('partially_identifiable', f, 'full', free, diag, base, physical=False)
-    f, chosen = _select(fit, f, model, torque_bias, axis, policy.alpha, diag)
+    f, chosen, held = _select(fit, f, model, torque_bias, axis, policy.alpha, diag, by_test)
     status = 'ok' if adequacy is None else _adequate(adequacy, f, chosen, diag)
     add_calibration(f, policy, gyro_sensitivity, diag)
-    return assemble(status, f, chosen, free, diag, base, physical=policy.physical)
+    return assemble(status, f, chosen, free, diag, base, physical=policy.physical, held=held)
 
 
 def add_calibration(f: Fit, policy: SelectionPolicy, gyro_sensitivity: SensitivityFunction
@@ -288,7 +303,8 @@ def _widened_by(a: Adequacy) -> str:
 
 
 def assemble(status: str, f: Fit, model: str, free: np.ndarray, diag: dict[str, Any],
-              base: dict[str, Any], physical: bool) -> InertiaEstimate:
+              base: dict[str, Any], physical: bool, held: np.ndarray | None = None
+              ) -> InertiaEstimate:
     """Build the :class:`InertiaEstimate` from a fit of the elements in ``free``.
 
     Parameters
@@ -305,10 +321,17 @@ def assemble(status: str, f: Fit, model: str, free: np.ndarray, diag: dict[str, 
         Diagnostics (updated in place) and the common result fields.
     physical : bool
         Project an impossible tensor onto the nearest physical one.
+    held : ndarray, shape (6 + b, 6 + b), optional
+        Covariance added in ``[theta, d]`` coordinates by the elements a test held
+        (:func:`.selection.held_by_test`).
     """
     k = f.basis.shape[1]
     theta = f.basis @ f.beta[:k]
     cov6 = f.basis @ f.cov[:k, :k] @ f.basis.T
+    bias_var = np.diag(f.cov)[k:]
+    if held is not None:
+        cov6 = cov6 + held[:6, :6]
+        bias_var = bias_var + np.diag(held)[6:]
     se = np.sqrt(np.maximum(np.diag(cov6), 0.0))
     theta = np.where(free, theta, np.nan)
     se = np.where(free, se, np.nan)
@@ -342,7 +365,7 @@ def assemble(status: str, f: Fit, model: str, free: np.ndarray, diag: dict[str, 
     ratios_std = _matrix(np.where(free & bool(np.all(free[:3])), r_se, np.nan))
     bias = f.beta[k:k + 3] if f.bias else None
     if f.bias:
-        diag['torque_bias_std'] = np.sqrt(np.maximum(np.diag(f.cov)[k:k + 3], 0.0))
+        diag['torque_bias_std'] = np.sqrt(np.maximum(bias_var, 0.0))
     name = model + ('+bias' if f.bias else '')
     both = free[:, None] & free[None, :]
     return InertiaEstimate(status=status, inertia=I, inertia_std=I_std,

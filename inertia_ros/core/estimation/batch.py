@@ -715,6 +715,10 @@ def _refine(first: InertiaEstimate, tg: np.ndarray, w: np.ndarray, ts: np.ndarra
     calib = diag.get('calibration')
     if calib is not None:                   # the stated scale uncertainties, as for integral
         cov6 = cov6 + basis @ np.asarray(calib['covariance_added'])[:k, :k] @ basis.T
+    # elements a test held keep the full fit's covariance, as for integral
+    held = (diag.get('model_selection') or {}).get('held_covariance_added')
+    held = np.zeros((6 + len(rcov) - k, 6 + len(rcov) - k)) if held is None else held
+    cov6 = cov6 + np.asarray(held)[:6, :6]
     I = theta_to_matrix(theta, check_finite=False)
     chk = check_physical(I)
     if not chk.valid:
@@ -723,7 +727,8 @@ def _refine(first: InertiaEstimate, tg: np.ndarray, w: np.ndarray, ts: np.ndarra
     moments, axes = principal_with_std(I, cov6, diag)
     diag['physical'] = {'valid': True, 'projected': False}
     if res.bias is not None:
-        diag['torque_bias_std'] = np.sqrt(np.maximum(np.diag(rcov)[k:k + 3], 0.0))
+        diag['torque_bias_std'] = np.sqrt(np.maximum(np.diag(rcov)[k:k + 3]
+                                                     + np.diag(np.asarray(held))[6:], 0.0))
     # the ratios' sigma from the refined covariance too (it kept the integral stage's)
     r_se = theta_to_matrix(np.sqrt(np.maximum(np.diag(ratio_cov(theta, cov6)), 0.0)),
                            check_finite=False)

@@ -114,9 +114,10 @@ class Reselection:
             bias, chosen, record = self.selection
             est = conclude(fit, chosen, bias, axis, policy,
                            dict(diag, warnings=list(diag['warnings'])), base, adequacy,
-                           sensitivity)
-            if est.status in ('ok', 'model_mismatch'):
-                est.diagnostics['model_selection'] = dict(record, reused=True)
+                           sensitivity, by_test=True)
+            if est.status in ('ok', 'model_mismatch'):   # (this fit's held covariance)
+                est.diagnostics['model_selection'] = dict(
+                    record, **est.diagnostics.get('model_selection', {}), reused=True)
                 return est
         est = conclude(fit, model, torque_bias, axis, policy, diag, base, adequacy,
                        sensitivity)
