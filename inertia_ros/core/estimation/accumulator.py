@@ -164,17 +164,23 @@ class OnlineStats:
             wts = lam ** np.arange(n - 1, -1, -1, dtype=float)
             old = lam ** n
         self.t_last = float(t[-1])
+        # unit weights (no forgetting, the node's default): the products by 1 and the decays
+        # below are exact no-ops, skipped (the same numbers, bit for bit)
+        unit = old == 1.0 and self.window is None and self.forgetting == 1.0
         self.clock += math.log(max(old, 1e-300))
         wb = float(np.sum(wts))
         mb = wts @ V / wb
-        D = (V - mb[None]) * np.sqrt(wts)[:, None]
+        D = V - mb[None] if unit else (V - mb[None]) * np.sqrt(wts)[:, None]
         w_old = old * self.w0
         total = w_old + wb
         delta = mb - self.mean
-        self.C = old * self.C + gram(D) + (w_old * wb / total) * np.outer(delta, delta)
+        self.C = (self.C if unit else old * self.C) + gram(D) \
+            + (w_old * wb / total) * np.outer(delta, delta)
         self.mean = self.mean + delta * (wb / total)
         self.w0 = total
         self.w00 = old * old * self.w00 + float(np.sum(wts * wts))
+        if unit:
+            return
         for name in _DECAYED:
             setattr(self, name, old * getattr(self, name))
         self.GPc = old * old * self.GPc

@@ -76,7 +76,8 @@ def _one_sample(t: Any, v: Any, last: float | None, name: str) -> float | None:
     tf = float(t)
     if abs(tf) > MAX_TIME_S:        # the one-sample form of refuse_nanoseconds
         raise ValueError(f'time {tf!r} looks like nanoseconds; give seconds')
-    if not (math.isfinite(tf) and all(math.isfinite(float(x)) for x in v)):
+    if not (math.isfinite(tf) and math.isfinite(float(v[0])) and math.isfinite(float(v[1]))
+            and math.isfinite(float(v[2]))):
         raise ValueError(f'{name}: contains NaN or inf')
     require_after(tf, last, name)
     return tf

@@ -17,9 +17,11 @@ from .model import TRACE
 __all__ = ['axis_std', 'moment_std', 'principal_with_std', 'ratio_cov', 'widen']
 
 
-def moment_std(I: np.ndarray, cov6: np.ndarray) -> np.ndarray:
-    """First-order std of the principal moments from the theta covariance."""
-    _, vec = np.linalg.eigh(I)
+def moment_std(I: np.ndarray, cov6: np.ndarray,
+               eig: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
+    """First-order std of the principal moments from the theta covariance (``eig``: the
+    ``np.linalg.eigh(I)`` already computed)."""
+    _, vec = np.linalg.eigh(I) if eig is None else eig
     out = np.empty(3)
     for i in range(3):
         v = vec[:, i]
@@ -29,15 +31,16 @@ def moment_std(I: np.ndarray, cov6: np.ndarray) -> np.ndarray:
     return out
 
 
-def axis_std(I: np.ndarray, cov6: np.ndarray) -> np.ndarray:
+def axis_std(I: np.ndarray, cov6: np.ndarray,
+             eig: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
     """First-order angular std [rad] of each principal axis (ascending moments' order).
 
     Perturbation of a symmetric eigenproblem: ``dv_i = sum_{j != i} (v_j' dI v_i) /
     (l_i - l_j) v_j``, so ``E|dv_i|^2 = sum_j var(v_j' dI v_i) / (l_i - l_j)^2``: the RMS
     angle between the estimated and the true axis.  Infinite for repeated moments (the axes
-    of a degenerate subspace are not determined).
+    of a degenerate subspace are not determined).  ``eig``: ``np.linalg.eigh(I)`` if known.
     """
-    lam, vec = np.linalg.eigh(I)
+    lam, vec = np.linalg.eigh(I) if eig is None else eig
     out = np.empty(3)
     for i in range(3):
         var = 0.0
@@ -74,8 +77,9 @@ def principal_with_std(I: np.ndarray, cov6: np.ndarray,
         Principal axes as the columns of a proper rotation.
     """
     moments, axes = principal_axes(I)
-    diag['principal_moments_std'] = moment_std(I, cov6)
-    diag['principal_axes_std'] = axis_std(I, cov6)
+    eig = np.linalg.eigh(I)             # one decomposition for both (the same numbers)
+    diag['principal_moments_std'] = moment_std(I, cov6, eig)
+    diag['principal_axes_std'] = axis_std(I, cov6, eig)
     return moments, axes
 
 
