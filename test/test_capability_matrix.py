@@ -520,7 +520,7 @@ def check_combined(kind: str, statuses: list[str], e, names: tuple[str, ...] = (
     assert e.status != 'insufficient_data', (e.status, e.diagnostics.get('reason'))
     assert e.diagnostics['calibration']['gyro_scale_std'] == SCALE_STD
     stated = e.diagnostics.get('input_uncertainty') or {}
-    assert set(names) <= set(stated.get('inputs', stated)), (names, list(stated))
+    assert set(names) <= set(stated.get('inputs', ())), (names, list(stated))  # one form
     truth = records(kind)[0]['truth']
     if e.status == 'scale_unobservable':
         ratios = truth[IDX] / np.trace(truth)

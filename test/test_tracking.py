@@ -284,7 +284,9 @@ def test_tracking_states_the_wheel_inertias() -> None:
             out[std] = e = feed(est, dict(rec, inputs=lambda t, s, ws=ws: _wheel_inputs(
                 t, s, ws)))
             z[std].append((e.theta - rec['truth'][IDX]) / e.theta_std)
-        assert set(out[0.05].diagnostics['input_uncertainty']) == set(names)
+        rec = out[0.05].diagnostics['input_uncertainty']
+        assert set(rec['inputs']) == set(names)       # the other modes' record form
+        assert rec['theta_std_added'].shape == (6,) and np.all(rec['theta_std_added'][:3] > 0)
         assert np.all(out[0.05].theta_std[:3] >= 4.0 * out[0.0].theta_std[:3])
     rms = {std: float(np.sqrt(np.mean(np.square(v)))) for std, v in z.items()}
     assert rms[0.05] < 3.0 and rms[0.05] < 0.7 * rms[0.0], rms

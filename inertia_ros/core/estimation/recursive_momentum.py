@@ -568,9 +568,16 @@ class MomentumTrackingEstimator(MomentumInput, TrackingEstimator):
             u = slice(self.k + self.nb, self.n - 3)     # d theta (6,) per stated sigma
             D = self.basis @ self.P[:self.k, u] @ np.linalg.inv(self.P[u, u])
             sd = np.sqrt(np.maximum(np.diag(self.P[u, u]), 0.0))
-            diag['input_uncertainty'] = {nm: {
-                'theta_change': D[:, j], 'profiled_sigmas': float(self.x[u][j]),
-                'posterior_sigmas': float(sd[j])} for j, nm in enumerate(self._stated.names)}
+            # the batch and recursive record's form (:func:`.stated.widened`): the share of
+            # the tensor's covariance the considered inputs carry, D P_uu D'
+            diag['input_uncertainty'] = diag['wheel_inertia'] = {
+                'inputs': {nm: {'theta_change': D[:, j], 'profiled_sigmas': float(self.x[u][j]),
+                                'posterior_sigmas': float(sd[j])}
+                           for j, nm in enumerate(self._stated.names)},
+                'theta_std_added': np.sqrt(np.maximum(np.diag(D @ self.P[u, u] @ D.T), 0.0)),
+                'posterior_cov': self.P[u, u].copy(),
+                'rule': 'stated inputs as considered filter states under their N(0, stated '
+                        "sigma) prior; D P D' is their share of the tensor's covariance"}
             diag['calibration'] = {'torque_scale_std': self.torque_scale_std,
                                    'gyro_scale_std': self.gyro_scale_std,
                                    'gyro_sensitivity': 'a filter state (learnt)'}
