@@ -378,8 +378,14 @@ def test_tracking_states_its_substitutions() -> None:
 
 
 def test_options_are_validated_once_with_one_line() -> None:
-    """The options object names the field and value; bools are the on/off bias."""
+    """The options object names the field and value; bools are the on/off bias, in every
+    entry point (the batch ``estimate()`` refused ``torque_bias=True`` that the online
+    estimators took)."""
     assert EstimatorOptions(torque_bias=True).torque_bias == 'on'
+    rec = records('torque')[0]
+    args = (rec['tg'], rec['w'], rec['tt'], rec['tau'])
+    assert estimate(*args, torque_bias=True, method='integral').model.endswith('+bias')
+    assert RecursiveEstimator(torque_bias=False).torque_bias == 'off'
     for kw, field in [({'model': 'ful'}, 'model'), ({'hold': 'cubic'}, 'hold'),
                       ({'alpha': 2.0}, 'alpha'), ({'torque_scale_std': -1.0},
                                                    'torque_scale_std'),

@@ -222,8 +222,11 @@ def estimate_arrays(tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.ndarr
     method other than ``auto`` and ``ml`` without the adequacy tests (a sensitivity
     re-estimation whose tensor alone is used).
     """
-    # :func:`.config.require` checked the other options (a bool torque_bias it takes: here)
+    # :func:`.config.require` checked the other options; a bool torque_bias is 'on'/'off'
+    # as there (and in the online estimators)
     check_choice('method', method, METHODS)
+    if isinstance(torque_bias, (bool, np.bool_)):
+        torque_bias = 'on' if torque_bias else 'off'
     check_choice('torque_bias', torque_bias, TORQUE_BIAS)
     policy = SelectionPolicy(alpha, identifiability_tol, physical, torque_scale_std,
                              gyro_scale_std)
