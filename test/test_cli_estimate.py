@@ -29,10 +29,11 @@ EXPECTED = {'torque_free': ('scale_unobservable',),
             # likewise the rotor-driven quadrotor without --rotors (its torque topic is zeros)
             'quadrotor': ('scale_unobservable', 'insufficient_excitation'),
             # sensor nuisance samples: without --nuisance the model lacks the term
-            **dict.fromkeys(('gyro_bias', 'damping', 'gyro_lowpass'), ('model_mismatch',)),
-            # ... but a 15 ms torque delay only raises the residuals (1.8x): covered by the
-            # widened sigma (issue 27 item 4), ok within 0.9 sigma of the truth
-            'torque_delay': ('ok',)}
+            # (a 15 ms torque delay too: at the anchored-segment length searched for the fit
+            # without the bias, 5 s, the tensor moves 5 sigma when the segments are cut
+            # shorter; it was ok only at the length searched with a bias the test dropped)
+            **dict.fromkeys(('gyro_bias', 'damping', 'gyro_lowpass', 'torque_delay'),
+                            ('model_mismatch',))}
 DEFAULT_BAG = ROOT / 'bags' / 'default.mcap'
 needs_default = pytest.mark.skipif(not DEFAULT_BAG.exists(), reason='bags/default.mcap absent')
 

@@ -446,7 +446,8 @@ def _segment_choice(est: InertiaEstimate | None, from_head: bool
     """
     if est is None or 'segment_selection' not in est.diagnostics:
         return None
-    seg = est.diagnostics.get('segment_s')
+    c = est.diagnostics['segment_selection']['chosen_s']    # (the general model's length)
+    seg = None if c == 'whole' else float(c)
     if from_head and seg is None:
         return None
     return seg, est.diagnostics['segment_selection']
@@ -532,8 +533,9 @@ def _estimate_shifted(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray
     early = _equation_rules(eq, method, diag, base)
     if early is not None:
         return early
-    segment, st, fit = _statistics(eq, segment, chosen, ts, tau_end, gyro_var, torque_var,
-                                   torque_bias != 'off', diag)
+    segments, fit = _statistics(eq, segment, chosen, ts, tau_end, gyro_var, torque_var,
+                                torque_bias != 'off', diag)
+    segment, st = segments[torque_bias != 'off']
     if eq.kind == 'anchored':
         diag['segments'] = st.n_seg
         diag['segment_s'] = segment
@@ -548,38 +550,72 @@ def _estimate_shifted(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray
         sliding and differential methods are tested on the anchored (integral) equations.
         """
         if eq.kind == 'anchored':
-            return refits.window_adequacy(eq, segment, ts, tau_end, gyro_var, torque_var, f)
+            return refits.window_adequacy(eq, segments.get(f.bias, (segment,))[0], ts,
+                                          tau_end, gyro_var, torque_var, f)
         eqa = build_equations('integral', tg, w, ts, tau, mask, breaks, hold, gyro_var, None)
         eqa.motion = eq.motion
         return refits.window_adequacy(eqa, None, ts, tau_end, gyro_var, torque_var, f, own=False)
 
     def gyro_sensitivity(f: Fit) -> np.ndarray | None:
         """``d beta / d g`` of the final fit for a relative gyro scale error ``g``."""
-        return refits.gyro_sensitivity(eq, segment, ts, tau_end, gyro_var, torque_var, f)
+        return refits.gyro_sensitivity(eq, segments.get(f.bias, (segment,))[0], ts, tau_end,
+                                       gyro_var, torque_var, f)
 
-    return conclude(fit, model, torque_bias, axis, policy, diag, base,
-                    adequacy if final else None, gyro_sensitivity)
+    est = conclude(fit, model, torque_bias, axis, policy, diag, base,
+                   adequacy if final else None, gyro_sensitivity)
+    if eq.kind == 'anchored' and est.inertia is not None and est.torque_bias is None \
+            and False in segments:       # the final fit without the bias: its length
+        est.diagnostics['segment_s'], st = segments[False]
+        est.diagnostics['segments'] = st.n_seg
+    return est
 
 
 def _statistics(eq: Equations, segment: float | None,
                 chosen: tuple[float | None, dict[str, Any]] | None, ts: np.ndarray,
                 tau_end: float, gyro_var: np.ndarray, torque_var: np.ndarray, bias: bool,
-                diag: dict[str, Any]) -> tuple[float | None, Any, Any]:
+                diag: dict[str, Any]) -> tuple[dict[bool, tuple[Any, Any]], Any]:
     """The segment length (given, ``chosen`` earlier or searched), the statistics and the fit
     function ``fit(basis, bias, offset=None, theta0=None) -> Fit`` on them.
 
     The search's statistics and general-model fit of the chosen length are the ones the
     estimate needs first (the same calls on the same equations): taken, not computed again.
+    The best length depends on the model: searched with the bias (``bias``, the general model
+    of ``torque_bias='auto'``), a fit without it (the bias dropped by its test) uses the
+    length searched without it (``diag['segment_selection']['without_bias']``), so that the
+    answer does not depend on whether a bias was tried.  Returns ``({bias: (segment,
+    stats)}, fit)``, the lengths filled in as the fits need them.
     """
     tried: dict[Any, tuple[Any, Fit]] = {}
-    if eq.kind == 'anchored' and segment is None:
-        segment, diag['segment_selection'] = chosen if chosen is not None else _choose_segment(
-            eq, ts, tau_end, gyro_var, torque_var, bias, tried)
+    known: dict[Any, Any] = {}                        # the searched candidates' statistics
+    searched = eq.kind == 'anchored' and segment is None
+    if searched:
+        segment, rec = chosen if chosen is not None else _choose_segment(
+            eq, ts, tau_end, gyro_var, torque_var, bias, tried, known)
+        diag['segment_selection'] = rec = dict(rec)
     st, first = tried.pop(segment, (None, None))
     tried.clear()
     if st is None:
         st = sufficient_stats(eq, segment, ts, tau_end, torque_var)
     once = [first]
+    segments = {bias: (segment, st)}
+
+    def stats(b: bool) -> Any:
+        """The statistics of a fit with (``b``) or without the bias."""
+        if b not in segments and not (searched and bias and not b):
+            return st
+        if b not in segments:
+            if 'without_bias' in rec:
+                c = rec['without_bias']['chosen_s']
+                seg0 = None if c == 'whole' else float(c)
+            else:
+                seg0, rec['without_bias'] = _choose_segment(
+                    eq, ts, tau_end, gyro_var, torque_var, False, None, known)
+            s0 = st if seg0 == segment else (
+                known.get(seg0) if len(eq.t) <= _SELECT_MAX_ROWS else None)   # (not a head's)
+            known.clear()
+            segments[b] = (seg0, s0 if s0 is not None else sufficient_stats(
+                eq, seg0, ts, tau_end, torque_var))
+        return segments[b][1]
 
     def fit(basis: np.ndarray, bias: bool, offset: np.ndarray | None = None,
             theta0: np.ndarray | None = None) -> Fit:
@@ -589,8 +625,8 @@ def _statistics(eq: Equations, segment: float | None,
                 and basis.shape == (6, 6) and np.array_equal(basis, np.eye(6))):
             once[0] = None
             return f
-        return fit_two_pass(st, basis, bias, gyro_var, torque_var, offset, theta0)
-    return segment, st, fit
+        return fit_two_pass(stats(bias), basis, bias, gyro_var, torque_var, offset, theta0)
+    return segments, fit
 
 
 def _equation_rules(eq: Equations, method: str, diag: dict[str, Any],
@@ -613,7 +649,8 @@ def _equation_rules(eq: Equations, method: str, diag: dict[str, Any],
 
 def _choose_segment(eq: Equations, ts: np.ndarray, tau_end: float, gyro_var: np.ndarray,
                     torque_var: np.ndarray, bias: bool,
-                    tried: dict[Any, tuple[Any, Fit]] | None = None
+                    tried: dict[Any, tuple[Any, Fit]] | None = None,
+                    known: dict[Any, Any] | None = None
                     ) -> tuple[float | None, dict[str, Any]]:
     """Anchored-segment length that minimises the predicted relative variance of the tensor.
 
@@ -623,7 +660,9 @@ def _choose_segment(eq: Equations, ts: np.ndarray, tau_end: float, gyro_var: np.
     statistics (see :func:`.statistics.sufficient_stats`), so the search costs little.  Long
     records are searched on their first ``_SELECT_MAX_ROWS`` equations (the optimum depends on
     the dynamics, not on the record length).  ``tried`` receives every candidate's statistics
-    and general-model fit (``{segment: (stats, fit)}``) when the whole record was searched.
+    and general-model fit (``{segment: (stats, fit)}``) when the whole record was searched;
+    ``known`` (``{segment: stats}`` of the searched part) keeps the candidates' statistics
+    for another search of the same equations (the length without the bias).
     """
     if len(eq.t) > _SELECT_MAX_ROWS:
         sub = eq.head(_SELECT_MAX_ROWS)
@@ -637,7 +676,11 @@ def _choose_segment(eq: Equations, ts: np.ndarray, tau_end: float, gyro_var: np.
     scores: dict[str, float] = {}
     best, best_score = None, np.inf
     for cand in cands:
-        st = sufficient_stats(sub, cand, ts, tau_end, torque_var)
+        st = None if known is None else known.get(cand)
+        if st is None:
+            st = sufficient_stats(sub, cand, ts, tau_end, torque_var)
+            if known is not None:
+                known[cand] = st
         if st.n_eff < 3 * (6 + 3):
             continue
         f = fit_two_pass(st, np.eye(6), bias, gyro_var, torque_var)
