@@ -127,19 +127,20 @@ def _partial(fit: FitFunction, f: Fit, free: np.ndarray, scale: float, torque_bi
 
 
 def _select(fit: FitFunction, f: Fit, model: str, torque_bias: str, axis: np.ndarray | None,
-            alpha: float, diag: dict[str, Any], by_test: bool = False
+            policy: SelectionPolicy, diag: dict[str, Any], by_test: bool = False
             ) -> tuple[Fit, str, np.ndarray | None]:
-    """Bias first, then the parameter set (Wald tests at ``alpha``); returns the final fit,
+    """Bias first (a Wald test at ``policy.alpha``), then the parameter set (the MSE test at
+    ``policy.model_alpha``, :func:`.selection.select_model`); returns the final fit,
     the model's name and, for a restricted model a test chose (``model='auto'``, or
     ``by_test``: an earlier test's choice reused), the covariance its held elements add
     (:func:`.selection.held_by_test`; ``None``: a model the user stated holds them exactly)."""
     selection: dict[str, Any] = {}
     bias_on = torque_bias == 'on'
     if torque_bias == 'auto':
-        f, bias_on, selection['bias'] = select_bias(fit, f, alpha)
+        f, bias_on, selection['bias'] = select_bias(fit, f, policy.alpha)
     chosen = model
     if model == 'auto':
-        chosen, record = select_model(f, axis, alpha)
+        chosen, record = select_model(f, axis, policy.model_alpha)
         selection.update(record)
     held = None
     if chosen != 'full':
@@ -221,7 +222,7 @@ def conclude(fit: FitFunction, model: str, torque_bias: str, axis: np.ndarray | 
     if not np.all(free):
         f = _partial(fit, f, free, scale, torque_bias, gen_bias, policy.alpha, diag)
         return assemble('partially_identifiable', f, 'full', free, diag, base, physical=False)
-    f, chosen, held = _select(fit, f, model, torque_bias, axis, policy.alpha, diag, by_test)
+    f, chosen, held = _select(fit, f, model, torque_bias, axis, policy, diag, by_test)
     status = 'ok' if adequacy is None else _adequate(adequacy, f, chosen, diag)
     add_calibration(f, policy, gyro_sensitivity, diag)
     return assemble(status, f, chosen, free, diag, base, physical=policy.physical, held=held)
