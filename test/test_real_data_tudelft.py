@@ -109,14 +109,14 @@ def test_real_throws_cli_defaults(tmp_path: Path) -> None:
     --wheels flywheel.yaml``): >= 90 % of the principal moments within 3 sigma (98 %), no ok
     with eps > 10 % (max 4.2 %), the filtered form chosen on every throw, and the whole-body
     tensor's diagonal scatter / reported sigma within [0.5, 2] in every configuration
-    (0.56-1.56 with the Newey-West small-sample correction; 0.88-2.38 without).
+    (0.56-1.56 with the Newey-West small-sample correction; 0.88-2.38 without), and the
+    median eps at or below the authors' (1.39 % vs 1.44 %, since the parameter set is chosen
+    by the MSE criterion: B/LOG00160's products, Wald 12.9 on 3 dof, no longer held at zero;
+    1.49 % with the Wald test of a zero at 1e-3), the full model on every throw.
 
-    Not met, so not asserted as such: the median eps at or below the authors' (1.49 % vs
-    1.44 %; 1.39 % before the correction widened the sigma and ``--model auto`` dropped the
-    bias on 6 throws and the products on one: the bound here is 1.5 %), and the products'
-    scatter / sigma within [0.5, 2] (7 of 12 outside, up to 4.2; docs/real_data_tudelft.md).
-    Session 5: the median is B/LOG00160's ``diagonal`` choice (1.39 % with ``--model full``);
-    the products' scatter is in part a gyro axis coupling of 0.3-0.6 % common to the throws."""
+    Not met, so not asserted as such: the products' scatter / sigma within [0.5, 2] (6 of 12
+    outside, up to 3.3; docs/real_data_tudelft.md), in part a gyro axis coupling of 0.3-0.6 %
+    common to the throws."""
     res = tmp_path / 'r.json'
     assert _load().main(['bench', '--csv-root', str(REAL.parent), '--index', str(REAL),
                          '--cli', '--out', str(res)]) == 0
@@ -126,7 +126,8 @@ def test_real_throws_cli_defaults(tmp_path: Path) -> None:
     assert not [r['log'] for r in rows if r['status'] == 'ok' and r['eps'] > 0.10]
     z = np.concatenate([r['z'] for r in rows])
     assert np.mean(np.abs(z) <= 3) >= 0.90
-    assert float(np.median([r['eps'] for r in rows])) <= 0.015
+    assert float(np.median([r['eps'] for r in rows])) <= AUTHORS_MEDIAN_EPS
+    assert {r['model'].removesuffix('+bias') for r in rows} == {'full'}
     for config in {r['config'] for r in rows}:
         q = _load().scatter_ratio([r for r in rows if r['config'] == config])[:3]
         assert np.all((q >= 0.5) & (q <= 2.0)), (config, q)

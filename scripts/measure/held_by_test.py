@@ -2,7 +2,10 @@
 
     python scripts/measure/held_by_test.py METHOD N      # METHOD: integral, auto, ...
 
-Prints the model choice, the status, the kept elements' sigma over the restricted fit's own
+Prints the model choice, the status, the calibration of the products' Wald p-values (the
+diagonal candidate's plain p: the share below 1e-3, 1e-2, 0.05, 0.1, 0.5 and the
+Kolmogorov-Smirnov p against uniform; the mean Wald statistic, 3 if the covariance is true),
+the kept elements' sigma over the restricted fit's own
 (the reported covariance less diagnostics.model_selection.held_covariance_added), their RMS z
 with and without the held covariance, and, for model='diagonal' on the integral method, the
 largest |torque_bias='auto' - 'off'| over the full fit's sigma among the records whose bias
@@ -28,7 +31,7 @@ d.update(duration=20.0, body=dict(d.get('body', {}), inertia=TRUTH.tolist()))
 d['gyro'] = dict(d.get('gyro', {}), noise_std=0.0)
 d['torque_sensor'] = dict(d.get('torque_sensor', {}), noise_std=0.0, noise_rel=0.0)
 sim = simulate(Scene.from_dict(d))
-models, status, ratio, z, z0, dep = Counter(), Counter(), [], [], [], []
+models, status, ratio, z, z0, dep, pv, wv = Counter(), Counter(), [], [], [], [], [], []
 for seed in range(2000, 2000 + n):
     rng = np.random.default_rng(seed)
     omega = sim.omega_true + rng.normal(0.0, 0.002, sim.omega_true.shape)
@@ -38,6 +41,10 @@ for seed in range(2000, 2000 + n):
     e = estimate(*data, method=method)
     models[e.model] += 1
     status[e.status] += 1
+    tested = (e.diagnostics.get('model_selection') or {}).get('models', {}).get('diagonal')
+    if tested is not None:
+        pv.append(tested['p_value'])
+        wv.append(tested['wald'])
     if e.model == 'diagonal':
         held = np.asarray(e.diagnostics['model_selection']['held_covariance_added'])[:6, :6]
         sd = np.sqrt(np.diag(np.asarray(e.covariance)))[:3]
@@ -54,6 +61,11 @@ for seed in range(2000, 2000 + n):
             dep.append(np.max(np.abs(np.diag(a.inertia) - np.diag(o.inertia))
                               / np.diag(f.inertia_std)))
 print(f'{method}, {n} seeds: models {dict(models)} status {dict(status)}')
+if pv:
+    from scipy.stats import kstest
+    print(f'products Wald p ({len(pv)}): share below 1e-3, 1e-2, 0.05, 0.1, 0.5',
+          [round(float(np.mean(np.less(pv, a))), 4) for a in (1e-3, 1e-2, 0.05, 0.1, 0.5)],
+          f'KS p {kstest(pv, "uniform").pvalue:.3g}, mean W {np.mean(wv):.2f} (3 expected)')
 print('kept sigma / restricted own: median', np.round(np.median(ratio, axis=0), 3),
       'max', np.round(np.max(ratio, axis=0), 3))
 print('kept RMS z:', np.round(np.sqrt(np.mean(np.square(z), axis=0)), 3),
