@@ -62,9 +62,13 @@ Methods (:data:`METHODS`), all built from :mod:`.regressors`:
     instead of a biased tensor with status ``ok``.
 
 Model selection (``model='auto'`` / ``torque_bias='auto'``): Wald tests on the general model
-(full tensor plus bias) with its calibrated covariance; the smallest parameter set the data does
-not reject at level ``alpha`` is used (an F-test analogue that stays valid with the correlated
-residuals of the momentum equations; BIC would need white residuals).
+(full tensor plus bias) with its calibrated covariance (an F-test analogue that stays valid
+with the correlated residuals of the momentum equations; BIC would need white residuals): the
+bias is kept when its test rejects ``d = 0`` at ``alpha``, and the smallest parameter set whose
+restriction the MSE test does not reject at ``SelectionPolicy.model_alpha`` (5 %) is used
+(:func:`.selection.select_model`).  Every path that selects a model (this estimator, the
+window's re-solves, the recursive estimators) concludes through :func:`.assemble.conclude`,
+so the rule is one.
 
 Identifiability: the gyro-noise-corrected information matrix, scaled by the total column
 energy, shows which directions carry signal; elements in directions that are mostly gyro noise
@@ -152,8 +156,9 @@ def estimate(t_gyro: Any, omega: Any, t_torque: Any, torque: Any, *,
     method : str
         One of :data:`METHODS` (``auto``: :mod:`.method_choice`).
     model : {'auto', 'full', 'diagonal', 'axisymmetric'}
-        Parameter set; ``auto`` picks the smallest the data supports (Wald tests at ``alpha``;
-        ``axisymmetric`` is only a candidate when ``symmetry_axis`` is given).
+        Parameter set; ``auto`` picks the smallest the data supports (the MSE test at 5 %,
+        :func:`.selection.select_model`; ``axisymmetric`` is only a candidate when
+        ``symmetry_axis`` is given).
     torque_bias : {'auto', 'on', 'off'}
         Estimate a constant unmeasured disturbance torque (3 more parameters).
     symmetry_axis : {'x', 'y', 'z'} or array_like (3,), optional
@@ -161,7 +166,8 @@ def estimate(t_gyro: Any, omega: Any, t_torque: Any, torque: Any, *,
     hold : {'auto', 'zoh', 'linear'}
         Torque between samples: held, linear, or both tried (``diagnostics['hold_selection']``).
     alpha : float
-        Level of the model-selection Wald tests (0 < alpha < 1).
+        Level of the torque bias's Wald test (0 < alpha < 1); the parameter set's level is
+        :data:`.selection.MODEL_ALPHA`.
     gyro_noise, torque_noise : float or array_like (3,), optional
         White-noise std per axis [rad/s] and [N m]; estimated from the data when omitted.
     segment : float, optional

@@ -153,7 +153,7 @@ class EstimatorOptions:
     symmetry_axis : {'x', 'y', 'z'}, array_like (3,) or None
         Body symmetry axis; required for ``model='axisymmetric'``.
     alpha : float
-        Level of the model-selection tests, in (0, 1).
+        Level of the torque bias's test, in (0, 1) (the parameter set's is fixed, 5 %).
     identifiability_tol : float
         Largest standard error of an identifiable element, share of the tensor scale (> 0).
     torque_scale_std, gyro_scale_std : float

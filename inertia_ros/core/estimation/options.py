@@ -11,7 +11,7 @@ Rules
     :data:`MIN_EQUATIONS` (fewer equations is ``insufficient_data``),
     :data:`GAP_FACTOR` (a sample interval over this many median intervals is a gap),
     :data:`TORQUE_FREE_SIGMAS` (a torque stream whose RMS is within this many noise sigmas of
-    zero is torque-free), :data:`ALPHA` (level of the model-selection tests),
+    zero is torque-free), :data:`ALPHA` (level of the torque bias's test),
     :data:`IDENTIFIABILITY_TOL` (an element whose standard error exceeds this share of the
     tensor scale is not identifiable), :data:`ML_AUTO_MAX_SAMPLES`.
 """
@@ -55,7 +55,7 @@ MIN_EQUATIONS = 3 * (6 + 3)
 GAP_FACTOR = 5.0
 #: Torque-free when every axis' torque RMS is within this many torque-noise sigmas.
 TORQUE_FREE_SIGMAS = 5.0
-#: Level of the model-selection Wald tests.
+#: Level of the torque bias's Wald test (the parameter set's: :data:`.selection.MODEL_ALPHA`).
 ALPHA = 1e-3
 #: An element whose standard error exceeds this share of the tensor scale is undetermined.
 IDENTIFIABILITY_TOL = 0.1
@@ -70,7 +70,7 @@ ADEQUACY_MIN_WINDOW_S = 5.0
 #: Sensor nuisance terms (``estimate(nuisance=...)``, ``--nuisance``; :mod:`.nuisance`):
 #: a constant gyro bias, a torque-to-gyro stamp offset, linear aerodynamic damping and a
 #: first-order gyro low-pass.  Each is kept only when a likelihood-ratio test at ``alpha``
-#: (the level of the model-selection tests, :data:`ALPHA`) supports it.
+#: (:data:`ALPHA`, the level of the torque bias's test) supports it.
 NUISANCE_TERMS: tuple[str, ...] = ('gyro_bias', 'torque_delay', 'damping', 'gyro_lowpass')
 #: Largest torque-stamp offset searched [s] (either sign).
 NUISANCE_MAX_DELAY_S = 0.05

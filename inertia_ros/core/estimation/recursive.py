@@ -89,7 +89,7 @@ class RecursiveEstimator:
     Parameters
     ----------
     model : {'full', 'diagonal', 'axisymmetric', 'auto'}
-        Parameter set (``auto``: Wald-test selection as in the batch estimator).
+        Parameter set (``auto``: the batch estimator's selection, :func:`.assemble.conclude`).
     torque_bias : bool or {'auto', 'on', 'off'}
         Estimate a constant disturbance torque [N m].
     forgetting : float
@@ -106,7 +106,7 @@ class RecursiveEstimator:
     gyro_noise : float or array_like (3,), optional
         Gyro white-noise std [rad/s]; estimated from the stream when omitted.
     alpha : float
-        Model-selection test level.
+        Level of the torque bias's test (the parameter set's: the batch's MSE test at 5 %).
     block : int
         Gyro samples buffered before an update of the statistics (``estimate`` always flushes).
     segment : float, optional
