@@ -1,6 +1,6 @@
 """Status and sigma on the reference simulator (issue 27 items 3-4): estimate() defaults or CLI.
 
-    python scripts/measure/honest_status.py CASE SEEDS DURATION [api|cli|node] [KEY=VALUE ...]
+    python scripts/measure/honest_status.py CASE SEEDS DURATION [api|cli|node|tracking] [KEY=VALUE ...]
 
 CASE: conforming, continuous, a case of ``bench.honesty.CASES`` (disturbance, gyro_bias,
 payload_change, ...), or a peer-like sine profile ``sine_{x,y,z,iso}_{AMPLITUDE}[_LEVEL]``
@@ -10,14 +10,17 @@ disturbance fixed in inertial axes of LEVEL x (1, -0.75, 0.5) N m, 2e-4 when not
 max |z| of the ok ones, the ok records with some |z| > 5 and the median error.
 ``KEY=VALUE`` options go to the estimator of the path (``node``: over the honesty benchmark's
 node options, e.g. ``hold=auto``, the node's default; numbers are read as floats).
+``tracking``: the node's ``method: tracking`` estimator at the node's defaults
+(:class:`TrackingEstimator`, memory 10 s, torque bias and hold 'auto'), fed as the node feeds
+it (10 Hz blocks, an estimate after each); the options go to it.
 """
 
 import sys
 
 import numpy as np
 
-from inertia_ros.bench.honesty import CASES, HonestyCase, peer_like, run_case
-from inertia_ros.bench.truth_sim import TruthCase
+from inertia_ros.bench.honesty import CASES, PATHS, HonestyCase, feed_online, peer_like, run_case
+from inertia_ros.bench.truth_sim import TruthCase, TruthRecord
 
 SCENE = TruthCase(amplitude=0.06, torque_noise=0.0012, omega0=(0.05, -0.03, 0.02))
 
@@ -34,6 +37,19 @@ def case_named(name: str, duration: float) -> TruthCase:
         return peer_like(parts[1], float(parts[2]), level, duration)
     t = CASES[name].truth.with_(duration=duration)
     return t.with_(t_change=duration / 2) if t.t_change is not None else t
+
+
+def _tracking(rec: TruthRecord, opts: dict) -> tuple:
+    """The node's tracker (``make_estimator`` for ``method: tracking`` at the defaults)."""
+    from inertia_ros.core.estimation.tracking import TrackingEstimator
+    kw = dict({'window': 10.0, 'model': 'full', 'torque_bias': 'auto', 'hold': 'auto'}, **opts)
+    e = feed_online(TrackingEstimator(**kw), rec, 10.0)
+    if e is None:
+        return 'insufficient_data', None, None
+    return e.status, e.inertia, e.inertia_std
+
+
+PATHS.setdefault('tracking', _tracking)
 
 
 def _option(arg: str) -> tuple[str, object]:

@@ -30,8 +30,9 @@ from .homogeneous import is_torque_free
 from .options import MIN_EQUATIONS, MIN_GYRO_SAMPLES
 from .recursive import RecursiveEstimator
 from .selection import HOLD_ALPHA
+from .tracking_output import StateOutput
 
-__all__ = ['DECIDE_S', 'JUDGE_EVERY_S', 'MIN_S', 'HoldChoice']
+__all__ = ['DECIDE_S', 'JUDGE_EVERY_S', 'MIN_S', 'HoldChoice', 'keep_by_adequacy']
 
 #: Data [s] judged before a choice may be locked.
 MIN_S = 10.0
@@ -126,3 +127,43 @@ def _judge(judge: RecursiveEstimator) -> dict[str, Any] | None:
     diag: dict[str, Any] = {}
     judge._choose_hold(judge._gyro_var(), is_torque_free(judge._acc.torque_rms(), tq), diag)
     return diag.get('hold_selection')
+
+
+def keep_by_adequacy(preferred: str, est: Any, record: dict[str, Any],
+                     filters: tuple[Any, Any]) -> tuple[Any, dict[str, Any]]:
+    """Before the hold is locked: the other filter's estimate when the preferred one's
+    innovations fail (``est`` is ``model_mismatch``) and the other's do not, as the batch
+    and the recursive estimator keep a hold by adequacy (``hold_selection.adequacy``).
+
+    Until the choice is settled the rule's preference may be a coin toss (p well above
+    :data:`.selection.HOLD_ALPHA` on a few seconds): on 4 s of held torque it preferred the
+    linear hold in 7 of 20 records, whose filter then failed its innovation test in 2 while
+    the zero-order hold's passed.
+
+    Parameters
+    ----------
+    preferred : {'zoh', 'linear'}
+        The hold the rule prefers so far.
+    est : InertiaEstimate
+        Its filter's estimate.
+    record : dict
+        ``diagnostics['hold_selection']`` so far.
+    filters : tuple
+        The zero-order hold's and the linear hold's trackers.
+
+    Returns
+    -------
+    tuple
+        The estimate to report and its hold record.
+    """
+    other = 'zoh' if preferred == 'linear' else 'linear'
+    alt = StateOutput.estimate(                  # the filter's own, not its hold choice's
+        filters[0] if other == 'zoh' else filters[1])
+    if alt.status == 'model_mismatch':
+        return est, record
+    excess = {preferred: est.diagnostics.get('innovation_excess'),
+              other: alt.diagnostics.get('innovation_excess')}
+    return alt, dict(record, chosen=other, adequacy={
+        'rule': "the preferred hold's filter fails its innovation test and the other's "
+                'passes: the other is reported until the choice is locked',
+        'preferred': preferred, 'innovation_excess': excess})

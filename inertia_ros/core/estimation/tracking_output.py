@@ -67,22 +67,29 @@ class StateOutput:
             cov = cov + np.outer(lag, lag)
         return cov
 
-    def _compensated(self) -> np.ndarray:
-        """``[psi, d]`` without the errors-in-variables bias (p,).
+    def _compensated(self) -> tuple[np.ndarray, np.ndarray]:
+        """``[psi, d]`` without the errors-in-variables bias (p,), and the bias left in it
+        (p,: zeros when it was removed).
 
         Each block's regressor carries the averaged gyro noise, whose own information ``B``
         (``sum_c sigma_c^2 L(e_c)' R^-1 L(e_c)``, the batch fit's ``n B``) the filter counts
         as signal: with ``B_eff`` their sum under the same forgetting, the filter estimate is
         ``(1 - P B_eff) psi`` to first order, which is undone here while ``P B_eff`` is small
         (the state itself keeps it: a per-block subtraction can make the information
-        indefinite).
+        indefinite).  While it is not small (a weakly excited start), the first-order bias
+        ``-P B_eff psi`` is not removed but returned, for the covariance to carry it as the
+        systematic error it is (the exact inverse ``(1 - P B_eff)^-1`` over-corrected there:
+        ``B`` ignores the share of the noise the momentum state takes up).
         """
         p, k = self.k + self.nb, self.k
         out = self.x[:p].copy()
+        left = np.zeros(p)
         PB = self.P[:k, :k] @ self._Beff
         if float(np.max(np.abs(PB))) < _EIV_MAX:       # first order; not while re-converging
             out[:k] = out[:k] + PB @ out[:k]
-        return out
+        else:
+            left[:k] = -PB @ out[:k]
+        return out, left
 
     def current(self) -> tuple[np.ndarray, np.ndarray] | None:
         """The tracked tensor ``theta`` (6,) [kg m^2] and its covariance (6, 6) now, without
@@ -92,8 +99,9 @@ class StateOutput:
             return None
         if self._pend is not None:
             self._fold_in(np.empty(0), np.empty((0, 3)), flush=True)
-        cov = self._covariance()[:self.k, :self.k]
-        return self.basis @ self._compensated()[:self.k], self.basis @ cov @ self.basis.T
+        beta, left = self._compensated()
+        cov = (self._covariance() + np.outer(left, left))[:self.k, :self.k]
+        return self.basis @ beta[:self.k], self.basis @ cov @ self.basis.T
 
     def estimate(self) -> InertiaEstimate:
         """The current tensor with its covariance and status (``method='tracking'``).
@@ -132,7 +140,8 @@ class StateOutput:
     def _result(self, diag: dict[str, Any], base: dict[str, Any]) -> InertiaEstimate:
         """Identifiability, status and the :class:`InertiaEstimate` of the filter state."""
         p = self.k + self.nb
-        beta, cov = self._compensated(), self._covariance()
+        beta, left = self._compensated()
+        cov = self._covariance() + np.outer(left, left)      # a bias not removed: carried
         # a change found again and again is the model failing, not a payload step
         near = [c for c in self.changes if self._prev[0] - c < 4.0 * EXCESS_TIME]
         recent = bool(near) and self._prev[0] - near[-1] < 2.0 * EXCESS_TIME and len(near) < 3
@@ -148,8 +157,9 @@ class StateOutput:
         add_calibration(f, self.policy, None, diag)
         theta = self.basis @ beta[:self.k]
         # identifiable on the noise model's covariance, before the widening (the batch rule)
-        se = np.sqrt(np.maximum(np.diag(self.basis @ f.cov[:self.k, :self.k]
-                                        @ self.basis.T), 0.0) / widen)
+        # and without the bias carried
+        noise = (f.cov / widen - np.outer(left, left))[:self.k, :self.k]
+        se = np.sqrt(np.maximum(np.diag(self.basis @ noise @ self.basis.T), 0.0))
         scale = max(float(np.max(theta[:3])), 0.0)
         free = se <= IDENTIFIABILITY_TOL * scale
         if scale <= 0 or not np.any(free[:3]):

@@ -1,0 +1,116 @@
+"""False alarms on short model-conforming records (issue 27, session 5).
+
+A status that cries wolf on a correct answer is as useless as one that stays green on a
+wrong one.  Two found by the capability matrix's combined-feature cells:
+
+- ``nuisance='auto'`` on a few seconds of slow rotation: the interval equations' rate
+  changes were mostly gyro noise, the fit shrunk the tensor (errors in variables) and the
+  selection test chose gyro biases of 0.3-2 rad/s at p < 1e-10, then ``model_mismatch``
+  (20 of 20 records at 6 s, median error 46 %).  Now the fit is corrected for the noise in
+  its regressors and refused when the equations with every candidate do not determine the
+  tensor (the batch identifiability rule): :mod:`inertia_ros.core.estimation.nuisance`.
+- The tracker (the node's ``method: tracking``) on 4 s: its start-up fit had the same
+  shrink with a covariance that claimed 1 %, so the filter stayed many sigma off for
+  seconds (``ok`` at |z| up to 15, or ``model_mismatch``); and before the hold is locked it
+  reported the linear hold's filter on a held torque, preferred by a coin toss, whose
+  innovations then failed.  :mod:`inertia_ros.core.estimation.tracking`.
+
+Records from the independent reference simulator (``bench/truth_sim.py``), the scene of
+``scripts/measure/honest_status.py`` (0.06 N m held torque, 0.05 rad/s start); the full
+Monte Carlo and the commands are in docs/BENCHMARKS.md ("Status and sigma under mismatch").
+"""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from inertia_ros.bench.honesty import feed_online
+from inertia_ros.bench.truth_sim import TruthCase, simulate_truth
+from inertia_ros.core.estimation import estimate
+from inertia_ros.core.estimation.tracking import TrackingEstimator
+
+IDX = ([0, 1, 2, 0, 0, 1], [0, 1, 2, 1, 2, 2])
+SCENE = TruthCase(amplitude=0.06, torque_noise=0.0012, omega0=(0.05, -0.03, 0.02))
+#: the node's tracker at its defaults (memory 10 s, torque bias and hold 'auto')
+NODE_TRACKER = {'window': 10.0, 'model': 'full', 'torque_bias': 'auto', 'hold': 'auto'}
+
+
+def _z(e, rec) -> np.ndarray:
+    return (e.theta - rec.inertia_end[IDX]) / e.theta_std
+
+
+def _summary(pairs) -> tuple[list[str], float, float]:
+    """Statuses, RMS z over the ok records and their largest |z|."""
+    ok = [_z(e, r) for e, r in pairs if e.status == 'ok']
+    z = np.concatenate(ok) if ok else np.zeros(1)
+    return [e.status for e, _ in pairs], float(np.sqrt(np.mean(z ** 2))), float(np.max(np.abs(z)))
+
+
+@pytest.mark.slow
+def test_nuisance_auto_does_not_cry_wolf_on_short_conforming_records() -> None:
+    """8 model-conforming 6 s records, ``nuisance='auto'``: at most 1 not ok (was 8 of 8
+    ``model_mismatch`` with gyro biases of 0.3-2 rad/s), RMS z of the ok ones in
+    [0.7, 1.5], none over 5; where the fit is refused, the record says why in one line."""
+    recs = simulate_truth(SCENE.with_(duration=6.0), list(range(8)))
+    pairs = [(estimate(r.t_gyro, r.omega, r.t_torque, r.torque, nuisance='auto'), r)
+             for r in recs]
+    statuses, rms, top = _summary(pairs)
+    assert statuses.count('ok') >= 7, statuses
+    assert 0.7 <= rms <= 1.5 and top < 5.0, (rms, top)
+    for e, _ in pairs:
+        nd = e.diagnostics['nuisance']
+        assert nd['chosen'] == [] or max(np.abs(nd['values'].get('gyro_bias', [0.0]))) < 0.05
+        why = nd.get('skipped', '')
+        assert '\n' not in why and (not why or 'tensor' in why or 'noise' in why), why
+
+
+def test_nuisance_fit_is_not_shrunk_by_the_gyro_noise() -> None:
+    """On 10 s records whose 0.1 s intervals' rate changes carry 6-9 % gyro-noise power, the
+    nuisance fit's tensor (no term chosen: the fit of the tensor and the disturbance) is
+    the truth within 4 % in the mean of the principal moments over 4 seeds (without the
+    correction for the noise in the regressors it is shrunk by about the noise share)."""
+    from inertia_ros.core.estimation.nuisance import fit_nuisance
+
+    ratios = []
+    for r in simulate_truth(SCENE.with_(duration=10.0), list(range(4))):
+        fit, record = fit_nuisance(r.t_gyro, r.omega, r.t_torque, r.torque, 'auto', 1e-3)
+        assert fit is not None and record['chosen'] == [], record
+        ratios.append(np.mean(fit.beta[:3] / np.diag(r.inertia_end)))
+    assert abs(np.mean(ratios) - 1.0) < 0.04, ratios
+
+
+@pytest.mark.slow
+def test_tracker_is_calibrated_on_short_conforming_records() -> None:
+    """The node's tracker fed 8 model-conforming 4 s records at 10 Hz: at most 1 not ok,
+    RMS z of the ok ones in [0.7, 1.5], none ok with |z| > 5 (before: 2 of the 8
+    ``model_mismatch`` and 2 ok at |z| 9.8 and 15)."""
+    recs = simulate_truth(SCENE.with_(duration=4.0), list(range(8)))
+    pairs = [(feed_online(TrackingEstimator(**NODE_TRACKER), r, 10.0), r) for r in recs]
+    statuses, rms, top = _summary(pairs)
+    assert statuses.count('ok') >= 7, statuses
+    assert 0.7 <= rms <= 1.5 and top < 5.0, (rms, top)
+
+
+def test_tracker_start_up_is_not_shrunk() -> None:
+    """The first estimate after the start-up (2 s of slow rotation, the seed whose moment
+    iyy the uncorrected fit shrank from 1.2 to 0.19 kg m^2 at a claimed sigma of 0.5 %)
+    is within 5 sigma of the truth, or the start-up waits for more data."""
+    rec = simulate_truth(SCENE.with_(duration=3.0), [2])[0]
+    first = []
+    feed_online(TrackingEstimator(window=10.0, hold='zoh'), rec, 10.0,
+                lambda t, e: first.append(e) if e.status != 'insufficient_data' else None)
+    assert first, 'never started'
+    z = _z(first[0], rec)
+    assert np.all(np.abs(z) < 5.0), np.round(z, 1)
+
+
+def test_tracker_hold_kept_by_adequacy_before_it_is_locked() -> None:
+    """Seed 11 at 4 s: the hold rule prefers the linear hold on the held torque (not
+    significant, not locked) and its filter fails the innovation test; the zero-order hold's
+    passes and is reported, ``hold_selection.adequacy`` saying so (before: model_mismatch)."""
+    rec = simulate_truth(SCENE.with_(duration=4.0), [11])[0]
+    e = feed_online(TrackingEstimator(**NODE_TRACKER), rec, 10.0)
+    sel = e.diagnostics['hold_selection']
+    assert e.status == 'ok' and sel['chosen'] == 'zoh' and not sel['locked'], sel
+    assert sel['adequacy']['preferred'] == 'linear', sel
+    assert sel['adequacy']['innovation_excess']['linear'] > 1.5, sel
