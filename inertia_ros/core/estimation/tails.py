@@ -1,4 +1,5 @@
-"""Upper tail of the chi-square distribution for the tests' integer degrees of freedom.
+"""Upper tail and upper quantile of the chi-square distribution for the tests' integer degrees
+of freedom, and the standard normal's upper quantile: the package's one implementation of each.
 
 The Wald tests of model selection and the window test of model adequacy need
 ``P(chi2_k > x)`` for integer ``k`` (at most a few dozen).  For integer ``k`` it is a finite
@@ -11,12 +12,19 @@ all terms positive (no cancellation), each built from the last so nothing overfl
 equals ``scipy.special.chdtrc`` to ~1e-14 (tested), without importing scipy: the command-line
 estimate of an hour-long log would otherwise pay ~0.1 s of its start-up for scipy.special
 (and the scipy base it loads) to evaluate a handful of p-values.
+
+The quantiles invert that tail: :func:`chi2_isf` by bisection (the tracker's change threshold,
+cached per dof), :func:`normal_isf` as ``sqrt(chi2_isf(2 p, 1))`` (``P(|Z| > z) = 2 p``).  Both
+equal ``scipy.special.chdtri`` / ``ndtri`` to ~1e-15 (tested).  ``scipy.special`` would be
+faster per call (2 us against 160 us for the bisection) but costs 0.125 s of import on the
+paths that do not load it otherwise, against a handful of quantiles per run (measured on this
+machine: ``import numpy`` 0.244 s, ``import numpy, scipy.special`` 0.369 s).
 """
 from __future__ import annotations
 
 import math
 
-__all__ = ['chi2_sf']
+__all__ = ['chi2_isf', 'chi2_sf', 'normal_isf']
 
 #: Largest degrees of freedom accepted (the tests use at most a few dozen).
 MAX_DOF = 10_000
@@ -64,3 +72,37 @@ def chi2_sf(x: float, dof: int) -> float:
             total += term
             term *= x / (2 * r + 1)
     return min(total, 1.0)
+
+
+def chi2_isf(level: float, dof: int) -> float:
+    """Upper ``level`` quantile of the chi-square distribution: bisection on :func:`chi2_sf`.
+
+    Parameters
+    ----------
+    level : float
+        Upper-tail probability in (0, 1).
+    dof : int
+        Degrees of freedom, ``1 <= dof <= MAX_DOF``.
+
+    Returns
+    -------
+    float
+        ``q`` with ``P(chi2_dof > q) = level`` (to the tail's rounding).
+    """
+    if not 0.0 < level < 1.0:
+        raise ValueError(f'level: expected a probability in (0, 1), got {level!r}')
+    lo, hi = 0.0, 400.0
+    while chi2_sf(hi, dof) > level:
+        lo, hi = hi, 2.0 * hi
+    for _ in range(80):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if chi2_sf(mid, dof) > level else (lo, mid)
+    return 0.5 * (lo + hi)
+
+
+def normal_isf(p: float) -> float:
+    """``z`` with ``P(N(0, 1) > z) = p`` for ``0 < p < 0.5``: ``sqrt`` of the 1-dof
+    :func:`chi2_isf` at ``2 p``."""
+    if not 0.0 < p < 0.5:
+        raise ValueError(f'p: expected a probability in (0, 0.5), got {p!r}')
+    return math.sqrt(chi2_isf(2.0 * p, 1))

@@ -64,41 +64,16 @@ from .options import (
 from .regressors import cumulative_monomials, cumulative_torque, gyroscopic_matrix, momentum_matrix
 from .result import InertiaEstimate
 from .selection import SelectionPolicy
-from .tails import chi2_sf
+from .tails import chi2_isf
 from .tracking_hold import HoldChoice
 from .tracking_input import StreamInput
 from .tracking_output import EXCESS_TIME, StateOutput
 
-__all__ = ['TrackingEstimator', 'chi2_upper_quantile']
+__all__ = ['TrackingEstimator']
 
 _DIFFUSE = 1e6            # prior variance of the empty filter, in squared scale units
 _PRIOR_INFLATION = 100.0  # start-up fit covariance -> the filter's prior
 _SETTLED = 0.05           # relative sigma of the moments below which the weights follow x
-
-
-def chi2_upper_quantile(dof: int, level: float) -> float:
-    """Upper ``level`` quantile of the chi-square distribution, without scipy: bisection on
-    the exact tail :func:`.tails.chi2_sf`.
-
-    Parameters
-    ----------
-    dof : int
-        Degrees of freedom (>= 1).
-    level : float
-        Upper-tail probability in (0, 0.5).
-
-    Returns
-    -------
-    float
-        ``q`` with ``P(chi2_dof > q) = level``.
-    """
-    lo, hi = 0.0, 400.0
-    while chi2_sf(hi, dof) > level:
-        lo, hi = hi, 2.0 * hi
-    for _ in range(80):
-        mid = 0.5 * (lo + hi)
-        lo, hi = (mid, hi) if chi2_sf(mid, dof) > level else (lo, mid)
-    return 0.5 * (lo + hi)
 
 
 class _Trend:
@@ -486,7 +461,7 @@ class TrackingEstimator(StreamInput, StateOutput):
             return False
         q = self._thresholds.get(dof)
         if q is None:
-            q = self._thresholds[dof] = chi2_upper_quantile(dof, self.change_level)
+            q = self._thresholds[dof] = chi2_isf(self.change_level, dof)
         return nis > q
 
     def _inflate(self) -> None:
