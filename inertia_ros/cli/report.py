@@ -17,6 +17,7 @@ import numpy as np
 
 from inertia_ros.core.dynamics import angular_momentum
 from inertia_ros.core.estimation import estimate
+from inertia_ros.core.estimation.align import cumtrapz
 from inertia_ros.core.estimation.options import MIN_GYRO_SAMPLES
 from inertia_ros.core.estimation.result import InertiaEstimate, to_jsonable
 from inertia_ros.core.tensor import matrix_to_theta
@@ -389,8 +390,7 @@ def window_torques(est: InertiaEstimate, tg: np.ndarray, w: np.ndarray, tt: np.n
     L = angular_momentum(np.asarray(est.inertia), w)
     gyro = np.cross(w, L)
     dt = np.diff(tg)
-    G = np.concatenate((np.zeros((1, 3)), np.cumsum(0.5 * (gyro[1:] + gyro[:-1]) * dt[:, None],
-                                                    axis=0)))
+    G = cumtrapz(tg, gyro)
     if hold == 'zoh':
         j = np.clip(np.searchsorted(tt, tg[:-1], side='right') - 1, 0, len(tt) - 1)
         seg = tau[j]

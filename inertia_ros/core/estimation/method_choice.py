@@ -53,6 +53,7 @@ from typing import Any
 import numpy as np
 
 from .._numeric import median, median_rows
+from .align import cumtrapz
 from .filtered import MAX_NOISE_SHARE as _MAX_NOISE_SHARE
 from .options import ML_AUTO_MAX_SAMPLES
 from .regressors import cumulative_torque
@@ -169,12 +170,7 @@ def _residual(t: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.ndarray,
     gyro[..., 0] = w[..., 1] * h[..., 2] - w[..., 2] * h[..., 1]
     gyro[..., 1] = w[..., 2] * h[..., 0] - w[..., 0] * h[..., 2]
     gyro[..., 2] = w[..., 0] * h[..., 1] - w[..., 1] * h[..., 0]
-    r = np.empty_like(h)
-    r[..., 0, :] = 0.0
-    inc = gyro[..., 1:, :] + gyro[..., :-1, :]
-    inc *= 0.5
-    inc *= np.diff(t, axis=-1)[..., None]
-    np.cumsum(inc, axis=-2, out=r[..., 1:, :])             # int w x I w dt (trapezoid)
+    r = cumtrapz(t, gyro)                                  # int w x I w dt
     r += h
     if len(ts) >= 2:                                       # - int tau dt, held or linear
         r -= cumulative_torque(ts, tau, t.reshape(-1), hold).reshape(r.shape)
