@@ -24,16 +24,24 @@ import numpy as np
 
 from .._numeric import median_rows
 
-__all__ = ['ISOTROPY_FLOOR', 'STREAM_NOISE_SAMPLES', 'StreamingNoise', 'gyroscopic_walk_cov',
-           'isotropy_floor',
-           'median_rows', 'noise_std_from_differences']
+__all__ = ['ISOTROPY_FLOOR', 'MIN_NOISE_SAMPLES', 'STREAM_NOISE_SAMPLES', 'STREAM_NOISE_STRIDE',
+           'StreamingNoise', 'gyroscopic_walk_cov', 'isotropy_floor', 'median_rows',
+           'noise_std_from_differences']
 
 #: Smallest gyro-noise std of an axis, as a share of the largest axis' std.
 ISOTROPY_FLOOR = 0.1
 #: Samples of a stream the online noise estimate looks at (the most recent ones).
 STREAM_NOISE_SAMPLES = 4096
-#: Samples between two noise estimates of a long stream (a quarter of the kept ones).
+#: Samples between two noise estimates of a long stream (a quarter of the kept ones); the
+#: tracker re-reads its streams' levels every as many gyro samples (it had 500 of its own).
 STREAM_NOISE_STRIDE = 1024
+#: Samples a stream needs before its streaming estimate stands for its white noise (before
+#: that it is unknown and each estimator falls back on its own rule): the torque's in the
+#: recursive estimator and the tracker, the momentum input's (wheel momentum, its own and the
+#: other torque) in the momentum estimator (it had 6, the fewest that
+#: :func:`noise_std_from_differences` answers from, ``max(orders) + 2``; 16 changed no
+#: sample-bag report and no online test, issue 26 rule (c)).
+MIN_NOISE_SAMPLES = 16
 
 
 def isotropy_floor(std: np.ndarray) -> np.ndarray:
@@ -159,6 +167,10 @@ class StreamingNoise:
     def variance(self) -> np.ndarray:
         """Noise variance per axis, shape (3,) [units of the stream squared]."""
         return self.std() ** 2
+
+    def known(self) -> bool:
+        """Whether the stream has :data:`MIN_NOISE_SAMPLES` samples (its estimate stands)."""
+        return self.count >= MIN_NOISE_SAMPLES
 
 
 #: Levi-Civita symbol eps_abc, shape (3, 3, 3).
