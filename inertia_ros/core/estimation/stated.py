@@ -167,6 +167,15 @@ def rerun(res: Any, run: Any, st: Stated, u: np.ndarray, options: dict[str, Any]
 def propagate(res: Any, run: Any, st: Stated, options: dict[str, Any]) -> Any:
     """The estimate with the stated inputs profiled (module docstring).
 
+    The torque path states the same two scales through :func:`.assemble.add_calibration`
+    instead, and the two stay apart (issue 26, rule (d)): there no profile is run (the prior
+    stands) and ``cov += s^2 beta beta' + g^2 J J'`` with ``J = d beta / d g`` linearised (a
+    refit of the gyro-scaled statistics); here the inputs are profiled, then each is moved by
+    one stated sigma and the record re-estimated (``D`` by a finite step, ``P + 1`` runs).
+    On torque records (30 s, 2 seeds, 2 % torque and 1 % gyro scale; this path fed a zero
+    momentum) the profile leaves both at their prior and the estimate unmoved, and the added
+    sigmas agree within 0.4 %: not the 1e-6 of a fold.
+
     Parameters
     ----------
     res : InertiaEstimate
