@@ -26,7 +26,7 @@ from .._numeric import median_rows
 
 __all__ = ['ISOTROPY_FLOOR', 'MIN_NOISE_SAMPLES', 'STREAM_NOISE_SAMPLES', 'STREAM_NOISE_STRIDE',
            'StreamingNoise', 'gyroscopic_walk_cov', 'isotropy_floor', 'median_rows',
-           'noise_std_from_differences']
+           'noise_std_from_differences', 'walk_maps']
 
 #: Smallest gyro-noise std of an axis, as a share of the largest axis' std.
 ISOTROPY_FLOOR = 0.1
@@ -208,9 +208,15 @@ def gyroscopic_walk_cov(I: np.ndarray, gyro_var: np.ndarray, omega_m2: np.ndarra
     """
     if omega_m2 is None or gyro_dt <= 0 or torque_dt <= 0:
         return np.zeros((3, 3))
-    # A_i = [e_i]x I - [I e_i]x, all three at once ([v]x_ab = -eps_abc v_c), then
     # sum_ij E[w_i w_j] A_i S_g A_j' as one contraction (every fit's meat calls this)
-    A = np.einsum('aki,kb->iab', -_EPS, I) + np.einsum('abc,ci->iab', _EPS, I)
+    A = walk_maps(I)
     M = np.einsum('ij,iab,b,jcb->ac', omega_m2, A, np.asarray(gyro_var, dtype=float), A)
     M = 0.5 * (M + M.T)
     return (gyro_dt / torque_dt) * M
+
+
+def walk_maps(I: np.ndarray) -> np.ndarray:
+    """``A_i = [e_i]x I - [I e_i]x`` (3, 3, 3) for the tensor ``I`` (3, 3) [kg m^2]: the
+    gyroscopic term's ``J(w) = sum_i w_i A_i`` (:func:`gyroscopic_walk_cov`), all three at once
+    (``[v]x_ab = -eps_abc v_c``)."""
+    return np.einsum('aki,kb->iab', -_EPS, I) + np.einsum('abc,ci->iab', _EPS, I)
