@@ -19,7 +19,7 @@ import numpy as np
 
 from .noise import median_rows
 from .options import GAP_FACTOR
-from .regressors import cumulative_torque, monomials
+from .regressors import cumtrapz, cumulative_torque, monomials
 
 __all__ = ['OnlineAligner', 'cross_matrices', 'cumtrapz', 'gap_starts', 'hermite',
            'hermite_basis', 'hermite_weights', 'inside_gaps', 'run_slopes']
@@ -120,21 +120,6 @@ def hermite_weights(u: np.ndarray, dx: np.ndarray) -> tuple[np.ndarray, ...]:
     u2 = u * u
     u3 = u2 * u
     return 2 * u3 - 3 * u2 + 1, (u3 - 2 * u2 + u) * dx, 3 * u2 - 2 * u3, (u3 - u2) * dx
-
-
-def cumtrapz(t: np.ndarray, f: np.ndarray) -> np.ndarray:
-    """Cumulative trapezoid of ``f`` (..., n, ...) over the stamps ``t`` (..., n) [s] along
-    ``t``'s last axis (one run, or pieces of runs of one length), 0 at the first stamp."""
-    k = t.ndim - 1
-    dt = np.diff(t, axis=-1).reshape(t.shape[:-1] + (-1,) + (1,) * (f.ndim - t.ndim))
-    lo = (slice(None),) * k
-    out = np.empty_like(f)
-    out[lo + (0,)] = 0.0
-    inc = f[lo + (slice(1, None),)] + f[lo + (slice(None, -1),)]
-    inc *= 0.5
-    inc *= dt
-    np.cumsum(inc, axis=k, out=out[lo + (slice(1, None),)])
-    return out
 
 
 def cross_matrices(v: np.ndarray) -> np.ndarray:
