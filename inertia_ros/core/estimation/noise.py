@@ -35,12 +35,9 @@ STREAM_NOISE_SAMPLES = 4096
 #: Samples between two noise estimates of a long stream (a quarter of the kept ones); the
 #: tracker re-reads its streams' levels every as many gyro samples (it had 500 of its own).
 STREAM_NOISE_STRIDE = 1024
-#: Samples a stream needs before its streaming estimate stands for its white noise (before
-#: that it is unknown and each estimator falls back on its own rule): the torque's in the
-#: recursive estimator and the tracker, the momentum input's (wheel momentum, its own and the
-#: other torque) in the momentum estimator (it had 6, the fewest that
-#: :func:`noise_std_from_differences` answers from, ``max(orders) + 2``; 16 changed no
-#: sample-bag report and no online test, issue 26 rule (c)).
+#: Samples a stream needs before its streaming estimate stands for its white noise (before,
+#: each estimator's fallback): the torque's, the momentum input's (which had 6, the fewest
+#: :func:`noise_std_from_differences` answers from; 16 changed no report or online test).
 MIN_NOISE_SAMPLES = 16
 
 
