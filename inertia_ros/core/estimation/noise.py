@@ -25,16 +25,19 @@ import numpy as np
 from .._numeric import median_rows
 
 __all__ = ['ISOTROPY_FLOOR', 'MIN_NOISE_SAMPLES', 'STREAM_NOISE_SAMPLES', 'STREAM_NOISE_STRIDE',
-           'StreamingNoise', 'gyroscopic_walk_cov', 'isotropy_floor', 'median_rows',
-           'noise_std_from_differences', 'walk_maps']
+           'TRACKER_NOISE_EVERY', 'StreamingNoise', 'gyroscopic_walk_cov', 'isotropy_floor',
+           'median_rows', 'noise_std_from_differences', 'walk_maps']
 
 #: Smallest gyro-noise std of an axis, as a share of the largest axis' std.
 ISOTROPY_FLOOR = 0.1
 #: Samples of a stream the online noise estimate looks at (the most recent ones).
 STREAM_NOISE_SAMPLES = 4096
-#: Samples between two noise estimates of a long stream (a quarter of the kept ones); the
-#: tracker re-reads its streams' levels every as many gyro samples (it had 500 of its own).
+#: Samples between two noise estimates of a long stream (a quarter of the kept ones).
 STREAM_NOISE_STRIDE = 1024
+#: Gyro samples between the tracker's re-readings of its streams' noise levels: the same
+#: idea as :data:`STREAM_NOISE_STRIDE`, kept apart (issue 26, rule (c)) because 1024 fails
+#: the tracker's stated-wheel-inertia test (a diagonal sigma then grows less than 4x).
+TRACKER_NOISE_EVERY = 500
 #: Samples a stream needs before its streaming estimate stands for its white noise (before,
 #: each estimator's fallback): the torque's, the momentum input's (which had 6, the fewest
 #: :func:`noise_std_from_differences` answers from; 16 changed no report or online test).

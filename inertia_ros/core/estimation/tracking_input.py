@@ -17,7 +17,7 @@ import numpy as np
 from .._validate import as_sample_block, require_after
 from ..tensor import theta_to_matrix
 from .align import gap_starts
-from .noise import STREAM_NOISE_STRIDE, gyroscopic_walk_cov
+from .noise import TRACKER_NOISE_EVERY, gyroscopic_walk_cov
 from .options import GAP_FACTOR
 from .regressors import momentum_matrix
 
@@ -102,10 +102,10 @@ class StreamInput:
             self._initialise()
 
     def _refresh_noise(self) -> None:
-        """Re-read the streams' noise levels every :data:`.noise.STREAM_NOISE_STRIDE` gyro
+        """Re-read the streams' noise levels every :data:`.noise.TRACKER_NOISE_EVERY` gyro
         samples (they are medians over thousands of samples: once a block would cost more
         than the rest)."""
-        if self._warm is None and self.samples_used - self._noise_at < STREAM_NOISE_STRIDE:
+        if self._warm is None and self.samples_used - self._noise_at < TRACKER_NOISE_EVERY:
             return
         self._noise_at = self.samples_used
         if self._gyro_noise is not None:
