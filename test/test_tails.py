@@ -1,4 +1,4 @@
-"""The chi-square upper tail of the model tests equals scipy's to ~1e-13."""
+"""The chi-square upper tail and quantile and the normal quantile equal scipy's to rounding."""
 from __future__ import annotations
 
 import math
@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 
-from inertia_ros.core.estimation.tails import chi2_sf
+from inertia_ros.core.estimation.tails import chi2_isf, chi2_sf, normal_isf
 
 
 @pytest.mark.parametrize('dof', [1, 2, 3, 4, 5, 6, 9, 18, 27, 60])
@@ -31,3 +31,29 @@ def test_chi2_sf_edges() -> None:
     for bad in (0, -2, 2.5, 10_001):
         with pytest.raises(ValueError, match='dof'):
             chi2_sf(1.0, bad)
+
+
+@pytest.mark.parametrize('dof', [1, 3, 6, 30, 300])
+def test_chi2_isf_equals_scipy(dof: int) -> None:
+    """The quantile (the tracker's change threshold) within 1e-12 relative of scipy's."""
+    from scipy.special import chdtri
+
+    for level in (0.4, 1e-2, 1e-3, 1e-6, 1e-10):
+        assert chi2_isf(level, dof) == pytest.approx(float(chdtri(dof, level)), rel=1e-12)
+
+
+def test_normal_isf_equals_scipy() -> None:
+    """The normal upper quantile (the spectral evidence's threshold) within 1e-12 relative."""
+    from scipy.special import ndtri
+
+    for p in np.logspace(-14, math.log10(0.45), 60):
+        assert normal_isf(p) == pytest.approx(float(-ndtri(p)), rel=1e-12), p
+
+
+def test_quantile_edges() -> None:
+    """A level outside the open interval is one ValueError naming it."""
+    for bad in (0.0, 1.0, -0.1, math.nan):
+        with pytest.raises(ValueError, match='level'):
+            chi2_isf(bad, 3)
+    with pytest.raises(ValueError, match='p: '):
+        normal_isf(0.5)

@@ -17,7 +17,9 @@ import numpy as np
 
 from inertia_ros.core.dynamics import angular_momentum
 from inertia_ros.core.estimation import estimate
+from inertia_ros.core.estimation.align import cumtrapz
 from inertia_ros.core.estimation.options import MIN_GYRO_SAMPLES
+from inertia_ros.core.estimation.regressors import cumulative_torque
 from inertia_ros.core.estimation.result import InertiaEstimate, to_jsonable
 from inertia_ros.core.tensor import matrix_to_theta
 from inertia_ros.io.logs import LogData
@@ -389,15 +391,9 @@ def window_torques(est: InertiaEstimate, tg: np.ndarray, w: np.ndarray, tt: np.n
     L = angular_momentum(np.asarray(est.inertia), w)
     gyro = np.cross(w, L)
     dt = np.diff(tg)
-    G = np.concatenate((np.zeros((1, 3)), np.cumsum(0.5 * (gyro[1:] + gyro[:-1]) * dt[:, None],
-                                                    axis=0)))
-    if hold == 'zoh':
-        j = np.clip(np.searchsorted(tt, tg[:-1], side='right') - 1, 0, len(tt) - 1)
-        seg = tau[j]
-    else:
-        mid = 0.5 * (tg[1:] + tg[:-1])
-        seg = np.stack([np.interp(mid, tt, tau[:, k]) for k in range(3)], axis=1)
-    T = np.concatenate((np.zeros((1, 3)), np.cumsum(seg * dt[:, None], axis=0)))
+    G = cumtrapz(tg, gyro)
+    # the estimator's own held-torque integral (regressors.cumulative_torque)
+    T = cumulative_torque(tt, tau, tg, 'zoh' if hold == 'zoh' else 'linear')
     k = max(1, int(round(width / float(np.median(dt)))))
     if len(tg) <= k:
         return np.zeros(0), np.zeros((0, 3)), np.zeros((0, 3))

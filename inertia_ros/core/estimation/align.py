@@ -19,10 +19,10 @@ import numpy as np
 
 from .noise import median_rows
 from .options import GAP_FACTOR
-from .regressors import cumulative_torque, monomials
+from .regressors import cumtrapz, cumulative_torque, monomials
 
 __all__ = ['OnlineAligner', 'cross_matrices', 'cumtrapz', 'gap_starts', 'hermite',
-           'hermite_basis', 'inside_gaps', 'run_slopes']
+           'hermite_basis', 'hermite_weights', 'inside_gaps', 'run_slopes']
 
 _DT_HISTORY = 64        # recent sample intervals kept per stream for the nominal interval
 
@@ -109,18 +109,17 @@ def hermite_basis(t_h: np.ndarray, t: np.ndarray
     ``h[j]``, ``slopes[j]``, ``h[j + 1]`` and ``slopes[j + 1]`` in :func:`hermite`."""
     j = np.clip(np.searchsorted(t_h, t, side='right') - 1, 0, len(t_h) - 2)
     dx = (t_h[j + 1] - t_h[j])[:, None]
-    u = (t - t_h[j])[:, None] / dx
-    h00, h10 = 2 * u ** 3 - 3 * u ** 2 + 1, u ** 3 - 2 * u ** 2 + u
-    h01, h11 = -2 * u ** 3 + 3 * u ** 2, u ** 3 - u ** 2
-    return j, (h00, h10 * dx, h01, h11 * dx)
+    return j, hermite_weights((t - t_h[j])[:, None] / dx, dx)
 
 
-def cumtrapz(t: np.ndarray, f: np.ndarray) -> np.ndarray:
-    """Cumulative trapezoid of ``f`` (n, ...) over the stamps ``t`` (n,) [s], 0 at ``t[0]``."""
-    dt = np.diff(t).reshape((-1,) + (1,) * (f.ndim - 1))
-    out = np.zeros_like(f)
-    out[1:] = np.cumsum(0.5 * (f[1:] + f[:-1]) * dt, axis=0)
-    return out
+def hermite_weights(u: np.ndarray, dx: np.ndarray) -> tuple[np.ndarray, ...]:
+    """Cubic Hermite weights at the relative times ``u`` (...) of intervals ``dx`` [s]
+    (broadcast with ``u``): ``x(s + u dx) = H0 x0 + H1 x0' + H2 x1 + H3 x1'`` from the values
+    and derivatives at both ends (the derivative weights carry ``dx``); the package's one
+    form (:func:`hermite` and the ``ml`` method's slots alike)."""
+    u2 = u * u
+    u3 = u2 * u
+    return 2 * u3 - 3 * u2 + 1, (u3 - 2 * u2 + u) * dx, 3 * u2 - 2 * u3, (u3 - u2) * dx
 
 
 def cross_matrices(v: np.ndarray) -> np.ndarray:

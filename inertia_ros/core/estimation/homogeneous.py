@@ -31,6 +31,7 @@ from .assemble import _suspect, _widened_by
 from .equations import Equations, segment_starts
 from .fit import Fit, equation_weight, fit_weighted, solve_symmetric
 from .model import TRACE, TRACE_FREE, describe_direction, selector
+from .noise import walk_maps
 from .options import (
     ADEQUACY_MIN_WINDOW_S,
     ADEQUACY_WINDOWS,
@@ -313,7 +314,7 @@ def _walk_covariance(st: SufficientStats, f: Fit, W: np.ndarray, theta: np.ndarr
     if st.white_y_cov is not None:
         S = S + st.white_y_cov
     meat = metric(st.C, W @ S @ W)
-    A = [_skew(e) @ Im - _skew(Im @ e) for e in np.eye(3)]
+    A = walk_maps(Im)
     K, Kx = walk
     for i in range(3):
         for j in range(3):
@@ -324,11 +325,6 @@ def _walk_covariance(st: SufficientStats, f: Fit, W: np.ndarray, theta: np.ndarr
     Hinv = solve_symmetric(f.H, np.eye(p))
     cov = Hinv @ meat @ Hinv.T
     return 0.5 * (cov + cov.T) * max(f.excess, 1.0)
-
-
-def _skew(v: np.ndarray) -> np.ndarray:
-    """Cross-product matrix ``[v]x`` (3, 3)."""
-    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
 
 
 def _fit_ratios(st: SufficientStats, gyro_var: np.ndarray, W: np.ndarray | None = None
@@ -666,7 +662,7 @@ def _shift_covariance(fits: list[tuple[Fit, np.ndarray, np.ndarray | None]],
     Im = theta_to_matrix(thl)
     Sg = np.diag(gyro_var)
     S = Im @ Sg @ Im + (wyc if wyc is not None else 0.0)
-    A = [_skew(e) @ Im - _skew(Im @ e) for e in np.eye(3)]
+    A = walk_maps(Im)
     Hinv = [solve_symmetric(f.H, np.eye(p)) for f in (fl, fs)]
 
     def cov(a: int, b: int) -> np.ndarray:
@@ -686,7 +682,7 @@ def _pair_grams(a: tuple[np.ndarray, np.ndarray], b: tuple[np.ndarray, np.ndarra
 
 
 def _pair_meat(grams: PairGrams, W: np.ndarray, S: np.ndarray, Im: np.ndarray,
-               Sg: np.ndarray, A: list[np.ndarray]) -> np.ndarray:
+               Sg: np.ndarray, A: np.ndarray) -> np.ndarray:
     """Cross meat (10, 10) of the weighted scores of two segmentations of the same equations.
 
     ``grams``: :func:`_pair_grams` of their rows.  White with white (``W S W``), walk with
@@ -696,7 +692,7 @@ def _pair_meat(grams: PairGrams, W: np.ndarray, S: np.ndarray, Im: np.ndarray,
     Gxx, Grr, Gxr, Grx = grams
     nv = N_REGRESSOR_VARIABLES
     B = np.zeros((16, 13, 13))                  # each term's Gram of the 13 variables ...
-    WA = W @ np.array(A)                        # (3, 3, 3): W A_i
+    WA = W @ A                                  # (3, 3, 3): W A_i
     WAS = WA @ Sg
     B[0] = Gxx
     B[1:10, :nv, :nv] = Grr.reshape(3, nv, 3, nv).transpose(0, 2, 1, 3).reshape(9, nv, nv)

@@ -41,6 +41,7 @@ import numpy as np
 
 from ..crlb import Dynamics
 from ..tensor import theta_to_matrix
+from .align import hermite_weights
 
 __all__ = ['MLRefinement', 'refine']
 
@@ -98,8 +99,8 @@ def _events(tg: np.ndarray, s: np.ndarray, t_end: float
     """Gyro samples laid out per torque interval: ``(M, K)`` slots, padded.
 
     Returns the interval lengths ``h (M,)`` [s], the Hermite weights ``H (M, K, 4)`` of every
-    slot (see :func:`_hermite`), the slot mask ``(M, K)`` and the slot of every gyro sample as
-    a flat index ``(N,)`` into ``(M, K)``.
+    slot (:func:`.align.hermite_weights`), the slot mask ``(M, K)`` and the slot of every gyro
+    sample as a flat index ``(N,)`` into ``(M, K)``.
     """
     M = len(s)
     j = np.searchsorted(s, tg, side='right') - 1          # sorted, >= 0
@@ -115,19 +116,7 @@ def _events(tg: np.ndarray, s: np.ndarray, t_end: float
     U.reshape(-1)[slot] = (tg - s[j]) / np.where(hj > 0, hj, 1.0)
     valid = np.zeros((M, K), dtype=bool)
     valid.reshape(-1)[slot] = True
-    return h, _hermite(U, h), valid, slot
-
-
-def _hermite(U: np.ndarray, h: np.ndarray) -> np.ndarray:
-    """Cubic Hermite weights ``(..., 4)`` at the relative times ``U`` of intervals ``h`` [s].
-
-    ``x(s + U h) = H0 x0 + H1 x0' + H2 x1 + H3 x1'`` from the values and derivatives at both
-    ends (the derivative weights carry ``h``).
-    """
-    U2, U3 = U * U, U * U * U
-    hh = h[:, None]
-    return np.stack([2 * U3 - 3 * U2 + 1, (U3 - 2 * U2 + U) * hh, 3 * U2 - 2 * U3,
-                     (U3 - U2) * hh], axis=-1)
+    return h, np.stack(hermite_weights(U, h[:, None]), axis=-1), valid, slot
 
 
 def _interp(H: np.ndarray, x0: np.ndarray, d0: np.ndarray, x1: np.ndarray,

@@ -24,9 +24,9 @@ import numpy as np
 
 from .._numeric import median_rows
 
-__all__ = ['ISOTROPY_FLOOR', 'STREAM_NOISE_SAMPLES', 'StreamingNoise', 'gyroscopic_walk_cov',
-           'isotropy_floor',
-           'median_rows', 'noise_std_from_differences']
+__all__ = ['ISOTROPY_FLOOR', 'MIN_NOISE_SAMPLES', 'STREAM_NOISE_SAMPLES', 'STREAM_NOISE_STRIDE',
+           'TRACKER_NOISE_EVERY', 'StreamingNoise', 'gyroscopic_walk_cov', 'isotropy_floor',
+           'median_rows', 'noise_std_from_differences', 'walk_maps']
 
 #: Smallest gyro-noise std of an axis, as a share of the largest axis' std.
 ISOTROPY_FLOOR = 0.1
@@ -34,6 +34,14 @@ ISOTROPY_FLOOR = 0.1
 STREAM_NOISE_SAMPLES = 4096
 #: Samples between two noise estimates of a long stream (a quarter of the kept ones).
 STREAM_NOISE_STRIDE = 1024
+#: Gyro samples between the tracker's re-readings of its streams' noise levels: the same
+#: idea as :data:`STREAM_NOISE_STRIDE`, kept apart (issue 26, rule (c)) because 1024 fails
+#: the tracker's stated-wheel-inertia test (a diagonal sigma then grows less than 4x).
+TRACKER_NOISE_EVERY = 500
+#: Samples a stream needs before its streaming estimate stands for its white noise (before,
+#: each estimator's fallback): the torque's, the momentum input's (which had 6, the fewest
+#: :func:`noise_std_from_differences` answers from; 16 changed no report or online test).
+MIN_NOISE_SAMPLES = 16
 
 
 def isotropy_floor(std: np.ndarray) -> np.ndarray:
@@ -160,6 +168,10 @@ class StreamingNoise:
         """Noise variance per axis, shape (3,) [units of the stream squared]."""
         return self.std() ** 2
 
+    def known(self) -> bool:
+        """Whether the stream has :data:`MIN_NOISE_SAMPLES` samples (its estimate stands)."""
+        return self.count >= MIN_NOISE_SAMPLES
+
 
 #: Levi-Civita symbol eps_abc, shape (3, 3, 3).
 _EPS = np.zeros((3, 3, 3))
@@ -196,9 +208,15 @@ def gyroscopic_walk_cov(I: np.ndarray, gyro_var: np.ndarray, omega_m2: np.ndarra
     """
     if omega_m2 is None or gyro_dt <= 0 or torque_dt <= 0:
         return np.zeros((3, 3))
-    # A_i = [e_i]x I - [I e_i]x, all three at once ([v]x_ab = -eps_abc v_c), then
     # sum_ij E[w_i w_j] A_i S_g A_j' as one contraction (every fit's meat calls this)
-    A = np.einsum('aki,kb->iab', -_EPS, I) + np.einsum('abc,ci->iab', _EPS, I)
+    A = walk_maps(I)
     M = np.einsum('ij,iab,b,jcb->ac', omega_m2, A, np.asarray(gyro_var, dtype=float), A)
     M = 0.5 * (M + M.T)
     return (gyro_dt / torque_dt) * M
+
+
+def walk_maps(I: np.ndarray) -> np.ndarray:
+    """``A_i = [e_i]x I - [I e_i]x`` (3, 3, 3) for the tensor ``I`` (3, 3) [kg m^2]: the
+    gyroscopic term's ``J(w) = sum_i w_i A_i`` (:func:`gyroscopic_walk_cov`), all three at once
+    (``[v]x_ab = -eps_abc v_c``)."""
+    return np.einsum('aki,kb->iab', -_EPS, I) + np.einsum('abc,ci->iab', _EPS, I)

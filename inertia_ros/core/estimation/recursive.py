@@ -376,9 +376,10 @@ class RecursiveEstimator:
         return self._gyro_nv.variance()
 
     def _torque_variance(self) -> np.ndarray | None:
-        """Torque white-noise variance per axis (None before 16 samples); the hook where a
-        momentum input states its own (:mod:`.recursive_momentum`)."""
-        return self._tau_nv.variance() if self._tau_nv.count >= 16 else None
+        """Torque white-noise variance per axis (None while not
+        :meth:`~.noise.StreamingNoise.known`); the hook where a momentum input states its
+        own (:mod:`.recursive_momentum`)."""
+        return self._tau_nv.variance() if self._tau_nv.known() else None
 
     def _context(self) -> dict[str, Any]:
         """The noise model's stream figures for the statistics: intervals, white y noise."""

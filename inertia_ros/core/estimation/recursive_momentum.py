@@ -372,10 +372,10 @@ class MomentumInput:
         equation's right-hand side (the momentum samples' own, shared by ``share`` gyro
         samples)."""
         share = self._share()
-        cov = np.diag(self._h_noise.variance()) if self._h_noise.count >= 6 else np.zeros((3, 3))
+        cov = np.diag(self._h_noise.variance()) if self._h_noise.known() else np.zeros((3, 3))
         var = np.zeros(3)
         for nv, dts in ((self._o_noise, self._o_dt), (self._tr_noise, self._m_dt)):
-            if nv.count >= 6 and dts:
+            if nv.known() and dts:
                 var = var + nv.variance() * float(np.median(dts)) / tau_dt
         return var + walk_variance(self._walk_h, self._walk_w, self._walk_n, self._gyro_var(),
                                    cov, share), cov * share

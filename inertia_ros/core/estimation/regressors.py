@@ -35,6 +35,7 @@ __all__ = [
     'N_REGRESSOR_VARIABLES',
     'VARIABLE_MAP',
     'blocks',
+    'cumtrapz',
     'cumulative_monomials',
     'cumulative_torque',
     'gram',
@@ -283,6 +284,21 @@ def _interval_index(t_tau: np.ndarray, t: np.ndarray) -> np.ndarray:
     return np.clip(np.searchsorted(t_tau, t, side='right') - 1, 0, m - 1)
 
 
+def cumtrapz(t: np.ndarray, f: np.ndarray) -> np.ndarray:
+    """Cumulative trapezoid of ``f`` (..., n, ...) over the stamps ``t`` (..., n) [s] along
+    ``t``'s last axis (one run, or pieces of runs of one length), 0 at the first stamp."""
+    k = t.ndim - 1
+    dt = np.diff(t, axis=-1).reshape(t.shape[:-1] + (-1,) + (1,) * (f.ndim - t.ndim))
+    lo = (slice(None),) * k
+    out = np.empty_like(f)
+    out[lo + (0,)] = 0.0
+    inc = f[lo + (slice(1, None),)] + f[lo + (slice(None, -1),)]
+    inc *= 0.5
+    inc *= dt
+    np.cumsum(inc, axis=k, out=out[lo + (slice(1, None),)])
+    return out
+
+
 def cumulative_torque(t_tau: np.ndarray, tau: np.ndarray, t: np.ndarray,
                       hold: str = 'zoh', *, out: np.ndarray | None = None) -> np.ndarray:
     """Exact integral of the sampled torque from ``t_tau[0]`` to each query time.
@@ -316,8 +332,7 @@ def cumulative_torque(t_tau: np.ndarray, tau: np.ndarray, t: np.ndarray,
     elif hold != 'linear':
         raise ValueError(f"hold: must be 'zoh' or 'linear', got {hold!r}")
     else:
-        if len(dts):
-            np.cumsum(0.5 * (tau[:-1] + tau[1:]) * dts[:, None], axis=0, out=cum[1:])
+        cum = cumtrapz(t_tau, tau) if len(dts) else cum
         slope = np.zeros_like(tau)
         if len(dts):
             slope[:-1] = (tau[1:] - tau[:-1]) / dts[:, None]

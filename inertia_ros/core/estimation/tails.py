@@ -1,4 +1,5 @@
-"""Upper tail of the chi-square distribution for the tests' integer degrees of freedom.
+"""Upper tail and upper quantile of the chi-square distribution for the tests' integer degrees
+of freedom, and the standard normal's upper quantile: the package's one implementation of each.
 
 The Wald tests of model selection and the window test of model adequacy need
 ``P(chi2_k > x)`` for integer ``k`` (at most a few dozen).  For integer ``k`` it is a finite
@@ -11,12 +12,16 @@ all terms positive (no cancellation), each built from the last so nothing overfl
 equals ``scipy.special.chdtrc`` to ~1e-14 (tested), without importing scipy: the command-line
 estimate of an hour-long log would otherwise pay ~0.1 s of its start-up for scipy.special
 (and the scipy base it loads) to evaluate a handful of p-values.
+
+The quantiles invert it: :func:`chi2_isf` by bisection, :func:`normal_isf` as
+``sqrt(chi2_isf(2 p, 1))``; both equal scipy's to ~1e-15 (tested), whose 2 us a call against
+160 us would cost 0.125 s of ``scipy.special`` import for a handful of quantiles a run.
 """
 from __future__ import annotations
 
 import math
 
-__all__ = ['chi2_sf']
+__all__ = ['chi2_isf', 'chi2_sf', 'normal_isf']
 
 #: Largest degrees of freedom accepted (the tests use at most a few dozen).
 MAX_DOF = 10_000
@@ -64,3 +69,25 @@ def chi2_sf(x: float, dof: int) -> float:
             total += term
             term *= x / (2 * r + 1)
     return min(total, 1.0)
+
+
+def chi2_isf(level: float, dof: int) -> float:
+    """``q`` with ``P(chi2_dof > q) = level`` for ``0 < level < 1`` and integer ``1 <= dof
+    <= MAX_DOF``: bisection on :func:`chi2_sf` (to its rounding)."""
+    if not 0.0 < level < 1.0:
+        raise ValueError(f'level: expected a probability in (0, 1), got {level!r}')
+    lo, hi = 0.0, 400.0
+    while chi2_sf(hi, dof) > level:
+        lo, hi = hi, 2.0 * hi
+    for _ in range(80):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if chi2_sf(mid, dof) > level else (lo, mid)
+    return 0.5 * (lo + hi)
+
+
+def normal_isf(p: float) -> float:
+    """``z`` with ``P(N(0, 1) > z) = p`` for ``0 < p < 0.5``: ``sqrt`` of the 1-dof
+    :func:`chi2_isf` at ``2 p``."""
+    if not 0.0 < p < 0.5:
+        raise ValueError(f'p: expected a probability in (0, 0.5), got {p!r}')
+    return math.sqrt(chi2_isf(2.0 * p, 1))

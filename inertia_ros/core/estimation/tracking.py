@@ -63,12 +63,12 @@ from .options import (
 from .regressors import cumulative_monomials, cumulative_torque, gyroscopic_matrix, momentum_matrix
 from .result import InertiaEstimate
 from .selection import SelectionPolicy
-from .tails import chi2_sf
+from .tails import chi2_isf
 from .tracking_hold import HoldChoice, keep_by_adequacy
 from .tracking_input import StreamInput
 from .tracking_output import EXCESS_TIME, StateOutput
 
-__all__ = ['TrackingEstimator', 'chi2_upper_quantile']
+__all__ = ['TrackingEstimator']
 
 _DIFFUSE = 1e6            # prior variance of the empty filter, in squared scale units
 _PRIOR_INFLATION = 100.0  # start-up fit covariance -> the filter's prior
@@ -103,31 +103,6 @@ def _corrected_wls(H: np.ndarray, y: np.ndarray, R: np.ndarray, B: np.ndarray
         return None
     x = cho_solve((L, True), Hw.T @ (y @ Wc).reshape(-1) / s) / s
     return x, cho_solve((L, True), np.diag(1.0 / s)) / s[:, None], Hw, Wc
-
-
-def chi2_upper_quantile(dof: int, level: float) -> float:
-    """Upper ``level`` quantile of the chi-square distribution, without scipy: bisection on
-    the exact tail :func:`.tails.chi2_sf`.
-
-    Parameters
-    ----------
-    dof : int
-        Degrees of freedom (>= 1).
-    level : float
-        Upper-tail probability in (0, 0.5).
-
-    Returns
-    -------
-    float
-        ``q`` with ``P(chi2_dof > q) = level``.
-    """
-    lo, hi = 0.0, 400.0
-    while chi2_sf(hi, dof) > level:
-        lo, hi = hi, 2.0 * hi
-    for _ in range(80):
-        mid = 0.5 * (lo + hi)
-        lo, hi = (mid, hi) if chi2_sf(mid, dof) > level else (lo, mid)
-    return 0.5 * (lo + hi)
 
 
 class _Trend:
@@ -520,7 +495,7 @@ class TrackingEstimator(StreamInput, StateOutput):
             return False
         q = self._thresholds.get(dof)
         if q is None:
-            q = self._thresholds[dof] = chi2_upper_quantile(dof, self.change_level)
+            q = self._thresholds[dof] = chi2_isf(self.change_level, dof)
         return nis > q
 
     def _inflate(self) -> None:

@@ -17,7 +17,7 @@ import numpy as np
 from .._validate import as_sample_block, require_after
 from ..tensor import theta_to_matrix
 from .align import gap_starts
-from .noise import gyroscopic_walk_cov
+from .noise import TRACKER_NOISE_EVERY, gyroscopic_walk_cov
 from .options import GAP_FACTOR
 from .regressors import momentum_matrix
 
@@ -26,7 +26,6 @@ __all__ = ['StreamInput']
 _DT_HISTORY = 64          # recent sample intervals kept per stream for the nominal interval
 _MAX_BUFFER = 400_000     # gyro samples kept waiting for torque
 _WARM_KEEP = 5.0          # start-up samples kept while undetermined [warmup lengths]
-_NOISE_EVERY = 500        # gyro samples between re-readings of the noise levels
 _REFRESH = 0.25           # data time between re-derivations of the weights [s]
 
 
@@ -103,9 +102,10 @@ class StreamInput:
             self._initialise()
 
     def _refresh_noise(self) -> None:
-        """Re-read the streams' noise levels every :data:`_NOISE_EVERY` gyro samples (they
-        are medians over thousands of samples: once a block would cost more than the rest)."""
-        if self._warm is None and self.samples_used - self._noise_at < _NOISE_EVERY:
+        """Re-read the streams' noise levels every :data:`.noise.TRACKER_NOISE_EVERY` gyro
+        samples (they are medians over thousands of samples: once a block would cost more
+        than the rest)."""
+        if self._warm is None and self.samples_used - self._noise_at < TRACKER_NOISE_EVERY:
             return
         self._noise_at = self.samples_used
         if self._gyro_noise is not None:
@@ -113,7 +113,7 @@ class StreamInput:
         else:
             v = self._gyro_nv.variance()
             self._nv = v if np.any(v > 0) else np.full(3, 1e-12)
-        self._tv = self._tau_nv.variance() if self._tau_nv.count >= 16 else np.zeros(3)
+        self._tv = self._tau_nv.variance() if self._tau_nv.known() else np.zeros(3)
 
     def _fold_in(self, t: np.ndarray, w: np.ndarray, flush: bool) -> None:
         """Fold in the pending samples and ``t`` (n,), ``w`` (n, 3): every full block, and

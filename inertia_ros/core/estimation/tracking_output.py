@@ -16,6 +16,7 @@ from .assemble import add_calibration, assemble, status_only
 from .fit import Fit, solve_symmetric
 from .homogeneous import is_torque_free
 from .model import parameter_names
+from .noise import MIN_NOISE_SAMPLES
 from .options import IDENTIFIABILITY_TOL, MAX_RESIDUAL_EXCESS
 from .result import InertiaEstimate
 
@@ -130,7 +131,7 @@ class StateOutput:
             diag['reason'] = (f'start-up: {self.samples_used} gyro samples, the tensor is '
                               f'not determined yet (needs {self.warmup:g} s of excitation)')
             tq = self._tau[-4096:, :3]
-            if len(tq) >= 16 and is_torque_free(np.sqrt(np.mean(tq ** 2, axis=0)),
+            if len(tq) >= MIN_NOISE_SAMPLES and is_torque_free(np.sqrt(np.mean(tq ** 2, axis=0)),
                                                 np.sqrt(self._tv)):
                 diag['reason'] = ('torque-free data: the tracker needs a known torque for the '
                                   'scale (method recursive gives the ratios and axes)')
