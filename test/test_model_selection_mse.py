@@ -23,7 +23,7 @@ from inertia_ros.core.estimation.tails import chi2_sf
 
 
 @pytest.mark.parametrize('dof', [1, 2, 3, 4, 6])
-@pytest.mark.parametrize('stat', [0.0, 0.3, 3.0, 10.2, 12.9, 25.0, 60.0])
+@pytest.mark.parametrize('stat', [0.0, 0.3, 3.0, 10.2, 12.9, 25.0, 60.0, 150.0, 400.0])
 def test_mse_p_is_the_noncentral_tail(stat: float, dof: int) -> None:
     """The Poisson mixture equals scipy's noncentral chi-square tail (1e-10 relative, 1e-300
     absolute) and lies above the central tail (the null allows a noncentrality of 1)."""
