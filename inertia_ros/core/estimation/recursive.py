@@ -188,7 +188,7 @@ class RecursiveEstimator:
                       for h in (HOLDS if self.hold == 'auto' else (self.hold,))}
         self._auto = AutoHold() if self.hold == 'auto' else None
         self._shift_rows = ShiftRows(self.segment, self.window is None and self.forgetting == 1)
-        self._active = 'zoh' if self.hold == 'auto' else self.hold    # the hold estimated
+        self._set_active('zoh' if self.hold == 'auto' else self.hold)   # the hold estimated
         self._tau_var: np.ndarray | None = None
         self._schedule.reset()            # the re-selection schedule's verdicts
         self._tf_memo: dict[str, Any] = {}   # the torque-free checks' (OnlineTorqueFreeChecks)
@@ -300,7 +300,9 @@ class RecursiveEstimator:
             for k in breaks:
                 if k > lo:
                     acc.merge(t[lo:k], Vs[h][lo:k], self._align.ts)
-                self.gaps += h == held and acc.w0 > 0   # a break ending a segment with data
+                if h == held:          # a break ending a segment with data
+                    acc.flush()
+                    self.gaps += acc.w0 > 0
                 acc.close(float(t[k]))
                 lo = k
             acc.merge(t[lo:], Vs[h][lo:], self._align.ts)
@@ -309,6 +311,13 @@ class RecursiveEstimator:
         if self._auto is not None:
             self._auto.fold(self._align, float(t[-1]))
         self._align.trim(float(t[-1]), held)
+
+    def _set_active(self, hold: str) -> None:
+        """Estimate ``hold``; the other hold's accumulator (``hold='auto'``), read only at the
+        hold choice and after a failed adequacy test, merges lazily (its blocks in runs)."""
+        self._active = hold
+        for h, acc in self._accs.items():
+            acc.lazy = h != hold
 
     @property
     def _acc(self) -> OnlineStats:
@@ -402,7 +411,7 @@ class RecursiveEstimator:
                 nv, n_eff, self._tau_var is not None, **self._context()),
             self.torque_bias != 'off', nv, tv, self._white_y_cov, self.samples_used)
         if changed:
-            self._active = self._auto.chosen
+            self._set_active(self._auto.chosen)
             self._schedule.reset_verdicts()
         diag['hold'] = self._active
 
