@@ -35,7 +35,7 @@ from .accumulator import noise_map
 from .align import OnlineAligner
 from .fit import Fit, equation_weight, fit_two_pass
 from .options import HOLDS
-from .regressors import cumulative_torque, gram, lift, metric
+from .regressors import VARIABLE_MAP, cumulative_torque, gram
 from .selection import HOLD_ALPHA, hold_rule, select_hold
 
 __all__ = ['HOLD_MAX_WINDOWS', 'HOLD_MIN_ROWS', 'AutoHold', 'HoldWindows', 'choose_hold',
@@ -56,6 +56,7 @@ _ADEQUACY_RULE = ('a hold whose fit fails the adequacy tests is left for the oth
 
 _ZOH = np.arange(13)
 _LIN = np.r_[np.arange(10), 13, 14, 15]
+_VMAP = np.ascontiguousarray(VARIABLE_MAP.reshape(13, 30))   # as regressors.lift's
 
 
 def _pair(a: tuple[int, np.ndarray, np.ndarray, bool], b: tuple[int, np.ndarray, np.ndarray, bool]
@@ -124,12 +125,16 @@ class HoldWindows:
         squared-rate integrals' correction, as :meth:`.accumulator.OnlineStats.stats`).
         """
         K = noise_map(nv)
-        out: dict[str, list[float]] = {'zoh': [], 'linear': []}
-        for _, _, C, _ in self.closed:
-            for h, cols in (('zoh', _ZOH), ('linear', _LIN)):
-                G = lift(K.T @ C[np.ix_(cols, cols)] @ K)
-                out[h].append(float(coef[h] @ metric(G, W) @ coef[h]))
-        return np.array(out['zoh']), np.array(out['linear'])
+        Cs = np.array([C for _, _, C, _ in self.closed]).reshape(-1, 16, 16)
+        out = []
+        for h, cols in (('zoh', _ZOH), ('linear', _LIN)):
+            # every window at once, the products of :func:`.regressors.lift` and
+            # :func:`.regressors.metric` stacked (the same numbers as window by window)
+            L = _VMAP.T @ (K.T @ Cs[:, cols[:, None], cols[None, :]] @ K) @ _VMAP
+            L = np.ascontiguousarray(L.reshape(-1, 3, 10, 3, 10).transpose(0, 1, 3, 2, 4))
+            M = np.einsum('rs,krsij->kij', W, L)
+            out.append(np.array([float(coef[h] @ m @ coef[h]) for m in M]))
+        return out[0], out[1]
 
 
 def choose_hold(stats: dict[str, Any], windows: HoldWindows, bias: bool, nv: np.ndarray,

@@ -66,20 +66,29 @@ from .statistics import SufficientStats
 __all__ = ['RecursiveEstimator']
 
 _MAX_BUFFER = 400_000                      # gyro samples kept waiting for torque
+_F64 = np.dtype(np.float64)
 
 
 def _one_sample(t: Any, v: Any, last: float | None, name: str) -> float | None:
     """The time [s] of one sample ``t``, ``v`` (3,) checked as a block would be (the node's
     common case); None for a block."""
-    if not (isinstance(t, (float, int)) and len(v) == 3 and np.ndim(v) == 1):
+    if not isinstance(t, (float, int)):
+        return None
+    if type(v) is np.ndarray and v.dtype is _F64:    # the node's case, checked at once
+        if v.shape != (3,):
+            return None
+        x, y, z = v.tolist()
+    elif len(v) == 3 and np.ndim(v) == 1:
+        x, y, z = float(v[0]), float(v[1]), float(v[2])
+    else:
         return None
     tf = float(t)
     if abs(tf) > MAX_TIME_S:        # the one-sample form of refuse_nanoseconds
         raise ValueError(f'time {tf!r} looks like nanoseconds; give seconds')
-    if not (math.isfinite(tf) and math.isfinite(float(v[0])) and math.isfinite(float(v[1]))
-            and math.isfinite(float(v[2]))):
+    if not (math.isfinite(tf) and math.isfinite(x) and math.isfinite(y) and math.isfinite(z)):
         raise ValueError(f'{name}: contains NaN or inf')
-    require_after(tf, last, name)
+    if last is not None and tf <= last:
+        require_after(tf, last, name)       # (raises)
     return tf
 
 
