@@ -367,6 +367,10 @@ class RecursiveEstimator:
     def _test_adequacy(self, f: Fit, nv: np.ndarray, tv: np.ndarray) -> Adequacy:
         """The window tests of ``f`` (:meth:`.accumulator.OnlineStats.window_test`)."""
         a = self._acc.window_test(f, nv, tv, **self._context())
+        if self._acc.short is not None and self._acc.short.lazy:
+            for acc in self._accs.values():       # past the bias split: the other hold's too
+                if acc.short is not None:
+                    acc.short.lazy = True
         if self._auto is not None and not a.ok:   # the other hold's fit may pass: kept next
             self._auto.check_other(self._active, self._accs, f, nv, tv,
                                    self._tau_var is not None, self._context())
