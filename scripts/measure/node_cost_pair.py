@@ -2,6 +2,7 @@
 
     .venv/bin/python scripts/measure/node_cost_pair.py TREE_A TREE_B [--rounds 6]
         [--seeds 0 1 2] [--holds default zoh] [--repeats 3]
+    .venv/bin/python scripts/measure/node_cost_pair.py A B --table OUTPUT.txt  (re-summarise)
 
 CPU seconds (``time.process_time``) to feed a 60 s reference record (``bench.truth_sim``,
 200 Hz gyro, 50 Hz torque, the scene of docs/BENCHMARKS.md "The node's estimator per record
@@ -76,7 +77,20 @@ def main() -> None:
     ap.add_argument('--seeds', type=int, nargs='+', default=[0, 1, 2])
     ap.add_argument('--holds', nargs='+', default=['default', 'zoh'])
     ap.add_argument('--repeats', type=int, default=3)
+    ap.add_argument('--table', type=Path, help='summarise the lines of an earlier run (its '
+                    'printed output) instead of measuring')
     a = ap.parse_args()
+    if a.table is not None:
+        cpu_t: dict[tuple[str, int], dict[tuple[int, int], float]] = {}
+        names: list[str] = []
+        for line in a.table.read_text().splitlines():
+            f = line.split()
+            if len(f) == 6 and f[0].isdigit():
+                names += [f[3]] if f[3] not in names else []
+                cpu_t.setdefault((f[2], names.index(f[3])), {})[(int(f[0]), int(f[1]))] = \
+                    float(f[4])
+        summarise(cpu_t, [h for h in a.holds if (h, 0) in cpu_t], names[0], names[1])
+        return
     trees = [a.tree_a.resolve(), a.tree_b.resolve()]
     for tree in trees:
         if not (tree / 'inertia_ros' / '__init__.py').is_file():
@@ -90,14 +104,23 @@ def main() -> None:
                     c, status = measure(trees[i], hold, seed, a.repeats)
                     cpu.setdefault((hold, i), {})[(r, seed)] = c
                     print(f'{r} {seed} {hold} {trees[i].name} {c:.4f} {status}', flush=True)
-    print(f'\n| hold | {trees[0].name} | {trees[1].name} | {trees[1].name} / {trees[0].name} '
-          '(median of pairs, range) | pairs |\n|---|---|---|---|---|')
-    for hold in a.holds:
+    summarise(cpu, a.holds, trees[0].name, trees[1].name)
+
+
+def summarise(cpu: dict[tuple[str, int], dict[tuple[int, int], float]], holds: list[str],
+              name_a: str, name_b: str) -> None:
+    """The table: per hold the median and the least CPU seconds of each tree (the least is
+    the run the other processes disturbed least: their load only adds time) and the ratios
+    B / A, per pair (median, range) and of the least."""
+    print(f'\n| hold | {name_a} median (least) | {name_b} median (least) | {name_b} / {name_a}: '
+          'median of pairs (range) | of the least | pairs |\n|---|---|---|---|---|---|')
+    for hold in holds:
         A, B = cpu[(hold, 0)], cpu[(hold, 1)]
         ratios = [B[k] / A[k] for k in sorted(A) if k in B]
-        print(f'| {hold} | {statistics.median(A.values()):.3f} s | '
-              f'{statistics.median(B.values()):.3f} s | {statistics.median(ratios):.3f} '
-              f'({min(ratios):.2f}-{max(ratios):.2f}) | {len(ratios)} |')
+        print(f'| {hold} | {statistics.median(A.values()):.3f} s ({min(A.values()):.3f} s) | '
+              f'{statistics.median(B.values()):.3f} s ({min(B.values()):.3f} s) | '
+              f'{statistics.median(ratios):.3f} ({min(ratios):.2f}-{max(ratios):.2f}) | '
+              f'{min(B.values()) / min(A.values()):.3f} | {len(ratios)} |')
 
 
 if __name__ == '__main__':
