@@ -19,7 +19,7 @@ import numpy as np
 
 from .adequacy import Adequacy, bias_split, check_adequacy, segment_shift
 from .fit import Fit, fit_two_pass
-from .history import SegmentHistory, SegmentStats
+from .history import SegmentHistory, SegmentStats, segment_pieces
 from .options import ADEQUACY_MIN_WINDOW_S, ADEQUACY_WINDOWS, MIN_EQUATIONS
 from .regressors import gram, lift
 from .statistics import SufficientStats
@@ -28,6 +28,9 @@ __all__ = ['OnlineStats', 'noise_map']
 
 #: The sums decayed by the weights' factor at each merge (their squares' sums by its square).
 _DECAYED = ('Cc', 'walkc', 'tq_ss', 'tq_n', 'm2_sum', 'm2_n', 'wc', 'neffc')
+
+#: Rows a :attr:`OnlineStats.lazy` accumulator may queue before it merges them.
+_MAX_QUEUED = 4096
 
 
 class OnlineStats:
@@ -69,6 +72,13 @@ class OnlineStats:
         #: the same equations on anchored segments 4x shorter (the segment shift, the bias split;
         #: 8x made a false alarm on a correct 50 rad/s spin, chi2 53 on 6 dof)
         self.short = OnlineStats(segment / 4.0, window, forgetting, False) if shadow else None
+        self._queue: list[Any] = []      # lazy: queued blocks (t, V, ts) and closes (start)
+        self._queued = 0
+        self._lazy = False
+        #: whose side sums are these (a unit-weight :attr:`short`: the parent's, bit for bit)
+        self._sides: OnlineStats | None = None
+        if self.short is not None and window is None and self.forgetting == 1.0:
+            self.short._sides = self
         self.reset()
 
     def widen(self, dim: int) -> None:
@@ -80,6 +90,7 @@ class OnlineStats:
 
     def reset(self) -> None:
         """Forget everything."""
+        self._queue, self._queued = [], 0
         self.w0 = 0.0                   # sum of weights
         self.w00 = 0.0                  # sum of squared weights
         d = self.dim
@@ -102,6 +113,7 @@ class OnlineStats:
         self.t_last: float | None = None
         if self.short is not None:
             self.short.reset()
+            self.short.lazy = False      # until the groups test (:func:`window_test`)
 
     # ------------------------------------------------------------------ side sums
     def add_torque_power(self, tau: np.ndarray) -> None:
@@ -109,45 +121,84 @@ class OnlineStats:
         self.tq_ss = self.tq_ss + np.einsum('ij,ij->j', tau, tau)
         self.tq_n += len(tau)
         self.torque_seen = self.torque_seen or len(tau) > 0
-        if self.short is not None:
+        if self.short is not None and self.short._sides is None:
             self.short.add_torque_power(tau)
 
     def add_motion(self, w: np.ndarray) -> None:
         """Add gyro samples (n, 3) [rad/s] to the decayed ``sum w w'`` (gyroscopic walk)."""
         self.m2_sum = self.m2_sum + w.T @ w
         self.m2_n += len(w)
-        if self.short is not None:
+        if self.short is not None and self.short._sides is None:
             self.short.add_motion(w)
 
     def torque_rms(self) -> np.ndarray:
         """RMS (3,) of the merged torque [N m] (decayed as the weights)."""
-        return np.sqrt(self.tq_ss / max(self.tq_n, 1e-300))
+        s = self._sides or self
+        return np.sqrt(s.tq_ss / max(s.tq_n, 1e-300))
 
     def omega_m2(self) -> np.ndarray:
         """``mean(w w')`` of the merged gyro samples [rad^2/s^2] (decayed as the weights)."""
-        return self.m2_sum / max(self.m2_n, 1e-300)
+        s = self._sides or self
+        return s.m2_sum / max(s.m2_n, 1e-300)
 
     def n_eff(self) -> float:
         """Effective number of equations after the per-segment intercepts."""
+        self.flush()
         return self.neffc + (self.w0 - self.w00 / self.w0 if self.w0 > 0 else 0.0)
 
     # ------------------------------------------------------------------ equations
     def merge(self, t: np.ndarray, V: np.ndarray, ts: np.ndarray) -> None:
-        """Merge a block of equations ``V`` (n, dim) at ``t`` (n,) [s], closing anchored
-        segments at their boundaries; ``ts`` (M,) are the held torque's sample times [s]."""
+        """Merge equations ``V`` (n, dim) at ``t`` (n,) [s] (:attr:`lazy`: queue them), closing
+        anchored segments at their boundaries; ``ts`` (M,): the held torque's times [s]."""
         if self.short is not None:
             self.short.merge(t, V, ts)
-        while len(t):
-            if self.seg_start is None:
-                self.seg_start = float(t[0])
-            k = int(np.searchsorted(t, self.seg_start + self.segment, side='left'))
-            if k == 0:
-                self._fold(float(t[0]))
+        if self.lazy:
+            self._queue.append((t, V, ts))
+            self._queued += len(t)
+            if self._queued > _MAX_QUEUED:
+                self.flush()
+            return
+        self._merge_now(t, V, ts)
+
+    def _merge_now(self, t: np.ndarray, V: np.ndarray, ts: np.ndarray) -> None:
+        """:meth:`merge` of this segmentation, at once."""
+        if self.seg_start is None:
+            self.seg_start = float(t[0])
+        for lo, hi, closes in segment_pieces(t, self.seg_start, self.segment):
+            if hi > lo:
+                self._merge_piece(t[lo:hi], V[lo:hi], ts)
+            if closes:
+                self._fold(float(t[hi]))
+
+    def flush(self) -> None:
+        """Merge the queued blocks (:attr:`lazy`), each run between two :meth:`close` as one
+        (the same equations and segments; the sums differ by rounding only)."""
+        if not self._queue:
+            return
+        queue, self._queue, self._queued = self._queue, [], 0
+        run: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
+        for item in [*queue, None]:
+            if isinstance(item, tuple):
+                run.append(item)
                 continue
-            self._merge_piece(t[:k], V[:k], ts)
-            t, V = t[k:], V[k:]
-            if len(t):
-                self._fold(float(t[0]))
+            if run:
+                self._merge_now(*_joined(run))
+                run = []
+            if item is not None:
+                self._fold(item)
+
+    @property
+    def lazy(self) -> bool:
+        """Queue :meth:`merge` and :meth:`close` until read (or :data:`_MAX_QUEUED` rows):
+        one merge per run of blocks.  Only with unit weights (the side sums, added at once,
+        are not decayed by merges); setting it False flushes."""
+        return self._lazy
+
+    @lazy.setter
+    def lazy(self, on: bool) -> None:
+        self._lazy = bool(on) and self.window is None and self.forgetting == 1.0
+        if not self._lazy:
+            self.flush()
 
     def _merge_piece(self, t: np.ndarray, V: np.ndarray, ts: np.ndarray) -> None:
         """Merge equations of one segment into the weighted centred statistics."""
@@ -188,7 +239,10 @@ class OnlineStats:
 
     def close(self, new_start: float) -> None:
         """Fold the current segment's statistics into the closed ones; start a new one."""
-        self._fold(new_start)
+        if self.lazy:
+            self._queue.append(float(new_start))
+        else:
+            self._fold(new_start)
         if self.short is not None:
             self.short.close(new_start)
 
@@ -289,7 +343,7 @@ class OnlineStats:
     def segment_walk(self) -> tuple[np.ndarray, float]:
         """Torque-noise Gram (dim x dim) and walk time of the open segment (as statistics)."""
         d = self.dim
-        if self._wk_n == 0 or not self.torque_seen or self._wk_ntt < 2:
+        if self._wk_n == 0 or not (self._sides or self).torque_seen or self._wk_ntt < 2:
             return np.zeros((d, d)), 0.0
         S, hQ = self._wk_S, self._wk_hQ
         RR = self._wk_h2 * np.outer(S, S) + np.outer(S, hQ) + np.outer(hQ, S) + self._wk_QQ \
@@ -313,6 +367,7 @@ class OnlineStats:
         squared-rate integrals scale exactly; for the gyro-scale sensitivity).  ``torque_dt``,
         ``gyro_dt`` [s] and ``white_y_cov`` (3, 3) are the noise model's stream figures.
         """
+        self.flush()
         gp, walk = self.segment_walk()
         return self._read(self._read_map(nv, gyro_scale), self.C + self.Cc,
                           self.GPc + gp if walk_noise else None, self.w0 + self.wc, n_eff,
@@ -330,65 +385,9 @@ class OnlineStats:
 
     def window_test(self, f: Fit, nv: np.ndarray, tv: np.ndarray, *, torque_dt: float,
                     gyro_dt: float, white_y_cov: np.ndarray | None) -> Adequacy:
-        """The adequacy tests of ``f``: its parameter set refitted on groups of segments.
-
-        Up to :data:`ADEQUACY_WINDOWS` consecutive groups of the kept segments (the open one
-        included), each fitted with the weights of ``f``'s tensor, as the batch estimator does
-        on time windows; ``nv``, ``tv`` (3,) the gyro and torque noise variances.
-        """
-        p, k = len(f.beta), f.basis.shape[1]
-        groups = self.group_stats(nv, torque_dt=torque_dt, gyro_dt=gyro_dt,
-                                  white_y_cov=white_y_cov)
-        thetas, covs, mids = np.zeros((0, p)), np.zeros((0, p, p)), np.zeros(0)
-        if len(groups) >= 2:
-            theta0 = f.basis @ f.beta[:k]
-            fits = []
-            for st, factor, mid in groups:
-                fk = fit_two_pass(st, f.basis, f.bias, nv, tv, None, theta0)
-                fits.append((fk.beta, fk.cov * factor, mid))
-            thetas = np.array([x[0] for x in fits])
-            covs = np.array([x[1] for x in fits])
-            mids = np.array([x[2] for x in fits])
-        ctx = {'torque_dt': torque_dt, 'gyro_dt': gyro_dt, 'white_y_cov': white_y_cov}
-        split = self._split(f, nv, tv, **ctx) if len(groups) < 2 and f.bias else None
-        return check_adequacy(thetas, covs, mids, f.excess, shift=self._shift(f, nv, tv, **ctx),
-                              split=split)
-
-    def _split(self, f: Fit, nv: np.ndarray, tv: np.ndarray, **context: object
-               ) -> tuple[float, int, float] | None:
-        """Too short for the groups: the fitted torque bias tested over up to four groups of
-        :attr:`short`'s segments (:func:`.adequacy.bias_split`, as the batch's
-        :func:`.refits.bias_split_test`); ``None`` as :meth:`_shift`."""
-        s = self.short
-        if s is None or context['white_y_cov'] is not None:
-            return None
-        s.correction = self.correction
-        k = f.basis.shape[1]
-        theta0 = f.basis @ f.beta[:k]
-        fits = []
-        for st, factor, _ in s.group_stats(nv, min_s=0.0, **context):  # type: ignore[arg-type]
-            fk = fit_two_pass(st, f.basis, True, nv, tv, None, theta0)
-            fk.cov = fk.cov * factor
-            fits.append(fk)
-        return bias_split(fits, k) if len(fits) >= 2 else None
-
-    def _shift(self, f: Fit, nv: np.ndarray, tv: np.ndarray, **context: object
-               ) -> tuple[float, int, float, float] | None:
-        """:func:`.adequacy.segment_shift` of ``f`` against the same fit of :attr:`short`
-        (segments 4x shorter), as the batch's :func:`.refits.shift_test`; ``None`` with a
-        momentum input's white noise in ``y`` or too few equations."""
-        s = self.short
-        if s is None or context['white_y_cov'] is not None or s.n_eff() < MIN_EQUATIONS:
-            return None
-        k = f.basis.shape[1]
-        theta0 = f.basis @ f.beta[:k] + (0.0 if f.offset is None else f.offset)
-        s.correction = self.correction
-        # both refitted: ``f``'s own covariance may have been widened since (a deferred test)
-        fl, fs = (fit_two_pass(a.stats(nv, a.n_eff(), True, **context),  # type: ignore[arg-type]
-                               f.basis, f.bias, nv, tv, f.offset, theta0) for a in (self, s))
-        rl, rs = ((a.w00 + a.w00c) / (a.w0 + a.wc) for a in (self, s))   # meat of weighted sums
-        return segment_shift(fl.beta[:k], fl.cov[:k, :k] * rl / max(fl.excess, 1.0),
-                             fs.beta[:k], fs.cov[:k, :k] * rs / max(fs.excess, 1.0))
+        """The adequacy tests of ``f`` on these statistics (:func:`window_test`)."""
+        return window_test(self, f, nv, tv, torque_dt=torque_dt, gyro_dt=gyro_dt,
+                           white_y_cov=white_y_cov)
 
     def group_stats(self, nv: np.ndarray, *, torque_dt: float, gyro_dt: float,
                     white_y_cov: np.ndarray | None, gyro_scale: float = 1.0,
@@ -406,6 +405,7 @@ class OnlineStats:
             Per group: its statistics, the factor ``w00 / w0`` of a fit's covariance (the
             meat of weighted sums) and its middle time [s].
         """
+        self.flush()
         gp, walk = self.segment_walk()
         groups = [g for g in self.history.groups(ADEQUACY_WINDOWS, self.open_segment(gp, walk),
                                                  self.clock)
@@ -414,7 +414,6 @@ class OnlineStats:
         return [(self._read(K, g.C, g.GP, g.w0, g.neff, g.walk, nv, torque_dt=torque_dt,
                             gyro_dt=gyro_dt, white_y_cov=white_y_cov),
                  g.w00 / g.w0, 0.5 * (g.t0 + g.t1)) for g in groups]
-
 
     def _read_map(self, nv: np.ndarray, gyro_scale: float) -> np.ndarray:
         """The map (dim, 13) from the accumulated variables to the 13 read back: the
@@ -427,6 +426,7 @@ class OnlineStats:
     def totals(self) -> tuple[np.ndarray, np.ndarray, float]:
         """Centred Gram (dim, dim) of everything merged, the torque-noise Gram and the
         walk time [s] (for fits of the extra columns: :mod:`.online_stated`)."""
+        self.flush()
         gp, walk = self.segment_walk()
         return self.C + self.Cc, self.GPc + gp, self.walkc + walk
 
@@ -441,3 +441,84 @@ def noise_map(nv: np.ndarray, gyro_scale: float = 1.0) -> np.ndarray:
         K = np.diag(np.r_[np.full(3, gyro_scale), np.full(6, gyro_scale ** 2),
                           np.ones(4)]) @ K
     return K
+
+
+def window_test(acc: OnlineStats, f: Fit, nv: np.ndarray, tv: np.ndarray, *,
+                torque_dt: float, gyro_dt: float, white_y_cov: np.ndarray | None) -> Adequacy:
+    """The adequacy tests of ``f``: its parameter set refitted on groups of segments.
+
+    Up to :data:`ADEQUACY_WINDOWS` consecutive groups of the kept segments (the open one
+    included), each fitted with the weights of ``f``'s tensor, as the batch estimator does
+    on time windows; ``nv``, ``tv`` (3,) the gyro and torque noise variances.
+    """
+    p, k = len(f.beta), f.basis.shape[1]
+    groups = acc.group_stats(nv, torque_dt=torque_dt, gyro_dt=gyro_dt,
+                             white_y_cov=white_y_cov)
+    if len(groups) >= 2 and acc.short is not None:
+        # the short is read only by the shift test from now on (the bias split, ill-conditioned
+        # enough to show rounding, ran before two groups on its block-by-block sums): lazy
+        acc.short.lazy = True
+    thetas, covs, mids = np.zeros((0, p)), np.zeros((0, p, p)), np.zeros(0)
+    if len(groups) >= 2:
+        theta0 = f.basis @ f.beta[:k]
+        fits = []
+        for st, factor, mid in groups:
+            fk = fit_two_pass(st, f.basis, f.bias, nv, tv, None, theta0)
+            fits.append((fk.beta, fk.cov * factor, mid))
+        thetas = np.array([x[0] for x in fits])
+        covs = np.array([x[1] for x in fits])
+        mids = np.array([x[2] for x in fits])
+    ctx = {'torque_dt': torque_dt, 'gyro_dt': gyro_dt, 'white_y_cov': white_y_cov}
+    split = _split(acc, f, nv, tv, **ctx) if len(groups) < 2 and f.bias else None
+    return check_adequacy(thetas, covs, mids, f.excess, shift=_shift(acc, f, nv, tv, **ctx),
+                          split=split)
+
+
+def _split(acc: OnlineStats, f: Fit, nv: np.ndarray, tv: np.ndarray, **context: object
+           ) -> tuple[float, int, float] | None:
+    """Too short for the groups: the fitted torque bias tested over up to four groups of
+    :attr:`OnlineStats.short`'s segments (:func:`.adequacy.bias_split`, as the batch's
+    :func:`.refits.bias_split_test`); ``None`` as :func:`_shift`."""
+    s = acc.short
+    if s is None or context['white_y_cov'] is not None:
+        return None
+    s.correction = acc.correction
+    k = f.basis.shape[1]
+    theta0 = f.basis @ f.beta[:k]
+    fits = []
+    for st, factor, _ in s.group_stats(nv, min_s=0.0, **context):  # type: ignore[arg-type]
+        fk = fit_two_pass(st, f.basis, True, nv, tv, None, theta0)
+        fk.cov = fk.cov * factor
+        fits.append(fk)
+    return bias_split(fits, k) if len(fits) >= 2 else None
+
+
+def _shift(acc: OnlineStats, f: Fit, nv: np.ndarray, tv: np.ndarray, **context: object
+           ) -> tuple[float, int, float, float] | None:
+    """:func:`.adequacy.segment_shift` of ``f`` against the same fit of
+    :attr:`OnlineStats.short` (segments 4x shorter), as the batch's
+    :func:`.refits.shift_test`; ``None`` with a momentum input's white noise in ``y`` or too
+    few equations."""
+    s = acc.short
+    if s is None or context['white_y_cov'] is not None or s.n_eff() < MIN_EQUATIONS:
+        return None
+    k = f.basis.shape[1]
+    theta0 = f.basis @ f.beta[:k] + (0.0 if f.offset is None else f.offset)
+    s.correction = acc.correction
+    # both refitted: ``f``'s own covariance may have been widened since (a deferred test)
+    fl, fs = (fit_two_pass(a.stats(nv, a.n_eff(), True, **context),  # type: ignore[arg-type]
+                           f.basis, f.bias, nv, tv, f.offset, theta0) for a in (acc, s))
+    rl, rs = ((a.w00 + a.w00c) / (a.w0 + a.wc) for a in (acc, s))   # meat of weighted sums
+    return segment_shift(fl.beta[:k], fl.cov[:k, :k] * rl / max(fl.excess, 1.0),
+                         fs.beta[:k], fs.cov[:k, :k] * rs / max(fs.excess, 1.0))
+
+
+def _joined(run: list[tuple[np.ndarray, np.ndarray, np.ndarray]]
+            ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Queued blocks ``(t, V, ts)`` as one: the rows concatenated, the torque times united
+    (each block's are the earlier ones' from some sample on, or newer: the aligner trims and
+    appends, never modifies)."""
+    ts = run[0][2]
+    for _, _, later in run[1:]:
+        ts = np.concatenate([ts, later[np.searchsorted(later, ts[-1], 'right'):]])
+    return np.concatenate([r[0] for r in run]), np.concatenate([r[1] for r in run]), ts

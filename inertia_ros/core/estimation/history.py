@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ['MAX_SEGMENTS', 'SegmentHistory', 'SegmentStats']
+__all__ = ['MAX_SEGMENTS', 'SegmentHistory', 'SegmentStats', 'segment_pieces']
 
 #: Closed segments kept apart (older ones are merged in pairs beyond this).
 MAX_SEGMENTS = 32
@@ -99,3 +99,27 @@ class SegmentHistory:
                 g = g.at(s.clock) + s
             out.append(g)
         return out
+
+
+def segment_pieces(t: np.ndarray, start: float, segment: float
+                   ) -> list[tuple[int, int, bool]]:
+    """Cut rows at times ``t`` (n,) [s] into anchored segments of ``segment`` [s], the open
+    one started at ``start`` [s]: a segment ends before the first row at or after its start
+    plus ``segment``, and the next starts at that row.
+
+    Returns
+    -------
+    list of (int, int, bool)
+        ``(lo, hi, closes)``: rows ``lo:hi`` join the open segment (none when ``lo == hi``),
+        then, when ``closes``, it ends and the next starts at ``t[hi]``.  The one splitter of
+        :meth:`.accumulator.OnlineStats.merge` and :class:`.online_shift.ShiftRows`.
+    """
+    out: list[tuple[int, int, bool]] = []
+    lo, n = 0, len(t)
+    while lo < n:
+        k = lo + int(np.searchsorted(t[lo:], start + segment, side='left'))
+        out.append((lo, k, k < n))
+        if k < n:
+            start = float(t[k])
+        lo = k
+    return out

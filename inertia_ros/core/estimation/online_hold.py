@@ -35,7 +35,7 @@ from .accumulator import noise_map
 from .align import OnlineAligner
 from .fit import Fit, equation_weight, fit_two_pass
 from .options import HOLDS
-from .regressors import cumulative_torque, gram, lift, metric
+from .regressors import VARIABLE_MAP, cumulative_torque, gram
 from .selection import HOLD_ALPHA, hold_rule, select_hold
 
 __all__ = ['HOLD_MAX_WINDOWS', 'HOLD_MIN_ROWS', 'AutoHold', 'HoldWindows', 'choose_hold',
@@ -47,12 +47,16 @@ HOLD_MIN_ROWS = 25
 #: pairs (8 to 16 windows compared).
 HOLD_MAX_WINDOWS = 16
 
+#: Rows :meth:`AutoHold.rows` queues before they join the windows.
+_MAX_QUEUED = 4096
+
 #: How the adequacy tests override the likelihoods (``hold_selection['adequacy']``).
 _ADEQUACY_RULE = ('a hold whose fit fails the adequacy tests is left for the other when the '
                   "other's fit passes them")
 
 _ZOH = np.arange(13)
 _LIN = np.r_[np.arange(10), 13, 14, 15]
+_VMAP = np.ascontiguousarray(VARIABLE_MAP.reshape(13, 30))   # as regressors.lift's
 
 
 def _pair(a: tuple[int, np.ndarray, np.ndarray, bool], b: tuple[int, np.ndarray, np.ndarray, bool]
@@ -121,12 +125,16 @@ class HoldWindows:
         squared-rate integrals' correction, as :meth:`.accumulator.OnlineStats.stats`).
         """
         K = noise_map(nv)
-        out: dict[str, list[float]] = {'zoh': [], 'linear': []}
-        for _, _, C, _ in self.closed:
-            for h, cols in (('zoh', _ZOH), ('linear', _LIN)):
-                G = lift(K.T @ C[np.ix_(cols, cols)] @ K)
-                out[h].append(float(coef[h] @ metric(G, W) @ coef[h]))
-        return np.array(out['zoh']), np.array(out['linear'])
+        Cs = np.array([C for _, _, C, _ in self.closed]).reshape(-1, 16, 16)
+        out = []
+        for h, cols in (('zoh', _ZOH), ('linear', _LIN)):
+            # every window at once, the products of :func:`.regressors.lift` and
+            # :func:`.regressors.metric` stacked (the same numbers as window by window)
+            L = _VMAP.T @ (K.T @ Cs[:, cols[:, None], cols[None, :]] @ K) @ _VMAP
+            L = np.ascontiguousarray(L.reshape(-1, 3, 10, 3, 10).transpose(0, 1, 3, 2, 4))
+            M = np.einsum('rs,krsij->kij', W, L)
+            out.append(np.array([float(coef[h] @ m @ coef[h]) for m in M]))
+        return out[0], out[1]
 
 
 def choose_hold(stats: dict[str, Any], windows: HoldWindows, bias: bool, nv: np.ndarray,
@@ -189,6 +197,10 @@ class AutoHold:
         """Forget everything."""
         self.T_base = np.zeros(3)       # linear torque integral at the aligner's first sample
         self.windows = HoldWindows()
+        self._queue: list[tuple[np.ndarray, list[int]]] = []   # rows (n, 16) not in windows yet
+        #: the last :meth:`rows`' time [s], torque times and linear integral for :meth:`fold`
+        self._fold_next: tuple[float, np.ndarray, np.ndarray] | None = None
+        self._queued = 0
         self.chosen = 'zoh'
         self.record: dict[str, Any] | None = None
         #: the hold the adequacy tests chose (:meth:`check_other`), over the likelihoods
@@ -198,23 +210,44 @@ class AutoHold:
     def rows(self, align: OnlineAligner, t: np.ndarray, V: np.ndarray,
              breaks: list[int]) -> dict[str, np.ndarray]:
         """Both holds' variables (n, 13) of rows ``V`` (the held ones from ``align``) at
-        ``t`` (n,) [s]; the rows join the windows, which end at the ``breaks``."""
+        ``t`` (n,) [s]; the rows join the windows (queued until a choice), which end at the
+        ``breaks``."""
         V_lin = V.copy()            # extra columns after the 13 (stated inputs) kept as held
-        V_lin[:, 10:13] = self.T_base + linear_integral(align, t)
-        X = np.concatenate([V[:, :13], V_lin[:, 10:13]], axis=1)
-        lo = 0
-        for k in [*breaks, len(t)]:
-            self.windows.add(X[lo:k])
-            if k < len(t):
-                self.windows.cut()
-            lo = k
+        # with the integral :meth:`fold` will need at the last torque sample at or before t[-1]
+        j = int(np.searchsorted(align.ts, t[-1], side='right') - 1)
+        L = linear_integral(align, np.append(t, align.ts[j]))
+        V_lin[:, 10:13] = self.T_base + L[:-1]
+        self._fold_next = (float(t[-1]), align.ts, L[-1])
+        self._queue.append((np.concatenate([V[:, :13], V_lin[:, 10:13]], axis=1), breaks))
+        self._queued += len(t)
+        if self._queued > _MAX_QUEUED:
+            self._flush()
         return {'zoh': V, 'linear': V_lin}
+
+    def _flush(self) -> None:
+        """Add the queued rows to the windows (read only at a choice), each run of blocks
+        between two breaks as one block (the same windows; the sums differ by rounding)."""
+        queue, self._queue, self._queued = self._queue, [], 0
+        run: list[np.ndarray] = []
+        for X, breaks in [*queue, (None, [])]:
+            lo = 0
+            for k in breaks:
+                self.windows.add(np.concatenate([*run, X[lo:k]]))
+                self.windows.cut()
+                run, lo = [], k
+            if X is not None:
+                run.append(X[lo:])
+            elif run:
+                self.windows.add(np.concatenate(run))
 
     def fold(self, align: OnlineAligner, t_last: float) -> None:
         """Before ``align.trim(t_last)``: fold the linear integral it drops into the base."""
         j = int(np.searchsorted(align.ts, t_last, side='right') - 1)
         if j > 0:
-            self.T_base = self.T_base + linear_integral(align, align.ts[j:j + 1])[0]
+            t_rows, ts, at = self._fold_next or (None, None, None)
+            if t_rows != t_last or ts is not align.ts:    # (not the rows' last time: compute)
+                at = linear_integral(align, align.ts[j:j + 1])[0]
+            self.T_base = self.T_base + at
 
     def select(self, due: bool, torque_free: bool, stats: Callable[[str], Any], bias: bool,
                nv: np.ndarray, tv: np.ndarray, white_y_cov: np.ndarray | None,
@@ -232,6 +265,7 @@ class AutoHold:
                                            'rule': hold_rule(HOLD_ALPHA),
                                            'reason': 'torque-free data: no choice'}
             else:
+                self._flush()
                 self.chosen, rec = choose_hold({h: stats(h) for h in HOLDS},
                                                self.windows, bias, nv, tv, white_y_cov)
             self.record = dict(rec, selected_at_samples=samples)

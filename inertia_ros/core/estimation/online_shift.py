@@ -29,6 +29,7 @@ from typing import Any
 import numpy as np
 
 from .adequacy import segment_shift
+from .history import segment_pieces
 from .homogeneous import (
     SHIFT_FACTOR,
     OnlineTorqueFreeChecks,
@@ -47,6 +48,8 @@ __all__ = ['MAX_OPEN_ROWS', 'ShiftRows', 'online_checks', 'online_shift']
 #: Rows an open segment may keep (memory: 13 floats each); a longer segment gives way to the
 #: bound of :func:`_bound` for the rest of the run.
 MAX_OPEN_ROWS = 200_000
+#: Rows :meth:`ShiftRows.merge` queues before it cuts them into segments.
+_MAX_QUEUED = 4096
 _NX, _NR = 13, 3 * N_REGRESSOR_VARIABLES       # a segmentation's columns: [X | R]
 _NZ = _NX + _NR
 
@@ -88,36 +91,56 @@ class ShiftRows:
         self._t: list[np.ndarray] = []
         self._V: list[np.ndarray] = []
         self._n_open = 0
+        self._queue: list[tuple[np.ndarray, np.ndarray, list[int]]] = []   # blocks not cut yet
+        self._queued = 0
 
     def merge(self, t: np.ndarray, V: np.ndarray, breaks: list[int]) -> None:
         """Add equations ``V`` (n, >= 13) at ``t`` (n,) [s]; a new segment at each index of
-        ``breaks`` (the gaps the recursive estimator closes its accumulators at)."""
+        ``breaks`` (the gaps the recursive estimator closes its accumulators at).  Queued, cut
+        into segments when read or when :data:`_MAX_QUEUED` rows wait (the same rows and
+        segments, so the same Grams, bit for bit)."""
         if not self.exact:
             return
-        lo = 0
-        for k in breaks:
-            if k > lo:
-                self._merge(t[lo:k], V[lo:k])
-            self.close(float(t[k]))
-            lo = k
-        self._merge(t[lo:], V[lo:])
+        self._queue.append((t, V[:, :_NX], breaks))
+        self._queued += len(t)
+        if self._queued > _MAX_QUEUED:
+            self.flush()
+
+    def flush(self) -> None:
+        """Cut the queued blocks into segments (:meth:`_merge`), a run of blocks at a time."""
+        queue, self._queue, self._queued = self._queue, [], 0
+        run: list[tuple[np.ndarray, np.ndarray]] = []
+        for t, V, breaks in [*queue, (None, None, [])]:
+            lo = 0
+            for k in breaks:
+                run.append((t[lo:k], V[lo:k]))
+                self._merge_run(run)
+                run = []
+                self.close(float(t[k]))
+                lo = k
+            if t is None:
+                self._merge_run(run)
+            else:
+                run.append((t[lo:], V[lo:]))
+
+    def _merge_run(self, run: list[tuple[np.ndarray, np.ndarray]]) -> None:
+        """:meth:`_merge` of consecutive blocks ``(t, V)`` as one."""
+        if run:
+            self._merge(np.concatenate([r[0] for r in run]), np.concatenate([r[1] for r in run]))
 
     def _merge(self, t: np.ndarray, V: np.ndarray) -> None:
-        """As :meth:`.accumulator.OnlineStats.merge`: a segment ends before the first
-        equation at or after its start plus :attr:`segment`."""
-        while len(t):
-            if self.seg_start is None:
-                self.seg_start = float(t[0])
-            k = int(np.searchsorted(t, self.seg_start + self.segment, side='left'))
-            if k == 0:
-                self.close(float(t[0]))
-                continue
-            self._t.append(np.array(t[:k], dtype=float))
-            self._V.append(np.array(V[:k, :_NX], dtype=float))
-            self._n_open += k
-            t, V = t[k:], V[k:]
-            if len(t):
-                self.close(float(t[0]))
+        """As :meth:`.accumulator.OnlineStats.merge` (:func:`.history.segment_pieces`)."""
+        if not len(t) or not self.exact:
+            return
+        if self.seg_start is None:
+            self.seg_start = float(t[0])
+        for lo, hi, closes in segment_pieces(t, self.seg_start, self.segment):
+            if hi > lo:
+                self._t.append(t[lo:hi])
+                self._V.append(V[lo:hi])
+                self._n_open += hi - lo
+            if closes:
+                self.close(float(t[hi]))
         if self._n_open > MAX_OPEN_ROWS:
             self.exact = False
             self._t, self._V = [], []
@@ -150,6 +173,7 @@ class ShiftRows:
     def gram(self) -> tuple[np.ndarray, int, int, int]:
         """Raw Gram (86, 86) of everything merged (the open segment included), equations and
         segments of the long and the short segmentation."""
+        self.flush()
         if not self._n_open:
             return self.M, self.n, self.n_long, self.n_short
         Z, n_short = self._open_rows()
@@ -192,6 +216,7 @@ def online_shift(acc: Any, rows: ShiftRows, nv: np.ndarray, context: dict[str, A
     """
     if acc.short is None:
         return None
+    rows.flush()
     if rows.exact:
         return lambda gv, W, gss, step: _exact(rows, gv, W, gss, step,
                                                context['white_y_cov'])

@@ -66,20 +66,29 @@ from .statistics import SufficientStats
 __all__ = ['RecursiveEstimator']
 
 _MAX_BUFFER = 400_000                      # gyro samples kept waiting for torque
+_F64 = np.dtype(np.float64)
 
 
 def _one_sample(t: Any, v: Any, last: float | None, name: str) -> float | None:
     """The time [s] of one sample ``t``, ``v`` (3,) checked as a block would be (the node's
     common case); None for a block."""
-    if not (isinstance(t, (float, int)) and len(v) == 3 and np.ndim(v) == 1):
+    if not isinstance(t, (float, int)):
+        return None
+    if type(v) is np.ndarray and v.dtype is _F64:    # the node's case, checked at once
+        if v.shape != (3,):
+            return None
+        x, y, z = v.tolist()
+    elif len(v) == 3 and np.ndim(v) == 1:
+        x, y, z = float(v[0]), float(v[1]), float(v[2])
+    else:
         return None
     tf = float(t)
     if abs(tf) > MAX_TIME_S:        # the one-sample form of refuse_nanoseconds
         raise ValueError(f'time {tf!r} looks like nanoseconds; give seconds')
-    if not (math.isfinite(tf) and math.isfinite(float(v[0])) and math.isfinite(float(v[1]))
-            and math.isfinite(float(v[2]))):
+    if not (math.isfinite(tf) and math.isfinite(x) and math.isfinite(y) and math.isfinite(z)):
         raise ValueError(f'{name}: contains NaN or inf')
-    require_after(tf, last, name)
+    if last is not None and tf <= last:
+        require_after(tf, last, name)       # (raises)
     return tf
 
 
@@ -188,7 +197,7 @@ class RecursiveEstimator:
                       for h in (HOLDS if self.hold == 'auto' else (self.hold,))}
         self._auto = AutoHold() if self.hold == 'auto' else None
         self._shift_rows = ShiftRows(self.segment, self.window is None and self.forgetting == 1)
-        self._active = 'zoh' if self.hold == 'auto' else self.hold    # the hold estimated
+        self._set_active('zoh' if self.hold == 'auto' else self.hold)   # the hold estimated
         self._tau_var: np.ndarray | None = None
         self._schedule.reset()            # the re-selection schedule's verdicts
         self._tf_memo: dict[str, Any] = {}   # the torque-free checks' (OnlineTorqueFreeChecks)
@@ -300,7 +309,9 @@ class RecursiveEstimator:
             for k in breaks:
                 if k > lo:
                     acc.merge(t[lo:k], Vs[h][lo:k], self._align.ts)
-                self.gaps += h == held and acc.w0 > 0   # a break ending a segment with data
+                if h == held:          # a break ending a segment with data
+                    acc.flush()
+                    self.gaps += acc.w0 > 0
                 acc.close(float(t[k]))
                 lo = k
             acc.merge(t[lo:], Vs[h][lo:], self._align.ts)
@@ -309,6 +320,13 @@ class RecursiveEstimator:
         if self._auto is not None:
             self._auto.fold(self._align, float(t[-1]))
         self._align.trim(float(t[-1]), held)
+
+    def _set_active(self, hold: str) -> None:
+        """Estimate ``hold``; the other hold's accumulator (``hold='auto'``), read only at the
+        hold choice and after a failed adequacy test, merges lazily (its blocks in runs)."""
+        self._active = hold
+        for h, acc in self._accs.items():
+            acc.lazy = h != hold
 
     @property
     def _acc(self) -> OnlineStats:
@@ -349,6 +367,10 @@ class RecursiveEstimator:
     def _test_adequacy(self, f: Fit, nv: np.ndarray, tv: np.ndarray) -> Adequacy:
         """The window tests of ``f`` (:meth:`.accumulator.OnlineStats.window_test`)."""
         a = self._acc.window_test(f, nv, tv, **self._context())
+        if self._acc.short is not None and self._acc.short.lazy:
+            for acc in self._accs.values():       # past the bias split: the other hold's too
+                if acc.short is not None:
+                    acc.short.lazy = True
         if self._auto is not None and not a.ok:   # the other hold's fit may pass: kept next
             self._auto.check_other(self._active, self._accs, f, nv, tv,
                                    self._tau_var is not None, self._context())
@@ -403,7 +425,7 @@ class RecursiveEstimator:
                 nv, n_eff, self._tau_var is not None, **self._context()),
             self.torque_bias != 'off', nv, tv, self._white_y_cov, self.samples_used)
         if changed:
-            self._active = self._auto.chosen
+            self._set_active(self._auto.chosen)
             self._schedule.reset_verdicts()
         diag['hold'] = self._active
 
