@@ -379,11 +379,7 @@ class RecursiveEstimator:
     def refresh(self) -> bool:
         """Run the adequacy test the last estimate deferred (``defer_adequacy``), if any: call
         it before new samples are merged, so that it tests that estimate's statistics and fit.
-
-        Returns
-        -------
-        bool
-            True when a test ran.
+        Returns True when a test ran.
         """
         return self._schedule.refresh(self._test_adequacy)
 
