@@ -64,6 +64,7 @@ from .regressors import cumulative_monomials, cumulative_torque, gyroscopic_matr
 from .result import InertiaEstimate
 from .selection import SelectionPolicy
 from .tails import chi2_isf
+from .tracking_consistency import InnovationTests
 from .tracking_hold import HoldChoice, keep_by_adequacy
 from .tracking_input import StreamInput
 from .tracking_output import EXCESS_TIME, StateOutput
@@ -316,7 +317,7 @@ class TrackingEstimator(StreamInput, StateOutput):
         self.P = np.eye(self.n) * _DIFFUSE
         self._prev: tuple[float, np.ndarray] | None = None
         self._excess = 1.0
-        self._excess_w = 0.0
+        self._excess_w, self._tests = 0.0, InnovationTests()   # and the adequacy test
         self._Beff = np.zeros((self.k, self.k))  # its sum, forgotten as the information
         self._trend = _Trend(2.0 * self.window, self.k + self.nb)
 
@@ -451,12 +452,14 @@ class TrackingEstimator(StreamInput, StateOutput):
         if self._changed(nis, 3):
             self.changes.append(float(t[0]))
             self._since = float(t[0])                     # the memory starts again
-            self._R_theta = self.basis @ self.x[:self.k]     # weights held until settled
-            self._armed = 1 << 62
+            self._R_theta, self._armed = self.basis @ self.x[:self.k], 1 << 62   # till settled
+            self._trend = _Trend(2.0 * self.window, self.k + self.nb)   # the jump is no trend
             self._inflate()
             self._Beff = np.zeros((self.k, self.k))
+            self._tests.restart()
             PH = self.P @ H.T
             S = H @ PH + R
+        self._tests.add(t[-1], nu, S, self.updates >= self._armed and self.nu == self._learnt)
         K = np.linalg.solve(S, PH.T).T
         K[self.k + self.nb:self.n - 3 - self._learnt] = 0.0   # considered inputs: not learnt
         self.x = self.x + K @ nu
@@ -469,8 +472,6 @@ class TrackingEstimator(StreamInput, StateOutput):
         C[self.n - 3:] = -float(np.mean(t - s)) * self._walk
         self._predict(t, w, T[-1] - T[0], M[-1], (K, C, S, nu))
         self.updates += 1
-        if self.changes and self.changes[-1] == float(t[0]):
-            self._trend = _Trend(2.0 * self.window, self.k + self.nb)   # the jump is no trend
         self._trend.add(float(t[-1]), self._compensated()[0], float(t[-1] - s))
         if self._armed > self.updates and self.changes and self._settled():
             self._R_theta, self._armed = None, self.updates       # re-converged

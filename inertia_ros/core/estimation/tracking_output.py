@@ -152,6 +152,14 @@ class StateOutput:
             cov = cov * widen
             diag['reason'] = (f'the model does not explain the data: the innovations are '
                               f'{self._excess:.3g} times the noise model')
+        verdict = self._tests.verdict()
+        if verdict is not None:
+            diag['adequacy'] = verdict = dict(verdict)
+            if not verdict['ok'] and status == 'ok':
+                status, widen = 'model_mismatch', verdict['covariance_inflation']
+                cov = cov * widen
+                diag['reason'] = f"the model does not explain the data: {verdict['reason']}"
+            verdict['sigma_widened_by'] = float(np.sqrt(widen))
         info = solve_symmetric(cov, np.eye(p))
         f = Fit(beta, cov, info, info, self.basis, bool(self.nb), np.zeros(3),
                 3 * self.samples_used, excess=max(self._excess, 1.0))
