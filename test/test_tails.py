@@ -23,6 +23,17 @@ def test_chi2_sf_equals_scipy(dof: int) -> None:
             assert got <= 1e-280
 
 
+@pytest.mark.parametrize('dof, x', [(1983, 2050.0), (2000, 1401.0), (3000, 3100.0),
+                                    (10_000, 9_800.0), (1001, 1500.0), (3, 1500.0)])
+def test_chi2_sf_large_statistics(dof: int, x: float) -> None:
+    """Where ``exp(-x/2)`` underflows (x > ~1400) but the tail does not (``dof`` near ``x``,
+    an average-NIS or window test over many blocks): scipy's tail to 1e-10 relative; it
+    returned 0.0 for (2050, 1983), whose tail is 0.144."""
+    from scipy.special import chdtrc
+    want = float(chdtrc(dof, x))
+    assert chi2_sf(x, dof) == pytest.approx(want, rel=1e-10, abs=1e-300)
+
+
 def test_chi2_sf_edges() -> None:
     """x <= 0 is certain, infinity impossible, nan propagates; dof must be a positive integer."""
     assert chi2_sf(0.0, 3) == 1.0 and chi2_sf(-1.0, 2) == 1.0
