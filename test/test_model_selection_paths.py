@@ -19,6 +19,7 @@ import numpy as np
 import pytest
 
 from conftest import ROOT
+from inertia_ros.bench.honesty import feed_online
 from inertia_ros.core.estimation.batch import estimate
 from inertia_ros.core.estimation.options import ALPHA
 from inertia_ros.core.estimation.recursive import RecursiveEstimator
@@ -40,10 +41,9 @@ def _record(products: tuple[float, float, float], seed: int):
     return simulate(Scene.from_dict(d), seed=seed)
 
 
-def _feed(est, sim, node: bool = False) -> None:
-    """Both streams in ``BLOCK``-second pieces (torque first, as the node's feed); with
-    ``node``, an estimate after each block and the deferred adequacy test after it, as the
-    node updates (once the data suffice)."""
+def _feed(est, sim) -> None:
+    """Both streams in ``BLOCK``-second pieces (torque first, as the node's feed), no
+    estimate in between (the node's own cadence: :func:`inertia_ros.bench.honesty.feed_online`)."""
     edges = np.arange(0.0, sim.t_gyro[-1] + 2 * BLOCK, BLOCK)
     for a, b in zip(edges[:-1], edges[1:], strict=False):
         q = (sim.t_torque >= a) & (sim.t_torque < b)
@@ -52,8 +52,6 @@ def _feed(est, sim, node: bool = False) -> None:
             est.add_torque(sim.t_torque[q], sim.torque[q])
         if g.any():
             est.add_gyro(sim.t_gyro[g], sim.omega[g])
-        if node and est.estimate().status != 'insufficient_data':
-            est.refresh()
 
 
 def _paths(sim) -> dict:
@@ -109,7 +107,7 @@ def test_log00160_like_record_is_full_on_every_path() -> None:
     sim = _record(NEAR, 3)
     est = _paths(sim)
     node = RecursiveEstimator(reselect_every=10, defer_adequacy=True, **OPTIONS)
-    _feed(node, sim, node=True)
+    feed_online(node, sim, 1.0 / BLOCK)
     est['node'] = node.estimate()
     assert est['node'].diagnostics['model_selection']['reused'] is True
     for name, e in est.items():
