@@ -220,3 +220,31 @@ def walk_maps(I: np.ndarray) -> np.ndarray:
     gyroscopic term's ``J(w) = sum_i w_i A_i`` (:func:`gyroscopic_walk_cov`), all three at once
     (``[v]x_ab = -eps_abc v_c``)."""
     return np.einsum('aki,kb->iab', -_EPS, I) + np.einsum('abc,ci->iab', _EPS, I)
+
+
+def regressor_noise_information(var: np.ndarray, Wh: np.ndarray,
+                                basis: np.ndarray | None = None) -> np.ndarray:
+    """The gyro noise's own information in the tensor columns of one weighted equation:
+    ``sum_k var_k (Wh L(e_k) T)' (Wh L(e_k) T)`` (``I v = L(v) theta``), the expected Gram
+    that corrected (errors-in-variables) least squares takes out of the normal matrix.
+
+    Parameters
+    ----------
+    var : ndarray, shape (3,)
+        Variance per gyro axis of the noise in the equation's rate [rad^2/s^2].
+    Wh : ndarray, shape (3, 3)
+        The equation's whitening factor (``Wh' Wh`` = the inverse error covariance).
+    basis : ndarray, shape (6, k), optional
+        Model basis ``T`` (default: the six tensor parameters).
+
+    Returns
+    -------
+    ndarray, shape (k, k)
+    """
+    from .regressors import momentum_matrix
+
+    L = momentum_matrix(np.eye(3))                       # (3 axes, 3, 6)
+    if basis is not None:
+        L = L @ basis
+    LW = np.einsum('ij,kjp->kip', Wh, L)
+    return np.einsum('k,kip,kiq->pq', np.asarray(var, dtype=float), LW, LW)

@@ -59,7 +59,7 @@ from .._validate import as_samples, as_times
 from ..tensor import theta_to_matrix
 from .align import cross_matrices, cumtrapz, gap_starts
 from .homogeneous import is_torque_free
-from .noise import noise_std_from_differences
+from .noise import noise_std_from_differences, regressor_noise_information
 from .options import (
     ALPHA,
     IDENTIFIABILITY_TOL,
@@ -263,14 +263,11 @@ def _noise_gram(d: _Data, Wh: np.ndarray, p: int) -> np.ndarray:
 
     The tensor's columns of an interval hold ``L(w_b - w_a)`` (``I v = L(v) theta``), whose
     gyro noise ``L(n_b - n_a)`` has the known covariance ``2 sigma_k^2`` per axis: summed
-    over the intervals, ``E[N' W N] = n sum_k 2 sigma_k^2 L(e_k)' W L(e_k)``.  The noise in
+    over the intervals, ``n`` times :func:`.noise.regressor_noise_information`.  The noise in
     the integrated (gyroscopic) part is smaller by ``|w| dt``: left out.
     """
-    from .regressors import momentum_matrix
-
-    LW = np.einsum('ij,kjp->kip', Wh, momentum_matrix(np.eye(3)))      # (3 axes, 3, 6)
     G = np.zeros((p, p))
-    G[:6, :6] = len(d.a) * np.einsum('k,kip,kiq->pq', 2.0 * d.noise_var, LW, LW)
+    G[:6, :6] = len(d.a) * regressor_noise_information(2.0 * d.noise_var, Wh)
     return G
 
 

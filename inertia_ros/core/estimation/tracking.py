@@ -56,7 +56,7 @@ from ..tensor import theta_to_matrix
 from .config import require, substitutions
 from .model import model_basis
 from .model import symmetry_axis as unit_axis
-from .noise import StreamingNoise
+from .noise import StreamingNoise, regressor_noise_information
 from .options import (
     ALPHA,
 )
@@ -77,11 +77,11 @@ _SETTLED = 0.05           # relative sigma of the moments below which the weight
 
 
 def noise_information(basis: np.ndarray, nv: np.ndarray, R: np.ndarray) -> np.ndarray:
-    """The gyro noise's own information (k, k) in one sample's equation: ``sum_c sigma_c^2
-    (L(e_c) T)' R^-1 (L(e_c) T)`` for the model basis ``T`` (6, k), the gyro variances
-    ``nv`` (3,) [rad^2/s^2] and the equation error covariance ``R`` (3, 3) (the blocks' ``B``)."""
-    E = momentum_matrix(np.eye(3)) @ basis                     # (3, 3, k)
-    return np.einsum('c,cik,ij,cjl->kl', nv, E, np.linalg.inv(R), E)
+    """The gyro noise's own information (k, k) in one sample's equation for the model basis
+    ``T`` (6, k), the gyro variances ``nv`` (3,) [rad^2/s^2] and the equation error covariance
+    ``R`` (3, 3) (the blocks' ``B``): :func:`.noise.regressor_noise_information`."""
+    Wc = np.linalg.cholesky(np.linalg.inv(R))
+    return regressor_noise_information(nv, Wc.T, basis)
 
 
 def _corrected_wls(H: np.ndarray, y: np.ndarray, R: np.ndarray, B: np.ndarray
