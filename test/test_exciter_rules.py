@@ -200,6 +200,24 @@ def test_stops_when_the_sigma_stops_improving():
     assert not falling.stopped
 
 
+def test_a_reassessed_sigma_starts_a_new_stall_stretch():
+    """The live estimator switching model or hold raises its sigma once (evidence never
+    falls): the stall is judged from there, so a converging loop is not stopped, while a
+    sigma flat after the jump still stops as not_improving."""
+    jumped = rules(stall_window=2.0, estimator_timeout=10.0)
+    flat = rules(stall_window=2.0, estimator_timeout=10.0)
+    for k in range(250):                            # 5 s, a covariance every 0.1 s
+        t = k * DT
+        if k % 5 == 0:
+            base = 0.2 * np.exp(-0.05 * t)          # 5 %/s: > 2 % per window
+            jumped.on_sigma(t, base * (1.25 if t >= 1.5 else 1.0))   # a switch at 1.5 s
+            flat.on_sigma(t, 0.1 if t < 1.5 else 0.13)               # jump, then flat
+        run(jumped, [0.01, 0, 0], t0=t)
+        run(flat, [0.01, 0, 0], t0=t)
+    assert not jumped.stopped, jumped.stop_detail
+    assert flat.stop_reason == 'not_improving'
+
+
 def test_limits_are_checked_with_one_line_naming_the_field():
     for field, bad in (('max_torque', 0.0), ('max_slew', -1.0), ('max_rate', float('nan')),
                        ('rate_hysteresis', 1.0), ('rate_margin', 2.0)):

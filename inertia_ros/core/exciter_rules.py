@@ -32,7 +32,12 @@ Stopping (for good: after a stop the only output is a final zero)
                         of the excitation until the first one arrives);
     ``reset``           the estimator reset (its evidence is gone);
     ``not_improving``   the relative sigma did not fall by ``stall_min_gain`` (fraction)
-                        over the last ``stall_window`` s.
+                        over the last ``stall_window`` s of a continuous stretch: a rise
+                        of more than :data:`REASSESSED_JUMP` from one covariance to the
+                        next starts a new stretch.  Evidence only grows, so such a rise is
+                        the estimator re-assessing it (a model, torque-bias or hold change,
+                        a widening by an adequacy test), not a stall; judged across it, a
+                        rise of 20 % once stopped a loop that was converging.
 
 States: ``waiting`` (no gyro sample yet; zero), ``exciting``, ``holding`` (a safety rule
 holds zero; the reason says which), ``stopped``.
@@ -48,11 +53,15 @@ import numpy as np
 
 from .excitation.actuators import WheelLimit, allocation
 
-__all__ = ['STATES', 'STOP_REASONS', 'Command', 'ExciterLimits', 'ExciterRules',
+__all__ = ['REASSESSED_JUMP', 'STATES', 'STOP_REASONS', 'Command', 'ExciterLimits', 'ExciterRules',
            'TorqueSchedule', 'predicted_rate', 'principal_rel_std', 'wheel_speed_check']
 
 STATES = ('waiting', 'exciting', 'holding', 'stopped')
 STOP_REASONS = ('target_reached', 'timeout', 'estimator_lost', 'reset', 'not_improving')
+#: Rise of the relative sigma between two covariances that starts a new stall stretch
+#: (fraction): consecutive covariances of a converging estimate differ by ~1 %; a model or
+#: hold switch of the live estimator moves it by 20-150 % (measured on the closed loop).
+REASSESSED_JUMP = 0.1
 _AXES = 'xyz'
 
 
@@ -310,6 +319,8 @@ class ExciterRules:
             self._stop('target_reached', f'relative sigma {rel_std:.4g} <= target '
                                          f'{lim.target_rel_std:g}')
             return
+        if m.sigma and rel_std > m.sigma[-1][1] * (1.0 + REASSESSED_JUMP):
+            m.sigma.clear()         # the estimator re-assessed its evidence: a new stretch
         m.sigma.append((float(t), rel_std))
         while len(m.sigma) > 1 and m.sigma[1][0] <= t - lim.stall_window:
             m.sigma.popleft()
