@@ -42,17 +42,14 @@ def test_widening_has_no_step_at_a_level() -> None:
 
 
 def test_window_scatter_and_split_widen_without_a_level() -> None:
-    """Window scatter at p 0.3 (Birge ratio 1.1 on 15 dof, 4 windows): covariance x
+    """Window scatter at p 0.35 (chi2 16.5 on 15 dof, Birge ratio 1.1, 4 windows): covariance x
     1 + 4 (B - 1) = 1.4 (was 1); a bias split at chi2 4 on 3 dof (p 0.26): x 4/3 (was 1)."""
     th = np.zeros((4, 5))
+    th[0, 0], th[1, 0] = np.sqrt(8.25), -np.sqrt(8.25)          # chi2 = 2 * 8.25 about 0
     covs = np.broadcast_to(np.eye(5), (4, 5, 5)).copy()
-    rng = np.random.default_rng(1)
-    for _ in range(200):
-        th = rng.normal(size=(4, 5))
-        a = check_adequacy(th, covs, np.arange(4.0), 1.0)
-        if 0.2 < a.p_value < 0.4 and a.chi2 > a.dof:
-            break
-    assert a.ok and a.inflation == pytest.approx(1.0 + 4 * (a.chi2 / a.dof - 1.0))
+    a = check_adequacy(th, covs, np.arange(4) * 10.0 + 5.0, 1.0)
+    assert (a.chi2, a.dof) == (pytest.approx(16.5), 15) and 0.3 < a.p_value < 0.4
+    assert a.ok and a.change_at is None and a.inflation == pytest.approx(1.4)
     b = check_adequacy(*_NO_WINDOWS, excess=1.0, split=(4.0, 3, chi2_sf(4.0, 3)))
     assert b.ok and b.inflation == pytest.approx(4.0 / 3.0)
 
