@@ -141,7 +141,7 @@ def test_one_block_tumble_at_the_edge_of_the_shift_test_is_covered():
     shift is chi2 11.0 on 5 dof, p 0.051.  Before the continuous widening (6cbe252) that was
     above the 0.05 that widened, and the record stayed scale_unobservable at |z| 5.49 with
     the noise model's sigma (the node's cadence: p 0.044, widened; the batch: p 0.03).  Now
-    the shift widens by its chi2 per dof (2.2): |z| 3.7, sigma widened 1.48x."""
+    the shift widens by nearly its chi2 per dof (2.2, weight 0.97): |z| 3.7."""
     options = {'model': 'full', 'torque_bias': 'auto', 'hold': 'zoh', 'reselect_every': 10,
                'defer_adequacy': True}
     r = _tumbles(20.0, [8])[0]
@@ -153,4 +153,4 @@ def test_one_block_tumble_at_the_edge_of_the_shift_test_is_covered():
     assert 0.05 < a['segment_shift_p_value'] < 0.06, a        # the record of the defect
     assert e.status == 'model_mismatch' or _max_z(e, r.inertia) < 5.0, (e.status, a)
     assert a['sigma_widened_by'] == pytest.approx(np.sqrt(a['segment_shift_chi2'] / 5),
-                                                  rel=1e-9)
+                                                  rel=0.02)
