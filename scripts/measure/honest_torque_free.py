@@ -1,15 +1,16 @@
 """Torque-free status and sigma on the reference simulator (issue 27 item 4, the torque-free rule).
 
-    python scripts/measure/honest_torque_free.py SEEDS DURATION [GYRO_BIAS] [api|node]
+    python scripts/measure/honest_torque_free.py SEEDS DURATION [GYRO_BIAS] [api|node|oneblock]
 
 A tumble of the body diag(2.0, 1.5, 3.0) x 1e-3 kg m^2 from (3, 4, 5) rad/s, 100 Hz gyro with
 0.01 rad/s noise and no torque (as test_torque_free_calibration's reference records), a gyro
 bias of GYRO_BIAS rad/s on x (default 0) added, seeds ``0 .. SEEDS - 1``.  ``api`` (default):
 ``estimate(method='integral')``; ``node``: ``RecursiveEstimator`` fed in 0.1 s blocks with an
 estimate after each, as the node does (the honesty benchmark's node options: 10 Hz estimates,
-adequacy re-run once a second and deferred), the last estimate kept.  Prints the statuses, the
-RMS z of the six element ratios (trace-normalised), the largest sigma widening and the records
-``scale_unobservable`` with some |z| > 5.
+adequacy re-run once a second and deferred), the last estimate kept; ``oneblock``: the same
+estimator fed the whole record as one block, one estimate at the end (a log replayed at once).
+Prints the statuses, the RMS z of the six element ratios (trace-normalised), the largest sigma
+widening and the records ``scale_unobservable`` with some |z| > 5.
 """
 
 import dataclasses
@@ -40,6 +41,11 @@ def main() -> None:
         if path == 'node':
             e = feed_online(RecursiveEstimator(**NODE_OPTIONS),
                             dataclasses.replace(r, omega=omega), 10.0)
+        elif path == 'oneblock':
+            est = RecursiveEstimator(**NODE_OPTIONS)
+            est.add_gyro(r.t_gyro, omega)
+            est.add_torque(r.t_torque, r.torque)
+            e = est.estimate()
         else:
             e = estimate(r.t_gyro, omega, np.zeros(0), np.zeros((0, 3)), method='integral')
         st[e.status] = st.get(e.status, 0) + 1

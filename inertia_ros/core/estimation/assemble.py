@@ -287,7 +287,7 @@ def _adequate(adequacy: AdequacyFunction, f: Fit, chosen: str, diag: dict[str, A
 
 
 def _suspect(a: Adequacy) -> str:
-    """What a test saw below the widening level though not below the mismatch level."""
+    """What the tests saw when they widened the sigma (a chi2 above its dof) and none failed."""
     return (f'window p = {a.p_value:.1e}, segment shift p = {a.shift_p_value:.1e}, bias split '
             f'p = {a.split_p_value:.1e} (a small unmodelled effect or correlated noise)')
 
