@@ -23,7 +23,7 @@ from ..tensor import check_physical, nearest_physical, theta_to_matrix
 from .model import selector
 from .noise import gyroscopic_walk_cov
 from .regressors import MOMENTUM_BASIS, metric
-from .statistics import SufficientStats
+from .statistics import WALK_BASIS, SufficientStats
 
 __all__ = ['Fit', 'equation_weight', 'fit_two_pass', 'fit_weighted', 'hac_small_sample',
            'solve_symmetric']
@@ -83,6 +83,11 @@ def _anchored_meat(st: SufficientStats, T: np.ndarray, p: int, W: np.ndarray, G:
                                                       st.torque_dt)
     if st.CP is not None:
         meat += (T.T @ metric(st.CP, W @ S_tau @ W) @ T)[:p, :p]
+    walk = getattr(st, 'walk_grams', None)       # a time-varying walk (a momentum input's)
+    if walk is not None:
+        M = np.einsum('ab,qbc,cd->qad', W, WALK_BASIS, W)
+        meat += (T.T @ np.einsum('qrs,qrsij->ij', M, walk) @ T)[:p, :p]
+        S_tau = S_tau + st.walk_mean
     # residuals larger than the noise model predicts (misfit, unmodelled effects):
     # inflate the covariance by the excess, never deflate it
     rss_w = float(c @ G @ c)
