@@ -409,7 +409,9 @@ def sufficient_stats(eq: Equations, segment: float | None, t_tau: np.ndarray, ta
         GP[:_NREG, :_NREG], Gw = _demeaned_torque_gram(raw, starts, m, Sp, MTp, CT)
         CP = lift(GP)
         if Gw is not None:
-            walk_grams = np.array([lift(np.pad(g, (0, 13 - _NREG))) for g in Gw])
+            G13 = np.zeros((len(Gw), 13, 13))             # (np.pad: 10x the time)
+            G13[:, :_NREG, :_NREG] = Gw
+            walk_grams = np.array([lift(g) for g in G13])
             walk_mean = np.einsum('j,jq,qab->ab', raw['h'], raw['walk'], WALK_BASIS) / float(
                 np.sum(raw['h']))
     dur = eq.t[bounds[1:] - 1] - eq.t[starts]
