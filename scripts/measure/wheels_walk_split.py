@@ -70,8 +70,9 @@ class Record:
         opts = dict(OPTS, gyro_noise=self.scene.gyro.noise_std)
         terms = mo._noise_terms(red, omega, mom, np.zeros(0), np.zeros((0, 3)), opts)
         tn, kw = terms[0], {}
-        if len(terms) == 3:                # this tree (main 6cbe252: the record mean only)
+        if len(terms) > 2:                 # this tree (main 6cbe252: the record mean only)
             kw['walk_cov'] = mo.interval_walk(grid, terms[2], grid)
+            kw['walk_wh'] = mo.interval_walk(grid, terms[3], grid)
         return estimate_arrays(tg[inside], omega[inside], grid, tq, hold='zoh',
                                torque_noise=tn, **kw, **opts)
 

@@ -26,12 +26,12 @@ with the noise model's sigma, before the adequacy tests widened it (``sigma_wide
 dof on a diagonal truth).  This tree, ``--truth diag`` (main 6cbe252 read Ixz 1.29 / 1.42,
 Iyz 1.25 / 1.57, W 4.22 / 5.80)::
 
-    wheels diag method=integral model=full bias=off noise=both n=60 2s chosen={'full': 60}
-       rms z      Ixx=1.09 Iyy=0.99 Izz=0.90 Ixy=0.92 Ixz=0.95 Iyz=0.95  (MC 1-sigma ~0.09)
-       mean z     Ixx=+0.08 Iyy=-0.08 Izz=-0.04 Ixy=+0.05 Ixz=+0.11 Iyz=-0.06
-       rms z nm   Ixx=1.15 Iyy=1.06 Izz=1.01 Ixy=0.98 Ixz=1.02 Iyz=1.13  (widened 12 of 60, ...)
-       var ratio  Ixx=1.31 Iyy=1.11 Izz=1.03 Ixy=0.94 Ixz=1.07 Iyz=1.31
-       products' mean W 2.54, of the noise model 3.19 (diag truth: expect 3 +- 0.32)
+    wheels diag method=integral model=full bias=off noise=both n=60 3s chosen={'full': 60}
+       rms z      Ixx=1.08 Iyy=1.01 Izz=0.90 Ixy=0.91 Ixz=0.92 Iyz=0.94  (MC 1-sigma ~0.09)
+       mean z     Ixx=+0.08 Iyy=-0.09 Izz=-0.04 Ixy=+0.05 Ixz=+0.10 Iyz=-0.06
+       rms z nm   Ixx=1.13 Iyy=1.07 Izz=1.02 Ixy=0.97 Ixz=1.00 Iyz=1.12  (widened 12 of 60, ...)
+       var ratio  Ixx=1.28 Iyy=1.15 Izz=1.04 Ixy=0.92 Ixz=1.01 Iyz=1.29
+       products' mean W 2.45, of the noise model 3.09 (diag truth: expect 3 +- 0.32)
 """
 from __future__ import annotations
 

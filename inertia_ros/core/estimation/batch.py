@@ -219,13 +219,15 @@ def estimate_arrays(tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.ndarr
                     identifiability_tol: float = IDENTIFIABILITY_TOL, physical: bool = True,
                     torque_scale_std: float = 0.0, gyro_scale_std: float = 0.0,
                     rotation_hz: float | None = None, white_y_cov: np.ndarray | None = None,
-                    final: bool = True, walk_cov: np.ndarray | None = None) -> InertiaEstimate:
+                    final: bool = True, walk_cov: np.ndarray | None = None,
+                    walk_wh: np.ndarray | None = None) -> InertiaEstimate:
     """:func:`estimate` on validated arrays, every input's one dispatch (a momentum input's
     equivalent held torque too, :func:`.momentum.estimate_with_momentum`): the options
     checked, the method choice, ``integral`` then the ``ml`` refinement.
 
     ``white_y_cov`` (3, 3): a momentum input's white wheel noise in ``y``, ``walk_cov`` (M, 3,
-    3) its time-varying torque-noise walk on the torque samples; ``final=False``: a
+    3) and ``walk_wh`` (M, 9) its time-varying walk on the torque samples
+    (:attr:`.equations.Equations.walk_cov`); ``final=False``: a
     method other than ``auto`` and ``ml`` without the adequacy tests (a sensitivity
     re-estimation whose tensor alone is used).
     """
@@ -245,10 +247,12 @@ def estimate_arrays(tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.ndarr
                          '(or none for torque-free data)')
     if method == 'auto':      # the formulation and band by evidence (:mod:`.method_choice`)
         return _auto_method(tg, w, ts, tau, hold, gyro_noise, torque_noise, segment, window,
-                            model, torque_bias, axis, policy, rotation_hz, (white_y_cov, walk_cov))
+                            model, torque_bias, axis, policy, rotation_hz,
+                            (white_y_cov, walk_cov, walk_wh))
     first = _estimate_direct('integral' if method == 'ml' else method, tg, w, ts, tau, hold,
                              gyro_noise, torque_noise, segment, window, model, torque_bias,
-                             axis, policy, (white_y_cov, walk_cov), final or method == 'ml')
+                             axis, policy, (white_y_cov, walk_cov, walk_wh),
+                             final or method == 'ml')
     if method != 'ml':
         return first
     return _refine(first, tg, w, ts, tau, first.diagnostics.get('hold', hold), axis)
@@ -258,10 +262,10 @@ def _auto_method(tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.ndarray,
                  gyro_noise: Any, torque_noise: Any, segment: float | None,
                  window: float | None, model: str, torque_bias: str, axis: np.ndarray | None,
                  policy: SelectionPolicy, rotation_hz: float | None,
-                 mom_noise: tuple[Any, Any] = (None, None)) -> InertiaEstimate:
+                 mom_noise: tuple[Any, ...] = (None, None, None)) -> InertiaEstimate:
     """``method='auto'``: :func:`.method_choice.choose` on the ``integral`` estimate, with
     ``ml`` and ``filtered`` (cutoff ``1 / window`` when ``window`` is given) as candidates;
-    ``mom_noise``: a momentum input's ``(white_y_cov, walk_cov)``."""
+    ``mom_noise``: a momentum input's ``(white_y_cov, walk_cov, walk_wh)``."""
     from .method_choice import choose
 
     first = _estimate_direct('integral', tg, w, ts, tau, hold, gyro_noise, torque_noise,
@@ -280,7 +284,7 @@ def _estimate_direct(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray,
                      tau: np.ndarray, hold: str, gyro_noise: Any, torque_noise: Any,
                      segment: float | None, window: float | None, model: str,
                      torque_bias: str, axis: np.ndarray | None, policy: SelectionPolicy,
-                     mom_noise: tuple[Any, Any] = (None, None),
+                     mom_noise: tuple[Any, ...] = (None, None, None),
                      final: bool = True) -> InertiaEstimate:
     """Every method but ``ml``: noise levels, then :func:`_estimate_shifted` from ``t = 0``
     (``final=False``: without the adequacy tests, for a result whose tensor alone is used;
@@ -504,7 +508,7 @@ def _estimate_shifted(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray
                       segment: float | None, window: float | None, model: str,
                       torque_bias: str, axis: np.ndarray | None, policy: SelectionPolicy,
                       diag: dict[str, Any],
-                      mom_noise: tuple[Any, Any] = (None, None),
+                      mom_noise: tuple[Any, ...] = (None, None, None),
                       final: bool = True,
                       chosen: tuple[float | None, dict[str, Any]] | None = None,
                       shared: dict[str, Any] | None = None) -> InertiaEstimate:
@@ -536,7 +540,7 @@ def _estimate_shifted(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray
                                     shared))
     wm = w[mask]
     eq.motion = (wm.T @ wm / len(wm), med_g)          # gyroscopic noise walk (fit meat)
-    eq.white_y_cov, eq.walk_cov = mom_noise          # a momentum input's wheel noise, walk
+    eq.white_y_cov, eq.walk_cov, eq.walk_wh = mom_noise   # a momentum input's noise, walk
     diag.update(eq.info)
     early = _equation_rules(eq, method, diag, base)
     if early is not None:

@@ -407,7 +407,7 @@ def _interp_h(t_h: np.ndarray, h: np.ndarray, t: np.ndarray,
 
 def _noise_terms(red: Reduction, w: np.ndarray, mom: Momentum, ts: np.ndarray,
                  tau: np.ndarray, options: dict[str, Any]
-                 ) -> tuple[np.ndarray, float, np.ndarray]:
+                 ) -> tuple[np.ndarray, float, np.ndarray, np.ndarray]:
     """Torque-noise std (3,) [N m] of the equivalent torque on ``red``'s grid, the
     wheel-noise share and the ``w x h`` integral's walk covariance about its mean.
 
@@ -417,7 +417,10 @@ def _noise_terms(red: Reduction, w: np.ndarray, mom: Momentum, ts: np.ndarray,
     ``ml`` likelihood and the diagnostics use), how many gyro samples share one wheel sample,
     and the walk's covariance (G, 3, 3) [N^2 m^2] at each grid time (the rates and ``h``
     interpolated there as for the torque) less that diagonal mean: time-varying, as
-    ``|h(t)|^2`` and ``|w(t)|^2`` are (:func:`walk_cov`), which the anchored fit adds.
+    ``|h(t)|^2`` and ``|w(t)|^2`` are (:func:`walk_cov`), which the anchored fit adds; and
+    the products ``w_i h_c`` (G, 9) (index ``3 i + c``) at the grid times, with which the
+    fit adds the cross term of ``n x h`` and the gyroscopic walk ``J(w) n`` (the same gyro
+    noise; :func:`.fit.walk_bases`).
     """
     from .batch import _noise_levels
     from .noise import noise_std_from_differences
@@ -444,9 +447,11 @@ def _noise_terms(red: Reduction, w: np.ndarray, mom: Momentum, ts: np.ndarray,
     # noise e in it, w x e (times the gyro samples sharing one wheel sample)
     g_std = _noise_levels(w[red.inside], tau[:0], options.get('gyro_noise'), None)[0]
     hg = _interp_h(mom.t, mom.h, grid, red.gaps, red.basis)
-    cov = walk_cov(hg, red.rates(w), g_std ** 2, mom.noise_cov, share)
+    wg = red.rates(w)
+    cov = walk_cov(hg, wg, g_std ** 2, mom.noise_cov, share)
     mean = np.einsum('nii->i', cov) / len(cov)          # = walk_variance(walk_sums(...))
-    return np.sqrt(tn ** 2 + mean), share, cov - np.diag(mean)
+    wh = (wg[:, :, None] * hg[:, None, :]).reshape(len(hg), 9)
+    return np.sqrt(tn ** 2 + mean), share, cov - np.diag(mean), wh
 
 
 def walk_cov(hg: np.ndarray, wg: np.ndarray, gyro_var: np.ndarray, h_cov: np.ndarray,
@@ -472,16 +477,16 @@ def walk_cov(hg: np.ndarray, wg: np.ndarray, gyro_var: np.ndarray, h_cov: np.nda
 
 
 def interval_walk(grid: np.ndarray, cov: np.ndarray, grid_i: np.ndarray) -> np.ndarray:
-    """The walk covariance ``cov`` (G, 3, 3) at the times ``grid`` held over each interval
-    of ``grid_i`` (G', 3, 3): the mean of its two ends (linear between the ``grid`` times),
+    """A walk's figures ``cov`` (G, ...) at the times ``grid`` held over each interval of
+    ``grid_i`` (G', ...): the mean of its two ends (linear between the ``grid`` times),
     the last row repeated (the equivalent torque's last sample holds nothing)."""
-    flat = cov.reshape(len(grid), 9)
+    flat = cov.reshape(len(grid), -1)
     at = flat if grid_i is grid or np.array_equal(grid_i, grid) else np.column_stack(
-        [np.interp(grid_i, grid, flat[:, k]) for k in range(9)])
+        [np.interp(grid_i, grid, flat[:, k]) for k in range(flat.shape[1])])
     out = np.empty_like(at)
     out[:-1] = 0.5 * (at[:-1] + at[1:])
     out[-1] = at[-1]
-    return out.reshape(len(grid_i), 3, 3)
+    return out.reshape((len(grid_i),) + cov.shape[1:])
 
 
 def walk_sums(hg: np.ndarray, wg: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
@@ -567,7 +572,7 @@ def estimate_with_momentum(t_gyro: Any, omega: Any, t_torque: Any, torque: Any,
         raise ValueError(f'momentum: its samples [{mom.t[0]:.6g}, {mom.t[-1]:.6g}] s cover '
                          f'{int(np.sum(inside))} gyro samples of [{tg[0]:.6g}, {tg[-1]:.6g}] s '
                          '(and of the torque, if any); the streams must overlap')
-    tn, share, walk = _noise_terms(red, w, mom, ts, tau, options)
+    tn, share, walk, wh = _noise_terms(red, w, mom, ts, tau, options)
     info = {'samples': len(mom.t), 'h_rms': np.sqrt(np.mean(mom.h ** 2, axis=0)),
             'h_noise_std': np.sqrt(np.diag(mom.noise_cov)), 'gyro_per_wheel_sample': share,
             'gyro_samples_outside': int(np.sum(~inside))}
@@ -575,7 +580,8 @@ def estimate_with_momentum(t_gyro: Any, omega: Any, t_torque: Any, torque: Any,
     def run(wi: np.ndarray, grid_i: np.ndarray, tq_i: np.ndarray, **opts: Any) -> Any:
         """The estimate on the inside gyro samples ``wi`` and an equivalent torque."""
         base = estimate_arrays(tg[inside], wi, grid_i, tq_i, hold=HOLDS[0], torque_noise=tn,
-                               walk_cov=interval_walk(grid, walk, grid_i), **opts)
+                               walk_cov=interval_walk(grid, walk, grid_i),
+                               walk_wh=interval_walk(grid, wh, grid_i), **opts)
         diag = dict(base.diagnostics, momentum=info)
         return replace(base, samples_dropped=base.samples_dropped + int(np.sum(~inside)),
                        diagnostics=diag)

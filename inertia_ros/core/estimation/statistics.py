@@ -63,12 +63,13 @@ class SufficientStats:
         Median gyro sample interval [s].
     white_y_cov : ndarray, shape (3, 3), optional
         White noise in ``y`` besides the gyro's (:attr:`.equations.Equations.white_y_cov`).
-    walk_grams : ndarray, shape (6, 3, 3, 10, 10), optional
+    walk_grams : ndarray, shape (Q, 3, 3, 10, 10), optional
         Cross Grams of the torque-noise sums weighted per torque interval by the components
         (:data:`WALK_BASIS`) of a time-varying walk covariance
-        (:attr:`.equations.Equations.walk_cov`).
-    walk_mean : ndarray, shape (3, 3), optional
-        That covariance's mean over the torque intervals, time-weighted [N^2 m^2].
+        (:attr:`.equations.Equations.walk_cov`), Q = 6, then (Q = 15) by the products
+        :attr:`.equations.Equations.walk_wh` (:func:`.fit.walk_bases`).
+    walk_mean : ndarray, shape (Q,), optional
+        Those weights' means over the torque intervals, time-weighted.
     """
 
     C: np.ndarray
@@ -268,6 +269,8 @@ def shared_raw(eq: Equations, t_tau: np.ndarray, tau_end: float,
     _finish_raw(raw, eq.t, t_tau, tau_end, raw['interval_sums'][:2] if walk else None)
     if walk and eq.walk_cov is not None:    # on a prefix of the torque samples it was made on
         raw['walk'] = _walk_components(eq.walk_cov[:len(t_tau)])
+        if eq.walk_wh is not None:
+            raw['walk'] = np.hstack([raw['walk'], eq.walk_wh[:len(t_tau)]])
     eq.raw = raw
     return raw
 
@@ -412,8 +415,7 @@ def sufficient_stats(eq: Equations, segment: float | None, t_tau: np.ndarray, ta
             G13 = np.zeros((len(Gw), 13, 13))             # (np.pad: 10x the time)
             G13[:, :_NREG, :_NREG] = Gw
             walk_grams = np.array([lift(g) for g in G13])
-            walk_mean = np.einsum('j,jq,qab->ab', raw['h'], raw['walk'], WALK_BASIS) / float(
-                np.sum(raw['h']))
+            walk_mean = raw['h'] @ raw['walk'] / float(np.sum(raw['h']))
     dur = eq.t[bounds[1:] - 1] - eq.t[starts]
     if 'torque_dt' not in raw:              # the same for every segmentation: once
         raw['torque_dt'] = median(np.diff(t_tau)) if len(t_tau) > 1 else 0.0
