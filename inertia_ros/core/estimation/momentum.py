@@ -19,7 +19,9 @@ every grid time equals the right-hand side above (``h`` linear between wheel sam
 enters ``y`` as white noise (``white_y_cov``, estimated from the speeds' high-order
 differences, scaled by the gyro samples per wheel sample that share it), and the gyro noise
 ``n x h`` and the wheel noise ``w x e`` in the ``w x h`` integral as white torque noise
-(the anchored model's torque random walk).
+(the anchored model's torque random walk), its covariance per grid interval as ``|h(t)|``
+and ``|w(t)|`` make it (:func:`walk_cov`), with the cross term of ``n x h`` and the
+gyroscopic walk of the same gyro noise.
 
 The stated uncertainties of the input (each wheel's ``J_k``, each rotor's ``k_f``, ``k_m``,
 ``J``, the gyro and torque-sensor scales) are profiled under their prior by
