@@ -57,8 +57,12 @@ def reaction_torque(sc, r, used, rate=50.0):
 
 
 def test_online_matches_the_batch_momentum_form() -> None:
-    """Same log, same segment length: the online estimate's noise sigma agrees with the batch
-    ``integral`` one on the stated inputs (5 %); both profile the stated wheel inertias
+    """Same log, same segment length: the online estimate's noise sigma is 0.85-1.1 of the
+    batch ``integral`` one on the stated inputs (measured 0.91-1.05: the online estimator
+    keeps the ``n x h`` and ``w x e`` walks at their record-mean variance without their cross
+    term with the gyroscopic walk, the batch has them per interval since issue 27
+    (``momentum.walk_cov``, ``fit.walk_bases``); both agreed to 5 % before); both
+    profile the stated wheel inertias
     (:mod:`.online_stated`, :mod:`.stated`): each moves within its sigma of the exact-input
     estimate (online measured 0.67 at most), and the online sigma they add is 0.9-1.05 of the
     batch's (measured 0.94-1.0: one profile on the same statistics, the sensitivities refits
@@ -83,8 +87,8 @@ def test_online_matches_the_batch_momentum_form() -> None:
     assert abs(o.samples_used - b.samples_used) <= 3
     added_o = o.diagnostics['input_uncertainty']['theta_std_added']
     added_b = b.diagnostics['wheel_inertia']['theta_std_added']
-    np.testing.assert_allclose(np.sqrt(o.theta_std ** 2 - added_o ** 2), b0.theta_std,
-                               rtol=0.05)
+    noise_ratio = np.sqrt(o.theta_std ** 2 - added_o ** 2) / b0.theta_std
+    assert np.all((noise_ratio >= 0.85) & (noise_ratio <= 1.1)), noise_ratio
     assert np.all(np.abs(o.theta - b0.theta) <= o.theta_std), (o.theta - b0.theta)
     assert np.all(np.abs(b.theta - b0.theta) <= b.theta_std), (b.theta - b0.theta)
     ratio = added_o / added_b

@@ -219,12 +219,15 @@ def estimate_arrays(tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.ndarr
                     identifiability_tol: float = IDENTIFIABILITY_TOL, physical: bool = True,
                     torque_scale_std: float = 0.0, gyro_scale_std: float = 0.0,
                     rotation_hz: float | None = None, white_y_cov: np.ndarray | None = None,
-                    final: bool = True) -> InertiaEstimate:
+                    final: bool = True, walk_cov: np.ndarray | None = None,
+                    walk_wh: np.ndarray | None = None) -> InertiaEstimate:
     """:func:`estimate` on validated arrays, every input's one dispatch (a momentum input's
     equivalent held torque too, :func:`.momentum.estimate_with_momentum`): the options
     checked, the method choice, ``integral`` then the ``ml`` refinement.
 
-    ``white_y_cov`` (3, 3): a momentum input's white wheel noise in ``y``; ``final=False``: a
+    ``white_y_cov`` (3, 3): a momentum input's white wheel noise in ``y``, ``walk_cov`` (M, 3,
+    3) and ``walk_wh`` (M, 9) its time-varying walk on the torque samples
+    (:attr:`.equations.Equations.walk_cov`); ``final=False``: a
     method other than ``auto`` and ``ml`` without the adequacy tests (a sensitivity
     re-estimation whose tensor alone is used).
     """
@@ -244,10 +247,12 @@ def estimate_arrays(tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.ndarr
                          '(or none for torque-free data)')
     if method == 'auto':      # the formulation and band by evidence (:mod:`.method_choice`)
         return _auto_method(tg, w, ts, tau, hold, gyro_noise, torque_noise, segment, window,
-                            model, torque_bias, axis, policy, rotation_hz, white_y_cov)
+                            model, torque_bias, axis, policy, rotation_hz,
+                            (white_y_cov, walk_cov, walk_wh))
     first = _estimate_direct('integral' if method == 'ml' else method, tg, w, ts, tau, hold,
                              gyro_noise, torque_noise, segment, window, model, torque_bias,
-                             axis, policy, white_y_cov, final or method == 'ml')
+                             axis, policy, (white_y_cov, walk_cov, walk_wh),
+                             final or method == 'ml')
     if method != 'ml':
         return first
     return _refine(first, tg, w, ts, tau, first.diagnostics.get('hold', hold), axis)
@@ -257,20 +262,21 @@ def _auto_method(tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.ndarray,
                  gyro_noise: Any, torque_noise: Any, segment: float | None,
                  window: float | None, model: str, torque_bias: str, axis: np.ndarray | None,
                  policy: SelectionPolicy, rotation_hz: float | None,
-                 white_y_cov: np.ndarray | None = None) -> InertiaEstimate:
+                 mom_noise: tuple[Any, ...] = (None, None, None)) -> InertiaEstimate:
     """``method='auto'``: :func:`.method_choice.choose` on the ``integral`` estimate, with
-    ``ml`` and ``filtered`` (cutoff ``1 / window`` when ``window`` is given) as candidates."""
+    ``ml`` and ``filtered`` (cutoff ``1 / window`` when ``window`` is given) as candidates;
+    ``mom_noise``: a momentum input's ``(white_y_cov, walk_cov, walk_wh)``."""
     from .method_choice import choose
 
     first = _estimate_direct('integral', tg, w, ts, tau, hold, gyro_noise, torque_noise,
-                             segment, window, model, torque_bias, axis, policy, white_y_cov)
+                             segment, window, model, torque_bias, axis, policy, mom_noise)
     used = first.diagnostics.get('hold', hold)
     return choose(
         first, (tg, w, ts, tau), used, len(tg),
         lambda f: _refine(f, tg, w, ts, tau, used, axis),
         lambda fc: _estimate_direct('filtered', tg, w, ts, tau, used, gyro_noise, torque_noise,
                                     None, window or 1.0 / fc, model, torque_bias, axis, policy,
-                                    white_y_cov),
+                                    mom_noise),
         rotation_hz)
 
 
@@ -278,7 +284,7 @@ def _estimate_direct(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray,
                      tau: np.ndarray, hold: str, gyro_noise: Any, torque_noise: Any,
                      segment: float | None, window: float | None, model: str,
                      torque_bias: str, axis: np.ndarray | None, policy: SelectionPolicy,
-                     white_y_cov: np.ndarray | None = None,
+                     mom_noise: tuple[Any, ...] = (None, None, None),
                      final: bool = True) -> InertiaEstimate:
     """Every method but ``ml``: noise levels, then :func:`_estimate_shifted` from ``t = 0``
     (``final=False``: without the adequacy tests, for a result whose tensor alone is used;
@@ -307,7 +313,7 @@ def _estimate_direct(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray,
         return _estimate_shifted(method, tg[:n] - t_origin, w[:n], ts[:m] - t_origin, tau[:m],
                                  h, gyro_std ** 2, torque_std ** 2, segment, window, model,
                                  torque_bias, axis, policy,
-                                 dict(diag, warnings=list(diag['warnings'])), white_y_cov,
+                                 dict(diag, warnings=list(diag['warnings'])), mom_noise,
                                  final, chosen, shared)
     if hold != 'auto':
         return run(hold, final=final)
@@ -502,7 +508,7 @@ def _estimate_shifted(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray
                       segment: float | None, window: float | None, model: str,
                       torque_bias: str, axis: np.ndarray | None, policy: SelectionPolicy,
                       diag: dict[str, Any],
-                      white_y_cov: np.ndarray | None = None,
+                      mom_noise: tuple[Any, ...] = (None, None, None),
                       final: bool = True,
                       chosen: tuple[float | None, dict[str, Any]] | None = None,
                       shared: dict[str, Any] | None = None) -> InertiaEstimate:
@@ -534,7 +540,7 @@ def _estimate_shifted(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray
                                     shared))
     wm = w[mask]
     eq.motion = (wm.T @ wm / len(wm), med_g)          # gyroscopic noise walk (fit meat)
-    eq.white_y_cov = white_y_cov                      # a momentum input's wheel noise
+    eq.white_y_cov, eq.walk_cov, eq.walk_wh = mom_noise   # a momentum input's noise, walk
     diag.update(eq.info)
     early = _equation_rules(eq, method, diag, base)
     if early is not None:

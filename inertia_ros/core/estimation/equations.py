@@ -56,6 +56,14 @@ class Equations:
     white_y_cov : ndarray, shape (3, 3), optional
         White noise in ``y`` besides the gyro's [N^2 m^2 s^2] (a momentum input's wheel-speed
         noise, :mod:`.momentum`).
+    walk_cov : ndarray, shape (M, 3, 3), optional
+        Time-varying covariance [N^2 m^2] of white torque noise held over each torque
+        interval (a momentum input's ``n x h`` and ``w x e`` walks, :mod:`.momentum`), on
+        the torque samples the statistics are built on (or a prefix of them).
+    walk_wh : ndarray, shape (M, 9), optional
+        The products ``w_i h_c`` [rad/s N m s] (index ``3 i + c``) over the same intervals:
+        the cross term of the gyro noise's ``n x h`` and gyroscopic walks
+        (:func:`.fit.walk_bases`).
     centred : bool
         ``V`` has had a constant removed (:func:`.statistics.shared_raw` does it once, in
         place, for conditioning; statistics are invariant to the constant).
@@ -73,6 +81,8 @@ class Equations:
     motion: tuple[np.ndarray, float] | None = None
     white_y_cov: np.ndarray | None = None
     centred: bool = False
+    walk_cov: np.ndarray | None = None
+    walk_wh: np.ndarray | None = None
 
     def head(self, n: int) -> Equations:
         """The first ``n`` equations (without the cached statistics)."""
@@ -90,7 +100,8 @@ class Equations:
         return Equations(self.V[a:b] if view else self.V[a:b].copy(), self.t[a:b],
                          self.breaks[a:max(b - 1, a)], self.kind, self.hac_lag, self.eiv_var,
                          self.weighted, {} if info is None else info, motion=self.motion,
-                         white_y_cov=self.white_y_cov, centred=view)
+                         white_y_cov=self.white_y_cov, centred=view, walk_cov=self.walk_cov,
+                         walk_wh=self.walk_wh)
 
     @property
     def A(self) -> np.ndarray:

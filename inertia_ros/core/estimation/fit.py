@@ -21,9 +21,9 @@ import numpy as np
 
 from ..tensor import check_physical, nearest_physical, theta_to_matrix
 from .model import selector
-from .noise import gyroscopic_walk_cov
+from .noise import gyroscopic_walk_cov, walk_maps
 from .regressors import MOMENTUM_BASIS, metric
-from .statistics import SufficientStats
+from .statistics import WALK_BASIS, SufficientStats
 
 __all__ = ['Fit', 'equation_weight', 'fit_two_pass', 'fit_weighted', 'hac_small_sample',
            'solve_symmetric']
@@ -83,6 +83,11 @@ def _anchored_meat(st: SufficientStats, T: np.ndarray, p: int, W: np.ndarray, G:
                                                       st.torque_dt)
     if st.CP is not None:
         meat += (T.T @ metric(st.CP, W @ S_tau @ W) @ T)[:p, :p]
+    walk = getattr(st, 'walk_grams', None)       # a time-varying walk (a momentum input's)
+    if walk is not None:
+        B = walk_bases(len(walk), Im, gyro_var, st.gyro_dt, st.torque_dt)
+        meat += (T.T @ np.einsum('qrs,qrsij->ij', W @ B @ W, walk) @ T)[:p, :p]
+        S_tau = S_tau + np.einsum('q,qab->ab', st.walk_mean, B)
     # residuals larger than the noise model predicts (misfit, unmodelled effects):
     # inflate the covariance by the excess, never deflate it
     rss_w = float(c @ G @ c)
@@ -90,6 +95,25 @@ def _anchored_meat(st: SufficientStats, T: np.ndarray, p: int, W: np.ndarray, G:
         np.trace(W @ S_tau))
     excess = rss_w / expected if expected > 0 else 1.0
     return meat, excess
+
+
+def walk_bases(q: int, I: np.ndarray, gyro_var: np.ndarray, gyro_dt: float,
+               torque_dt: float) -> np.ndarray:
+    """The matrices (q, 3, 3) a time-varying walk's weights multiply
+    (:attr:`.statistics.SufficientStats.walk_grams`): the six of a covariance
+    (:data:`.statistics.WALK_BASIS`), then (q = 15) for each product ``w_i h_c`` (index
+    ``3 i + c``) the cross term of the gyro noise's two walks, the gyroscopic ``J(w) n``
+    (``J(w) = sum_i w_i A_i``, :func:`.noise.walk_maps`) and a momentum input's ``n x h``:
+    ``-(A_i S_g [e_c]x' + [e_c]x S_g A_i')``, scaled as the gyroscopic walk by
+    ``sqrt(gyro_dt / torque_dt)`` (``I`` (3, 3) the tensor, ``gyro_var`` (3,) [rad^2/s^2])."""
+    if q == len(WALK_BASIS) or not (gyro_dt > 0 and torque_dt > 0):
+        return np.concatenate([WALK_BASIS, np.zeros((q - len(WALK_BASIS), 3, 3))])
+    from .align import cross_matrices
+
+    AS = walk_maps(I) * np.asarray(gyro_var, dtype=float)[None, None, :]   # A_i S_g
+    X = np.einsum('iab,cdb->icad', AS, cross_matrices(np.eye(3)))         # A_i S_g [e_c]x'
+    cross = -(X + X.transpose(0, 1, 3, 2)).reshape(9, 3, 3) * np.sqrt(gyro_dt / torque_dt)
+    return np.concatenate([WALK_BASIS, cross])
 
 
 def _hac_meat(st: SufficientStats, T: np.ndarray, p: int, W: np.ndarray,

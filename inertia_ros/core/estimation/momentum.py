@@ -19,7 +19,9 @@ every grid time equals the right-hand side above (``h`` linear between wheel sam
 enters ``y`` as white noise (``white_y_cov``, estimated from the speeds' high-order
 differences, scaled by the gyro samples per wheel sample that share it), and the gyro noise
 ``n x h`` and the wheel noise ``w x e`` in the ``w x h`` integral as white torque noise
-(the anchored model's torque random walk).
+(the anchored model's torque random walk), its covariance per grid interval as ``|h(t)|``
+and ``|w(t)|`` make it (:func:`walk_cov`), with the cross term of ``n x h`` and the
+gyroscopic walk of the same gyro noise.
 
 The stated uncertainties of the input (each wheel's ``J_k``, each rotor's ``k_f``, ``k_m``,
 ``J``, the gyro and torque-sensor scales) are profiled under their prior by
@@ -39,7 +41,7 @@ from .._validate import unit_axis
 
 __all__ = ['Momentum', 'Reduction', 'Wheel', 'as_momentum', 'equivalent_torque',
            'estimate_with_momentum', 'held_over', 'interval_torque', 'nonneg', 'speeds',
-           'spin_inputs',
+           'spin_inputs', 'walk_cov',
            'walk_sums', 'walk_variance', 'wheel_inputs', 'wheel_momentum', 'wheels_momentum']
 
 
@@ -406,13 +408,21 @@ def _interp_h(t_h: np.ndarray, h: np.ndarray, t: np.ndarray,
 
 
 def _noise_terms(red: Reduction, w: np.ndarray, mom: Momentum, ts: np.ndarray,
-                 tau: np.ndarray, options: dict[str, Any]) -> tuple[np.ndarray, float]:
-    """Torque-noise std (3,) [N m] of the equivalent torque on ``red``'s grid (the rates
-    and ``h`` interpolated there as for the torque) and the wheel-noise share.
+                 tau: np.ndarray, options: dict[str, Any]
+                 ) -> tuple[np.ndarray, float, np.ndarray, np.ndarray]:
+    """Torque-noise std (3,) [N m] of the equivalent torque on ``red``'s grid, the
+    wheel-noise share and the ``w x h`` integral's walk covariance about its mean.
 
     Sets ``options['white_y_cov']`` (the wheel-speed noise in ``y``).  Returns the other
-    torque's noise (scaled to the grid) with the white torque noises of the ``w x h``
-    integral added, and how many gyro samples share one wheel sample.
+    torque's noise (scaled to the grid) with the record-mean variance of the white torque
+    noises ``n x h`` and ``w x e`` of the ``w x h`` integral added (the stationary walk the
+    ``ml`` likelihood and the diagnostics use), how many gyro samples share one wheel sample,
+    and the walk's covariance (G, 3, 3) [N^2 m^2] at each grid time (the rates and ``h``
+    interpolated there as for the torque) less that diagonal mean: time-varying, as
+    ``|h(t)|^2`` and ``|w(t)|^2`` are (:func:`walk_cov`), which the anchored fit adds; and
+    the products ``w_i h_c`` (G, 9) (index ``3 i + c``) at the grid times, with which the
+    fit adds the cross term of ``n x h`` and the gyroscopic walk ``J(w) n`` (the same gyro
+    noise; :func:`.fit.walk_bases`).
     """
     from .batch import _noise_levels
     from .noise import noise_std_from_differences
@@ -438,9 +448,47 @@ def _noise_terms(red: Reduction, w: np.ndarray, mom: Momentum, ts: np.ndarray,
     # grid interval (the torque-noise random walk of the anchored model); so is the wheel
     # noise e in it, w x e (times the gyro samples sharing one wheel sample)
     g_std = _noise_levels(w[red.inside], tau[:0], options.get('gyro_noise'), None)[0]
-    sums = walk_sums(_interp_h(mom.t, mom.h, grid, red.gaps, red.basis), red.rates(w))
-    walk = walk_variance(*sums, g_std ** 2, mom.noise_cov, share)
-    return np.sqrt(tn ** 2 + walk), share
+    hg = _interp_h(mom.t, mom.h, grid, red.gaps, red.basis)
+    wg = red.rates(w)
+    cov = walk_cov(hg, wg, g_std ** 2, mom.noise_cov, share)
+    mean = np.einsum('nii->i', cov) / len(cov)          # = walk_variance(walk_sums(...))
+    wh = (wg[:, :, None] * hg[:, None, :]).reshape(len(hg), 9)
+    return np.sqrt(tn ** 2 + mean), share, cov - np.diag(mean), wh
+
+
+def walk_cov(hg: np.ndarray, wg: np.ndarray, gyro_var: np.ndarray, h_cov: np.ndarray,
+             share: float) -> np.ndarray:
+    """Covariance (G, 3, 3) [N^2 m^2] of the ``w x h`` integral's white torque noise at
+    each grid time: the gyro noise (variance ``gyro_var`` (3,) [rad^2/s^2]) as ``n x h``
+    and the momentum noise (covariance ``h_cov`` (3, 3), shared by ``share`` gyro samples)
+    as ``w x e``, with ``hg``, ``wg`` (G, 3) the momentum [N m s] and rate [rad/s] there.
+
+    Their record means' diagonal is :func:`walk_variance` (the online estimator's
+    stationary walk).  The batch keeps them per grid interval (:func:`interval_walk`): a
+    record-average variance put the walk's noise where ``|h|`` and ``|w|`` are small as
+    much as where they are large, and the products' sigma of the wheels' scene read 1.2-1.5x
+    low (issue 27, ``scripts/measure/wheels_z.py``).
+    """
+    from .align import cross_matrices
+
+    hx = cross_matrices(hg)
+    wx = cross_matrices(wg)
+    # batched 3 x 3 products (a three-operand einsum: 10x the time)
+    return ((hx * np.asarray(gyro_var, dtype=float)) @ hx.transpose(0, 2, 1)
+            + share * ((wx @ h_cov) @ wx.transpose(0, 2, 1)))
+
+
+def interval_walk(grid: np.ndarray, cov: np.ndarray, grid_i: np.ndarray) -> np.ndarray:
+    """A walk's figures ``cov`` (G, ...) at the times ``grid`` held over each interval of
+    ``grid_i`` (G', ...): the mean of its two ends (linear between the ``grid`` times),
+    the last row repeated (the equivalent torque's last sample holds nothing)."""
+    flat = cov.reshape(len(grid), -1)
+    at = flat if grid_i is grid or np.array_equal(grid_i, grid) else np.column_stack(
+        [np.interp(grid_i, grid, flat[:, k]) for k in range(flat.shape[1])])
+    out = np.empty_like(at)
+    out[:-1] = 0.5 * (at[:-1] + at[1:])
+    out[-1] = at[-1]
+    return out.reshape((len(grid_i),) + cov.shape[1:])
 
 
 def walk_sums(hg: np.ndarray, wg: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
@@ -526,7 +574,7 @@ def estimate_with_momentum(t_gyro: Any, omega: Any, t_torque: Any, torque: Any,
         raise ValueError(f'momentum: its samples [{mom.t[0]:.6g}, {mom.t[-1]:.6g}] s cover '
                          f'{int(np.sum(inside))} gyro samples of [{tg[0]:.6g}, {tg[-1]:.6g}] s '
                          '(and of the torque, if any); the streams must overlap')
-    tn, share = _noise_terms(red, w, mom, ts, tau, options)
+    tn, share, walk, wh = _noise_terms(red, w, mom, ts, tau, options)
     info = {'samples': len(mom.t), 'h_rms': np.sqrt(np.mean(mom.h ** 2, axis=0)),
             'h_noise_std': np.sqrt(np.diag(mom.noise_cov)), 'gyro_per_wheel_sample': share,
             'gyro_samples_outside': int(np.sum(~inside))}
@@ -534,7 +582,8 @@ def estimate_with_momentum(t_gyro: Any, omega: Any, t_torque: Any, torque: Any,
     def run(wi: np.ndarray, grid_i: np.ndarray, tq_i: np.ndarray, **opts: Any) -> Any:
         """The estimate on the inside gyro samples ``wi`` and an equivalent torque."""
         base = estimate_arrays(tg[inside], wi, grid_i, tq_i, hold=HOLDS[0], torque_noise=tn,
-                               **opts)
+                               walk_cov=interval_walk(grid, walk, grid_i),
+                               walk_wh=interval_walk(grid, wh, grid_i), **opts)
         diag = dict(base.diagnostics, momentum=info)
         return replace(base, samples_dropped=base.samples_dropped + int(np.sum(~inside)),
                        diagnostics=diag)

@@ -17,8 +17,8 @@ from .._numeric import median
 from .equations import Equations, segment_starts
 from .regressors import N_REGRESSOR_VARIABLES, VARIABLE_MAP, gram, lift
 
-__all__ = ['SufficientStats', 'range_sums', 'segment_rss', 'shared_raw', 'sufficient_stats',
-           'torque_stats', 'window_raw']
+__all__ = ['WALK_BASIS', 'SufficientStats', 'range_sums', 'segment_rss', 'shared_raw',
+           'sufficient_stats', 'torque_stats', 'window_raw']
 
 _NREG = N_REGRESSOR_VARIABLES
 
@@ -63,6 +63,13 @@ class SufficientStats:
         Median gyro sample interval [s].
     white_y_cov : ndarray, shape (3, 3), optional
         White noise in ``y`` besides the gyro's (:attr:`.equations.Equations.white_y_cov`).
+    walk_grams : ndarray, shape (Q, 3, 3, 10, 10), optional
+        Cross Grams of the torque-noise sums weighted per torque interval by the components
+        (:data:`WALK_BASIS`) of a time-varying walk covariance
+        (:attr:`.equations.Equations.walk_cov`), Q = 6, then (Q = 15) by the products
+        :attr:`.equations.Equations.walk_wh` (:func:`.fit.walk_bases`).
+    walk_mean : ndarray, shape (Q,), optional
+        Those weights' means over the torque intervals, time-weighted.
     """
 
     C: np.ndarray
@@ -81,6 +88,20 @@ class SufficientStats:
     gyro_dt: float = 0.0
     white_y_cov: np.ndarray | None = None
     hac_shapes: np.ndarray | None = None
+    walk_grams: np.ndarray | None = None
+    walk_mean: np.ndarray | None = None
+
+
+#: The symmetric basis of a 3 x 3 covariance, (6, 3, 3): ``S = sum_q S[WALK_PAIRS[q]] E_q``
+#: (xx, yy, zz, then xy, xz, yz counted once with both off-diagonal entries).
+WALK_PAIRS = ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))
+WALK_BASIS = np.array([np.outer(np.eye(3)[a], np.eye(3)[b]) + (
+    np.outer(np.eye(3)[b], np.eye(3)[a]) if a != b else 0.0) for a, b in WALK_PAIRS])
+
+
+def _walk_components(cov: np.ndarray) -> np.ndarray:
+    """The :data:`WALK_BASIS` coefficients (M, 6) of covariances ``cov`` (M, 3, 3)."""
+    return np.stack([cov[:, a, b] for a, b in WALK_PAIRS], axis=1)
 
 
 #: Mean rows per range from which :func:`range_sums` sums range by range (BLAS row sums);
@@ -238,7 +259,7 @@ def shared_raw(eq: Equations, t_tau: np.ndarray, tau_end: float,
     if not eq.centred:
         eq.V -= (np.ones(len(eq.V)) @ eq.V / len(eq.V))[None]
         eq.centred = True
-    walk = np.any(torque_var > 0) and len(t_tau) > 1
+    walk = (np.any(torque_var > 0) or eq.walk_cov is not None) and len(t_tau) > 1
     # (two threads overlapping the Gram and the torque sums no longer pay: with the sparse
     # interval sums a 1M-sample record is faster on one thread, measured 0.51 s against 0.65 s)
     raw: dict[str, Any] = {'G': gram(eq.V)}
@@ -246,6 +267,10 @@ def shared_raw(eq: Equations, t_tau: np.ndarray, tau_end: float,
         # the interval sums stay for the windows of the same rows (:func:`window_raw`)
         raw['interval_sums'] = _interval_sums(eq.V[:, :_NREG], eq.t, t_tau)
     _finish_raw(raw, eq.t, t_tau, tau_end, raw['interval_sums'][:2] if walk else None)
+    if walk and eq.walk_cov is not None:    # on a prefix of the torque samples it was made on
+        raw['walk'] = _walk_components(eq.walk_cov[:len(t_tau)])
+        if eq.walk_wh is not None:
+            raw['walk'] = np.hstack([raw['walk'], eq.walk_wh[:len(t_tau)]])
     eq.raw = raw
     return raw
 
@@ -301,13 +326,17 @@ def window_raw(eq: Equations, a: int, b: int, t_tau: np.ndarray,
                 St[k] = (eq.t[lo:hi] - t_tau[j]) @ rows
         sums = S, St
     _finish_raw(wr, sub.t, tsk, float(sub.t[-1]), sums)
+    if 'walk' in raw and sums is not None:
+        wr['walk'] = raw['walk'][j0:j1]
     sub.raw = wr
     return sub, np.array([j0, j1])
 
 
 def _demeaned_torque_gram(raw: dict[str, Any], starts: np.ndarray, m: np.ndarray,
-                          Sp: np.ndarray, MTp: np.ndarray, CT: np.ndarray) -> np.ndarray:
-    """Gram (10, 10) of the torque-noise sums ``P`` of the segment-demeaned variables.
+                          Sp: np.ndarray, MTp: np.ndarray, CT: np.ndarray
+                          ) -> tuple[np.ndarray, np.ndarray | None]:
+    """Gram (10, 10) of the torque-noise sums ``P`` of the segment-demeaned variables, and
+    (with ``raw['walk']``, (M, 6)) the six Grams (6, 10, 10) weighted per interval by it.
 
     Demeaning variable ``b`` by its segment's mean ``m_seg(b)`` changes ``P_j`` by
     ``h_j sum_{b >= k1_j} m + sum_{k0_j <= b < k1_j} (t_b - s_j) m`` (prefix sums over the
@@ -330,6 +359,8 @@ def _demeaned_torque_gram(raw: dict[str, Any], starts: np.ndarray, m: np.ndarray
         return z, q
 
     G = np.zeros((_NREG, _NREG))
+    walk = raw.get('walk')
+    Gw = None if walk is None else np.zeros((walk.shape[1], _NREG, _NREG))
     for a in range(0, len(P), _GRAM_BLOCK):
         b = min(a + _GRAM_BLOCK, len(P))
         k0, k1 = k0_all[a:b], k1_all[a:b]
@@ -345,7 +376,10 @@ def _demeaned_torque_gram(raw: dict[str, Any], starts: np.ndarray, m: np.ndarray
         X -= q1 - q0
         X += s_all[a:b, None] * (z1 - z0)
         G += gram(X)
-    return G
+        if Gw is not None:
+            for q in range(len(Gw)):       # (one (n, 60) product: 10-50x slower, threads)
+                Gw[q] += X.T @ (walk[a:b, q, None] * X)
+    return G, Gw
 
 
 def sufficient_stats(eq: Equations, segment: float | None, t_tau: np.ndarray, tau_end: float,
@@ -367,7 +401,7 @@ def sufficient_stats(eq: Equations, segment: float | None, t_tau: np.ndarray, ta
     S = range_sums(eq.V, bounds)                             # (nseg, 13) segment sums
     m = S / ns[:, None]
     C = lift(raw['G'] - np.einsum('s,si,sj->ij', ns, m, m))
-    CP = None
+    CP = walk_grams = walk_mean = None
     if 'P' in raw:
         CT = raw['CT']
         S, m = S[:, :_NREG], m[:, :_NREG]                     # regressor variables only
@@ -375,8 +409,13 @@ def sufficient_stats(eq: Equations, segment: float | None, t_tau: np.ndarray, ta
         TS = CT[bounds[1:]] - CT[starts]
         MTp = np.vstack([np.zeros(_NREG), np.cumsum(m * TS[:, None], axis=0)])
         GP = np.zeros((13, 13))
-        GP[:_NREG, :_NREG] = _demeaned_torque_gram(raw, starts, m, Sp, MTp, CT)
+        GP[:_NREG, :_NREG], Gw = _demeaned_torque_gram(raw, starts, m, Sp, MTp, CT)
         CP = lift(GP)
+        if Gw is not None:
+            G13 = np.zeros((len(Gw), 13, 13))             # (np.pad: 10x the time)
+            G13[:, :_NREG, :_NREG] = Gw
+            walk_grams = np.array([lift(g) for g in G13])
+            walk_mean = raw['h'] @ raw['walk'] / float(np.sum(raw['h']))
     dur = eq.t[bounds[1:] - 1] - eq.t[starts]
     if 'torque_dt' not in raw:              # the same for every segmentation: once
         raw['torque_dt'] = median(np.diff(t_tau)) if len(t_tau) > 1 else 0.0
@@ -384,7 +423,8 @@ def sufficient_stats(eq: Equations, segment: float | None, t_tau: np.ndarray, ta
     m2, gdt = eq.motion if eq.motion is not None else (None, 0.0)
     return SufficientStats(C, CP, n, n - len(starts), len(starts), eq.kind, eq.eiv_var,
                            eq.weighted, eq.hac_lag, None, walk_time=float(np.sum(ns * dur)) / 6.0,
-                           torque_dt=tdt, omega_m2=m2, gyro_dt=gdt, white_y_cov=eq.white_y_cov)
+                           torque_dt=tdt, omega_m2=m2, gyro_dt=gdt, white_y_cov=eq.white_y_cov,
+                           walk_grams=walk_grams, walk_mean=walk_mean)
 
 
 def segment_rss(V: np.ndarray, starts: np.ndarray, c: np.ndarray, W: np.ndarray) -> np.ndarray:
