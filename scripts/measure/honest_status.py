@@ -24,8 +24,9 @@ import numpy as np
 from inertia_ros.bench.honesty import CASES, PATHS, HonestyCase, feed_online, peer_like, run_case
 from inertia_ros.bench.truth_sim import TruthCase, TruthRecord
 
-#: The tracker's innovation tests of each record run (whiteness p-value, average NIS / dof).
-TRACKER_TESTS: list[tuple[float, float]] = []
+#: The tracker's innovation tests of each record run (whiteness p-value, average NIS / dof,
+#: 1.0 when the record is ``ok``).
+TRACKER_TESTS: list[tuple[float, float, float]] = []
 SCENE = TruthCase(amplitude=0.06, torque_noise=0.0012, omega0=(0.05, -0.03, 0.02))
 
 
@@ -52,7 +53,8 @@ def _tracking(rec: TruthRecord, opts: dict) -> tuple:
         return 'insufficient_data', None, None
     ad = (e.diagnostics or {}).get('adequacy') or {}
     if 'whiteness_p_value' in ad:
-        TRACKER_TESTS.append((ad['whiteness_p_value'], ad['anis_chi2'] / ad['anis_dof']))
+        TRACKER_TESTS.append((ad['whiteness_p_value'], ad['anis_chi2'] / ad['anis_dof'],
+                              float(e.status == 'ok')))
     return e.status, e.inertia, e.inertia_std
 
 
@@ -89,8 +91,9 @@ def main() -> None:
           f'median error {100 * np.median(errs):.3g} % (max {100 * np.max(errs):.3g} %)')
     if TRACKER_TESTS:
         from inertia_ros.core.estimation.options import ALPHA
-        p, anis = np.array(TRACKER_TESTS).T
-        print(f'tracker whiteness p < {ALPHA:g}: {int(np.sum(p < ALPHA))} of {len(p)} tested '
+        p, anis, ok = np.array(TRACKER_TESTS).T
+        print(f'tracker whiteness p < {ALPHA:g}: {int(np.sum(p < ALPHA))} of {len(p)} tested, '
+              f'{int(np.sum((p < ALPHA) & (ok > 0)))} of them ok '
               f'(min p {p.min():.2g}); average NIS/dof {anis.min():.2f}-{anis.max():.2f} '
               f'(median {np.median(anis):.2f})')
 
