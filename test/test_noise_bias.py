@@ -9,14 +9,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from inertia_ros.core.estimation.noise import (
-    min_selection_bias,
-    noise_std_from_differences,
-    noise_variance_relvar,
-)
+from inertia_ros.core.estimation.noise import min_selection_bias, noise_std_from_differences
 
 #: Fit residual of the Monte-Carlo selection-bias law (:data:`.noise.MIN_SELECTION_BIAS`).
 FIT_RESIDUAL = 2e-3
+#: ``n Var(s^2) / sigma^4`` of the estimate on white noise (the same Monte Carlo: 8.6 from 200
+#: samples on, 9.0 at 100): the noise level's own sampling spread, 4.3 % at 200 samples.
+RELVAR_N = 8.6
 
 
 @pytest.mark.parametrize('n, reps', [(100, 20_000), (200, 10_000), (1000, 4000), (4096, 2000)])
@@ -28,8 +27,8 @@ def test_variance_is_unbiased_on_white_noise(n, reps):
     v = noise_std_from_differences(rng.normal(0.0, 0.003, (n, reps))) ** 2 / 0.003 ** 2
     se = float(np.std(v)) / np.sqrt(reps)
     assert abs(float(np.mean(v)) - 1.0) <= 4.0 * se + FIT_RESIDUAL, (np.mean(v), se)
-    # the stated sampling spread of the variance estimate holds to 15 %
-    assert float(np.var(v)) == pytest.approx(noise_variance_relvar(n), rel=0.15)
+    # the sampling spread of the variance estimate (BENCHMARKS) holds to 15 %
+    assert float(np.var(v)) == pytest.approx(RELVAR_N / n, rel=0.15)
 
 
 def _mean_variance(x: np.ndarray, sigma: float) -> float:

@@ -25,10 +25,10 @@ import numpy as np
 
 from .._numeric import median_rows
 
-__all__ = ['ISOTROPY_FLOOR', 'MIN_NOISE_SAMPLES', 'MIN_SELECTION_BIAS', 'NOISE_VARIANCE_RELVAR',
-           'STREAM_NOISE_SAMPLES', 'STREAM_NOISE_STRIDE', 'TRACKER_NOISE_EVERY', 'StreamingNoise',
-           'gyroscopic_walk_cov', 'isotropy_floor', 'median_rows', 'min_selection_bias',
-           'noise_std_from_differences', 'noise_variance_relvar', 'walk_maps']
+__all__ = ['ISOTROPY_FLOOR', 'MIN_NOISE_SAMPLES', 'MIN_SELECTION_BIAS', 'STREAM_NOISE_SAMPLES',
+           'STREAM_NOISE_STRIDE', 'TRACKER_NOISE_EVERY', 'StreamingNoise', 'gyroscopic_walk_cov',
+           'isotropy_floor', 'median_rows', 'min_selection_bias', 'noise_std_from_differences',
+           'walk_maps']
 
 #: Smallest gyro-noise std of an axis, as a share of the largest axis' std.
 ISOTROPY_FLOOR = 0.1
@@ -49,9 +49,6 @@ MIN_NOISE_SAMPLES = 16
 #: squares fit to 32 Monte-Carlo lengths from 16 to 50 000, 3e7 samples each: residuals
 #: within 2e-3; the ratio is 0.913 at 16, 0.951 at 200, 0.974 at 1000, 0.987 at 4096).
 MIN_SELECTION_BIAS = (0.983, 4.66, -8.33)
-#: ``n Var(s^2) / sigma^4`` of the corrected estimate on white noise (the same Monte Carlo:
-#: 8.6 from 200 samples on, 9.0 at 100, 11 at 16): :func:`noise_variance_relvar`.
-NOISE_VARIANCE_RELVAR = 8.6
 
 
 def isotropy_floor(std: np.ndarray) -> np.ndarray:
@@ -126,13 +123,6 @@ def min_selection_bias(n: int) -> float:
     a, b, c = MIN_SELECTION_BIAS
     n = max(int(n), MIN_NOISE_SAMPLES)
     return 1.0 - a / math.sqrt(n) + b / n + c / n ** 1.5
-
-
-def noise_variance_relvar(n: int) -> float:
-    """Relative variance ``Var(s^2) / sigma^4`` of the white-noise variance estimated by
-    :func:`noise_std_from_differences` from ``n`` samples (:data:`NOISE_VARIANCE_RELVAR`
-    ``/ n``; ``inf`` for none)."""
-    return NOISE_VARIANCE_RELVAR / n if n > 0 else math.inf
 
 
 def _row_medians(d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
