@@ -62,8 +62,11 @@ def test_lift_is_the_variable_map_sandwich():
 
 
 def _noise_std_reference(x, orders=(2, 3, 4)):
-    """The textbook form: MAD of np.diff(x, k) scaled by sqrt(C(2k, k)), minimum over k."""
+    """The textbook form: MAD of np.diff(x, k) scaled by sqrt(C(2k, k)), minimum over k,
+    over several orders divided by the minimum's white-noise bias."""
     from math import comb
+
+    from inertia_ros.core.estimation.noise import min_selection_bias
 
     x = np.asarray(x, dtype=float)[:50_000]
     best = np.full(x.shape[1], np.inf)
@@ -73,7 +76,7 @@ def _noise_std_reference(x, orders=(2, 3, 4)):
             mad = np.median(np.abs(d - np.median(d, axis=0)), axis=0)
             best = np.minimum(best, 1.4826 * mad / np.sqrt(comb(2 * k, k)))
     best[~np.isfinite(best)] = 0.0
-    return best
+    return best / np.sqrt(min_selection_bias(len(x))) if len(orders) > 1 else best
 
 
 @pytest.mark.parametrize('n', [0, 3, 5, 6, 16, 99, 100, 257, 60_000])

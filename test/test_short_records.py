@@ -130,8 +130,17 @@ def _fault(name: str, duration: float, seed: int):
 _SLOW = pytest.mark.slow
 
 
+#: Issue 27, session 6: caught only while the gyro noise was estimated low.  Its average NIS
+#: per dof is 1.13 (p 3.3e-3 with the unbiased noise, 4.6e-4 before), within the 0.92-1.14
+#: of 20 model-conforming 20 s records; whiteness p 4.9e-3, mean p 0.21.  Needs a test of
+#: its own in the tracker (the batch's segment shift), not a noise level biased low.
+_NOISE_LOW = pytest.mark.xfail(strict=True, reason='gyro bias at 20 s, seed 0: ok at |z| 5.2 '
+                               'with the unbiased noise level (was caught by its low bias)')
+
+
 @pytest.mark.parametrize('name, duration, seed', [
-    ('gyro_bias', 20.0, 0), pytest.param('gyro_bias', 20.0, 1, marks=_SLOW),
+    pytest.param('gyro_bias', 20.0, 0, marks=_NOISE_LOW),
+    pytest.param('gyro_bias', 20.0, 1, marks=_SLOW),
     pytest.param('disturbance', 20.0, 9, marks=_SLOW)])
 def test_tracker_flags_a_fault_it_half_absorbs(name: str, duration: float, seed: int) -> None:
     """A 0.01 rad/s gyro bias or a 0.01 N m unmodelled torque, records the innovation excess
@@ -140,6 +149,9 @@ def test_tracker_flags_a_fault_it_half_absorbs(name: str, duration: float, seed:
     average NIS or the mean; the whiteness test is reported, it does not decide)."""
     e, rec = _fault(name, duration, seed)
     assert e.status == 'model_mismatch', (e.status, np.round(_z(e, rec), 1))
+    if 'adequacy' not in e.diagnostics:        # the persistent innovation excess fired first
+        assert 'times the noise model' in e.diagnostics['reason'], e.diagnostics['reason']
+        return
     a = e.diagnostics['adequacy']
     assert not a['ok'] and a['test'].startswith('innovation consistency'), a
     assert min(a['anis_p_value'], a['mean_p_value']) < a['level'], a

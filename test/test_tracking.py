@@ -253,8 +253,11 @@ def test_tracking_states_the_wheel_inertias() -> None:
     considered at their prior: on the capability matrix's wheel records with each wheel's
     inertia off by +-1 stated sigma (signs +, -, +-), every diagonal sigma grows at least
     4x (measured 4.9-12.9x), each input's ``theta_change`` is recorded and the RMS z of the
-    six elements over seeds 0-2 falls from 4.4 (unstated) to 2.6 (measured; not yet
-    in [0.5, 2]: the considered inputs are not profiled as the recursive mode does)."""
+    six elements over seeds 0-2 falls from 4.4 (unstated) to 3.0 (measured; not yet
+    in [0.5, 2]: the considered inputs are not profiled as the recursive mode does).  It was
+    2.6 while the gyro noise was estimated low (issue 27, session 6): seed 0 was then
+    ``model_mismatch`` on its average NIS and its sigma widened; with the unbiased noise it
+    is ``ok`` (the stated sigmas cover the wheels' error) at the considered sigma, |z| 4.3."""
     from test_capability_matrix import BASE, IDX, _wheel_inputs, _wheel_scene, feed, records
 
     from inertia_ros.core.estimation.momentum import Wheel
@@ -280,7 +283,7 @@ def test_tracking_states_the_wheel_inertias() -> None:
         assert rec['theta_std_added'].shape == (6,) and np.all(rec['theta_std_added'][:3] > 0)
         assert np.all(out[0.05].theta_std[:3] >= 4.0 * out[0.0].theta_std[:3])
     rms = {std: float(np.sqrt(np.mean(np.square(v)))) for std, v in z.items()}
-    assert rms[0.05] < 3.0 and rms[0.05] < 0.7 * rms[0.0], rms
+    assert rms[0.05] < 3.2 and rms[0.05] < 0.7 * rms[0.0], rms
 
 
 def test_tracking_hold_auto_with_stated_wheels_and_an_empty_first_block() -> None:

@@ -12,7 +12,9 @@ max |z| of the ok ones, the ok records with some |z| > 5 and the median error.
 node options, e.g. ``hold=auto``, the node's default; numbers are read as floats).
 ``tracking``: the node's ``method: tracking`` estimator at the node's defaults
 (:class:`TrackingEstimator`, memory 10 s, torque bias and hold 'auto'), fed as the node feeds
-it (10 Hz blocks, an estimate after each); the options go to it.
+it (10 Hz blocks, an estimate after each); the options go to it.  It also prints how many
+records the tracker's whiteness test (reported, it does not decide) rejects at ``ALPHA`` and
+the range of the average NIS per degree of freedom.
 """
 
 import sys
@@ -22,6 +24,9 @@ import numpy as np
 from inertia_ros.bench.honesty import CASES, PATHS, HonestyCase, feed_online, peer_like, run_case
 from inertia_ros.bench.truth_sim import TruthCase, TruthRecord
 
+#: The tracker's innovation tests of each record run (whiteness p-value, average NIS / dof,
+#: 1.0 when the record is ``ok``).
+TRACKER_TESTS: list[tuple[float, float, float]] = []
 SCENE = TruthCase(amplitude=0.06, torque_noise=0.0012, omega0=(0.05, -0.03, 0.02))
 
 
@@ -46,6 +51,10 @@ def _tracking(rec: TruthRecord, opts: dict) -> tuple:
     e = feed_online(TrackingEstimator(**kw), rec, 10.0)
     if e is None:
         return 'insufficient_data', None, None
+    ad = (e.diagnostics or {}).get('adequacy') or {}
+    if 'whiteness_p_value' in ad:
+        TRACKER_TESTS.append((ad['whiteness_p_value'], ad['anis_chi2'] / ad['anis_dof'],
+                              float(e.status == 'ok')))
     return e.status, e.inertia, e.inertia_std
 
 
@@ -80,6 +89,13 @@ def main() -> None:
           f'max|z| ok {np.max(np.abs(z_ok)) if z_ok.size else float("nan"):.1f} '
           f'(all: {min(maxz):.1f}-{max(maxz):.1f}) ok with |z|>5: {sum(o.defect for o in out)} '
           f'median error {100 * np.median(errs):.3g} % (max {100 * np.max(errs):.3g} %)')
+    if TRACKER_TESTS:
+        from inertia_ros.core.estimation.options import ALPHA
+        p, anis, ok = np.array(TRACKER_TESTS).T
+        print(f'tracker whiteness p < {ALPHA:g}: {int(np.sum(p < ALPHA))} of {len(p)} tested, '
+              f'{int(np.sum((p < ALPHA) & (ok > 0)))} of them ok '
+              f'(min p {p.min():.2g}); average NIS/dof {anis.min():.2f}-{anis.max():.2f} '
+              f'(median {np.median(anis):.2f})')
 
 
 if __name__ == '__main__':
