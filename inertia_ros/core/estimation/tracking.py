@@ -73,6 +73,7 @@ __all__ = ['TrackingEstimator']
 
 _DIFFUSE = 1e6            # prior variance of the empty filter, in squared scale units
 _PRIOR_INFLATION = 100.0  # start-up fit covariance -> the filter's prior
+_SYM = [0, 3, 4, 3, 1, 5, 4, 5, 2]   # theta (xx, yy, zz, xy, xz, yz) -> the 3 x 3 tensor
 
 
 def noise_information(basis: np.ndarray, nv: np.ndarray, R: np.ndarray) -> np.ndarray:
@@ -451,8 +452,7 @@ class TrackingEstimator(StreamInput, StateOutput):
             self._tests.restart()
             PH = self.P @ H.T
             S = H @ PH + R
-        G = fault_torque(ws, theta_to_matrix(np.nan_to_num(self.basis @ self.x[:self.k]),
-                                             check_finite=False), not self.nb)
+        G = fault_torque(ws, (self.basis @ self.x[:self.k])[_SYM].reshape(3, 3), not self.nb)
         self._tests.sensitivity(H, G, float(np.mean(t - s)), float(t[-1] - s))
         self._tests.add(t[-1], nu, S, self.updates >= self._armed and self.nu == self._learnt)
         K = np.linalg.solve(S, PH.T).T
@@ -534,8 +534,9 @@ class TrackingEstimator(StreamInput, StateOutput):
         P[L, L] += dt * self._walk
         K, C, S, nu = corr
         x += C @ np.linalg.solve(S, nu)
-        self._tests.propagate(F, np.linalg.solve(S, C.T).T)
+        SC = np.linalg.solve(S, C.T)
+        self._tests.propagate(F, SC.T)
         FKC = F @ K @ C.T
-        P -= FKC + FKC.T + C @ np.linalg.solve(S, C.T)
+        P -= FKC + FKC.T + C @ SC
         self.x, self.P = x, 0.5 * (P + P.T)
         self._prev = (float(t[-1]), w[-1].copy())

@@ -71,11 +71,11 @@ def fault_torque(w: np.ndarray, I: np.ndarray, constant: bool) -> np.ndarray:
     ``w x (I b) + b x (I w) = ([w]x I - [I w]x) b`` to the momentum's rate of change (the
     measured rates' Euler equation; the constant ``I b`` the momentum state takes up), and,
     when ``constant`` (no torque-bias state), a constant body-axis torque its own 3 columns."""
-    def skew(v: np.ndarray) -> np.ndarray:
-        return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
-
-    G = skew(w) @ I - skew(I @ w)
-    return np.hstack([G, np.eye(3)]) if constant else G
+    G = np.empty((3, 6 if constant else 3))
+    G[:, :3] = np.cross(w, I, axisb=0, axisc=0) - np.cross(I @ w, np.eye(3), axisb=0, axisc=0)
+    if constant:
+        G[:, 3:] = np.eye(3)
+    return G
 
 
 def _chi2_sf(x: float, dof: int) -> float:
