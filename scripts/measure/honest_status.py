@@ -13,8 +13,8 @@ node options, e.g. ``hold=auto``, the node's default; numbers are read as floats
 ``tracking``: the node's ``method: tracking`` estimator at the node's defaults
 (:class:`TrackingEstimator`, memory 10 s, torque bias and hold 'auto'), fed as the node feeds
 it (10 Hz blocks, an estimate after each); the options go to it.  It also prints how many
-records the tracker's whiteness test (reported, it does not decide) rejects at ``ALPHA`` and
-the range of the average NIS per degree of freedom.
+records the tracker's whiteness test (reported, it does not decide) rejects at ``ALPHA``,
+the range of the average NIS per degree of freedom and how many its fault score test rejects.
 """
 
 import sys
@@ -27,6 +27,8 @@ from inertia_ros.bench.truth_sim import TruthCase, TruthRecord
 #: The tracker's innovation tests of each record run (whiteness p-value, average NIS / dof,
 #: 1.0 when the record is ``ok``).
 TRACKER_TESTS: list[tuple[float, float, float]] = []
+#: The tracker's fault score p-value of each record run that has one.
+FAULT_P: list[float] = []
 SCENE = TruthCase(amplitude=0.06, torque_noise=0.0012, omega0=(0.05, -0.03, 0.02))
 
 
@@ -52,6 +54,8 @@ def _tracking(rec: TruthRecord, opts: dict) -> tuple:
     if e is None:
         return 'insufficient_data', None, None
     ad = (e.diagnostics or {}).get('adequacy') or {}
+    if 'fault_p_value' in ad:
+        FAULT_P.append(ad['fault_p_value'])
     if 'whiteness_p_value' in ad:
         TRACKER_TESTS.append((ad['whiteness_p_value'], ad['anis_chi2'] / ad['anis_dof'],
                               float(e.status == 'ok')))
@@ -96,6 +100,11 @@ def main() -> None:
               f'{int(np.sum((p < ALPHA) & (ok > 0)))} of them ok '
               f'(min p {p.min():.2g}); average NIS/dof {anis.min():.2f}-{anis.max():.2f} '
               f'(median {np.median(anis):.2f})')
+    if FAULT_P:
+        from inertia_ros.core.estimation.options import ALPHA
+        p = np.array(FAULT_P)
+        print(f'tracker fault score p < {ALPHA:g}: {int(np.sum(p < ALPHA))} of {len(p)} '
+              f'(median p {np.median(p):.2g})')
 
 
 if __name__ == '__main__':

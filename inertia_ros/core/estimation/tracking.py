@@ -64,7 +64,7 @@ from .regressors import cumulative_monomials, cumulative_torque, gyroscopic_matr
 from .result import InertiaEstimate
 from .selection import SelectionPolicy
 from .tails import chi2_isf
-from .tracking_consistency import InnovationTests
+from .tracking_consistency import InnovationTests, fault_torque
 from .tracking_hold import HoldChoice, keep_by_adequacy
 from .tracking_input import StreamInput
 from .tracking_output import EXCESS_TIME, StateOutput
@@ -73,7 +73,7 @@ __all__ = ['TrackingEstimator']
 
 _DIFFUSE = 1e6            # prior variance of the empty filter, in squared scale units
 _PRIOR_INFLATION = 100.0  # start-up fit covariance -> the filter's prior
-_SETTLED = 0.05           # relative sigma of the moments below which the weights follow x
+_SYM = [0, 3, 4, 3, 1, 5, 4, 5, 2]   # theta (xx, yy, zz, xy, xz, yz) -> the 3 x 3 tensor
 
 
 def noise_information(basis: np.ndarray, nv: np.ndarray, R: np.ndarray) -> np.ndarray:
@@ -374,13 +374,6 @@ class TrackingEstimator(StreamInput, StateOutput):
         self._armed = self.updates
         self._trim_torque()
 
-    def _settled(self) -> bool:
-        """Every principal-diagonal element positive and known to :data:`_SETTLED`."""
-        theta = self.basis @ self.x[:self.k]
-        se = np.sqrt(np.maximum(np.diag(self.basis @ self.P[:self.k, :self.k]
-                                        @ self.basis.T), 0.0))
-        return bool(np.all(theta[:3] > 0) and np.all(se[:3] < _SETTLED * theta[:3]))
-
     # ------------------------------------------------------------------------ the filter
     def _weight(self, theta: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Equation error covariance ``R = I S_g I`` (3, 3) at ``theta`` (default: the
@@ -459,9 +452,12 @@ class TrackingEstimator(StreamInput, StateOutput):
             self._tests.restart()
             PH = self.P @ H.T
             S = H @ PH + R
+        G = fault_torque(ws, (self.basis @ self.x[:self.k])[_SYM].reshape(3, 3), not self.nb)
+        self._tests.sensitivity(H, G, float(np.mean(t - s)), float(t[-1] - s))
         self._tests.add(t[-1], nu, S, self.updates >= self._armed and self.nu == self._learnt)
         K = np.linalg.solve(S, PH.T).T
         K[self.k + self.nb:self.n - 3 - self._learnt] = 0.0   # considered inputs: not learnt
+        self._tests.gain(K)
         self.x = self.x + K @ nu
         KHP = K @ PH.T
         P = self.P - KHP - KHP.T + K @ S @ K.T            # any gain (Schmidt-Kalman)
@@ -538,7 +534,9 @@ class TrackingEstimator(StreamInput, StateOutput):
         P[L, L] += dt * self._walk
         K, C, S, nu = corr
         x += C @ np.linalg.solve(S, nu)
+        SC = np.linalg.solve(S, C.T)
+        self._tests.propagate(F, SC.T)
         FKC = F @ K @ C.T
-        P -= FKC + FKC.T + C @ np.linalg.solve(S, C.T)
+        P -= FKC + FKC.T + C @ SC
         self.x, self.P = x, 0.5 * (P + P.T)
         self._prev = (float(t[-1]), w[-1].copy())

@@ -26,6 +26,7 @@ __all__ = ['EXCESS_TIME', 'StateOutput']
 #: a high excess is not yet a mismatch).
 EXCESS_TIME = 2.0
 _EIV_MAX = 0.05           # largest entry of P B_eff for the first-order compensation
+_SETTLED = 0.05           # relative sigma of the moments below which the weights follow x
 
 
 class StateOutput:
@@ -37,6 +38,13 @@ class StateOutput:
         theta = self.basis @ self.x[:self.k]
         s = float(np.mean(theta[:3]))
         return s if s > 0 and math.isfinite(s) else 1.0
+
+    def _settled(self) -> bool:
+        """Every principal-diagonal element positive and known to :data:`_SETTLED`."""
+        theta = self.basis @ self.x[:self.k]
+        se = np.sqrt(np.maximum(np.diag(self.basis @ self.P[:self.k, :self.k]
+                                        @ self.basis.T), 0.0))
+        return bool(np.all(theta[:3] > 0) and np.all(se[:3] < _SETTLED * theta[:3]))
 
     def _note_excess(self, ratio: float, dt: float) -> None:
         """Running mean of the innovation excess (NIS / dof) over about ``EXCESS_TIME`` s."""
