@@ -52,7 +52,7 @@ from typing import Any
 import numpy as np
 
 from .._validate import as_noise_std
-from ..tensor import theta_to_matrix
+from ..tensor import MATRIX_INDEX, theta_to_matrix
 from .config import require, substitutions
 from .model import model_basis
 from .model import symmetry_axis as unit_axis
@@ -73,7 +73,6 @@ __all__ = ['TrackingEstimator']
 
 _DIFFUSE = 1e6            # prior variance of the empty filter, in squared scale units
 _PRIOR_INFLATION = 100.0  # start-up fit covariance -> the filter's prior
-_SYM = [0, 3, 4, 3, 1, 5, 4, 5, 2]   # theta (xx, yy, zz, xy, xz, yz) -> the 3 x 3 tensor
 
 
 def noise_information(basis: np.ndarray, nv: np.ndarray, R: np.ndarray) -> np.ndarray:
@@ -452,7 +451,7 @@ class TrackingEstimator(StreamInput, StateOutput):
             self._tests.restart()
             PH = self.P @ H.T
             S = H @ PH + R
-        G = fault_torque(ws, (self.basis @ self.x[:self.k])[_SYM].reshape(3, 3), not self.nb)
+        G = fault_torque(ws, (self.basis @ self.x[:self.k])[MATRIX_INDEX], not self.nb)
         self._tests.sensitivity(H, G, float(np.mean(t - s)), float(t[-1] - s))
         self._tests.add(t[-1], nu, S, self.updates >= self._armed and self.nu == self._learnt)
         K = np.linalg.solve(S, PH.T).T
