@@ -168,19 +168,52 @@ def test_short_records_conforming_ok_and_slow_disturbance_never_ok_far() -> None
                                                                for o in out]
 
 
-@pytest.mark.xfail(strict=True, reason='issue 27, session 6: disturbance 5 s seed 3 was caught '
-                   'only while the gyro noise was estimated low (bias split chi2 40.8; 26.8 with '
-                   'the unbiased level, 8.1 and ok at |z| 12.3 with the true one)')
+@pytest.mark.xfail(strict=True, reason='issue 27, session 7: disturbance 5 s seed 3 is ok at '
+                   '|z| 6.5: its bias-split test is stable now (chi2 28.6-31.8 for a gyro level '
+                   '0.99-1.01x) but 30 on 9 dof (p 4e-4) does not fail at 1e-4 and its '
+                   'widening (3.35x) does not cover an error most of which lies where the split '
+                   'cannot look')
 def test_short_disturbance_seed_3_is_caught() -> None:
-    """The 0.01 N m disturbance at 5 s, seed 3: not ok with |z| > 5.  The bias-split test's
-    chi2 moves 40.8 -> 27.4 when the gyro noise level given rises by 1.4 % (the torque's
-    2.4 % moves it 40.8 -> 39.5), to 8.1 at the true level.  Erratic, not a trend: with the
-    old gyro level scaled by 0.9, 0.97, 1.0, 1.005, 1.01, 1.014, 1.03, 1.1 it is 72, 52, 40.8,
-    34.4, 0.9, 28.7, 35.5, 20.0 (max |z| 4.6-12.1): a discrete switch in the pieces' fits
-    (refits / adequacy.bias_split), to be found there."""
+    """The 0.01 N m disturbance (fixed in space) at 5 s, seed 3: not ok with |z| > 5.  The body
+    turns little in 5 s, so the disturbance is mostly a constant the torque bias absorbs and a
+    slow drift that the tensor absorbs; what varies between the four 1.25 s pieces is small."""
     from inertia_ros.bench.honesty import CASES
     out, _ = _outcomes(CASES['disturbance'].truth.with_(duration=5.0), [3])
     assert not out[0].defect, (out[0].status, np.round(out[0].z, 1))
+
+
+def test_bias_split_does_not_swing_with_the_noise_level() -> None:
+    """The bias split's verdict is a property of the record, not of the third digit of the gyro
+    noise level: on the 5 s disturbance record, seed 3, chi2 within 15 % of each other for
+    levels 0.99-1.01x the estimated one.  Each piece's noise model was evaluated at the
+    piece's own tensor, which a 1.25 s piece barely determines (its bias-compensated
+    information is often indefinite): chi2 36, 24, 6, 27, 34, 35 (ok at |z| 6.4-11.9) for
+    0.99, 0.994, 0.996, 1.0, 1.004, 1.01 before; at the whole record's tensor now."""
+    from inertia_ros.bench.honesty import CASES
+    from inertia_ros.bench.truth_sim import simulate_truth
+    from inertia_ros.core.estimation import estimate
+    from inertia_ros.core.estimation.noise import noise_std_from_differences
+    rec = next(iter(simulate_truth(CASES['disturbance'].truth.with_(duration=5.0), [3])))
+    g0 = noise_std_from_differences(rec.omega)
+    chi2 = [estimate(rec.t_gyro, rec.omega, rec.t_torque, rec.torque, gyro_noise=g0 * s)
+            .diagnostics['adequacy']['bias_split_chi2'] for s in (0.99, 0.996, 1.0, 1.01)]
+    assert max(chi2) < 1.15 * min(chi2), np.round(chi2, 1)
+
+
+def test_a_dropped_inseparable_bias_is_not_covered_by_widening() -> None:
+    """Where the torque bias cannot be told from the tensor scale (5 s, one sine period, seed
+    25), ``auto`` leaves it out.  With no disturbance the record stays ok; with a 0.003 N m
+    body-fixed one (5 % of the torque) the segment shift sees it (p 1.3e-3) and, widened
+    1.9x, the record was ok at |z| 6.8: a test that fails at 0.05 there is a mismatch, as the
+    bias's effect lies along the scale that no test measures."""
+    from inertia_ros.bench.truth_sim import TruthCase
+    scene = TruthCase(amplitude=0.06, torque_noise=0.0012, omega0=(0.05, -0.03, 0.02),
+                      duration=5.0)
+    clean, _ = _outcomes(scene, [25])
+    biased, _ = _outcomes(scene.with_(disturbance=(0.003, -0.002, 0.002),
+                                      disturbance_kind='body'), [25])
+    assert clean[0].status == 'ok' and np.max(np.abs(clean[0].z)) < 3, clean
+    assert biased[0].status == 'model_mismatch', (biased[0].status, np.round(biased[0].z, 1))
 
 
 def test_peer_like_sine_profiles_honest() -> None:

@@ -487,7 +487,7 @@ def _split(acc: OnlineStats, f: Fit, nv: np.ndarray, tv: np.ndarray, **context: 
     theta0 = f.basis @ f.beta[:k]
     fits = []
     for st, factor, _ in s.group_stats(nv, min_s=0.0, **context):  # type: ignore[arg-type]
-        fk = fit_two_pass(st, f.basis, True, nv, tv, None, theta0)
+        fk = fit_two_pass(st, f.basis, True, nv, tv, None, theta0, theta0)
         fk.cov = fk.cov * factor
         fits.append(fk)
     return bias_split(fits, k) if len(fits) >= 2 else None

@@ -197,7 +197,8 @@ def hac_small_sample(X: np.ndarray, W: np.ndarray, e: np.ndarray, lag: int,
 
 def fit_weighted(st: SufficientStats, basis: np.ndarray, bias: bool, W: np.ndarray,
                  gyro_var: np.ndarray, torque_var: np.ndarray, bias_comp: bool,
-                 offset: np.ndarray | None = None) -> Fit:
+                 offset: np.ndarray | None = None, noise_theta: np.ndarray | None = None
+                 ) -> Fit:
     """Weighted LS of ``y = X6 (T psi + offset) (+ Xd d)`` with its covariance.
 
     Parameters
@@ -216,6 +217,11 @@ def fit_weighted(st: SufficientStats, basis: np.ndarray, bias: bool, W: np.ndarr
         Subtract the gyro-noise bias of the information (errors in variables).
     offset : ndarray, shape (6,), optional
         Fixed part of ``theta``.
+    noise_theta : ndarray, shape (6,), optional
+        Tensor the anchored noise model (sandwich middle, residual excess) is evaluated at;
+        the fit's own by default.  A short piece of a record (the bias split's) gives
+        a nearly singular fit whose own tensor swings with the noise, and its noise model
+        with it; the whole record's tensor is the model's under the null.
 
     Returns
     -------
@@ -228,7 +234,8 @@ def fit_weighted(st: SufficientStats, basis: np.ndarray, bias: bool, W: np.ndarr
     c = np.append(-beta, 1.0)
     rss = np.array([c @ (T.T @ st.C[r, r] @ T) @ c for r in range(3)])
     if st.kind == 'anchored':
-        theta = basis @ beta[:k] + (0.0 if offset is None else offset)
+        theta = basis @ beta[:k] + (0.0 if offset is None else offset) \
+            if noise_theta is None else noise_theta
         meat, excess = _anchored_meat(st, T, p, W, G, c, theta, gyro_var, torque_var)
     else:
         meat, excess = _hac_meat(st, T, p, W, c), 1.0
@@ -296,7 +303,8 @@ def equation_weight(theta: np.ndarray, gyro_var: np.ndarray,
 
 def fit_two_pass(st: SufficientStats, basis: np.ndarray, bias: bool, gyro_var: np.ndarray,
                  torque_var: np.ndarray, offset: np.ndarray | None = None,
-                 theta0: np.ndarray | None = None) -> Fit:
+                 theta0: np.ndarray | None = None, noise_theta: np.ndarray | None = None
+                 ) -> Fit:
     """Two-pass fit: unweighted, then weighted by the first pass's tensor (weighted methods).
 
     ``theta0`` (6,), a tensor from an earlier fit of the same data, gives the weights at once
@@ -307,7 +315,7 @@ def fit_two_pass(st: SufficientStats, basis: np.ndarray, bias: bool, gyro_var: n
             and np.all(np.isfinite(theta0)) and np.any(theta0[:3] != 0):
         return fit_weighted(st, basis, bias,
                             equation_weight(theta0, gyro_var, st.white_y_cov), gyro_var,
-                            torque_var, st.weighted, offset)
+                            torque_var, st.weighted, offset, noise_theta)
     if st.weighted and np.all(gyro_var > 0):
         # the unweighted pass gives the weights only: its estimate, not its covariance
         beta = _normal_solution(st, basis, bias, np.eye(3), st.weighted, offset)[5]
@@ -315,5 +323,6 @@ def fit_two_pass(st: SufficientStats, basis: np.ndarray, bias: bool, gyro_var: n
         if np.all(np.isfinite(theta)) and np.any(theta[:3] != 0):
             return fit_weighted(st, basis, bias,
                                 equation_weight(theta, gyro_var, st.white_y_cov), gyro_var,
-                                torque_var, st.weighted, offset)
-    return fit_weighted(st, basis, bias, np.eye(3), gyro_var, torque_var, st.weighted, offset)
+                                torque_var, st.weighted, offset, noise_theta)
+    return fit_weighted(st, basis, bias, np.eye(3), gyro_var, torque_var, st.weighted, offset,
+                        noise_theta)

@@ -77,12 +77,14 @@ def window_adequacy(eq: Equations, segment: float | None, ts: np.ndarray, tau_en
 
 
 def _window_fits(eq: Equations, segment: float | None, ts: np.ndarray, gyro_var: np.ndarray,
-                 torque_var: np.ndarray, f: Fit, n_win: int, bias: bool
-                 ) -> tuple[list[Fit], list[float]]:
+                 torque_var: np.ndarray, f: Fit, n_win: int, bias: bool,
+                 noise_at_f: bool = False) -> tuple[list[Fit], list[float]]:
     """``f``'s parameter set (with the bias if ``bias``) fitted on ``n_win`` equal time windows.
 
     Weighted as ``f`` (its tensor gives the weights), each window with its own anchored
-    segments and torque-noise statistics; windows with too few equations are left out.
+    segments and torque-noise statistics; windows with too few equations are left out.  With
+    ``noise_at_f`` (the bias split's pieces) each window's noise model is evaluated at
+    ``f``'s tensor too (:func:`.fit.fit_weighted`'s ``noise_theta``).
     Returns the fits and the windows' mid-times [s].
     """
     theta0 = f.basis @ f.beta[:f.basis.shape[1]]
@@ -100,7 +102,8 @@ def _window_fits(eq: Equations, segment: float | None, ts: np.ndarray, gyro_var:
         st = sufficient_stats(sub, segment, tsk, float(sub.t[-1]), torque_var)
         if st.n_eff < MIN_EQUATIONS:
             continue
-        fits.append(fit_two_pass(st, f.basis, bias, gyro_var, torque_var, None, theta0))
+        fits.append(fit_two_pass(st, f.basis, bias, gyro_var, torque_var, None, theta0,
+                                 theta0 if noise_at_f else None))
         mids.append(0.5 * float(sub.t[0] + sub.t[-1]))
     return fits, mids
 
@@ -118,7 +121,7 @@ def bias_split_test(eq: Equations, segment: float | None, ts: np.ndarray, gyro_v
     """
     if eq.kind != 'anchored':
         return None
-    fits = _window_fits(eq, segment, ts, gyro_var, torque_var, f, pieces, True)[0]
+    fits = _window_fits(eq, segment, ts, gyro_var, torque_var, f, pieces, True, True)[0]
     if len(fits) < 2:
         return None
     return bias_split(fits, f.basis.shape[1])
