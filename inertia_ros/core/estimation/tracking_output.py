@@ -167,6 +167,12 @@ class StateOutput:
                 status, widen = 'model_mismatch', verdict['covariance_inflation']
                 cov = cov * widen
                 diag['reason'] = f"the model does not explain the data: {verdict['reason']}"
+            elif verdict['ok'] and status == 'ok' and verdict['covariance_inflation'] > 1.0:
+                widen = verdict['covariance_inflation']
+                cov = cov * widen
+                diag.setdefault('warnings', []).append(
+                    f'sigma widened {math.sqrt(widen):.3g}x by the innovation tests (below '
+                    'p 0.1 but not at the level: a small unmodelled effect or chance)')
             verdict['sigma_widened_by'] = float(np.sqrt(widen))
         info = solve_symmetric(cov, np.eye(p))
         f = Fit(beta, cov, info, info, self.basis, bool(self.nb), np.zeros(3),
