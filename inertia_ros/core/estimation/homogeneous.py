@@ -29,7 +29,7 @@ from ..tensor import THETA_NAMES, check_physical, nearest_physical, principal_ax
 from .adequacy import Adequacy, check_adequacy, segment_shift
 from .assemble import _suspect, _widened_by
 from .equations import Equations, segment_starts
-from .fit import Fit, equation_weight, fit_weighted, solve_symmetric
+from .fit import Fit, eiv_swap, equation_weight, fit_weighted, solve_symmetric
 from .model import TRACE, TRACE_FREE, describe_direction, selector
 from .noise import walk_maps
 from .options import (
@@ -322,6 +322,9 @@ def _walk_covariance(st: SufficientStats, f: Fit, W: np.ndarray, theta: np.ndarr
         cross = metric(Kx[i], W @ Im @ Sg @ A[i].T @ W)
         meat += cross + cross.T
     meat = (T.T @ meat @ T)[:p, :p]
+    if st.weighted and st.eiv_var is not None:       # as the fit compensates: fit.eiv_swap
+        k = TRACE_FREE.shape[1]
+        meat[:k, :k] += st.n_eff * (TRACE_FREE.T @ eiv_swap(st.eiv_var, W, theta) @ TRACE_FREE)
     Hinv = solve_symmetric(f.H, np.eye(p))
     cov = Hinv @ meat @ Hinv.T
     return 0.5 * (cov + cov.T) * max(f.excess, 1.0)
