@@ -351,9 +351,9 @@ class OnlineStats:
         K, GP = self._read_map(nv, gyro_scale), self.GPc + gp
         grams = None
         if walk_noise and self._walk is not None and self.walk_model is not None:
-            grams = self._walk.read(_walk_open(self), GP, self.walk_model)
+            grams = self._walk.read(_walk_open(self, self.walk_model[0]), GP, self.walk_model)
         if grams is not None:       # the batch's time-varying walk (:mod:`.online_walk`)
-            grams = {'walk_grams': np.array([lift(K.T @ g @ K) for g in grams[0]]),
+            grams = {'walk_grams': np.array([lift(g) for g in K.T @ grams[0] @ K]),
                      'walk_mean': grams[1]}
         return self._read(K, self.C + self.Cc, GP if walk_noise else None, self.w0 + self.wc,
                           n_eff, self.walkc + walk, nv, torque_dt=torque_dt, gyro_dt=gyro_dt,
@@ -574,12 +574,13 @@ def _walk_add(acc: OnlineStats, t: np.ndarray, V: np.ndarray, ts: np.ndarray,
     acc._wk_tl = float(t[-1])
 
 
-def _walk_open(acc: OnlineStats) -> tuple[np.ndarray, np.ndarray, float]:
+def _walk_open(acc: OnlineStats, M: np.ndarray | None = None
+               ) -> tuple[np.ndarray, np.ndarray, float]:
     """The open segment's Grams weighted per interval (:meth:`.online_walk.WalkSums.
-    open_grams`; zero where :meth:`OnlineStats.segment_walk` is)."""
+    open_grams`, ``M`` its map; zero where :meth:`OnlineStats.segment_walk` is)."""
     assert acc._walk is not None
-    d, F = acc.dim, len(acc._walk.ch)
+    d, F = acc.dim, len(acc._walk.ch) if M is None else M.shape[1]
     if acc._wk_n == 0 or not (acc._sides or acc).torque_seen or acc._wk_ntt < 2:
         return np.zeros((F, d, d)), np.zeros(F), 0.0
     return acc._walk.open_grams(acc._wk_S, acc._wk_St, acc._demean_map(),
-                                 max(acc._wk_tl - float(acc._wk_s or 0.0), 0.0))
+                                max(acc._wk_tl - float(acc._wk_s or 0.0), 0.0), M)

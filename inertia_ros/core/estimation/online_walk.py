@@ -152,19 +152,22 @@ class WalkSums:
         self.h += float(np.sum(h))
         self.copen = c[-1]
 
-    def open_grams(self, S: np.ndarray, St: np.ndarray, L: np.ndarray, t_open: float
-                   ) -> tuple[np.ndarray, np.ndarray, float]:
+    def open_grams(self, S: np.ndarray, St: np.ndarray, L: np.ndarray, t_open: float,
+                   M: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, float]:
         """The open segment's weighted Grams (F, dim, dim) (``S``, ``St``, ``L`` as in
         :meth:`.accumulator.OnlineStats.segment_walk`), ``sum c h`` (F,) and ``sum h`` [s]
-        (the open interval ``t_open`` [s] long so far)."""
+        (the open interval ``t_open`` [s] long so far); with ``M`` (F, P) (:func:`walk_model`)
+        the Grams and sums of the P weights ``c M`` instead (4x fewer products to make)."""
         d = len(S)
         RR = self.ch2[:, None, None] * np.outer(S, S)[None]
         SQ = S[None, :, None] * self.chQ[:, None, :]
         RR += SQ + SQ.transpose(0, 2, 1) + self.cQQ.reshape(-1, d, d)
         RR += self.copen[:, None, None] * np.outer(St, St)[None]
+        ch = self.ch + t_open * self.copen
+        if M is not None:
+            RR, ch = np.einsum('fp,fab->pab', M, RR), ch @ M
         G = L @ RR @ L.T
-        return 0.5 * (G + G.transpose(0, 2, 1)), self.ch + t_open * self.copen, \
-            self.h + t_open
+        return 0.5 * (G + G.transpose(0, 2, 1)), ch, self.h + t_open
 
     def fold(self, G: np.ndarray, ch: np.ndarray, h: float) -> None:
         """Add a closed segment's :meth:`open_grams`."""
@@ -182,11 +185,13 @@ class WalkSums:
              model: tuple[np.ndarray, np.ndarray]) -> tuple[np.ndarray, np.ndarray] | None:
         """The batch's fifteen walk Grams (15, dim, dim) and mean weights (15,) with the
         noise levels of ``model`` (:func:`walk_model`), less its offset (on ``GP``, the
-        unweighted torque-noise Gram): None when an interval's weights were unknown."""
+        unweighted torque-noise Gram), from the closed sums and the open segment's
+        (:meth:`open_grams` with the model's map): None when an interval's weights were
+        unknown."""
         if self.broken:
             return None
         G, ch, h = open_
         M, off = model
-        Gw = np.einsum('fp,fab->pab', M, self.Gc + G) - off[:, None, None] * GP[None]
-        mean = (self.chc + ch) @ M / max(self.hc + h, 1e-300) - off
+        Gw = np.einsum('fp,fab->pab', M, self.Gc) + G - off[:, None, None] * GP[None]
+        mean = (self.chc @ M + ch) / max(self.hc + h, 1e-300) - off
         return Gw, mean
