@@ -5,10 +5,11 @@ centred Gram matrices of the 13 per-sample variables ``v_b = [w, m, t, T]`` of t
 anchored segment and the folded sums of the closed ones, the open segment's torque-noise
 sums (accumulated per torque interval in closed form, :meth:`OnlineStats.walk_add`), the
 closed segments kept apart for the adequacy test (:class:`.history.SegmentHistory`) and the
-decayed side sums the noise model needs (``sum tau^2``, ``sum w w'``).  Blocks are merged by
-the parallel update of Chan, Golub and LeVeque, so the statistics do not depend on how the
-streams were cut.  :class:`.recursive.RecursiveEstimator` aligns the streams into the
-variables and feeds them here; the fit reads the statistics back.
+decayed side sums the noise model needs (``sum tau^2``, ``sum w w'``); with a momentum
+input, the torque-noise Grams weighted per interval by its walk (:mod:`.online_walk`).
+Blocks are merged by the parallel update of Chan, Golub and LeVeque, so the statistics do
+not depend on how the streams were cut. :class:`.recursive.RecursiveEstimator` aligns the
+streams into the variables and feeds them here; the fit reads the statistics back.
 """
 from __future__ import annotations
 

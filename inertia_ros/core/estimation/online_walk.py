@@ -159,13 +159,14 @@ class WalkSums:
         (the open interval ``t_open`` [s] long so far); with ``M`` (F, P) (:func:`walk_model`)
         the Grams and sums of the P weights ``c M`` instead (4x fewer products to make)."""
         d = len(S)
-        RR = self.ch2[:, None, None] * np.outer(S, S)[None]
-        SQ = S[None, :, None] * self.chQ[:, None, :]
-        RR += SQ + SQ.transpose(0, 2, 1) + self.cQQ.reshape(-1, d, d)
-        RR += self.copen[:, None, None] * np.outer(St, St)[None]
-        ch = self.ch + t_open * self.copen
-        if M is not None:
-            RR, ch = np.einsum('fp,fab->pab', M, RR), ch @ M
+        sums = (self.ch2, self.chQ, self.cQQ, self.copen, self.ch + t_open * self.copen)
+        if M is not None:       # the Grams are linear in the weights: combined first
+            sums = tuple(M.T @ x for x in sums)
+        ch2, chQ, cQQ, copen, ch = sums
+        RR = ch2[:, None, None] * np.outer(S, S)[None]
+        SQ = S[None, :, None] * chQ[:, None, :]
+        RR += SQ + SQ.transpose(0, 2, 1) + cQQ.reshape(-1, d, d)
+        RR += copen[:, None, None] * np.outer(St, St)[None]
         G = L @ RR @ L.T
         return 0.5 * (G + G.transpose(0, 2, 1)), ch, self.h + t_open
 

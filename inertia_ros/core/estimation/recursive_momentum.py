@@ -17,7 +17,10 @@ torque stream) the torque sample holding over it.  The noise model is the batch 
 momentum noise (estimated from the recent ``h`` samples' high-order differences, per axis)
 is white noise in the right-hand side (``white_y_cov``), and the gyro noise ``n x h``, the
 momentum noise ``w x e`` in the ``w x h`` integral and the torques' own noise are white
-torque noise held over each grid interval (:meth:`_torque_variance`).
+torque noise held over each grid interval (:meth:`_torque_variance`); the first two, whose
+covariance follows ``|h(t)|`` and ``|w(t)|``, weighted per grid interval as the batch
+weights them (:mod:`.online_walk`: each interval's weights by the batch's functions, read
+at the current noise levels by the accumulator).
 
 Stated inputs (wheel inertias, rotor coefficients: ``names`` at construction, one-sigma
 changes of ``h`` and of the torque with every block; ``torque_scale_std`` of the other torque;
