@@ -13,7 +13,7 @@ model and segment) fed as the node feeds it (0.1 s blocks, an estimate every sec
 
 Output: per element the median (and range) over seeds of the online / batch noise-model
 sigma (each sigma divided by its adequacy widening), the online estimates' RMS z of the
-noise-model sigma and of the reported sigma.  ``--time``: the wall time of feeding one 20 s
+noise-model sigma (and the batch's) and of the reported sigma.  ``--time``: the wall time of feeding one 20 s
 record in 0.1 s blocks with an estimate every second (best of 5, one BLAS thread advised:
 ``OMP_NUM_THREADS=1``).
 """
@@ -79,7 +79,7 @@ def main() -> None:
         print(f'feed 20 s in 0.1 s blocks: best {min(runs) * 1e3:.0f} ms, '
               f'median {np.median(runs) * 1e3:.0f} ms (of 5)')
     truth = sim_scene.inertia[THETA_IDX]
-    ratios, z_nm, z = [], [], []
+    ratios, z_nm, z, zb = [], [], [], []
     t0 = time.time()
     for seed in range(args.first, args.first + args.seeds):
         omega, speed = draw(base, noise_scene, seed)
@@ -95,7 +95,8 @@ def main() -> None:
         e = np.asarray(o.theta) - truth
         z_nm.append(e / noise_sigma(o))
         z.append(e / np.asarray(o.theta_std))
-    ratios, z_nm, z = np.array(ratios), np.array(z_nm), np.array(z)
+        zb.append((np.asarray(b.theta) - truth) / noise_sigma(b))
+    ratios, z_nm, z, zb = np.array(ratios), np.array(z_nm), np.array(z), np.array(zb)
     n = len(ratios)
     print(f'wheels {args.truth} segment={args.segment} n={n} {time.time() - t0:.0f}s')
     fmt = ' '.join
@@ -108,6 +109,9 @@ def main() -> None:
                                              zip(NAMES, np.sqrt(np.mean(z_nm ** 2, 0)),
                                                  strict=True)),
           f' (MC 1-sigma ~{1 / np.sqrt(2 * max(n, 1)):.2f})')
+    print('   batch rms z noise model  ', fmt(f'{a}={v:.2f}' for a, v in
+                                             zip(NAMES, np.sqrt(np.mean(zb ** 2, 0)),
+                                                 strict=True)))
     print('   online rms z reported    ', fmt(f'{a}={v:.2f}' for a, v in
                                              zip(NAMES, np.sqrt(np.mean(z ** 2, 0)),
                                                  strict=True)))
