@@ -5,10 +5,11 @@ centred Gram matrices of the 13 per-sample variables ``v_b = [w, m, t, T]`` of t
 anchored segment and the folded sums of the closed ones, the open segment's torque-noise
 sums (accumulated per torque interval in closed form, :meth:`OnlineStats.walk_add`), the
 closed segments kept apart for the adequacy test (:class:`.history.SegmentHistory`) and the
-decayed side sums the noise model needs (``sum tau^2``, ``sum w w'``).  Blocks are merged by
-the parallel update of Chan, Golub and LeVeque, so the statistics do not depend on how the
-streams were cut.  :class:`.recursive.RecursiveEstimator` aligns the streams into the
-variables and feeds them here; the fit reads the statistics back.
+decayed side sums the noise model needs (``sum tau^2``, ``sum w w'``); with a momentum
+input, the torque-noise Grams weighted per interval by its walk (:mod:`.online_walk`).
+Blocks are merged by the parallel update of Chan, Golub and LeVeque, so the statistics do
+not depend on how the streams were cut. :class:`.recursive.RecursiveEstimator` aligns the
+streams into the variables and feeds them here; the fit reads the statistics back.
 """
 from __future__ import annotations
 
@@ -20,6 +21,7 @@ import numpy as np
 from .adequacy import Adequacy, bias_split, check_adequacy, segment_shift
 from .fit import Fit, fit_two_pass
 from .history import SegmentHistory, SegmentStats, segment_pieces
+from .online_walk import WalkSums
 from .options import ADEQUACY_MIN_WINDOW_S, ADEQUACY_WINDOWS, MIN_EQUATIONS
 from .regressors import gram, lift
 from .statistics import SufficientStats
@@ -79,6 +81,17 @@ class OnlineStats:
         self._sides: OnlineStats | None = None
         if self.short is not None and window is None and self.forgetting == 1.0:
             self.short._sides = self
+        #: a momentum input's per-interval walk weights by interval start
+        #: (:meth:`track_walk`), and the noise levels to read them at (:func:`.online_walk.
+        #: walk_model`, set before each read; None: the stationary walk alone)
+        self.walk_of: Any = None
+        self.walk_model: tuple[np.ndarray, np.ndarray] | None = None
+        self.reset()
+
+    def track_walk(self, lookup: Any) -> None:
+        """Weight the torque-noise Gram per interval by ``lookup(ts)`` ((M, F) weights of
+        the intervals starting at ``ts``, :class:`.online_walk.FeatureStore`); forgets all."""
+        self.walk_of = lookup
         self.reset()
 
     def widen(self, dim: int) -> None:
@@ -100,6 +113,7 @@ class OnlineStats:
         self.wc = self.w00c = self.neffc = 0.0
         self.seg_start: float | None = None
         self.first_segment = True
+        self._walk = None if self.walk_of is None else WalkSums(self.dim, self.walk_of)
         self._walk_reset()
         self.GPc = np.zeros((d, d))          # closed segments' torque-noise Gram
         self.walkc = 0.0
@@ -152,21 +166,24 @@ class OnlineStats:
         anchored segments at their boundaries; ``ts`` (M,): the held torque's times [s]."""
         if self.short is not None:
             self.short.merge(t, V, ts)
+        wf = None if self._walk is None else self._walk.lookup(ts)
         if self.lazy:
-            self._queue.append((t, V, ts))
+            self._queue.append((t, V, ts, wf))
             self._queued += len(t)
             if self._queued > _MAX_QUEUED:
                 self.flush()
             return
-        self._merge_now(t, V, ts)
+        self._merge_now(t, V, ts, wf)
 
-    def _merge_now(self, t: np.ndarray, V: np.ndarray, ts: np.ndarray) -> None:
-        """:meth:`merge` of this segmentation, at once."""
+    def _merge_now(self, t: np.ndarray, V: np.ndarray, ts: np.ndarray,
+                   wf: np.ndarray | None = None) -> None:
+        """:meth:`merge` of this segmentation, at once (``wf`` (M, F): the walk weights of
+        the intervals starting at ``ts``)."""
         if self.seg_start is None:
             self.seg_start = float(t[0])
         for lo, hi, closes in segment_pieces(t, self.seg_start, self.segment):
             if hi > lo:
-                self._merge_piece(t[lo:hi], V[lo:hi], ts)
+                self._merge_piece(t[lo:hi], V[lo:hi], ts, wf)
             if closes:
                 self._fold(float(t[hi]))
 
@@ -176,7 +193,7 @@ class OnlineStats:
         if not self._queue:
             return
         queue, self._queue, self._queued = self._queue, [], 0
-        run: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
+        run: list[tuple[Any, ...]] = []
         for item in [*queue, None]:
             if isinstance(item, tuple):
                 run.append(item)
@@ -200,10 +217,11 @@ class OnlineStats:
         if not self._lazy:
             self.flush()
 
-    def _merge_piece(self, t: np.ndarray, V: np.ndarray, ts: np.ndarray) -> None:
+    def _merge_piece(self, t: np.ndarray, V: np.ndarray, ts: np.ndarray,
+                     wf: np.ndarray | None = None) -> None:
         """Merge equations of one segment into the weighted centred statistics."""
         n = len(t)
-        self.walk_add(t, V, ts)
+        self.walk_add(t, V, ts, wf)
         if self.window:
             wts = np.exp(-(t[-1] - t) / self.window)
             # nothing merged yet: nothing to decay (the torque statistics gathered before the
@@ -236,6 +254,8 @@ class OnlineStats:
             setattr(self, name, old * getattr(self, name))
         self.GPc = old * old * self.GPc
         self.w00c *= old * old
+        if self._walk is not None:
+            self._walk.decay(old)
 
     def close(self, new_start: float) -> None:
         """Fold the current segment's statistics into the closed ones; start a new one."""
@@ -254,6 +274,8 @@ class OnlineStats:
             self.w00c += self.w00
             self.neffc += self.w0 - self.w00 / self.w0
             gp, walk = self.segment_walk()
+            if self._walk is not None:
+                self._walk.fold(*_walk_open(self))
             self.GPc = self.GPc + gp
             self.walkc += walk
             self.history.add(self.open_segment(gp, walk))
@@ -283,62 +305,14 @@ class OnlineStats:
         self._wk_h2 = 0.0                 # closed intervals: sum h_j^2, sum h_j Q_j,
         self._wk_hQ = np.zeros(d)         # sum Q_j Q_j'  (Q_j = St_j - h_j F_j, dim + 1)
         self._wk_QQ = np.zeros((d, d))
+        if self._walk is not None:
+            self._walk.open_reset()
 
-    def walk_add(self, t: np.ndarray, V: np.ndarray, ts: np.ndarray) -> None:
-        """Accumulate the open segment's torque-noise statistics over new equations.
-
-        The segment's torque-noise sums (:func:`.statistics.torque_stats` on the segment-demeaned
-        variables) are ``P_j = [1 | -mean] R_j`` with ``R_j = sum_b o_j(b) x_b``,
-        ``o_j(b) = clip(t_b - s_j, 0, h_j)`` and ``x_b = [v_b - ref, 1]``.  Once torque interval
-        ``j`` is closed (a gyro sample at or after its end has arrived), ``R_j = h_j S + Q_j``
-        with the running segment sum ``S`` and a fixed ``Q_j``; so ``sum_j R_j R_j'`` needs only
-        ``sum h_j^2``, ``sum h_j Q_j`` and ``sum Q_j Q_j'`` of the closed intervals plus the open
-        one: O(new samples + new torque samples) per block, none per ``estimate()``.
-        """
-        n = len(t)
-        if self._wk_s is None:
-            # (never before the first torque sample: such gyro samples are dropped)
-            i = int(np.searchsorted(ts, t[0], side='right')) - 1
-            self._wk_s = float(ts[i])
-            # the first segment's torque list starts at the first torque sample, later ones
-            # at the last torque sample at or before their start
-            self._wk_ntt = i + 1 if self.first_segment else 1
-            self._wk_ref = V[0].copy()
-            self._wk_t0 = float(t[0])
-        d = self.dim
-        X = np.empty((n, d + 1))
-        np.subtract(V, self._wk_ref[None], out=X[:, :d])
-        X[:, d] = 1.0
-        lo = int(np.searchsorted(ts, self._wk_s, side='right'))
-        hi = int(np.searchsorted(ts, t[-1], side='right'))
-        b = ts[lo:hi]                      # torque samples starting new intervals
-        k = len(b)
-        if k == 0:
-            self._wk_St = self._wk_St + (t - self._wk_s) @ X
-        else:
-            bounds = np.concatenate([[self._wk_s], b])
-            first = np.searchsorted(t, bounds, side='left')
-            counts = np.diff(np.append(first, n))
-            nz = counts > 0
-            u = t - np.repeat(bounds, counts)
-            Sm = np.zeros((k + 1, d + 1))
-            St = np.zeros((k + 1, d + 1))
-            Sm[nz] = np.add.reduceat(X, first[nz], axis=0)
-            St[nz] = np.add.reduceat(X * u[:, None], first[nz], axis=0)
-            h = np.diff(bounds)
-            St[0] += self._wk_St
-            # every earlier sample precedes the end of the block's first interval
-            F = self._wk_S + np.cumsum(Sm[:k], axis=0)
-            Q = St[:k] - h[:, None] * F
-            self._wk_h2 += float(h @ h)
-            self._wk_hQ = self._wk_hQ + h @ Q
-            self._wk_QQ = self._wk_QQ + Q.T @ Q
-            self._wk_St = St[k]
-            self._wk_s = float(bounds[k])
-            self._wk_ntt += k
-        self._wk_S = self._wk_S + X.sum(axis=0)
-        self._wk_n += n
-        self._wk_tl = float(t[-1])
+    def walk_add(self, t: np.ndarray, V: np.ndarray, ts: np.ndarray,
+                 wf: np.ndarray | None = None) -> None:
+        """Accumulate the open segment's torque-noise statistics over new equations
+        ``V`` (n, dim) at ``t`` (n,) [s] (:func:`_walk_add`)."""
+        _walk_add(self, t, V, ts, wf)
 
     def segment_walk(self) -> tuple[np.ndarray, float]:
         """Torque-noise Gram (dim x dim) and walk time of the open segment (as statistics)."""
@@ -348,11 +322,17 @@ class OnlineStats:
         S, hQ = self._wk_S, self._wk_hQ
         RR = self._wk_h2 * np.outer(S, S) + np.outer(S, hQ) + np.outer(hQ, S) + self._wk_QQ \
             + np.outer(self._wk_St, self._wk_St)
-        L = np.empty((d, d + 1))
-        L[:, :d] = np.eye(d)
-        L[:, d] = -S[:d] / self._wk_n
+        L = self._demean_map()
         G = L @ RR @ L.T
         return 0.5 * (G + G.T), self._wk_n * (self._wk_tl - self._wk_t0) / 6.0
+
+    def _demean_map(self) -> np.ndarray:
+        """``[1 | -mean]`` (dim, dim + 1): the open segment's sums of ``x_b`` demeaned."""
+        d = self.dim
+        L = np.empty((d, d + 1))
+        L[:, :d] = np.eye(d)
+        L[:, d] = -self._wk_S[:d] / self._wk_n
+        return L
 
     # ------------------------------------------------------------------ reading back
     def stats(self, nv: np.ndarray, n_eff: float, walk_noise: bool, *, torque_dt: float,
@@ -369,10 +349,16 @@ class OnlineStats:
         """
         self.flush()
         gp, walk = self.segment_walk()
-        return self._read(self._read_map(nv, gyro_scale), self.C + self.Cc,
-                          self.GPc + gp if walk_noise else None, self.w0 + self.wc, n_eff,
-                          self.walkc + walk, nv, torque_dt=torque_dt, gyro_dt=gyro_dt,
-                          white_y_cov=white_y_cov)
+        K, GP = self._read_map(nv, gyro_scale), self.GPc + gp
+        grams = None
+        if walk_noise and self._walk is not None and self.walk_model is not None:
+            grams = self._walk.read(_walk_open(self, self.walk_model[0]), GP, self.walk_model)
+        if grams is not None:       # the batch's time-varying walk (:mod:`.online_walk`)
+            grams = {'walk_grams': np.array([lift(g) for g in K.T @ grams[0] @ K]),
+                     'walk_mean': grams[1]}
+        return self._read(K, self.C + self.Cc, GP if walk_noise else None, self.w0 + self.wc,
+                          n_eff, self.walkc + walk, nv, torque_dt=torque_dt, gyro_dt=gyro_dt,
+                          white_y_cov=white_y_cov, **(grams or {}))
 
     def _read(self, K: np.ndarray, C: np.ndarray, GP: np.ndarray | None, w0: float,
               n_eff: float, walk: float, nv: np.ndarray, **context: Any) -> SufficientStats:
@@ -513,12 +499,89 @@ def _shift(acc: OnlineStats, f: Fit, nv: np.ndarray, tv: np.ndarray, **context: 
                          fs.beta[:k], fs.cov[:k, :k] * rs / max(fs.excess, 1.0))
 
 
-def _joined(run: list[tuple[np.ndarray, np.ndarray, np.ndarray]]
-            ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Queued blocks ``(t, V, ts)`` as one: the rows concatenated, the torque times united
-    (each block's are the earlier ones' from some sample on, or newer: the aligner trims and
-    appends, never modifies)."""
-    ts = run[0][2]
-    for _, _, later in run[1:]:
-        ts = np.concatenate([ts, later[np.searchsorted(later, ts[-1], 'right'):]])
-    return np.concatenate([r[0] for r in run]), np.concatenate([r[1] for r in run]), ts
+def _joined(run: list[tuple[Any, ...]]) -> tuple[Any, ...]:
+    """Queued blocks ``(t, V, ts, wf)`` as one: the rows concatenated, the torque times
+    (and their walk weights ``wf``, if any) united (each block's are the earlier ones' from
+    some sample on, or newer: the aligner trims and appends, never modifies)."""
+    ts, wf = run[0][2], run[0][3]
+    for _, _, later, wl in run[1:]:
+        i = np.searchsorted(later, ts[-1], 'right')
+        ts = np.concatenate([ts, later[i:]])
+        wf = None if wf is None or wl is None else np.concatenate([wf, wl[i:]])
+    return np.concatenate([r[0] for r in run]), np.concatenate([r[1] for r in run]), ts, wf
+
+
+def _walk_add(acc: OnlineStats, t: np.ndarray, V: np.ndarray, ts: np.ndarray,
+              wf: np.ndarray | None) -> None:
+    """Accumulate the open segment's torque-noise statistics over new equations.
+
+    The segment's torque-noise sums (:func:`.statistics.torque_stats` on the segment-demeaned
+    variables) are ``P_j = [1 | -mean] R_j`` with ``R_j = sum_b o_j(b) x_b``,
+    ``o_j(b) = clip(t_b - s_j, 0, h_j)`` and ``x_b = [v_b - ref, 1]``.  Once torque interval
+    ``j`` is closed (a gyro sample at or after its end has arrived), ``R_j = h_j S + Q_j``
+    with the running segment sum ``S`` and a fixed ``Q_j``; so ``sum_j R_j R_j'`` needs only
+    ``sum h_j^2``, ``sum h_j Q_j`` and ``sum Q_j Q_j'`` of the closed intervals plus the open
+    one: O(new samples + new torque samples) per block, none per ``estimate()``.  With
+    :meth:`OnlineStats.track_walk` the same sums weighted per interval by ``wf`` (M, F) (the
+    intervals starting at ``ts``) go to :class:`.online_walk.WalkSums`.
+    """
+    n = len(t)
+    if acc._wk_s is None:
+        # (never before the first torque sample: such gyro samples are dropped)
+        i = int(np.searchsorted(ts, t[0], side='right')) - 1
+        acc._wk_s = float(ts[i])
+        # the first segment's torque list starts at the first torque sample, later ones
+        # at the last torque sample at or before their start
+        acc._wk_ntt = i + 1 if acc.first_segment else 1
+        acc._wk_ref = V[0].copy()
+        acc._wk_t0 = float(t[0])
+    d = acc.dim
+    X = np.empty((n, d + 1))
+    np.subtract(V, acc._wk_ref[None], out=X[:, :d])
+    X[:, d] = 1.0
+    lo = int(np.searchsorted(ts, acc._wk_s, side='right'))
+    hi = int(np.searchsorted(ts, t[-1], side='right'))
+    b = ts[lo:hi]                      # torque samples starting new intervals
+    k = len(b)
+    if k == 0:
+        acc._wk_St = acc._wk_St + (t - acc._wk_s) @ X
+        if acc._walk is not None:     # the open interval's weights
+            acc._walk.add(None if wf is None else wf[lo - 1:hi], np.zeros(0), X[:0])
+    else:
+        bounds = np.concatenate([[acc._wk_s], b])
+        first = np.searchsorted(t, bounds, side='left')
+        counts = np.diff(np.append(first, n))
+        nz = counts > 0
+        u = t - np.repeat(bounds, counts)
+        Sm = np.zeros((k + 1, d + 1))
+        St = np.zeros((k + 1, d + 1))
+        Sm[nz] = np.add.reduceat(X, first[nz], axis=0)
+        St[nz] = np.add.reduceat(X * u[:, None], first[nz], axis=0)
+        h = np.diff(bounds)
+        St[0] += acc._wk_St
+        # every earlier sample precedes the end of the block's first interval
+        F = acc._wk_S + np.cumsum(Sm[:k], axis=0)
+        Q = St[:k] - h[:, None] * F
+        acc._wk_h2 += float(h @ h)
+        acc._wk_hQ = acc._wk_hQ + h @ Q
+        acc._wk_QQ = acc._wk_QQ + Q.T @ Q
+        if acc._walk is not None:     # the same weighted, and the open interval's
+            acc._walk.add(None if wf is None else wf[lo - 1:hi], h, Q)
+        acc._wk_St = St[k]
+        acc._wk_s = float(bounds[k])
+        acc._wk_ntt += k
+    acc._wk_S = acc._wk_S + X.sum(axis=0)
+    acc._wk_n += n
+    acc._wk_tl = float(t[-1])
+
+
+def _walk_open(acc: OnlineStats, M: np.ndarray | None = None
+               ) -> tuple[np.ndarray, np.ndarray, float]:
+    """The open segment's Grams weighted per interval (:meth:`.online_walk.WalkSums.
+    open_grams`, ``M`` its map; zero where :meth:`OnlineStats.segment_walk` is)."""
+    assert acc._walk is not None
+    d, F = acc.dim, len(acc._walk.ch) if M is None else M.shape[1]
+    if acc._wk_n == 0 or not (acc._sides or acc).torque_seen or acc._wk_ntt < 2:
+        return np.zeros((F, d, d)), np.zeros(F), 0.0
+    return acc._walk.open_grams(acc._wk_S, acc._wk_St, acc._demean_map(),
+                                max(acc._wk_tl - float(acc._wk_s or 0.0), 0.0), M)

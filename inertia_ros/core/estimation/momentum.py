@@ -463,8 +463,9 @@ def walk_cov(hg: np.ndarray, wg: np.ndarray, gyro_var: np.ndarray, h_cov: np.nda
     and the momentum noise (covariance ``h_cov`` (3, 3), shared by ``share`` gyro samples)
     as ``w x e``, with ``hg``, ``wg`` (G, 3) the momentum [N m s] and rate [rad/s] there.
 
-    Their record means' diagonal is :func:`walk_variance` (the online estimator's
-    stationary walk).  The batch keeps them per grid interval (:func:`interval_walk`): a
+    Their record means' diagonal is :func:`walk_variance` (the stationary walk of the torque
+    noise std).  Both paths keep them per grid interval (the batch by :func:`interval_walk`,
+    the online estimator by :mod:`.online_walk`): a
     record-average variance put the walk's noise where ``|h|`` and ``|w|`` are small as
     much as where they are large, and the products' sigma of the wheels' scene read 1.2-1.5x
     low (issue 27, ``scripts/measure/wheels_z.py``).

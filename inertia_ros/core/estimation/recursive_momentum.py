@@ -17,7 +17,10 @@ torque stream) the torque sample holding over it.  The noise model is the batch 
 momentum noise (estimated from the recent ``h`` samples' high-order differences, per axis)
 is white noise in the right-hand side (``white_y_cov``), and the gyro noise ``n x h``, the
 momentum noise ``w x e`` in the ``w x h`` integral and the torques' own noise are white
-torque noise held over each grid interval (:meth:`_torque_variance`).
+torque noise held over each grid interval (:meth:`_torque_variance`); the first two, whose
+covariance follows ``|h(t)|`` and ``|w(t)|``, weighted per grid interval as the batch
+weights them (:mod:`.online_walk`: each interval's weights by the batch's functions, read
+at the current noise levels by the accumulator).
 
 Stated inputs (wheel inertias, rotor coefficients: ``names`` at construction, one-sigma
 changes of ``h`` and of the torque with every block; ``torque_scale_std`` of the other torque;
@@ -42,6 +45,7 @@ from .config import require, substitutions
 from .momentum import Momentum, held_over, interval_torque, walk_sums, walk_variance
 from .noise import StreamingNoise
 from .online_stated import StatedInputs
+from .online_walk import FeatureStore, walk_model
 from .options import HOLDS
 from .recursive import RecursiveEstimator
 from .regressors import gyroscopic_matrix, momentum_matrix
@@ -304,6 +308,7 @@ class MomentumInput:
         self._walk_h += H
         self._walk_w += W
         self._walk_n += n
+        self._walk_intervals(grid, hg, wg)
         gi = (self._g.t >= grid[0]) & (self._g.t <= grid[-1])
         t_in, w_in = self._g.t[gi], self._g.v[0][gi]
         fresh = t_in > (self._last_t_in if self._last_t_in is not None else -np.inf)
@@ -311,6 +316,10 @@ class MomentumInput:
                    None if other_lin is None else own + other_lin, x, t_in[fresh], w_in[fresh])
         self._cursor = float(grid[-1])
         self._trim()
+
+    def _walk_intervals(self, grid: np.ndarray, hg: np.ndarray, wg: np.ndarray) -> None:
+        """The grid intervals' walk as the estimator carries it (here: only its record
+        sums, :meth:`_walk_terms`)."""
 
     def _cap(self, buf: _Buffer) -> None:
         """A stalled stream: keep the newest half of a buffer grown past :data:`_MAX_BUFFER`
@@ -371,14 +380,21 @@ class MomentumInput:
         ``tau_dt`` [s] (the batch's) and the white noise (3, 3) [N^2 m^2 s^2] of each
         equation's right-hand side (the momentum samples' own, shared by ``share`` gyro
         samples)."""
-        share = self._share()
-        cov = np.diag(self._h_noise.variance()) if self._h_noise.known() else np.zeros((3, 3))
+        gv, cov, share, mean = self._walk_terms()
         var = np.zeros(3)
         for nv, dts in ((self._o_noise, self._o_dt), (self._tr_noise, self._m_dt)):
             if nv.known() and dts:
                 var = var + nv.variance() * float(np.median(dts)) / tau_dt
-        return var + walk_variance(self._walk_h, self._walk_w, self._walk_n, self._gyro_var(),
-                                   cov, share), cov * share
+        return var + mean, cov * share
+
+    def _walk_terms(self) -> tuple[np.ndarray, np.ndarray, float, np.ndarray]:
+        """The walk's noise levels: the gyro variance (3,) [rad^2/s^2], the momentum
+        noise covariance (3, 3) [N^2 m^2 s^2] shared by ``share`` gyro samples, and the
+        walk's record-mean variance (3,) [N^2 m^2] (:func:`.momentum.walk_variance`)."""
+        share, gv = self._share(), self._gyro_var()
+        cov = np.diag(self._h_noise.variance()) if self._h_noise.known() else np.zeros((3, 3))
+        return gv, cov, share, walk_variance(self._walk_h, self._walk_w, self._walk_n, gv,
+                                             cov, share)
 
 class MomentumRecursiveEstimator(MomentumInput, RecursiveEstimator):
     """:class:`~.recursive.RecursiveEstimator` with internal momentum (wheels, rotors) input.
@@ -421,6 +437,16 @@ class MomentumRecursiveEstimator(MomentumInput, RecursiveEstimator):
             self._align = OnlineAligner(3 * len(self._stated.names))
             for acc in self._accs.values():
                 acc.widen(13 + 3 * len(self._stated.names))
+        # the walk per grid interval, as the batch's (:mod:`.online_walk`)
+        self._features = FeatureStore()
+        for acc in self._accs.values():
+            acc.track_walk(self._features.lookup)
+
+    def _walk_intervals(self, grid: np.ndarray, hg: np.ndarray, wg: np.ndarray) -> None:
+        """Keep the grid intervals' walk weights (:func:`.online_walk.interval_features`)
+        for the accumulators' lookups."""
+        ts = self._align.ts
+        self._features.add(grid, hg, wg, float(ts[0]) if len(ts) else None)
 
     def _take(self, grid: np.ndarray, tau: np.ndarray, alt: np.ndarray | None,
               x: np.ndarray | None, t_in: np.ndarray, w_in: np.ndarray) -> None:
@@ -439,6 +465,10 @@ class MomentumRecursiveEstimator(MomentumInput, RecursiveEstimator):
         if self._walk_n == 0 or self._align.tau_dt <= 0:
             return None
         var, self._white_y_cov = self._reduced_noise(self._align.tau_dt)
+        gv, cov, share, mean = self._walk_terms()
+        model = walk_model(gv, cov, share, mean)
+        for acc in self._accs.values():
+            acc.walk_model = model
         return var
 
     def estimate(self) -> InertiaEstimate:
