@@ -108,6 +108,9 @@ def run(args: argparse.Namespace) -> int:
             if args.rest_bias:
                 # the gyro's reading at rest at the start of the log (the device on the table)
                 w = w - s['w'][:args.rest_bias].mean(0)
+            if args.gyro_coupling:
+                c = tuple(float(v) for v in args.gyro_coupling.split(','))
+                w = w @ np.linalg.inv(tt.gyro_coupling_matrix(c)).T
             if not mc.is_file():
                 tt.write_mcap(mc, {'t': t, 'w': w, 'a': acc, 'wheel': fw})
             cog = tt.combined_cog(t, w, acc)
@@ -312,6 +315,9 @@ def main(argv: list[str] | None = None) -> int:
     r.add_argument('--rest-bias', type=int, default=0,
                    help='subtract the mean gyro reading of the first N samples of the log (at '
                         'rest) from the rates: a gyro bias removed (use another --mcap-cache)')
+    r.add_argument('--gyro-coupling', metavar='XY,XZ,YZ',
+                   help='remove a symmetric gyro coupling from the rates first, as '
+                        'tudelft_throw.py bench --gyro-coupling (use another --mcap-cache)')
     r.add_argument('--hold-bias', action='store_true',
                    help="pass --torque-bias on/off per throw as the CLI defaults chose it untilted "
                         "(the tilt's own effect, without the bias choice flipping)")
