@@ -147,7 +147,7 @@ class WalkSums:
         ck = c[:-1]
         self.ch2 += (h * h) @ ck
         self.chQ += (ck * h[:, None]).T @ Q
-        self.cQQ += ck.T @ (Q[:, :, None] * Q[:, None, :]).reshape(len(Q), -1)
+        self.cQQ += ck.T @ (Q[:, :, None] * Q[:, None, :]).reshape(len(Q), self.cQQ.shape[1])
         self.ch += h @ ck
         self.h += float(np.sum(h))
         self.copen = c[-1]
