@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 
 from ..tensor import THETA_NAMES, check_physical, nearest_physical, theta_to_matrix
-from .adequacy import WIDEN_ALPHA, Adequacy
+from .adequacy import Adequacy
 from .fit import Fit
 from .model import model_basis, parameter_names
 from .result import InertiaEstimate
@@ -276,15 +276,6 @@ def _adequate(adequacy: AdequacyFunction, f: Fit, chosen: str, diag: dict[str, A
     else:
         f.cov = f.cov * factor
         rec['covariance'] = 'noise model x ' + _widened_by(a)
-    if a.benign and diag.get('bias_inseparable') and _min_p(a) < WIDEN_ALPHA:
-        # the torque bias was left out because it cannot be told from the tensor scale: a test
-        # that sees an unmodelled effect may be seeing that bias, whose effect on the answer
-        # lies along the scale the tests cannot measure, so no widening is known to cover it
-        diag['reason'] = ('the model does not explain the data and a constant disturbance '
-                          'torque, which the tensor scale would absorb unseen, cannot be told '
-                          'apart from the known torque here (' + _suspect(a) + '): record '
-                          'longer or with a torque that varies more')
-        return 'model_mismatch'
     if a.benign:
         diag['warnings'].append(
             f'sigma widened {np.sqrt(a.inflation):.3g}x by the ' + _widened_by(a) + ': '
@@ -293,12 +284,6 @@ def _adequate(adequacy: AdequacyFunction, f: Fit, chosen: str, diag: dict[str, A
         return 'ok'
     diag['reason'] = 'the model does not explain the data: ' + a.reason
     return 'model_mismatch'
-
-
-def _min_p(a: Adequacy) -> float:
-    """The smallest p-value of the tests that ran."""
-    return min(a.p_value if a.dof > 0 else 1.0, a.shift_p_value if a.shift_dof > 0 else 1.0,
-               a.split_p_value if a.split_dof else 1.0)
 
 
 def _suspect(a: Adequacy) -> str:
