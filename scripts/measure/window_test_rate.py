@@ -1,6 +1,6 @@
 """The window test and the noise-model sigma against the gyro rate on a fast spin-up.
 
-    python scripts/measure/gyroscopic_discretisation.py SEEDS GYRO_RATE [SUBSTEPS]
+    python scripts/measure/window_test_rate.py SEEDS GYRO_RATE [SUBSTEPS]
 
 The honesty benchmark's constant-torque case (20 s; the body spins up to ~3.6 rad/s) sampled
 at ``GYRO_RATE`` Hz, the simulator integrating with ``SUBSTEPS`` steps per gyro sample (4).
