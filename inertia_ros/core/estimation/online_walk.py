@@ -11,6 +11,10 @@ interval carries the covariance of each unit noise level, its :data:`FEATURES` w
 a Gram per weight (:class:`WalkSums`); an estimate combines them with the current levels
 (:func:`walk_model`) into the batch's fifteen, less the record-mean diagonal the torque noise
 variance already holds (the batch's ``walk_cov`` is the same deviation).
+
+The tracker (:class:`.recursive_momentum.MomentumTrackingEstimator`) carries the same walk in
+its Kalman filter's process noise: each block's momentum walk from the mean weights of its
+intervals (:meth:`FeatureStore.mean`) read at the current levels (:func:`walk_deviation`).
 """
 from __future__ import annotations
 
@@ -21,7 +25,8 @@ import numpy as np
 from .momentum import interval_walk, walk_cov
 from .statistics import WALK_BASIS, WALK_PAIRS
 
-__all__ = ['FEATURES', 'FeatureStore', 'WalkSums', 'interval_features', 'walk_model']
+__all__ = ['FEATURES', 'FeatureStore', 'WalkSums', 'interval_features', 'walk_deviation',
+           'walk_model']
 
 _NC = len(WALK_PAIRS)                     # 6 covariance components
 _ROWS, _COLS = np.array(WALK_PAIRS).T
@@ -64,6 +69,16 @@ def walk_model(gyro_var: np.ndarray, h_cov: np.ndarray, share: float,
     return M, np.concatenate([mean, np.zeros(_NC - 3 + 9)])
 
 
+def walk_deviation(f: np.ndarray, model: tuple[np.ndarray, np.ndarray],
+                   bases: np.ndarray) -> np.ndarray:
+    """The walk's covariance (3, 3) [N^2 m^2] of the weights ``f`` (F,) (an interval's, or
+    their mean over a block) at the levels of ``model`` (:func:`walk_model`), less its
+    offset (the record-mean diagonal the torque noise variance holds): the batch's fifteen
+    weights on their matrices ``bases`` (15, 3, 3) (:func:`.fit.walk_bases`)."""
+    M, off = model
+    return np.einsum('q,qab->ab', f @ M - off, bases)
+
+
 class FeatureStore:
     """The grid intervals' weights by start time, for the accumulators' lookups.
 
@@ -80,15 +95,37 @@ class FeatureStore:
     def add(self, grid: np.ndarray, hg: np.ndarray, wg: np.ndarray,
             keep_from: float | None) -> None:
         """A run's grid (G,) [s] with the momentum ``hg`` and rate ``wg`` (G, 3) there; the
-        intervals before ``keep_from`` [s] are dropped (no accumulator looks them up)."""
+        intervals before ``keep_from`` [s] are dropped (no accumulator looks them up; the
+        pending runs ending by then too: a tracker that has not started looks nothing up)."""
         if keep_from is not None and len(self.t) and self.t[0] < keep_from:
             i = int(np.searchsorted(self.t, keep_from, side='left'))
             self.t, self.f = self.t[i:], self.f[i:]
+        if keep_from is not None:
+            self._pending = [r for r in self._pending if r[0][-1] > keep_from]
         self._pending.append((grid, hg, wg))
 
     def lookup(self, ts: np.ndarray) -> np.ndarray | None:
         """The weights (len(ts), F) of the intervals starting at ``ts``; None if any is
         unknown (the accumulator then keeps the stationary walk)."""
+        self._flush()
+        i = np.searchsorted(self.t, ts)
+        if len(ts) and (i[-1] >= len(self.t) or not np.array_equal(self.t[i], ts)):
+            return None
+        return self.f[i]
+
+    def mean(self, lo: float, hi: float) -> np.ndarray | None:
+        """The time-weighted mean weights (F,) of the intervals starting in ``[lo, hi)`` [s]
+        (each counted up to the next start or ``hi``); None without any."""
+        self._flush()
+        a, b = np.searchsorted(self.t, [lo, hi], side='left')
+        if b <= a:
+            return None
+        ends = np.append(self.t[a + 1:b + 1], hi)[:b - a]      # the next start, or hi
+        dt = np.minimum(ends, hi) - self.t[a:b]                 # > 0: every start < hi
+        return (dt @ self.f[a:b]) / float(np.sum(dt))
+
+    def _flush(self) -> None:
+        """Turn the pending runs into weights (one :func:`interval_features` call)."""
         if self._pending:
             runs, self._pending = self._pending, []
             grid = np.concatenate([r[0] for r in runs])
@@ -99,10 +136,6 @@ class FeatureStore:
             keep[seams] = False
             self.t = np.concatenate([self.t, grid[:-1][keep]])
             self.f = np.concatenate([self.f, f[keep]])
-        i = np.searchsorted(self.t, ts)
-        if len(ts) and (i[-1] >= len(self.t) or not np.array_equal(self.t[i], ts)):
-            return None
-        return self.f[i]
 
 
 class WalkSums:

@@ -34,18 +34,21 @@ the inputs corrected by the posterior mean and adds ``D cov_u D'``
 """
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
 
 from .._validate import as_sample_block, require_after
+from ..tensor import theta_to_matrix
 from .align import OnlineAligner, gap_starts, hermite, run_slopes
 from .config import require, substitutions
+from .fit import walk_bases
 from .momentum import Momentum, held_over, interval_torque, walk_sums, walk_variance
 from .noise import StreamingNoise
 from .online_stated import StatedInputs
-from .online_walk import FeatureStore, walk_model
+from .online_walk import FeatureStore, walk_deviation, walk_model
 from .options import HOLDS
 from .recursive import RecursiveEstimator
 from .regressors import gyroscopic_matrix, momentum_matrix
@@ -496,11 +499,13 @@ class MomentumTrackingEstimator(MomentumInput, TrackingEstimator):
     filter's torque stream, and its noise the filter's: the momentum samples' own white noise
     in every equation (added to ``R``; the filter's momentum is the body's less the anchor
     sample's momentum error, so the errors do not walk) and the equivalent torque's white
-    noise in the momentum's walk.  The stated inputs (``names``; ``torque_scale`` of the
-    other torque; ``gyro_scale``) are filter states with the prior N(0, 1) [stated sigmas],
-    never forgotten: their one-sigma changes of the impulse are columns of the equations (the
-    gyro scale's linearised at the current tensor, as :mod:`.online_stated`'s), so the
-    covariance carries them, whole (``diagnostics['input_uncertainty']``).
+    noise in the momentum's walk, each block's from its grid intervals' ``n x h`` and ``w x
+    e`` walks as the batch weights them (:meth:`_block_walk`).  The stated inputs
+    (``names``; ``torque_scale`` of the other torque; ``gyro_scale``) are filter states with
+    the prior N(0, 1) [stated sigmas], never forgotten: their one-sigma changes of the
+    impulse are columns of the equations (the gyro scale's linearised at the current tensor,
+    as :mod:`.online_stated`'s), so the covariance carries them, whole
+    (``diagnostics['input_uncertainty']``).
 
     Parameters
     ----------
@@ -532,6 +537,43 @@ class MomentumTrackingEstimator(MomentumInput, TrackingEstimator):
         return HoldChoice(MomentumTrackingEstimator(**self._mconfig, hold='linear'),
                           self.torque_bias, self._config['gyro_noise'], judge)
 
+    def reset(self) -> None:
+        """Forget everything (also the grid intervals' walk weights)."""
+        super().reset()
+        self._features = FeatureStore()
+        self._walk_levels: tuple[np.ndarray, np.ndarray] | None = None
+        self._walk_bases: tuple[float, np.ndarray | None] = (math.nan, None)  # (at, bases)
+
+    def _walk_intervals(self, grid: np.ndarray, hg: np.ndarray, wg: np.ndarray) -> None:
+        """Keep the grid intervals' walk weights (:func:`.online_walk.interval_features`)
+        for the blocks' walk (:meth:`_block_walk`), from the first anchor still to come."""
+        warm = self._warm
+        keep = (self._prev[0] if self._prev is not None else None) if warm is None else (
+            float(warm[0][0][0]) if warm else None)
+        self._features.add(grid, hg, wg, keep)
+
+    def _block_walk(self, start: float, end: float) -> np.ndarray:
+        """The block's momentum variance rate (3, 3) [N^2 m^2 s]: the stationary one with the
+        momentum input's record-mean walk (in the torque noise variance) replaced by the walk
+        of the block's grid intervals, as the batch and the recursive estimator weight it
+        (:func:`.online_walk.walk_deviation`: ``n x h`` and ``w x e`` follow ``|h(t)|`` and
+        ``|w(t)|``; with the record mean the products' RMS z read 1.2-1.9, issue 27,
+        ``scripts/measure/wheels_node_z.py``)."""
+        f = self._features.mean(start, end)
+        if f is None or self._walk_levels is None or self._tdt <= 0:
+            return self._walk_rate
+        if self._walk_bases[0] != self._R_at:      # with the weights (:meth:`_cached`)
+            I = theta_to_matrix(self.basis @ self.x[:self.k], check_finite=False)
+            q = len(self._walk_levels[1])            # the batch's fifteen weights
+            self._walk_bases = (self._R_at, walk_bases(q, I, self._nv_R, self._gdt, self._tdt)
+                                if np.all(np.isfinite(I)) else None)
+        if self._walk_bases[1] is None:
+            return self._walk_rate
+        W = self._walk_rate + self._tdt * walk_deviation(f, self._walk_levels,
+                                                         self._walk_bases[1])
+        lam, V = np.linalg.eigh(0.5 * (W + W.T))   # a covariance rate: never negative
+        return (V * np.maximum(lam, 0.0)) @ V.T
+
     def _take(self, grid: np.ndarray, tau: np.ndarray, alt: np.ndarray | None,
               x: np.ndarray | None, t_in: np.ndarray, w_in: np.ndarray) -> None:
         """One reduced run: the equivalent torque (and the stated columns) held from
@@ -560,6 +602,8 @@ class MomentumTrackingEstimator(MomentumInput, TrackingEstimator):
         tdt = float(np.median(self._tq_dts)) if len(self._tq_dts) else 0.0
         if self._noise_at == self.samples_used and self._walk_n and tdt > 0:
             self._tv, self._white_y_cov = self._reduced_noise(tdt)
+            # the levels the blocks' walk is read at, with the record mean _tv holds
+            self._walk_levels = walk_model(*self._walk_terms())
 
     def _u_columns(self, w: np.ndarray, m: np.ndarray, S: np.ndarray) -> np.ndarray:
         """The stated inputs' columns (3, nu) of a block's equation: ``-S_j`` (the block

@@ -424,8 +424,8 @@ class TrackingEstimator(StreamInput, StateOutput):
         of its regressors over the block, and averages the gyro noise out of the regressor
         (errors in variables) before it can bias the update.
         """
-        R, nv = self._cached()
         s, ws = self._prev
+        R, nv = self._cached(float(t[-1]))         # and self._walk: the block's
         tt = np.concatenate([[s], t])
         M = cumulative_monomials(tt, np.vstack([ws, w]), nv, end_correction=False)
         T = self._cum(tt)

@@ -175,20 +175,30 @@ class StreamInput:
         if j > 0:
             self._ts, self._tau = self._ts[j:], self._tau[j:]
 
-    def _cached(self) -> tuple[np.ndarray, np.ndarray]:
+    def _cached(self, end: float | None = None) -> tuple[np.ndarray, np.ndarray]:
         """The weights ``R`` and the gyro variance, re-derived (with the momentum's walk and
         the nominal sample intervals) every :data:`_REFRESH` s of data or when the weights'
-        tensor was set: they move slowly, and deriving them costs more than a block."""
+        tensor was set: they move slowly, and deriving them costs more than a block.  With
+        ``end`` [s], the block from the anchor to ``end`` is next: ``self._walk`` becomes its
+        walk (:meth:`_block_walk`)."""
         t = self._prev[0]
         if self._R is None or t - self._R_at >= _REFRESH or self._R_for is not self._R_theta:
             self._R, self._nv_R = self._weight()
             self._R_at, self._R_for = t, self._R_theta
             self._gdt = float(np.median(self._g_dts)) if len(self._g_dts) else 0.0
             self._tdt = float(np.median(self._tq_dts)) if len(self._tq_dts) else 0.0
-            self._walk = self._momentum_walk(self._nv_R)
+            self._walk_rate = self._momentum_walk(self._nv_R)
             E = momentum_matrix(np.eye(3)) @ self.basis           # (3, 3, k): L(e_c) T
             self._B = np.einsum('c,cik,ij,cjl->kl', self._nv_R, E, np.linalg.inv(self._R), E)
+        self._walk = self._walk_rate if end is None else self._block_walk(t, end)
         return self._R, self._nv_R
+
+    def _block_walk(self, start: float, end: float) -> np.ndarray:
+        """The momentum's variance rate [N^2 m^2 s] (3, 3) over the block from ``start`` to
+        ``end`` [s]: here the stationary one (:meth:`_momentum_walk`); a momentum input's
+        follows its ``|h(t)|`` and ``|w(t)|`` (:class:`.recursive_momentum.
+        MomentumTrackingEstimator`)."""
+        return self._walk_rate
 
     def _momentum_walk(self, nv: np.ndarray) -> np.ndarray:
         """Variance rate of the momentum [N^2 m^2 s]: integrated torque noise and the gyro
