@@ -71,8 +71,8 @@ WIDEN_FROM = 0.1
 COV_RESOLUTION = 0.15
 
 __all__ = ['COV_RESOLUTION', 'MAX_WIDENING', 'WIDEN_ALPHA', 'WIDEN_FROM', 'Adequacy',
-           'bias_split', 'check_adequacy', 'segment_shift', 'widening', 'widening_weight',
-           'window_consistency']
+           'bias_split', 'check_adequacy', 'partial_widening', 'segment_shift', 'widening',
+           'widening_weight', 'window_consistency']
 
 
 @dataclass(frozen=True)
@@ -400,7 +400,7 @@ def check_adequacy(thetas: np.ndarray, covs: np.ndarray, t_mid: np.ndarray, exce
         chi2 / dof if dof > 0 else 1.0, len(thetas),
         max(s_chi2 / s_dof if s_dof > 0 else 1.0, b_chi2 / b_dof if b_dof > 0 else 1.0),
         excess, change_at is not None and not ok)
-    factor = 1.0 + weight * (factor - 1.0)
+    factor = partial_widening(weight, factor)
     benign = benign or ok
     return Adequacy(ok=ok, chi2=chi2, dof=dof, p_value=pval, windows=len(thetas),
                     excess=excess, inflation=float(factor), change_at=change_at,
@@ -428,6 +428,12 @@ def widening_weight(p: float) -> float:
     if p >= WIDEN_FROM:
         return 0.0
     return math.log(p / WIDEN_FROM) / math.log(WIDEN_ALPHA / WIDEN_FROM)
+
+
+def partial_widening(weight: float, factor: float) -> float:
+    """The share ``weight`` (:func:`widening_weight`) of a covariance factor ``factor`` (>= 1)
+    taken: ``1 + weight (factor - 1)``."""
+    return 1.0 + weight * (factor - 1.0)
 
 
 def widening(window_ratio: float, windows: int, shift_ratio: float, excess: float,

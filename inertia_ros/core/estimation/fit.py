@@ -255,12 +255,10 @@ def fit_weighted(st: SufficientStats, basis: np.ndarray, bias: bool, W: np.ndarr
         theta = basis @ beta[:k] + (0.0 if offset is None else offset) \
             if noise_theta is None else noise_theta
         meat, excess = _anchored_meat(st, T, p, W, G, c, theta, gyro_var, torque_var)
+        if compensate:
+            meat[:k, :k] += st.n_eff * (basis.T @ eiv_swap(st.eiv_var, W, theta) @ basis)
     else:
         meat, excess = _hac_meat(st, T, p, W, c), 1.0
-    if compensate and st.kind == 'anchored':
-        theta6 = basis @ beta[:k] + (0.0 if offset is None else offset) \
-            if noise_theta is None else noise_theta
-        meat[:k, :k] += st.n_eff * (basis.T @ eiv_swap(st.eiv_var, W, theta6) @ basis)
     cov = Hinv @ meat @ Hinv.T
     cov = 0.5 * (cov + cov.T) * max(excess, 1.0)
     dof = max(st.n_eff - p, 1)

@@ -378,17 +378,19 @@ class MomentumInput:
             return 1.0
         return max(1.0, float(np.median(self._m_dt)) / self._gyro_dt())
 
-    def _reduced_noise(self, tau_dt: float) -> tuple[np.ndarray, np.ndarray]:
+    def _reduced_noise(self, tau_dt: float
+                       ) -> tuple[np.ndarray, np.ndarray, tuple[np.ndarray, np.ndarray]]:
         """The equivalent torque's white-noise variance (3,) [N^2 m^2] on grid intervals of
-        ``tau_dt`` [s] (the batch's) and the white noise (3, 3) [N^2 m^2 s^2] of each
+        ``tau_dt`` [s] (the batch's), the white noise (3, 3) [N^2 m^2 s^2] of each
         equation's right-hand side (the momentum samples' own, shared by ``share`` gyro
-        samples)."""
+        samples) and the walk's levels per grid interval at the same noise levels
+        (:func:`.online_walk.walk_model`)."""
         gv, cov, share, mean = self._walk_terms()
         var = np.zeros(3)
         for nv, dts in ((self._o_noise, self._o_dt), (self._tr_noise, self._m_dt)):
             if nv.known() and dts:
                 var = var + nv.variance() * float(np.median(dts)) / tau_dt
-        return var + mean, cov * share
+        return var + mean, cov * share, walk_model(gv, cov, share, mean)
 
     def _walk_terms(self) -> tuple[np.ndarray, np.ndarray, float, np.ndarray]:
         """The walk's noise levels: the gyro variance (3,) [rad^2/s^2], the momentum
@@ -467,9 +469,7 @@ class MomentumRecursiveEstimator(MomentumInput, RecursiveEstimator):
         """The equivalent torque's white-noise variance (3,) [N^2 m^2], as the batch's."""
         if self._walk_n == 0 or self._align.tau_dt <= 0:
             return None
-        var, self._white_y_cov = self._reduced_noise(self._align.tau_dt)
-        gv, cov, share, mean = self._walk_terms()
-        model = walk_model(gv, cov, share, mean)
+        var, self._white_y_cov, model = self._reduced_noise(self._align.tau_dt)
         for acc in self._accs.values():
             acc.walk_model = model
         return var
@@ -601,9 +601,8 @@ class MomentumTrackingEstimator(MomentumInput, TrackingEstimator):
         super()._refresh_noise()
         tdt = float(np.median(self._tq_dts)) if len(self._tq_dts) else 0.0
         if self._noise_at == self.samples_used and self._walk_n and tdt > 0:
-            self._tv, self._white_y_cov = self._reduced_noise(tdt)
-            # the levels the blocks' walk is read at, with the record mean _tv holds
-            self._walk_levels = walk_model(*self._walk_terms())
+            # and the levels the blocks' walk is read at, with the record mean _tv holds
+            self._tv, self._white_y_cov, self._walk_levels = self._reduced_noise(tdt)
 
     def _u_columns(self, w: np.ndarray, m: np.ndarray, S: np.ndarray) -> np.ndarray:
         """The stated inputs' columns (3, nu) of a block's equation: ``-S_j`` (the block

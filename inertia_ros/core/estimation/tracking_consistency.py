@@ -53,7 +53,7 @@ from typing import Any
 
 import numpy as np
 
-from .adequacy import widening_weight
+from .adequacy import partial_widening, widening_weight
 from .options import ALPHA
 
 __all__ = ['LAGS', 'MIN_BLOCKS', 'SKIP_S', 'InnovationTests', 'fault_torque']
@@ -98,14 +98,13 @@ def _suspect_widening(tests: dict[str, tuple[float, int]]) -> float:
     """The covariance factor of tests that passed but are suspect: the batch's rule
     (:func:`.adequacy.widening_weight`): the largest chi2 per dof of the deciding tests, in
     full when one is below :data:`.adequacy.WIDEN_ALPHA`, in part up to
-    :data:`.adequacy.WIDEN_FROM`.  A 0.002 rad/s gyro bias over 5 s (seed 8: fault score p
+    :data:`.adequacy.WIDEN_FROM`.  A 0.01 rad/s gyro bias over 5 s (seed 8: fault score p
     0.035, too few blocks for any test at the level) was ok at |z| 5.05 unwidened."""
     deciding = {k: v for k, v in tests.items() if k != 'whiteness' and v[1] > 0}
     if not deciding:
         return 1.0
     weight = widening_weight(min(_chi2_sf(c, d) for c, d in deciding.values()))
-    factor = max([1.0, *(c / d for c, d in deciding.values())])
-    return 1.0 + weight * (factor - 1.0)
+    return partial_widening(weight, max([1.0, *(c / d for c, d in deciding.values())]))
 
 
 class InnovationTests:
