@@ -14,7 +14,7 @@ benchmark's constant-torque case (the torque bias is inseparable from the scale 
 left out), the smallest p-value of the adequacy tests of each record: how many fall below
 0.05, 0.01 and 1e-3 (a rule on them would cry wolf that often).
 """
-import sys
+import argparse
 
 import numpy as np
 
@@ -41,8 +41,14 @@ def _constant(n: int, duration: float) -> None:
 
 
 def main() -> None:
-    mode, n = sys.argv[1], int(sys.argv[2])
-    duration = float(sys.argv[3]) if len(sys.argv) > 3 else 5.0
+    ap = argparse.ArgumentParser(description=__doc__.split('\n')[0])
+    ap.add_argument('mode', choices=('split', 'defaults', 'constant'))
+    ap.add_argument('seeds', type=int, help='records (seeds 0..SEEDS-1)')
+    ap.add_argument('duration', type=float, nargs='?', default=5.0, help='[s] (5)')
+    args = ap.parse_args()
+    mode, n, duration = args.mode, args.seeds, args.duration
+    if n < 1 or not duration > 0:
+        ap.error(f'seeds must be >= 1 and duration > 0, got {n} and {duration}')
     if mode == 'constant':
         _constant(n, duration)
         return

@@ -10,7 +10,7 @@ have its p below 0.05 and the smallest p, and the per-element RMS z of the noise
 gyroscopic integral is end-corrected: without noise the estimate is within 0.1 ppm at 200 Hz
 and 1 kHz, so a rate effect here is not a discretisation bias.)
 """
-import sys
+import argparse
 
 import numpy as np
 
@@ -20,8 +20,14 @@ from inertia_ros.core.estimation import estimate
 
 
 def main() -> None:
-    n, rate = int(sys.argv[1]), int(sys.argv[2])
-    substeps = int(sys.argv[3]) if len(sys.argv) > 3 else 4
+    ap = argparse.ArgumentParser(description=__doc__.split('\n')[0])
+    ap.add_argument('seeds', type=int, help='records (seeds 0..SEEDS-1)')
+    ap.add_argument('gyro_rate', type=int, help='[Hz]')
+    ap.add_argument('substeps', type=int, nargs='?', default=4, help='simulator steps per sample (4)')
+    args = ap.parse_args()
+    n, rate, substeps = args.seeds, args.gyro_rate, args.substeps
+    if min(n, rate, substeps) < 1:
+        ap.error(f'seeds, gyro_rate and substeps must be >= 1, got {n}, {rate}, {substeps}')
     truth = CASES['constant'].truth.with_(duration=20.0, gyro_rate=rate, substeps=substeps)
     iu = np.triu_indices(3)
     ratios, ps, zs = [], [], []
