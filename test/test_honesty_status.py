@@ -298,3 +298,21 @@ def test_node_hold_chosen_by_adequacy_says_so() -> None:
     sel = e.diagnostics['hold_selection']
     assert e.status == 'ok' and sel['chosen'] == 'linear' and sel['p_value'] >= 0.05, sel
     assert sel['adequacy']['zoh_ok'] is False and sel['adequacy']['linear_ok'] is True, sel
+
+
+def test_tracker_after_an_untested_change_is_not_ok_far() -> None:
+    """The node's tracker (its defaults, fed in 0.1 s blocks) on the 5 s disturbance records
+    10 and 13: each detected a "change" late, too late for any innovation test, and the
+    recent change excused an innovation excess of 5.3 and 2.9: ok at |z| 8.4 (izz 87 % off)
+    and 10.1.  Where no test vouches, the excess decides: not ok with |z| > 5."""
+    from inertia_ros.bench.honesty import CASES, feed_online
+    from inertia_ros.bench.truth_sim import simulate_truth
+    from inertia_ros.core.estimation.tracking import TrackingEstimator
+    iu = np.triu_indices(3)
+    for rec in simulate_truth(CASES['disturbance'].truth.with_(duration=5.0), [10, 13]):
+        e = feed_online(TrackingEstimator(window=10.0, model='full', torque_bias='auto',
+                                          hold='auto'), rec, 10.0)
+        if e.status != 'ok':
+            continue
+        z = ((e.inertia - rec.inertia) / e.inertia_std)[iu]
+        assert np.nanmax(np.abs(z)) <= 5.0, (e.status, np.round(z, 1))

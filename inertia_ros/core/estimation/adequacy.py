@@ -31,12 +31,13 @@ Residual excess
 
 Status and widening.  What the tests saw widens the covariance by one rule, :func:`widening`
 (the window scatter and the bias split's scatter, each taken as a systematic error that does
-not average out, the segment shift's chi2 per dof, the residual excess: the largest), in full when a test
-failed at :data:`.options.ADEQUACY_ALPHA` or any test is below :data:`WIDEN_ALPHA`, not at all
-when every test is above :data:`WIDEN_FROM`, and between the two in proportion to
-``log p`` (:func:`widening_weight`): no step at a level.  A mismatch needing at most
-:data:`MAX_WIDENING` (sigma x 2), without a located step, is benign: ``ok`` with the widened
-sigma and a warning saying by how much and why.  A failed test that needs more, or a step
+not average out, the segment shift's chi2 per dof, the residual excess: the largest), in
+full when a test failed at :data:`.options.ADEQUACY_ALPHA` or any test is below
+:data:`WIDEN_ALPHA`, not at all when every test is above :data:`WIDEN_FROM`, and between the
+two in proportion to ``log p`` (:func:`widening_weight`): no step at a level.  A failed test
+whose mismatch needs at most :data:`MAX_WIDENING` (sigma x 2), without a located step, is
+benign: ``ok`` with the widened sigma and a warning saying by how much and why (a test that
+did not fail keeps ``ok`` whatever the widening).  A failed test that needs more, or a step
 change, is ``model_mismatch``: the estimate is still reported with the widened covariance
 and the reason names the likely cause.
 """

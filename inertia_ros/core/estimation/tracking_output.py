@@ -155,12 +155,18 @@ class StateOutput:
         near = [c for c in self.changes if self._prev[0] - c < 4.0 * EXCESS_TIME]
         recent = bool(near) and self._prev[0] - near[-1] < 2.0 * EXCESS_TIME and len(near) < 3
         status, widen = 'ok', 1.0
-        if self._excess > MAX_RESIDUAL_EXCESS and not recent:
+        verdict = self._tests.verdict()
+        # a recent change excuses the excess only where the tests run (no considered inputs)
+        # and one vouches for the record (else the disturbance case's 5 s seed 10 was ok at
+        # |z| 8.4 with izz 87 % off after two changes, no test yet)
+        untested = verdict is None and self.nu == self._learnt
+        if self._excess > MAX_RESIDUAL_EXCESS and (not recent or untested):
             status, widen = 'model_mismatch', self._excess
             cov = cov * widen
             diag['reason'] = (f'the model does not explain the data: the innovations are '
-                              f'{self._excess:.3g} times the noise model')
-        verdict = self._tests.verdict()
+                              f'{self._excess:.3g} times the noise model' + (
+                                  f' since a change detected at {near[-1]:.1f} s, which no '
+                                  'test could check yet' if recent else ''))
         if verdict is not None:
             diag['adequacy'] = verdict = dict(verdict)
             if not verdict['ok'] and status == 'ok':
