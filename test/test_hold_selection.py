@@ -19,7 +19,7 @@ import pytest
 
 from inertia_ros.bench.truth_sim import TruthCase, simulate_truth
 from inertia_ros.core.estimation import estimate
-from inertia_ros.core.estimation.batch import _hold_by_adequacy
+from inertia_ros.core.estimation.hold_choice import hold_by_adequacy
 from inertia_ros.core.estimation.selection import HOLD_ALPHA, select_hold
 from inertia_ros.core.inertia import matrix_to_theta
 
@@ -87,12 +87,12 @@ def test_adequacy_decides_when_the_likelihoods_cannot() -> None:
     for lin_ok, want in ((True, 'linear'), (False, 'zoh')):
         lin = est(lin_ok)
         record: dict = {}
-        chosen, got = _hold_by_adequacy(lambda *a, lin=lin, **k: lin, {'linear': est(True)},
+        chosen, got = hold_by_adequacy(lambda *a, lin=lin, **k: lin, {'linear': est(True)},
                                         held, record)
         assert chosen == want and got is (lin if lin_ok else held)
         assert record['adequacy']['zoh_ok'] is False and record['adequacy']['linear_ok'] is lin_ok
     adequate = est(True)           # the held fit passes: linear is not even run
-    assert _hold_by_adequacy(None, {}, adequate, {}) == ('zoh', adequate)
+    assert hold_by_adequacy(None, {}, adequate, {}) == ('zoh', adequate)
 
 
 def test_held_torque_keeps_zoh_and_ml() -> None:

@@ -93,9 +93,10 @@ from . import refits
 from .adequacy import Adequacy
 from .assemble import conclude, status_only
 from .config import unapplied
-from .equations import Equations, build_equations, is_prefix, shared_integral_equations
+from .equations import Equations, build_equations, shared_integral_equations
 from .filtered import equations_for
-from .fit import Fit, equation_weight, fit_two_pass
+from .fit import Fit, fit_two_pass
+from .hold_choice import auto_hold, coverage
 from .homogeneous import is_torque_free, torque_free_checked
 from .model import model_basis
 from .model import symmetry_axis as unit_axis
@@ -105,7 +106,6 @@ from .options import (
     ALPHA,
     BATCH_HOLDS,
     GAP_FACTOR,
-    HOLDS,
     IDENTIFIABILITY_TOL,
     MAX_RESIDUAL_EXCESS,
     METHODS,
@@ -117,8 +117,8 @@ from .options import (
     check_choice,
 )
 from .result import InertiaEstimate
-from .selection import HOLD_ALPHA, SelectionPolicy, hold_rule, select_hold
-from .statistics import segment_rss, sufficient_stats
+from .selection import SelectionPolicy
+from .statistics import sufficient_stats
 from .uncertainty import principal_with_std, ratio_cov
 
 __all__ = ['BATCH_HOLDS', 'METHODS', 'ML_AUTO_MAX_SAMPLES', 'MODELS', 'TORQUE_BIAS', 'estimate',
@@ -129,8 +129,6 @@ _HOLD_PREFIX_FROM = 300_000                    # gyro samples from which holds a
                                                # the first _SELECT_MAX_ROWS only
 _SEGMENT_CANDIDATES = (5.0, 10.0, 20.0, 40.0)   # s, anchored-segment lengths tried
 _EIV_MAX_SHARE = 0.02                          # differentiated-gyro noise share tolerated
-_HOLD_WINDOWS = 16                             # windows of the hold comparison (at most)
-_HOLD_MIN_ROWS = 25                            # equations per window (at least)
 
 
 @nuisance_hook
@@ -317,152 +315,9 @@ def _estimate_direct(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray,
                                  final, chosen, shared)
     if hold != 'auto':
         return run(hold, final=final)
-    return _auto_hold(run, torque_std, len(tg), (tg - t_origin, w, ts - t_origin, tau,
-                                                  gyro_std ** 2, torque_std ** 2))
-
-
-def _auto_hold(run: Any, torque_std: np.ndarray, n_gyro: int,
-               data: tuple[np.ndarray, ...]) -> InertiaEstimate:
-    """``hold='auto'``: both holds, the one the data support (:func:`.selection.select_hold`).
-
-    A held command (zero-order hold) and a torque that varies continuously between its
-    samples (linear) give the same number of parameters and are not nested: a Vuong test on
-    the per-window likelihood differences of the two whole-record fits decides
-    (:func:`_hold_window_rss`); when the likelihoods cannot tell, the adequacy tests may
-    (:func:`_hold_by_adequacy`), and otherwise the held model, which ``ml`` refines, stays.
-    Torque-free data need no choice (``zoh``).  Records over :data:`_HOLD_PREFIX_FROM` gyro
-    samples are compared on their first :data:`_SELECT_MAX_ROWS` (how the torque behaves
-    between its samples is a property of its source, not of the record length), and only
-    the chosen hold runs on the whole record.
-    ``data``: ``(tg, w, ts, tau, gyro_var, torque_var)``, origin-shifted.
-    """
-    head = _SELECT_MAX_ROWS if n_gyro > _HOLD_PREFIX_FROM else None
-    results = {}
-    shared: dict[str, Any] = {}          # the runs' equations (shared_integral_equations)
-    for h in HOLDS:
-        # the held result is the usual answer: complete; the linear one only when chosen, and
-        # at the held one's segment length (the same segmentation compares the holds fairly)
-        results[h] = run(h, head, final=h == 'zoh' and head is None,
-                         chosen=_segment_choice(results.get('zoh'), False), shared=shared)
-        if h == 'zoh' and (results[h].model == 'homogeneous' or not np.any(torque_std > 0)):
-            break
-    excess = {h: float(r.diagnostics.get('residual_excess', np.inf)) for h, r in
-              results.items()}
-    rss = _hold_window_rss(results, data, head, shared) if len(results) == 2 else (
-        'torque-free or noise-free torque: no choice')
-    shared.clear()                       # (the equations' memory, before another run)
-    if isinstance(rss, str):
-        chosen, record = 'zoh', {'statistic': None, 'p_value': None, 'reason': rss,
-                                 'rule': hold_rule(HOLD_ALPHA)}
-    else:
-        chosen, record = select_hold(*rss, HOLD_ALPHA)
-    est = results[chosen] if chosen == 'zoh' and head is None else run(
-        chosen, chosen=_segment_choice(results[chosen], head is not None))
-    if head is None and record.get('p_value') is not None and chosen == 'zoh' and (
-            record['p_value'] >= HOLD_ALPHA or est.status == 'model_mismatch'):
-        rec = record if record['p_value'] >= HOLD_ALPHA else {}   # (noted when it moves)
-        chosen, est = _hold_by_adequacy(run, results, est, rec)
-        record.update(rec if chosen == 'linear' else {})
-    elif head is None and chosen == 'linear' and est.status == 'model_mismatch' \
-            and results['zoh'].status == 'ok':       # (the same evidence, the other way)
-        chosen, est = 'zoh', results['zoh']
-        record['adequacy'] = {'zoh_ok': True, 'linear_ok': False}
-    est.diagnostics['hold'] = chosen
-    est.diagnostics['hold_selection'] = {'requested': 'auto', 'residual_excess': excess,
-                                         **record, 'chosen': chosen}
-    if head is not None:
-        est.diagnostics['hold_selection']['compared_on_gyro_samples'] = head
-    return est
-
-
-def _hold_by_adequacy(run: Any, results: dict[str, InertiaEstimate], held: InertiaEstimate,
-                      record: dict[str, Any]) -> tuple[str, InertiaEstimate]:
-    """The adequacy tests over the likelihoods: a hold whose fit fails them is not kept.
-
-    The held fit failing the adequacy tests (window consistency, residual excess) while the
-    linear one passes them is evidence the likelihood difference was too small to resolve
-    or misled (at 5 s it chose either hold on either torque): then ``linear``, else the
-    held result (and a linear choice that fails while the held fit passes is held).  Noted
-    in ``record``.
-    """
-    if held.diagnostics.get('adequacy', {}).get('ok', True):
-        return 'zoh', held
-    lin = run('linear', chosen=_segment_choice(results['linear'], False))
-    ok = bool(lin.diagnostics.get('adequacy', {}).get('ok', False))
-    record['adequacy'] = {'zoh_ok': False, 'linear_ok': ok,
-                          'rule': 'the likelihoods cannot tell: linear when the held fit fails '
-                                  'the adequacy tests and the linear one passes them'}
-    return ('linear', lin) if ok else ('zoh', held)
-
-
-def _hold_window_rss(results: dict[str, InertiaEstimate], data: tuple[np.ndarray, ...],
-                     head: int | None, shared: dict[str, Any] | None = None
-                     ) -> tuple[np.ndarray, np.ndarray] | str:
-    """Weighted residual sums of squares (K,) per window of the two holds' fits.
-
-    The anchored (``integral``) equations of each hold on the gyro samples both cover, cut
-    into up to :data:`_HOLD_WINDOWS` consecutive windows of at least
-    :data:`_HOLD_MIN_ROWS` equations, each anchored on its own (its own initial momentum:
-    under the noise model the windows are independent).  Every window is evaluated at each
-    hold's whole-record tensor and bias with one weight ``(I S_g I)^-1`` from the held fit's
-    tensor (the same noise model for both).  The equations are the runs' own (``shared``:
-    :func:`.equations.shared_integral_equations`) when they cover these samples, else built
-    again; the sums come from the per-equation residuals (:func:`.statistics.segment_rss`).
-    Why not, when they cannot be compared.
-    """
-    tg, w, ts, tau, gyro_var, _ = data
-    if head is not None:
-        tg, w = tg[:head], w[:head]
-    coef = {}
-    for h, r in results.items():
-        theta = r.theta
-        if theta is None or not np.all(np.isfinite(theta)):
-            return (f'the {h} fit has no complete tensor ({r.status}, undetermined elements '
-                    'are null): the holds are not compared')
-        bias = np.zeros(3) if r.torque_bias is None else np.asarray(r.torque_bias, float)
-        coef[h] = np.concatenate([-theta, -bias, [1.0]])          # [psi, d, 1] -> residual
-    W = equation_weight(-coef['zoh'][:6], gyro_var)
-    mask, _ = _coverage(tg, ts, 'linear', {'warnings': []})       # inside both coverages
-    idx = np.flatnonzero(mask)
-    if len(idx) < 8 * _HOLD_MIN_ROWS:
-        return (f'{len(idx)} gyro samples are too few for 8 windows of {_HOLD_MIN_ROWS}: the '
-                'holds are not compared')
-    breaks = (np.diff(idx) > 1) | (np.diff(tg[idx]) > GAP_FACTOR * median(np.diff(tg)))
-    n_win = min(_HOLD_WINDOWS, len(idx) // _HOLD_MIN_ROWS)
-    cuts = np.linspace(0, len(idx), n_win + 1).astype(int)
-    # every window anchored on its own, and again after every gap inside it
-    starts = np.sort(np.concatenate((cuts[:-1], np.flatnonzero(breaks) + 1)))
-    starts = starts[np.r_[True, np.diff(starts) > 0]]          # (np.union1d loads numpy.ma)
-    runs = {} if shared is None else shared.get('eqs', {})
-    rss = {}
-    for h, c in coef.items():
-        own = runs.get(h)
-        if (own is not None and own[2].weighted and len(own[0]) == len(tg)
-                and is_prefix(idx, own[1])):   # an integral run's (not integral_ls')
-            V = own[2].V[:len(idx)]              # (centred: a constant, cancelled)
-        else:
-            V = build_equations('integral', tg, w, ts, tau, mask, breaks, h, gyro_var,
-                                None).V
-        seg = segment_rss(V, starts, c, W)
-        rss[h] = np.add.reduceat(seg, np.searchsorted(starts, cuts[:-1]))
-    return rss['zoh'], rss['linear']
-
-
-def _segment_choice(est: InertiaEstimate | None, from_head: bool
-                    ) -> tuple[float | None, dict[str, Any]] | None:
-    """The segment length an earlier run chose, and its record, to reuse (or ``None``).
-
-    The search depends on the motion, not on the hold, and looks at the first
-    :data:`_SELECT_MAX_ROWS` equations only; a run on those alone (``from_head``) that chose
-    one whole segment is not reused (on the whole record that would mean one segment).
-    """
-    if est is None or 'segment_selection' not in est.diagnostics:
-        return None
-    c = est.diagnostics['segment_selection']['chosen_s']    # (the general model's length)
-    seg = None if c == 'whole' else float(c)
-    if from_head and seg is None:
-        return None
-    return seg, est.diagnostics['segment_selection']
+    head = _SELECT_MAX_ROWS if len(tg) > _HOLD_PREFIX_FROM else None
+    return auto_hold(run, torque_std, head, (tg - t_origin, w, ts - t_origin, tau,
+                                             gyro_std ** 2, torque_std ** 2))
 
 
 def _noise_levels(w: np.ndarray, tau: np.ndarray, gyro_noise: Any,
@@ -477,30 +332,6 @@ def _noise_levels(w: np.ndarray, tau: np.ndarray, gyro_noise: Any,
     torque_std = (noise_std_from_differences(tau) if torque_noise is None
                   else as_noise_std(torque_noise, 'torque_noise'))
     return gyro_std, torque_std
-
-
-def _coverage(tg: np.ndarray, ts: np.ndarray, hold: str,
-              diag: dict[str, Any]) -> tuple[np.ndarray, float]:
-    """Gyro samples (N,) bool inside the held torque's coverage and outside torque gaps.
-
-    Returns the mask and the end of the torque coverage [s]; a torque interval over
-    ``GAP_FACTOR`` median intervals is a gap (warned about in ``diag``).
-    """
-    if not len(ts):
-        return np.ones(len(tg), dtype=bool), float(tg[-1])
-    dts = np.diff(ts)
-    med_ts = median(dts)
-    tau_end = ts[-1] + (med_ts if hold == 'zoh' else 0.0)
-    mask = (tg >= ts[0]) & (tg <= tau_end)
-    gap = dts > GAP_FACTOR * med_ts
-    if np.any(gap):
-        j = np.clip(np.searchsorted(ts, tg, side='right') - 1, 0, len(ts) - 1)
-        inside_gap = gap[np.minimum(j, len(dts) - 1)] & (j < len(dts)) & (tg > ts[j])
-        mask &= ~inside_gap
-        diag['warnings'].append(f'{int(np.sum(gap))} torque gap(s) longer than '
-                                f'{GAP_FACTOR:g} sample periods: gyro samples inside them '
-                                'dropped')
-    return mask, tau_end
 
 
 def _estimate_shifted(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray,
@@ -518,7 +349,7 @@ def _estimate_shifted(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray
     ``chosen``: the segment length and its selection record from an earlier run; ``shared``:
     the equations of the other hold's run (:func:`.equations.shared_integral_equations`).
     """
-    mask, tau_end = _coverage(tg, ts, hold, diag)
+    mask, tau_end = coverage(tg, ts, hold, diag)
     used = int(np.sum(mask))
     base = dict(method=method, samples_used=used, samples_dropped=len(tg) - used)
     if used < MIN_GYRO_SAMPLES:

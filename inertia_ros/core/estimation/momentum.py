@@ -639,12 +639,12 @@ def _hold_rss(results: dict[str, Any], tg: np.ndarray, w: np.ndarray, mom: Momen
               ts: np.ndarray, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray] | str:
     """Weighted residual sums (K,) per window of each hold's anchored equations at its own
     whole-record tensor and bias (one weight, from the held fit): the batch's rule,
-    :func:`.batch._hold_window_rss`, on the equations of each hold's equivalent torque
+    :func:`.hold_choice.hold_window_rss`, on the equations of each hold's equivalent torque
     (:func:`.equations.shared_integral_equations`, the regressors built once).  Why not,
     when not."""
     from .align import gap_starts
-    from .batch import _hold_window_rss
     from .equations import shared_integral_equations
+    from .hold_choice import hold_window_rss
 
     if results['linear'] is None:
         return 'the linear fit covers too few gyro samples: the holds are not compared'
@@ -659,5 +659,5 @@ def _hold_rss(results: dict[str, Any], tg: np.ndarray, w: np.ndarray, mom: Momen
         shared_integral_equations('integral', tg - t0, w, grid - t0, tq,
                                   np.ones(len(tg), bool), breaks, 'zoh', gv, shared)
         eqs[h] = shared.pop('eqs')['zoh']
-    return _hold_window_rss(results, (tg - t0, w, np.zeros(0), np.zeros((0, 3)), gv, None),
+    return hold_window_rss(results, (tg - t0, w, np.zeros(0), np.zeros((0, 3)), gv, None),
                             None, {'eqs': eqs})

@@ -41,10 +41,10 @@ from .selection import HOLD_ALPHA, hold_rule, select_hold
 __all__ = ['HOLD_MAX_WINDOWS', 'HOLD_MIN_ROWS', 'AutoHold', 'HoldWindows', 'choose_hold',
            'linear_integral']
 
-#: Rows of a window at the start (the batch's ``_HOLD_MIN_ROWS``).
+#: Rows of a window at the start (the batch's :data:`.hold_choice.HOLD_MIN_ROWS`).
 HOLD_MIN_ROWS = 25
-#: Closed windows kept (the batch's ``_HOLD_WINDOWS``); beyond, neighbours are merged in
-#: pairs (8 to 16 windows compared).
+#: Closed windows kept (the batch's :data:`.hold_choice.HOLD_WINDOWS`); beyond, neighbours
+#: are merged in pairs (8 to 16 windows compared).
 HOLD_MAX_WINDOWS = 16
 
 #: Rows :meth:`AutoHold.rows` queues before they join the windows.
@@ -282,9 +282,9 @@ class AutoHold:
         """The ``active`` hold's fit ``f`` failed the adequacy tests: fit the same parameter
         set on the other hold's statistics (``accs[h]``: :class:`.accumulator.OnlineStats`)
         and test it; when it passes, it is :attr:`preferred` from the next estimate on, over
-        the likelihoods (the batch's ``_hold_by_adequacy``).  One more fit and adequacy test,
-        only after a failed test.  ``nv``, ``tv`` (3,): gyro [rad^2/s^2] and torque
-        [N^2 m^2] noise variances; ``walk_noise`` and ``context`` as
+        the likelihoods (the batch's :func:`.hold_choice.hold_by_adequacy`).  One more fit
+        and adequacy test, only after a failed test.  ``nv``, ``tv`` (3,): gyro [rad^2/s^2]
+        and torque [N^2 m^2] noise variances; ``walk_noise`` and ``context`` as
         :meth:`.accumulator.OnlineStats.stats`.
         """
         other = 'linear' if active == 'zoh' else 'zoh'
