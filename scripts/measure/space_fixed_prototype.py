@@ -24,7 +24,7 @@ differences of each gyro / torque axis, no model involved) is added to the measu
 torque, everything (attitude included) recomputed and refitted, ``--boot`` times; the spread
 of the refits is the first-order propagation ``J Sigma J'`` of the sensor noise through this
 estimator on this record (exact for the linear parts, it needs no cluster count, which a 5 s
-record with 10 segments of 0.5 s does not have for 15 parameters).  It is the sigma of the
+record with 10 segments of 0.5 s does not have for 12 parameters).  It is the sigma of the
 noise alone, not widened for mismatch: an unmodelled torque shows as |z| >> 1, and as
 ``excess`` = RSS / (mean bootstrap RSS - RSS) >> 1 (about 1 when the model holds).  The
 regressors carry gyro noise, so OLS shrinks the moments (errors in variables); the replicates
@@ -38,24 +38,31 @@ records; s_izz: median sigma of izz; s/pkg: median over records and moments of t
 package's reported sigma (s/pkg0: / its sigma before its mismatch widening); s_d: median sigma
 of d per axis (|d| = 0.01 N m); r_bd: median |corr(b_i, d_i)| of the ``both`` model.
 Sigma check: RMS z 0.9-1.1 for every model on data it conforms to (the one-step SIMEX
-correction below removes the OLS attenuation: before it, ``both`` had mean z -0.75 on the
+correction above removes the OLS attenuation: before it, ``both`` had mean z -0.75 on the
 moments and RMS z 1.39 on the zero control).
 
-    5 s, record-long anchor   err %  RMS z  max|z|  s_izz e-3  s/pkg  s/pkg0  s_d e-3  r_bd
+    5 s, record-long anchor   err %  RMS z  max|z|  s_izz e-3  s/pkg  s/pkg0  s_d e-3  r_bd  b, d kept
     inertial  package          3.20   1.25    6.0     19.19    (35 model_mismatch, 5 ok: 4, 31, 33 at |z| 4.5, 6.0, 4.5)
               none             9.15  11.78   35.6      5.87    0.30   2.36
-              body             3.53   5.00   17.1      4.88    0.27   2.08
-              space            0.75   1.03    3.4      5.80    0.29   2.22     0.93
-              both             1.17   1.07    3.4      5.76    0.34   2.64     7.22   0.93
+              body             3.53   5.00   17.1      4.88    0.27   2.08                  40/40
+              space            0.75   1.03    3.4      5.80    0.29   2.22     0.93               40/40
+              both             1.17   1.07    3.4      5.76    0.34   2.64     7.22   0.93   3/40 39/40
+              select           0.76   1.04    3.4      5.69    0.29   2.20     (space 36, both 4)
     zero      package          0.31   1.08    3.0      2.08    (40 ok)
               none             0.82   0.89    2.8      5.90    2.84   2.85
-              body             0.74   1.01    3.5      4.87    2.67   2.70
-              space            0.69   1.03    3.5      5.60    2.67   2.77     0.93
-              both             1.17   1.05    3.4      5.53    3.08   3.18     7.14   0.92
+              body             0.74   1.01    3.5      4.87    2.67   2.70                   2/40
+              space            0.69   1.03    3.5      5.60    2.67   2.77     0.93                2/40
+              both             1.17   1.05    3.4      5.53    3.08   3.18     7.14   0.92   3/40  2/40
+              select           0.78   0.94    3.1      5.73    2.81   2.86     (none 35, both 4, body 1)
     body      package          0.36   1.03    3.2      2.35    (40 ok)
-              body             0.77   1.02    3.5      4.94    2.13   2.24
-              space            3.13   4.33   15.3      5.48    2.19   2.30     0.93
-              both             1.20   1.06    3.3      5.61    2.55   2.81     6.94   0.93
+              body             0.77   1.02    3.5      4.94    2.13   2.24                  40/40
+              space            3.13   4.33   15.3      5.48    2.19   2.30     0.93               40/40
+              both             1.20   1.06    3.3      5.61    2.55   2.81     6.94   0.93  38/40  1/40
+              select           0.77   1.01    3.5      4.94    2.12   2.23     (body 37, both 3)
+    (b, d kept: a 5 % joint Wald test of the block in that model's fit, bootstrap covariance;
+    select: ``none`` unless (b, d) jointly matter in ``both``, then the blocks that matter given
+    the other, ``both`` when neither alone does.)  Sigma per element, ``both`` / ``body`` on the
+    zero control: x1.06-1.34 (median per element); ``space`` / ``body``: x0.99-1.06.
     5 s, 1 s segments: inertial body 3.00 % RMS z 2.01, space 1.61 % 1.09, both 2.36 % 1.10
     (s_d 14.6e-3, r_bd 0.95); zero: body 1.62 % 1.10, both 2.44 % 1.12; s_izz 8.8-13.4e-3.
     10 s, record anchor: inertial package 2.76 % (9 of 9 model_mismatch), body 2.72 % RMS z
@@ -74,6 +81,7 @@ import argparse
 import numpy as np
 from honest_status import case_named  # this directory (sys.path[0] of a script)
 from scipy.spatial.transform import Rotation
+from scipy.stats import chi2
 
 from inertia_ros.bench.truth_sim import TruthCase, TruthRecord, simulate_truth
 from inertia_ros.core.estimation import estimate
@@ -170,6 +178,13 @@ def fit_record(rec: TruthRecord, segs: list[float], boot: int, rng: np.random.Ge
             full[cols] = th[0]
             sfull = np.full(12, np.nan)
             sfull[cols] = sig
+            wald = {}                   # p-value of the joint Wald test of each nuisance
+            for key, blk in (('b', [6, 7, 8]), ('d', [9, 10, 11]), ('bd', list(range(6, 12)))):
+                if all(c in cols for c in blk):
+                    j = [cols.index(c) for c in blk]
+                    v = th[0, j]
+                    wald[key] = float(chi2.sf(v @ np.linalg.solve(np.cov(th[1:, j].T), v),
+                                              len(j)))
             corr = np.nan
             if name == 'both':
                 cc = np.corrcoef(th[1:, 6:].T)
@@ -181,7 +196,7 @@ def fit_record(rec: TruthRecord, segs: list[float], boot: int, rng: np.random.Ge
                 'theta': full, 'sigma': sfull, 'z': (th[0, :6] - truth) / sig[:6],
                 'err': np.linalg.norm(I - rec.inertia_end) / np.linalg.norm(rec.inertia_end),
                 'excess': rss[0] / max(rss[1:].mean() - rss[0], 1e-300),
-                'cond': float(np.sqrt(ev[-1] / ev[0])), 'corr_bd': corr}
+                'cond': float(np.sqrt(ev[-1] / ev[0])), 'corr_bd': corr, 'wald': wald}
     e = estimate(rec.t_gyro, rec.omega, rec.t_torque, rec.torque)
     Ip, Sp = np.asarray(e.inertia), np.asarray(e.inertia_std)
     wid = ((e.diagnostics or {}).get('adequacy') or {}).get('sigma_widened_by') or 1.0
@@ -193,6 +208,22 @@ def fit_record(rec: TruthRecord, segs: list[float], boot: int, rng: np.random.Ge
 
 def seg_name(seg: float) -> str:
     return 'rec' if np.isinf(seg) else f'{seg:g}s'
+
+
+def kept(fits: list[dict], key: str) -> str:
+    """How many fits' nuisance ``key`` (b or d) a 5 % joint Wald test keeps ('' if none has it)."""
+    p = [x['wald'][key] for x in fits if key in x['wald']]
+    return f'{sum(q < 0.05 for q in p)}/{len(p)}' if p else ''
+
+
+def selected(r: dict, seg: float) -> str:
+    """The model the ``both`` fit's 5 % Wald tests choose: ``none`` unless (b, d) jointly
+    matter; then the nuisances that matter given the other, ``both`` when neither alone does."""
+    w = r[seg, 'both']['wald']
+    b, d = w['b'] < 0.05, w['d'] < 0.05
+    if w['bd'] >= 0.05:
+        return 'none'
+    return 'body' if b and not d else 'space' if d and not b else 'both'
 
 
 def summarize(res: list[dict], segs: list[float]) -> None:
@@ -208,25 +239,26 @@ def summarize(res: list[dict], segs: list[float]) -> None:
           f'{np.sqrt(np.mean(zp ** 2)):5.2f}  max|z| {np.max(np.abs(zp)):5.1f}  '
           f'sigma izz {1e3 * np.median([p["sdiag"][2] for p in pk]):6.2f}e-3  {st}  '
           f'ok with |z|>4: seeds {bad}')
-    print(f'{"seg":>4} {"model":5} {"err%":>6} {"RMSz":>6} {"max|z|":>6} {"#>4":>4} '
+    print(f'{"seg":>4} {"model":6} {"err%":>6} {"RMSz":>6} {"max|z|":>6} {"#>4":>4} '
           f'{"s_izz e-3":>9} {"s/pkg":>6} {"s/pkg0":>6} {"cond":>6} {"excess":>7} '
-          f'{"s_d e-3":>8} {"|d|/s_d":>7} {"|r_bd|":>6}')
+          f'{"s_d e-3":>8} {"|d|/s_d":>7} {"|r_bd|":>6} {"b kept":>6} {"d kept":>6}')
     for seg in segs:
-        for name in MODELS:
-            f = [r[seg, name] for r in res]
+        for name in [*MODELS, 'select']:
+            f = [r[seg, selected(r, seg) if name == 'select' else name] for r in res]
             z = np.concatenate([x['z'] for x in f])
             ratio = [x['sigma'][:3] / p['sdiag'] for x, p in zip(f, pk, strict=True)]
             ratio0 = [x['sigma'][:3] / p['sdiag'] * p['widened'] for x, p in zip(f, pk, strict=True)]
             sd = np.median([np.mean(x['sigma'][9:]) for x in f])
             dz = np.median([np.mean(np.abs(x['theta'][9:]) / x['sigma'][9:]) for x in f])
-            print(f'{seg_name(seg):>4} {name:5} {100 * np.median([x["err"] for x in f]):6.2f} '
+            print(f'{seg_name(seg):>4} {name:6} {100 * np.median([x["err"] for x in f]):6.2f} '
                   f'{np.sqrt(np.mean(z ** 2)):6.2f} {np.max(np.abs(z)):6.1f} '
                   f'{sum(np.max(np.abs(x["z"])) > 4 for x in f):4d} '
                   f'{1e3 * np.median([x["sigma"][2] for x in f]):9.2f} '
                   f'{np.median(ratio):6.2f} {np.median(ratio0):6.2f} '
                   f'{np.median([x["cond"] for x in f]):6.0f} '
                   f'{np.median([x["excess"] for x in f]):7.2f} {1e3 * sd:8.2f} {dz:7.1f} '
-                  f'{np.median([x["corr_bd"] for x in f]):6.2f}')
+                  f'{np.median([x["corr_bd"] for x in f]):6.2f} '
+                  f'{kept(f, "b"):>6} {kept(f, "d"):>6}')
 
 
 def show(res: list[dict], seeds: list[int], seg: float) -> None:
