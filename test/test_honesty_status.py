@@ -183,6 +183,21 @@ def test_short_disturbance_seed_3_is_caught() -> None:
         (o.path, o.status, np.round(o.z, 1)) for o in out]
 
 
+@pytest.mark.xfail(strict=True, reason='issue 27, session 8: disturbance 5 s seed 31 is ok at '
+                   '|z| 6.0 (API) and 15.6 (node): the body-fixed bias and the tensor absorb '
+                   'the torque fixed in space, and no test sees it (API split p 0.012, node '
+                   'split on 3 dof p 0.2, segment shift p 0.9); a space-fixed nuisance removes '
+                   'it (scripts/measure/space_fixed_prototype.py: 3.8 % -> 0.3 %)')
+def test_short_disturbance_seed_31_is_caught() -> None:
+    """The 0.01 N m disturbance fixed in space at 5 s, seed 31: not ok with |z| > 5, API and
+    node (a found defect: what would catch it is the nuisance model, not a test)."""
+    from inertia_ros.bench.honesty import CASES, HonestyCase, run_case
+    out = run_case('seed31', HonestyCase(CASES['disturbance'].truth.with_(duration=5.0)),
+                   [31], ('api', 'node'))
+    assert not [o for o in out if o.defect], [(o.path, o.status, np.round(o.z, 1))
+                                              for o in out]
+
+
 def test_bias_split_does_not_swing_with_the_noise_level() -> None:
     """The bias split's verdict is a property of the record, not of the third digit of the gyro
     noise level: on the 5 s disturbance record, seed 3, chi2 within 15 % of each other for
