@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 
 from ..tensor import THETA_NAMES, check_physical, nearest_physical, theta_to_matrix
-from .adequacy import Adequacy, split_scatter
+from .adequacy import Adequacy, split_scatter, widening_weight
 from .fit import Fit
 from .model import model_basis, parameter_names
 from .result import InertiaEstimate
@@ -35,6 +35,7 @@ from .selection import (
     SelectionPolicy,
     bias_test,
     conditioning,
+    dropped_bias_cov,
     held_by_test,
     held_leak,
     identifiable,
@@ -133,11 +134,18 @@ def _select(fit: FitFunction, f: Fit, model: str, torque_bias: str, axis: np.nda
     ``policy.model_alpha``, :func:`.selection.select_model`); returns the final fit,
     the model's name and, for a restricted model a test chose (``model='auto'``, or
     ``by_test``: an earlier test's choice reused), the covariance its held elements add
-    (:func:`.selection.held_by_test`; ``None``: a model the user stated holds them exactly)."""
+    (:func:`.selection.held_by_test`; ``None``: a model the user stated holds them exactly),
+    with that of a bias dropped on a suspect test (:func:`.selection.dropped_bias_cov`)."""
     selection: dict[str, Any] = {}
     bias_on = torque_bias == 'on'
+    dropped = None
     if torque_bias == 'auto':
+        with_bias = f
         f, bias_on, selection['bias'] = select_bias(fit, f, policy.alpha)
+        weight = 0.0 if bias_on else widening_weight(selection['bias']['p_value'])
+        if weight > 0.0:
+            dropped = dropped_bias_cov(f, with_bias, weight)
+            selection['bias']['covariance_added_weight'] = weight
     chosen = model
     if model == 'auto':
         chosen, record = select_model(f, axis, policy.model_alpha)
@@ -150,6 +158,9 @@ def _select(fit: FitFunction, f: Fit, model: str, torque_bias: str, axis: np.nda
         if model == 'auto' or by_test:
             held = held_by_test(f, full)
             selection.update(held_sigma_from='full fit', held_covariance_added=held)
+    if dropped is not None:                    # (with the held elements', for ml too)
+        held = dropped if held is None else held + dropped
+        selection['held_covariance_added'] = held
     if selection:
         diag['model_selection'] = selection
     return f, chosen, held
