@@ -112,3 +112,19 @@ def test_short_and_malformed_input() -> None:
         attitude_integral(np.array([0.0, 1.0, 0.5]), np.zeros((3, 3)))
     with pytest.raises(ValueError, match='rates'):
         attitude_integral(np.arange(3.0), np.zeros((3, 3)), np.zeros((3, 3)))
+
+
+def test_out_writes_columns_of_a_wider_array_in_place() -> None:
+    rng = np.random.default_rng(6)
+    t = np.cumsum(rng.uniform(0.004, 0.006, 50))
+    w = rng.normal(size=(50, 3))
+    V = np.full((50, 22), 7.0)
+    C = attitude_integral(t, w, out=V[:, 13:])
+    assert np.shares_memory(C, V)
+    assert np.array_equal(V[:, 13:], attitude_integral(t, w).reshape(50, 9))
+    assert np.all(V[:, :13] == 7.0)                    # the other columns untouched
+    T = np.zeros((9, 50)).T                            # a transposed view works as well
+    attitude_integral(t, w, out=T)
+    assert np.array_equal(T, V[:, 13:])
+    with pytest.raises(ValueError, match='out must be'):
+        attitude_integral(t, w, out=np.zeros((49, 9)))

@@ -93,3 +93,111 @@ def test_reference_simulator_inertial_disturbance_is_explained() -> None:
     assert rel(d) < 1e-4
     assert 0.99 < rel(0.0 * d) < 1.01
     assert 1.98 < rel(-d) < 2.02
+
+
+# --------------------------------------------------------------------------------------------
+# the integral equations and their statistics with the inertial columns (step 2b)
+# --------------------------------------------------------------------------------------------
+def _record(duration: float = 10.0, seed: int = 31) -> tuple:
+    """The disturbance scene (with its sensor noise), the gyro samples inside the torque."""
+    case = CASES['disturbance'].truth.with_(duration=duration)
+    rec = simulate_truth(case, [seed])[0]
+    return case, rec
+
+
+def _build(rec, mask: np.ndarray | None = None, inertial: bool = False,
+           hold: str = 'zoh', shared: dict | None = None):
+    from inertia_ros.core.estimation.equations import (
+        build_equations,
+        shared_integral_equations,
+    )
+    tg, w, ts, tau = rec.t_gyro, rec.omega, rec.t_torque, rec.torque
+    if mask is None:
+        mask = (tg >= ts[0]) & (tg <= ts[-1])
+    idx = np.flatnonzero(mask)
+    breaks = (np.diff(idx) > 1) | (np.diff(tg[idx]) > 5.0 * np.median(np.diff(tg)))
+    gv = np.full(3, 2e-3 ** 2)
+    if shared is not None:
+        return shared_integral_equations('integral', tg, w, ts, tau, mask, breaks, hold, gv,
+                                         shared, inertial)
+    return build_equations('integral', tg, w, ts, tau, mask, breaks, hold, gv, None,
+                           inertial=inertial)
+
+
+def test_wide_integral_equations_extend_the_narrow_ones() -> None:
+    _, rec = _record()
+    narrow, wide = _build(rec), _build(rec, inertial=True)
+    assert narrow.V.shape[1] == 13 and 'attitude' not in narrow.info
+    assert wide.V.shape == (len(narrow.V), 22)
+    assert np.array_equal(wide.V[:, :13], narrow.V)
+    t = narrow.t
+    i0 = int(np.searchsorted(rec.t_gyro, t[0]))
+    C = attitude_integral(rec.t_gyro[i0:i0 + len(t)], rec.omega[i0:i0 + len(t)])
+    assert np.array_equal(wide.V[:, 13:], C.reshape(len(t), 9))
+    assert wide.info['attitude'] == {'gaps': 0, 'bridge_error_rad': 0.0}
+
+
+def test_wide_statistics_contain_the_narrow_ones() -> None:
+    from inertia_ros.core.estimation.statistics import segment_rss, sufficient_stats
+    _, rec = _record()
+    ts, tv = rec.t_torque, np.full(3, 5e-3 ** 2)
+    for seg in (2.5, None):
+        narrow, wide = _build(rec), _build(rec, inertial=True)
+        sn = sufficient_stats(narrow, seg, ts, float(narrow.t[-1]), tv)
+        sw = sufficient_stats(wide, seg, ts, float(wide.t[-1]), tv)
+        assert sw.C.shape == (3, 3, 13, 13) and sw.CP.shape == (3, 3, 13, 13)
+        assert (sw.n, sw.n_eff, sw.n_seg) == (sn.n, sn.n_eff, sn.n_seg)
+        for a, b in ((sw.C[..., :10, :10], sn.C), (sw.CP[..., :10, :10], sn.CP)):
+            assert np.allclose(a, b, rtol=1e-10, atol=1e-12 * np.abs(b).max())
+        # the torque integral carries no torque-noise sums of its own; the inertial ones do
+        assert not np.any(sw.CP[..., 9, :]) and np.all(np.abs(sw.CP[0, 0, 10:, 10:]) > 0)
+    rng = np.random.default_rng(5)
+    c10 = rng.normal(size=10)
+    W = np.eye(3) + 0.1
+    starts = np.array([0, 700, 1500])
+    assert np.allclose(segment_rss(wide.V, starts, np.r_[c10, 0.0, 0.0, 0.0], W),
+                       segment_rss(narrow.V, starts, c10, W), rtol=1e-10, atol=0.0)
+
+
+def test_attitude_runs_over_excluded_samples_and_reports_time_gaps() -> None:
+    _, rec = _record()
+    tg = rec.t_gyro
+    mask = (tg >= rec.t_torque[0]) & (tg <= rec.t_torque[-1])
+    mask[300:340] = False                               # samples left out: the attitude goes on
+    eq = _build(rec, mask, inertial=True)
+    idx = np.flatnonzero(mask)
+    C = attitude_integral(tg[idx[0]:idx[-1] + 1], rec.omega[idx[0]:idx[-1] + 1])
+    C = C[idx - idx[0]].reshape(-1, 9)
+    k = int(np.searchsorted(idx, 340))                  # the segment after the hole ...
+    C[k:] -= C[k]                                       # ... re-anchored, as every column
+    assert np.allclose(eq.V[:, 13:], C, rtol=0.0, atol=1e-12)
+    assert eq.info['attitude']['gaps'] == 0
+    # a gyro time gap of 0.2 s: crossed at the mean rate, bounded and reported
+    keep = np.ones(len(tg), bool)
+    keep[500:540] = False
+    from dataclasses import replace
+    cut = replace(rec, t_gyro=tg[keep], omega=rec.omega[keep])
+    info = _build(cut, inertial=True).info['attitude']
+    w = rec.omega
+    bound = np.linalg.norm(w[540] - w[499]) * (tg[540] - tg[499]) / 2.0
+    assert info['gaps'] == 1 and np.isclose(info['bridge_error_rad'], bound, rtol=1e-12)
+
+
+def test_holds_share_the_inertial_columns() -> None:
+    _, rec = _record()
+    shared: dict = {}
+    held = _build(rec, inertial=True, shared=shared).V.copy()
+    linear = _build(rec, inertial=True, hold='linear', shared=shared)
+    fresh = _build(rec, inertial=True, hold='linear')
+    assert np.array_equal(linear.V, fresh.V) and linear.info == fresh.info
+    assert np.array_equal(held[:len(linear.V), 13:], linear.V[:, 13:])
+
+
+def test_inertial_columns_only_for_the_integral_methods() -> None:
+    from inertia_ros.core.estimation.equations import build_equations
+    _, rec = _record()
+    mask = np.ones(len(rec.t_gyro), bool)
+    with pytest.raises(ValueError, match='integral methods only'):
+        build_equations('integral_sliding', rec.t_gyro, rec.omega, rec.t_torque, rec.torque,
+                        mask, np.zeros(len(mask) - 1, bool), 'zoh', np.full(3, 4e-6), None,
+                        inertial=True)

@@ -113,8 +113,40 @@ def _running_product(R0: np.ndarray, E: np.ndarray) -> np.ndarray:
     return (S[:, None] @ Q).reshape(B * L, 3, 3)[:n]
 
 
+def _checked(t: np.ndarray, omega: np.ndarray, rates: np.ndarray | None,
+             out: np.ndarray | None
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None, np.ndarray]:
+    """:func:`attitude_integral`'s inputs as float arrays, the steps and the (N, 3, 3) result
+    array (zeros, or the view of ``out`` with its first row zeroed); ``ValueError`` on a
+    wrong shape or a decreasing ``t``."""
+    t = np.asarray(t, dtype=float)
+    w = np.asarray(omega, dtype=float)
+    n = len(t)
+    if t.ndim != 1 or w.shape != (n, 3):
+        raise ValueError(f'attitude_integral: t (N,) and omega (N, 3) expected, got {t.shape} '
+                         f'and {w.shape}')
+    h = np.diff(t)
+    if np.any(h < 0):
+        raise ValueError('attitude_integral: t must be non-decreasing')
+    if rates is not None:
+        rates = np.asarray(rates, dtype=float)
+        if rates.shape != (max(n - 1, 0), 3):
+            raise ValueError(f'attitude_integral: rates (N - 1, 3) = ({max(n - 1, 0)}, 3) '
+                             f'expected, got {rates.shape}')
+    if out is None:
+        C = np.zeros((n, 3, 3))
+    else:
+        C = out.reshape(n, 3, 3) if out.shape == (n, 9) else None
+        if C is None or not np.shares_memory(C, out):
+            raise ValueError(f'attitude_integral: out must be (N, 9) = ({n}, 9), viewable as '
+                             f'(N, 3, 3); got {out.shape}')
+        C[:1] = 0.0
+    return t, w, h, rates, C
+
+
 def attitude_integral(t: np.ndarray, omega: np.ndarray, rates: np.ndarray | None = None, *,
-                      rotations: bool = False, block: int = BLOCK_INTERVALS
+                      rotations: bool = False, block: int = BLOCK_INTERVALS,
+                      out: np.ndarray | None = None
                       ) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
     """``C(t_k) = int_t0^t_k R(s)' ds`` at every gyro stamp of one gap-free run.
 
@@ -135,6 +167,10 @@ def attitude_integral(t: np.ndarray, omega: np.ndarray, rates: np.ndarray | None
         Also return the rotations ``R(t_k)``.
     block : int
         Intervals per block (the result does not depend on it beyond rounding).
+    out : ndarray, shape (N, 9), optional
+        Written with ``C`` row by row (``out[k, 3 r + c] = C_k[r, c]``; may be a view, e.g.
+        nine columns of a wider array) and returned as its (N, 3, 3) view: no (N, 3, 3)
+        temporary for a long record.
 
     Returns
     -------
@@ -146,23 +182,10 @@ def attitude_integral(t: np.ndarray, omega: np.ndarray, rates: np.ndarray | None
     Raises
     ------
     ValueError
-        ``omega`` or ``rates`` of the wrong shape, or ``t`` decreasing.
+        ``omega``, ``rates`` or ``out`` of the wrong shape, or ``t`` decreasing.
     """
-    t = np.asarray(t, dtype=float)
-    w = np.asarray(omega, dtype=float)
+    t, w, h, rates, C = _checked(t, omega, rates, out)
     n = len(t)
-    if t.ndim != 1 or w.shape != (n, 3):
-        raise ValueError(f'attitude_integral: t (N,) and omega (N, 3) expected, got {t.shape} '
-                         f'and {w.shape}')
-    h = np.diff(t)
-    if np.any(h < 0):
-        raise ValueError('attitude_integral: t must be non-decreasing')
-    if rates is not None:
-        rates = np.asarray(rates, dtype=float)
-        if rates.shape != (max(n - 1, 0), 3):
-            raise ValueError(f'attitude_integral: rates (N - 1, 3) = ({max(n - 1, 0)}, 3) '
-                             f'expected, got {rates.shape}')
-    C = np.zeros((n, 3, 3))
     R = np.empty((n, 3, 3)) if rotations else None
     Rk = np.eye(3)
     if R is not None and n:
