@@ -133,3 +133,62 @@ def test_selector_places_the_inertial_parameters_after_the_bias() -> None:
     f = fit_two_pass(_stats(_records('zero')[0], True)[0], np.eye(6)[:, :3], True,
                      np.full(3, 4e-6), np.full(3, 2.5e-5), inertial=True)
     assert (f.bias_at, f.inertial_at) == (slice(3, 6), slice(6, 9)) and len(f.beta) == 9
+
+
+def _fit_function(rec):
+    """``fit(basis, bias, offset=None, theta0=None, inertial=False)`` on the record's wide
+    statistics (the signature :func:`.assemble.conclude`'s fits take)."""
+    st, gv, tv = _stats(rec, True)
+
+    def fit(basis, bias, offset=None, theta0=None, inertial=False):
+        return fit_two_pass(st, basis, bias, gv, tv, offset, theta0, inertial=inertial)
+    return fit
+
+
+def test_select_disturbance_chooses_what_the_record_holds() -> None:
+    from inertia_ros.core.estimation.selection import select_disturbance
+    chosen = {}
+    for scene in ('inertial', 'zero', 'body'):
+        recs = _records(scene)[:10]
+        chosen[scene] = [select_disturbance(_fit_function(r), 'auto', 'auto', ALPHA)[2]['chosen']
+                         for r in recs]
+    assert chosen['inertial'].count('inertial') >= 9, chosen
+    assert chosen['zero'].count('none') >= 9, chosen
+    assert chosen['body'].count('body') >= 9, chosen
+
+
+def test_select_disturbance_tests_only_what_is_auto() -> None:
+    from inertia_ros.core.estimation.selection import select_disturbance
+    fit = _fit_function(_records('inertial')[0])
+    b, d, rec = select_disturbance(fit, 'on', 'on', ALPHA)
+    assert (b, d, rec['chosen'], rec['tests']) == (True, True, 'both', {})
+    b, d, rec = select_disturbance(fit, 'off', 'off', ALPHA)
+    assert (b, d, rec['chosen'], rec['tests']) == (False, False, 'none', {})
+    b, d, rec = select_disturbance(fit, 'off', 'auto', ALPHA)
+    assert list(rec['tests']) == ['inertial'] and d and not b
+    b, d, rec = select_disturbance(fit, 'on', 'auto', ALPHA)
+    assert list(rec['tests']) == ['inertial_given_body'] and b and d
+    assert rec['tests']['inertial_given_body']['dof'] == 3
+    b, d, rec = select_disturbance(fit, 'auto', 'on', ALPHA)
+    assert list(rec['tests']) == ['body_given_inertial'] and d and not b
+    b, d, rec = select_disturbance(fit, 'auto', 'auto', ALPHA)
+    assert rec['tests']['joint']['dof'] == 6 and rec['tests']['joint']['kept']
+    assert rec['requested'] == {'torque_bias': 'auto', 'inertial_torque': 'auto'}
+
+
+def test_collinear_disturbances_jointly_needed_are_both_kept() -> None:
+    """A slow rotation leaves b and d nearly collinear: jointly significant (their difference
+    here, 1 against a sigma of 0.14 per axis), neither alone (0.5 against 1)."""
+    from inertia_ros.core.estimation.fit import Fit
+    from inertia_ros.core.estimation.selection import select_disturbance
+    beta = np.r_[np.ones(6), np.full(3, 0.5), np.full(3, -0.5)]
+    cov = np.eye(12)
+    for i in range(3):
+        cov[6 + i, 9 + i] = cov[9 + i, 6 + i] = 0.99
+    f = Fit(beta=beta, cov=cov, H=np.eye(12), H0=np.eye(12), basis=np.eye(6), bias=True,
+            resid_rms=np.ones(3), n_eq=100, inertial=True)
+    b, d, rec = select_disturbance(lambda *a, **k: f, 'auto', 'auto', ALPHA)
+    assert rec['tests']['joint']['kept']
+    assert not rec['tests']['body_given_inertial']['kept']
+    assert not rec['tests']['inertial_given_body']['kept']
+    assert (b, d, rec['chosen']) == (True, True, 'both')
