@@ -107,6 +107,7 @@ from .options import (
     BATCH_HOLDS,
     GAP_FACTOR,
     IDENTIFIABILITY_TOL,
+    INERTIAL_TORQUE,
     MAX_RESIDUAL_EXCESS,
     METHODS,
     MIN_EQUATIONS,
@@ -139,8 +140,8 @@ def estimate(t_gyro: Any, omega: Any, t_torque: Any, torque: Any, *,
              gyro_noise: Any = None, torque_noise: Any = None, segment: float | None = None,
              window: float | None = None, identifiability_tol: float = IDENTIFIABILITY_TOL,
              physical: bool = True, torque_scale_std: float = 0.0,
-             gyro_scale_std: float = 0.0, nuisance: Any = 'off', rotation_hz: float | None = None
-             ) -> InertiaEstimate:
+             gyro_scale_std: float = 0.0, nuisance: Any = 'off', rotation_hz: float | None = None,
+             inertial_torque: str = 'off') -> InertiaEstimate:
     """Estimate the inertia tensor from gyro and torque samples (Euler's equations).
 
     Parameters
@@ -185,6 +186,8 @@ def estimate(t_gyro: Any, omega: Any, t_torque: Any, torque: Any, *,
         Sensor nuisance terms, applied by :func:`.nuisance.nuisance_hook` (default ``off``).
     rotation_hz : float, optional
         Lowest rotation frequency of spinning parts [Hz] (``auto``: :mod:`.method_choice`).
+    inertial_torque : {'off', 'auto', 'on'}
+        A torque constant in inertial axes beside the bias (``integral`` methods only yet).
 
     Returns
     -------
@@ -206,7 +209,8 @@ def estimate(t_gyro: Any, omega: Any, t_torque: Any, torque: Any, *,
                            gyro_noise=gyro_noise, torque_noise=torque_noise, segment=segment,
                            window=window, identifiability_tol=identifiability_tol,
                            physical=physical, torque_scale_std=torque_scale_std,
-                           gyro_scale_std=gyro_scale_std, rotation_hz=rotation_hz)
+                           gyro_scale_std=gyro_scale_std, rotation_hz=rotation_hz,
+                           inertial_torque=inertial_torque)
 
 
 def estimate_arrays(tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.ndarray, *,
@@ -218,14 +222,16 @@ def estimate_arrays(tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.ndarr
                     torque_scale_std: float = 0.0, gyro_scale_std: float = 0.0,
                     rotation_hz: float | None = None, white_y_cov: np.ndarray | None = None,
                     final: bool = True, walk_cov: np.ndarray | None = None,
-                    walk_wh: np.ndarray | None = None) -> InertiaEstimate:
+                    walk_wh: np.ndarray | None = None,
+                    inertial_torque: str = 'off') -> InertiaEstimate:
     """:func:`estimate` on validated arrays, every input's one dispatch (a momentum input's
     equivalent held torque too, :func:`.momentum.estimate_with_momentum`): the options
     checked, the method choice, ``integral`` then the ``ml`` refinement.
 
     ``white_y_cov`` (3, 3): a momentum input's white wheel noise in ``y``, ``walk_cov`` (M, 3,
     3) and ``walk_wh`` (M, 9) its time-varying walk on the torque samples
-    (:attr:`.equations.Equations.walk_cov`); ``final=False``: a
+    (:attr:`.equations.Equations.walk_cov`); ``inertial_torque`` as :func:`estimate`'s;
+    ``final=False``: a
     method other than ``auto`` and ``ml`` without the adequacy tests (a sensitivity
     re-estimation whose tensor alone is used).
     """
@@ -235,8 +241,12 @@ def estimate_arrays(tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.ndarr
     if isinstance(torque_bias, (bool, np.bool_)):
         torque_bias = 'on' if torque_bias else 'off'
     check_choice('torque_bias', torque_bias, TORQUE_BIAS)
+    if check_choice('inertial_torque', inertial_torque, INERTIAL_TORQUE) != 'off' \
+            and method not in ('integral', 'integral_ls'):
+        raise ValueError(f"inertial_torque: needs method='integral' or 'integral_ls' (the "
+                         f"other methods have no inertial torque yet); got method={method!r}")
     policy = SelectionPolicy(alpha, identifiability_tol, physical, torque_scale_std,
-                             gyro_scale_std)
+                             gyro_scale_std, inertial_torque=inertial_torque)
     axis = unit_axis(symmetry_axis)
     if len(tg) < 6:
         raise ValueError(f't_gyro: {len(tg)} samples is fewer than the 6 inertia parameters')
@@ -365,10 +375,11 @@ def _estimate_shifted(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray
         diag['warnings'] += unapplied('batch', policy)
         return _homogeneous(method, tg, w, ts, tau, mask, breaks, hold, gyro_var,
                             segment or 10.0, window, diag, base, policy)
-    eq = (equations_for(method, tg, w, ts, tau, mask, breaks, hold, gyro_var, window)
+    wide = policy.inertial_torque != 'off'           # the inertial torque's columns
+    eq = (equations_for(method, tg, w, ts, tau, mask, breaks, hold, gyro_var, window, wide)
           if shared is None or method not in ('integral', 'integral_ls') else
           shared_integral_equations(method, tg, w, ts, tau, mask, breaks, hold, gyro_var,
-                                    shared))
+                                    shared, wide))
     wm = w[mask]
     eq.motion = (wm.T @ wm / len(wm), med_g)          # gyroscopic noise walk (fit meat)
     eq.white_y_cov, eq.walk_cov, eq.walk_wh = mom_noise   # a momentum input's noise, walk
@@ -461,14 +472,15 @@ def _statistics(eq: Equations, segment: float | None,
         return segments[b][1]
 
     def fit(basis: np.ndarray, bias: bool, offset: np.ndarray | None = None,
-            theta0: np.ndarray | None = None) -> Fit:
+            theta0: np.ndarray | None = None, inertial: bool = False) -> Fit:
         """Fit one parameter set on the statistics (weights from ``theta0`` when given)."""
         f = once[0]
         if (f is not None and offset is None and theta0 is None and bias == f.bias
-                and basis.shape == (6, 6) and np.array_equal(basis, np.eye(6))):
+                and inertial == f.inertial and np.array_equal(basis, np.eye(6))):
             once[0] = None
             return f
-        return fit_two_pass(stats(bias), basis, bias, gyro_var, torque_var, offset, theta0)
+        return fit_two_pass(stats(bias), basis, bias, gyro_var, torque_var, offset, theta0,
+                            inertial=inertial)
     return segments, fit
 
 
@@ -526,7 +538,8 @@ def _choose_segment(eq: Equations, ts: np.ndarray, tau_end: float, gyro_var: np.
                 known[cand] = st
         if st.n_eff < 3 * (6 + 3):
             continue
-        f = fit_two_pass(st, np.eye(6), bias, gyro_var, torque_var)
+        # the general model: the bias, and the inertial torque when its columns are built
+        f = fit_two_pass(st, np.eye(6), bias, gyro_var, torque_var, inertial=sub.V.shape[1] > 13)
         if tried is not None and sub is eq:
             tried[cand] = (st, f)
         scale = float(np.mean(np.abs(f.beta[:3])))

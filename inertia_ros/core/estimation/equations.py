@@ -341,7 +341,7 @@ def build_equations(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray,
     ``tg, w, ts, tau, breaks, hold`` and ``regressors`` (``integral`` and ``integral_ls``
     only) are those of :func:`integral_equations`; ``gyro_var`` (3,) the gyro white-noise
     variance [rad^2/s^2]; ``window`` the window [s] of ``integral_sliding`` and
-    ``differential_sg``.
+    ``differential_sg``; ``inertial``: the inertial-torque columns (integral methods only).
     """
     # one contiguous run of samples (the common case: all, or all but the ends outside the
     # torque's coverage): views instead of fancy-indexed copies

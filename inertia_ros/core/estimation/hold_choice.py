@@ -128,7 +128,9 @@ def hold_window_rss(results: dict[str, InertiaEstimate], data: tuple[np.ndarray,
             return (f'the {h} fit has no complete tensor ({r.status}, undetermined elements '
                     'are null): the holds are not compared')
         bias = np.zeros(3) if r.torque_bias is None else np.asarray(r.torque_bias, float)
-        coef[h] = np.concatenate([-theta, -bias, [1.0]])          # [psi, d, 1] -> residual
+        coef[h] = np.concatenate([-theta, -bias, [1.0],            # [psi, d, 1] -> residual
+                                  -np.asarray(r.diagnostics.get('inertial_torque', np.zeros(3)),
+                                              float)])          # (and d_i, wide equations)
     W = equation_weight(-coef['zoh'][:6], gyro_var)
     mask, _ = coverage(tg, ts, 'linear', {'warnings': []})       # inside both coverages
     idx = np.flatnonzero(mask)
@@ -151,7 +153,7 @@ def hold_window_rss(results: dict[str, InertiaEstimate], data: tuple[np.ndarray,
         else:
             V = build_equations('integral', tg, w, ts, tau, mask, breaks, h, gyro_var,
                                 None).V
-        seg = segment_rss(V, starts, c, W)
+        seg = segment_rss(V, starts, c if V.shape[1] > 13 else c[:10], W)
         rss[h] = np.add.reduceat(seg, np.searchsorted(starts, cuts[:-1]))
     return rss['zoh'], rss['linear']
 

@@ -80,7 +80,8 @@ def model_basis(model: str, symmetry_axis: np.ndarray | None = None) -> np.ndarr
     raise ValueError(f'model: must be one of {MODELS}, got {model!r}')
 
 
-def parameter_names(basis: np.ndarray, bias: bool, model: str) -> list[str]:
+def parameter_names(basis: np.ndarray, bias: bool, model: str,
+                    inertial: bool = False) -> list[str]:
     """Names of the fitted parameters ``[psi, d]`` of a parameter set.
 
     Parameters
@@ -91,17 +92,20 @@ def parameter_names(basis: np.ndarray, bias: bool, model: str) -> list[str]:
         Whether the torque bias is fitted.
     model : str
         ``'axisymmetric'`` names ``i_transverse, i_axial``; otherwise the elements.
+    inertial : bool
+        Whether the torque fixed in inertial axes is fitted (after the bias).
 
     Returns
     -------
     list of str
-        ``k`` (+ 3) names.
+        ``k`` (+ 3) (+ 3) names.
     """
     if model == 'axisymmetric':
         names = ['i_transverse', 'i_axial']
     else:
         names = [THETA_NAMES[int(np.argmax(basis[:, i]))] for i in range(basis.shape[1])]
-    return names + (list(BIAS_NAMES) if bias else [])
+    return names + (list(BIAS_NAMES) if bias else []) + (list(INERTIAL_NAMES) if inertial
+                                                          else [])
 
 
 def selector(basis: np.ndarray, bias: bool, offset: np.ndarray | None = None,

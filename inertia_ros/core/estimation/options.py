@@ -23,7 +23,8 @@ __all__ = ['ADEQUACY_ALPHA', 'ADEQUACY_MIN_WINDOW_S', 'ADEQUACY_WINDOWS', 'ALPHA
            'MIN_GYRO_SAMPLES', 'ML_AUTO_MAX_SAMPLES', 'MODELS', 'STATUSES', 'TORQUE_BIAS',
            'NUISANCE_EIV_SHARE', 'NUISANCE_INTERVALS_S', 'NUISANCE_MAX_DELAY_S',
            'NUISANCE_MAX_TIME_CONSTANT_S',
-           'NUISANCE_TERMS', 'TORQUE_FREE_SIGMAS', 'check_choice', 'check_nuisance']
+           'INERTIAL_TORQUE', 'NUISANCE_TERMS', 'TORQUE_FREE_SIGMAS', 'check_choice',
+           'check_nuisance']
 
 #: Batch methods (``estimate(method=...)``, ``--method``).
 METHODS: tuple[str, ...] = ('auto', 'ml', 'integral', 'integral_ls', 'integral_sliding',
@@ -32,6 +33,9 @@ METHODS: tuple[str, ...] = ('auto', 'ml', 'integral', 'integral_ls', 'integral_s
 MODELS: tuple[str, ...] = ('auto', 'full', 'diagonal', 'axisymmetric')
 #: Constant disturbance-torque choices (``torque_bias=``, ``--torque-bias``).
 TORQUE_BIAS: tuple[str, ...] = ('auto', 'on', 'off')
+#: A torque constant in inertial axes (``inertial_torque=``; :mod:`.attitude`): fitted beside
+#: the torque bias, ``auto`` by the joint Wald tests of :func:`.selection.select_disturbance`.
+INERTIAL_TORQUE: tuple[str, ...] = ('off', 'auto', 'on')
 #: How the torque is held between its samples (online estimators, the node's ``hold``).
 HOLDS: tuple[str, ...] = ('zoh', 'linear')
 #: The batch ``hold=`` / ``--hold`` choices: ``auto`` fits both and keeps the one whose

@@ -74,6 +74,9 @@ class SelectionPolicy:
     torque_scale_std, gyro_scale_std : float
         Relative one-sigma scale uncertainty of the torque and the gyro (0.01 = 1 %): a
         uniform scale error is invisible in the data, so only these inputs put it in sigma.
+    inertial_torque : {'off', 'auto', 'on'}
+        A torque constant in inertial axes beside the torque bias (wide statistics;
+        :func:`select_disturbance`).
     """
 
     alpha: float = ALPHA
@@ -82,6 +85,7 @@ class SelectionPolicy:
     torque_scale_std: float = 0.0
     gyro_scale_std: float = 0.0
     model_alpha: float = MODEL_ALPHA
+    inertial_torque: str = 'off'
 
 
 def conditioning(fit: Fit, names: list[str]) -> dict[str, Any]:
