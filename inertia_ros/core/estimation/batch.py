@@ -310,17 +310,21 @@ def _estimate_direct(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray,
 
     def run(h: str, head: int | None = None, final: bool = True,
             chosen: tuple[float | None, dict[str, Any]] | None = None,
-            shared: dict[str, Any] | None = None) -> InertiaEstimate:
+            shared: dict[str, Any] | None = None,
+            disturbance: tuple[str, str] | None = None) -> InertiaEstimate:
         """The estimate with hold ``h`` on its own copy of the diagnostics so far (on the
         first ``head`` gyro samples when given;
         without the adequacy tests, which do not change the residual excess, unless
         ``final``; with the segment length ``chosen`` by an earlier run when given; the
-        equations shared with the other hold's run through ``shared``)."""
+        equations shared with the other hold's run through ``shared``; ``disturbance``:
+        ``(torque_bias, inertial_torque)`` instead of the requested ones)."""
+        tb, pol = (torque_bias, policy) if disturbance is None else (
+            disturbance[0], replace(policy, inertial_torque=disturbance[1]))
         n = len(tg) if head is None else head
         m = len(ts) if head is None else int(np.searchsorted(ts, tg[n - 1], side='right')) + 1
         return _estimate_shifted(method, tg[:n] - t_origin, w[:n], ts[:m] - t_origin, tau[:m],
                                  h, gyro_std ** 2, torque_std ** 2, segment, window, model,
-                                 torque_bias, axis, policy,
+                                 tb, axis, pol,
                                  dict(diag, warnings=list(diag['warnings'])), mom_noise,
                                  final, chosen, shared)
     if hold != 'auto':
