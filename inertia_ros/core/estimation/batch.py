@@ -104,6 +104,7 @@ from .noise import isotropy_floor, noise_std_from_differences
 from .nuisance import nuisance_hook
 from .options import (
     ALPHA,
+    ATTITUDE_BRIDGE_RAD,
     BATCH_HOLDS,
     GAP_FACTOR,
     IDENTIFIABILITY_TOL,
@@ -379,11 +380,8 @@ def _estimate_shifted(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray
         diag['warnings'] += unapplied('batch', policy)
         return _homogeneous(method, tg, w, ts, tau, mask, breaks, hold, gyro_var,
                             segment or 10.0, window, diag, base, policy)
-    wide = policy.inertial_torque != 'off'           # the inertial torque's columns
-    eq = (equations_for(method, tg, w, ts, tau, mask, breaks, hold, gyro_var, window, wide)
-          if shared is None or method not in ('integral', 'integral_ls') else
-          shared_integral_equations(method, tg, w, ts, tau, mask, breaks, hold, gyro_var,
-                                    shared, wide))
+    eq, policy = _equations(method, (tg, w, ts, tau, mask, breaks), hold, gyro_var, window,
+                            shared, policy, diag)
     wm = w[mask]
     eq.motion = (wm.T @ wm / len(wm), med_g)          # gyroscopic noise walk (fit meat)
     eq.white_y_cov, eq.walk_cov, eq.walk_wh = mom_noise   # a momentum input's noise, walk
@@ -426,6 +424,29 @@ def _estimate_shifted(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray
         est.diagnostics['segment_s'], st = segments[False]
         est.diagnostics['segments'] = st.n_seg
     return est
+
+
+def _equations(method: str, data: tuple[np.ndarray, ...], hold: str, gyro_var: np.ndarray,
+               window: float | None, shared: dict[str, Any] | None, policy: SelectionPolicy,
+               diag: dict[str, Any]) -> tuple[Equations, SelectionPolicy]:
+    """The run's equations (``data``: ``tg, w, ts, tau, mask, breaks``; shared with the other
+    hold's run through ``shared``) and its policy: with the inertial torque allowed, its
+    columns, and the torque left out (``diag['disturbance']['skipped']``, the policy's
+    ``inertial_torque`` off) when a gyro gap is too long to carry the attitude over
+    (:data:`.options.ATTITUDE_BRIDGE_RAD`)."""
+    wide = policy.inertial_torque != 'off'           # the inertial torque's columns
+    eq = (equations_for(method, *data, hold, gyro_var, window, wide)
+          if shared is None or method not in ('integral', 'integral_ls') else
+          shared_integral_equations(method, *data, hold, gyro_var, shared, wide))
+    gap = eq.info.get('attitude', {}).get('bridge_error_rad', 0.0)
+    if gap > ATTITUDE_BRIDGE_RAD:
+        diag['disturbance'] = {
+            'requested': {'inertial_torque': policy.inertial_torque}, 'chosen': None,
+            'skipped': (f'a gyro gap is too long to carry the attitude over (error bound '
+                        f'{gap:.3g} rad > {ATTITUDE_BRIDGE_RAD:g}): the inertial torque is not '
+                        'fitted')}
+        policy = replace(policy, inertial_torque='off')
+    return eq, policy
 
 
 def _statistics(eq: Equations, segment: float | None,
