@@ -312,21 +312,24 @@ def _estimate_direct(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray,
     def run(h: str, head: int | None = None, final: bool = True,
             chosen: tuple[float | None, dict[str, Any]] | None = None,
             shared: dict[str, Any] | None = None,
-            disturbance: tuple[str, str] | None = None) -> InertiaEstimate:
+            inertial: str | None = None) -> InertiaEstimate:
         """The estimate with hold ``h`` on its own copy of the diagnostics so far (on the
         first ``head`` gyro samples when given;
         without the adequacy tests, which do not change the residual excess, unless
         ``final``; with the segment length ``chosen`` by an earlier run when given; the
-        equations shared with the other hold's run through ``shared``; ``disturbance``:
-        ``(torque_bias, inertial_torque)`` instead of the requested ones)."""
-        tb, pol = (torque_bias, policy) if disturbance is None else (
-            disturbance[0], replace(policy, inertial_torque=disturbance[1]))
+        equations shared with the other hold's run through ``shared``; ``inertial``: the
+        ``inertial_torque`` setting instead of the requested one)."""
+        pol = policy if inertial is None else replace(policy, inertial_torque=inertial)
+        own = dict(diag, warnings=list(diag['warnings']))
+        if inertial is not None:                 # (a selection on this run replaces it)
+            own['disturbance'] = {'requested': {'torque_bias': torque_bias, 'inertial_torque':
+                                                policy.inertial_torque},
+                                  'chosen': None, 'inertial_torque_of_the_held_run': inertial}
         n = len(tg) if head is None else head
         m = len(ts) if head is None else int(np.searchsorted(ts, tg[n - 1], side='right')) + 1
         return _estimate_shifted(method, tg[:n] - t_origin, w[:n], ts[:m] - t_origin, tau[:m],
                                  h, gyro_std ** 2, torque_std ** 2, segment, window, model,
-                                 tb, axis, pol,
-                                 dict(diag, warnings=list(diag['warnings'])), mom_noise,
+                                 torque_bias, axis, pol, own, mom_noise,
                                  final, chosen, shared)
     if hold != 'auto':
         return run(hold, final=final)
