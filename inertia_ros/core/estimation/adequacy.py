@@ -295,41 +295,44 @@ def bias_split(fits: Sequence[Any], k: int) -> tuple[float, int, float]:
 
     The joint fit keeps one tensor and gives each piece its own bias: the pieces'
     information and sandwich middles summed (their anchored segments do not cross), then
-    the Wald statistic of the bias differences.
+    the Wald statistic of the bias differences.  The same for any constant disturbance the
+    fits carry after the tensor (the bias and / or a torque fixed in inertial axes).
 
     Parameters
     ----------
     fits : sequence of Fit
-        Per piece (K >= 2): ``beta`` (k + 3,) = tensor parameters then the bias, its
-        information ``H`` and covariance ``cov`` (k + 3, k + 3), ``excess`` (taken out).
+        Per piece (K >= 2): ``beta`` (k + q,) = tensor parameters then the disturbance (q =
+        3 or 6), its information ``H`` and covariance ``cov`` (k + q, k + q), ``excess``
+        (taken out).
     k : int
         Tensor parameters.
 
     Returns
     -------
     chi2, dof, p_value : float, int, float
-        On ``3 (K - 1)`` dof.
+        On ``q (K - 1)`` dof.
     """
     K = len(fits)
-    n = k + 3 * K
+    q = len(fits[0].beta) - k
+    n = k + q * K
     H, g, M = np.zeros((n, n)), np.zeros(n), np.zeros((n, n))
     for i, fk in enumerate(fits):
-        A = np.zeros((k + 3, n))
+        A = np.zeros((k + q, n))
         A[:k, :k] = np.eye(k)
-        A[k:, k + 3 * i:k + 3 * i + 3] = np.eye(3)
+        A[k:, k + q * i:k + q * i + q] = np.eye(q)
         Hk = 0.5 * (fk.H + fk.H.T)
         H += A.T @ Hk @ A
         g += A.T @ Hk @ fk.beta
         M += A.T @ (Hk @ fk.cov @ Hk / max(fk.excess, 1.0)) @ A
     Hinv = np.linalg.pinv(H, rcond=1e-12, hermitian=True)
     phi, V = Hinv @ g, Hinv @ M @ Hinv
-    D = np.zeros((3 * (K - 1), n))
+    D = np.zeros((q * (K - 1), n))
     for i in range(1, K):
-        D[3 * i - 3:3 * i, k:k + 3] = -np.eye(3)
-        D[3 * i - 3:3 * i, k + 3 * i:k + 3 * i + 3] = np.eye(3)
+        D[q * i - q:q * i, k:k + q] = -np.eye(q)
+        D[q * i - q:q * i, k + q * i:k + q * i + q] = np.eye(q)
     d, Vd = D @ phi, D @ V @ D.T
     chi2 = float(d @ np.linalg.pinv(0.5 * (Vd + Vd.T), rcond=1e-12, hermitian=True) @ d)
-    return chi2, 3 * (K - 1), chi2_sf(chi2, 3 * (K - 1))
+    return chi2, q * (K - 1), chi2_sf(chi2, q * (K - 1))
 
 
 def check_adequacy(thetas: np.ndarray, covs: np.ndarray, t_mid: np.ndarray, excess: float,

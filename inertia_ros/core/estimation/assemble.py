@@ -20,6 +20,7 @@ Used by the batch estimator and the recursive one alike.
 """
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 from typing import Any
 
@@ -40,6 +41,7 @@ from .selection import (
     held_leak,
     identifiable,
     select_bias,
+    select_disturbance,
     select_model,
     undetermined,
 )
@@ -208,13 +210,18 @@ def conclude(fit: FitFunction, model: str, torque_bias: str, axis: np.ndarray | 
     -------
     InertiaEstimate
     """
+    if policy.inertial_torque != 'off':     # which disturbances, before anything else
+        keep_b, keep_i, diag['disturbance'] = select_disturbance(
+            fit, torque_bias, policy.inertial_torque, policy.alpha)
+        torque_bias = 'on' if keep_b else 'off'
+        fit = functools.partial(fit, inertial=keep_i) if keep_i else fit
     gen_bias = torque_bias != 'off'
     # ---- identifiability on the general model
     f = fit(np.eye(6), gen_bias)
     und = undetermined(f)
     if torque_bias == 'auto' and np.any(und):
         f, und, gen_bias, torque_bias = _without_inseparable_bias(fit, f, und, diag)
-    diag.update(conditioning(f, parameter_names(np.eye(6), gen_bias, 'full')))
+    diag.update(conditioning(f, parameter_names(np.eye(6), gen_bias, 'full', f.inertial)))
     none_determined = dict(diag, reason=_NONE_DETERMINED)
     if not np.any(~und[:3]):
         return status_only('insufficient_excitation', none_determined, base)
@@ -342,10 +349,14 @@ def assemble(status: str, f: Fit, model: str, free: np.ndarray, diag: dict[str, 
     k = f.basis.shape[1]
     theta = f.basis @ f.beta[:k]
     cov6 = f.basis @ f.cov[:k, :k] @ f.basis.T
-    bias_var = np.diag(f.cov)[k:]
+    bias_var = np.diag(f.cov)[k:]                  # the bias, then the inertial torque
     if held is not None:
         cov6 = cov6 + held[:6, :6]
         bias_var = bias_var + np.diag(held)[6:]
+    if f.inertial:                                 # [d_i], its std in the diagnostics
+        diag['inertial_torque'] = f.beta[f.inertial_at]
+        diag['inertial_torque_std'] = np.sqrt(np.maximum(bias_var[-3:], 0.0))
+        bias_var = bias_var[:-3]
     se = np.sqrt(np.maximum(np.diag(cov6), 0.0))
     theta = np.where(free, theta, np.nan)
     se = np.where(free, se, np.nan)
@@ -380,7 +391,7 @@ def assemble(status: str, f: Fit, model: str, free: np.ndarray, diag: dict[str, 
     bias = f.beta[k:k + 3] if f.bias else None
     if f.bias:
         diag['torque_bias_std'] = np.sqrt(np.maximum(bias_var, 0.0))
-    name = model + ('+bias' if f.bias else '')
+    name = model + ('+bias' if f.bias else '') + ('+inertial' if f.inertial else '')
     both = free[:, None] & free[None, :]
     return InertiaEstimate(status=status, inertia=I, inertia_std=I_std,
                            covariance=np.where(both, 0.5 * (cov6 + cov6.T), np.nan),

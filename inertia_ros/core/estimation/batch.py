@@ -104,9 +104,11 @@ from .noise import isotropy_floor, noise_std_from_differences
 from .nuisance import nuisance_hook
 from .options import (
     ALPHA,
+    ATTITUDE_BRIDGE_RAD,
     BATCH_HOLDS,
     GAP_FACTOR,
     IDENTIFIABILITY_TOL,
+    INERTIAL_TORQUE,
     MAX_RESIDUAL_EXCESS,
     METHODS,
     MIN_EQUATIONS,
@@ -139,8 +141,8 @@ def estimate(t_gyro: Any, omega: Any, t_torque: Any, torque: Any, *,
              gyro_noise: Any = None, torque_noise: Any = None, segment: float | None = None,
              window: float | None = None, identifiability_tol: float = IDENTIFIABILITY_TOL,
              physical: bool = True, torque_scale_std: float = 0.0,
-             gyro_scale_std: float = 0.0, nuisance: Any = 'off', rotation_hz: float | None = None
-             ) -> InertiaEstimate:
+             gyro_scale_std: float = 0.0, nuisance: Any = 'off', rotation_hz: float | None = None,
+             inertial_torque: str = 'off') -> InertiaEstimate:
     """Estimate the inertia tensor from gyro and torque samples (Euler's equations).
 
     Parameters
@@ -185,6 +187,8 @@ def estimate(t_gyro: Any, omega: Any, t_torque: Any, torque: Any, *,
         Sensor nuisance terms, applied by :func:`.nuisance.nuisance_hook` (default ``off``).
     rotation_hz : float, optional
         Lowest rotation frequency of spinning parts [Hz] (``auto``: :mod:`.method_choice`).
+    inertial_torque : {'off', 'auto', 'on'}
+        A torque constant in inertial axes beside the bias (``integral`` methods only yet).
 
     Returns
     -------
@@ -206,7 +210,8 @@ def estimate(t_gyro: Any, omega: Any, t_torque: Any, torque: Any, *,
                            gyro_noise=gyro_noise, torque_noise=torque_noise, segment=segment,
                            window=window, identifiability_tol=identifiability_tol,
                            physical=physical, torque_scale_std=torque_scale_std,
-                           gyro_scale_std=gyro_scale_std, rotation_hz=rotation_hz)
+                           gyro_scale_std=gyro_scale_std, rotation_hz=rotation_hz,
+                           inertial_torque=inertial_torque)
 
 
 def estimate_arrays(tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.ndarray, *,
@@ -218,14 +223,16 @@ def estimate_arrays(tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.ndarr
                     torque_scale_std: float = 0.0, gyro_scale_std: float = 0.0,
                     rotation_hz: float | None = None, white_y_cov: np.ndarray | None = None,
                     final: bool = True, walk_cov: np.ndarray | None = None,
-                    walk_wh: np.ndarray | None = None) -> InertiaEstimate:
+                    walk_wh: np.ndarray | None = None,
+                    inertial_torque: str = 'off') -> InertiaEstimate:
     """:func:`estimate` on validated arrays, every input's one dispatch (a momentum input's
     equivalent held torque too, :func:`.momentum.estimate_with_momentum`): the options
     checked, the method choice, ``integral`` then the ``ml`` refinement.
 
     ``white_y_cov`` (3, 3): a momentum input's white wheel noise in ``y``, ``walk_cov`` (M, 3,
     3) and ``walk_wh`` (M, 9) its time-varying walk on the torque samples
-    (:attr:`.equations.Equations.walk_cov`); ``final=False``: a
+    (:attr:`.equations.Equations.walk_cov`); ``inertial_torque`` as :func:`estimate`'s;
+    ``final=False``: a
     method other than ``auto`` and ``ml`` without the adequacy tests (a sensitivity
     re-estimation whose tensor alone is used).
     """
@@ -235,8 +242,12 @@ def estimate_arrays(tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.ndarr
     if isinstance(torque_bias, (bool, np.bool_)):
         torque_bias = 'on' if torque_bias else 'off'
     check_choice('torque_bias', torque_bias, TORQUE_BIAS)
+    if check_choice('inertial_torque', inertial_torque, INERTIAL_TORQUE) != 'off' \
+            and method not in ('integral', 'integral_ls'):
+        raise ValueError(f"inertial_torque: needs method='integral' or 'integral_ls' (the "
+                         f"other methods have no inertial torque yet); got method={method!r}")
     policy = SelectionPolicy(alpha, identifiability_tol, physical, torque_scale_std,
-                             gyro_scale_std)
+                             gyro_scale_std, inertial_torque=inertial_torque)
     axis = unit_axis(symmetry_axis)
     if len(tg) < 6:
         raise ValueError(f't_gyro: {len(tg)} samples is fewer than the 6 inertia parameters')
@@ -300,18 +311,25 @@ def _estimate_direct(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray,
 
     def run(h: str, head: int | None = None, final: bool = True,
             chosen: tuple[float | None, dict[str, Any]] | None = None,
-            shared: dict[str, Any] | None = None) -> InertiaEstimate:
+            shared: dict[str, Any] | None = None,
+            inertial: str | None = None) -> InertiaEstimate:
         """The estimate with hold ``h`` on its own copy of the diagnostics so far (on the
         first ``head`` gyro samples when given;
         without the adequacy tests, which do not change the residual excess, unless
         ``final``; with the segment length ``chosen`` by an earlier run when given; the
-        equations shared with the other hold's run through ``shared``)."""
+        equations shared with the other hold's run through ``shared``; ``inertial``: the
+        ``inertial_torque`` setting instead of the requested one)."""
+        pol = policy if inertial is None else replace(policy, inertial_torque=inertial)
+        own = dict(diag, warnings=list(diag['warnings']))
+        if inertial is not None:                 # (a selection on this run replaces it)
+            own['disturbance'] = {'requested': {'torque_bias': torque_bias, 'inertial_torque':
+                                                policy.inertial_torque},
+                                  'chosen': None, 'inertial_torque_of_the_held_run': inertial}
         n = len(tg) if head is None else head
         m = len(ts) if head is None else int(np.searchsorted(ts, tg[n - 1], side='right')) + 1
         return _estimate_shifted(method, tg[:n] - t_origin, w[:n], ts[:m] - t_origin, tau[:m],
                                  h, gyro_std ** 2, torque_std ** 2, segment, window, model,
-                                 torque_bias, axis, policy,
-                                 dict(diag, warnings=list(diag['warnings'])), mom_noise,
+                                 torque_bias, axis, pol, own, mom_noise,
                                  final, chosen, shared)
     if hold != 'auto':
         return run(hold, final=final)
@@ -365,10 +383,8 @@ def _estimate_shifted(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray
         diag['warnings'] += unapplied('batch', policy)
         return _homogeneous(method, tg, w, ts, tau, mask, breaks, hold, gyro_var,
                             segment or 10.0, window, diag, base, policy)
-    eq = (equations_for(method, tg, w, ts, tau, mask, breaks, hold, gyro_var, window)
-          if shared is None or method not in ('integral', 'integral_ls') else
-          shared_integral_equations(method, tg, w, ts, tau, mask, breaks, hold, gyro_var,
-                                    shared))
+    eq, policy = _equations(method, (tg, w, ts, tau, mask, breaks), hold, gyro_var, window,
+                            shared, policy, diag)
     wm = w[mask]
     eq.motion = (wm.T @ wm / len(wm), med_g)          # gyroscopic noise walk (fit meat)
     eq.white_y_cov, eq.walk_cov, eq.walk_wh = mom_noise   # a momentum input's noise, walk
@@ -411,6 +427,29 @@ def _estimate_shifted(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray
         est.diagnostics['segment_s'], st = segments[False]
         est.diagnostics['segments'] = st.n_seg
     return est
+
+
+def _equations(method: str, data: tuple[np.ndarray, ...], hold: str, gyro_var: np.ndarray,
+               window: float | None, shared: dict[str, Any] | None, policy: SelectionPolicy,
+               diag: dict[str, Any]) -> tuple[Equations, SelectionPolicy]:
+    """The run's equations (``data``: ``tg, w, ts, tau, mask, breaks``; shared with the other
+    hold's run through ``shared``) and its policy: with the inertial torque allowed, its
+    columns, and the torque left out (``diag['disturbance']['skipped']``, the policy's
+    ``inertial_torque`` off) when a gyro gap is too long to carry the attitude over
+    (:data:`.options.ATTITUDE_BRIDGE_RAD`)."""
+    wide = policy.inertial_torque != 'off'           # the inertial torque's columns
+    eq = (equations_for(method, *data, hold, gyro_var, window, wide)
+          if shared is None or method not in ('integral', 'integral_ls') else
+          shared_integral_equations(method, *data, hold, gyro_var, shared, wide))
+    gap = eq.info.get('attitude', {}).get('bridge_error_rad', 0.0)
+    if gap > ATTITUDE_BRIDGE_RAD:
+        diag['disturbance'] = {
+            'requested': {'inertial_torque': policy.inertial_torque}, 'chosen': None,
+            'skipped': (f'a gyro gap is too long to carry the attitude over (error bound '
+                        f'{gap:.3g} rad > {ATTITUDE_BRIDGE_RAD:g}): the inertial torque is not '
+                        'fitted')}
+        policy = replace(policy, inertial_torque='off')
+    return eq, policy
 
 
 def _statistics(eq: Equations, segment: float | None,
@@ -461,14 +500,15 @@ def _statistics(eq: Equations, segment: float | None,
         return segments[b][1]
 
     def fit(basis: np.ndarray, bias: bool, offset: np.ndarray | None = None,
-            theta0: np.ndarray | None = None) -> Fit:
+            theta0: np.ndarray | None = None, inertial: bool = False) -> Fit:
         """Fit one parameter set on the statistics (weights from ``theta0`` when given)."""
         f = once[0]
         if (f is not None and offset is None and theta0 is None and bias == f.bias
-                and basis.shape == (6, 6) and np.array_equal(basis, np.eye(6))):
+                and inertial == f.inertial and np.array_equal(basis, np.eye(6))):
             once[0] = None
             return f
-        return fit_two_pass(stats(bias), basis, bias, gyro_var, torque_var, offset, theta0)
+        return fit_two_pass(stats(bias), basis, bias, gyro_var, torque_var, offset, theta0,
+                            inertial=inertial)
     return segments, fit
 
 
@@ -526,7 +566,8 @@ def _choose_segment(eq: Equations, ts: np.ndarray, tau_end: float, gyro_var: np.
                 known[cand] = st
         if st.n_eff < 3 * (6 + 3):
             continue
-        f = fit_two_pass(st, np.eye(6), bias, gyro_var, torque_var)
+        # the general model: the bias, and the inertial torque when its columns are built
+        f = fit_two_pass(st, np.eye(6), bias, gyro_var, torque_var, inertial=sub.V.shape[1] > 13)
         if tried is not None and sub is eq:
             tried[cand] = (st, f)
         scale = float(np.mean(np.abs(f.beta[:3])))

@@ -19,7 +19,16 @@ from typing import Any
 import numpy as np
 
 from .._numeric import median
-from .regressors import blocks, cumulative_monomials, cumulative_torque, monomials, variables
+from .attitude import attitude_integral
+from .options import GAP_FACTOR
+from .regressors import (
+    REGRESSOR_COLUMNS_WIDE,
+    blocks,
+    cumulative_monomials,
+    cumulative_torque,
+    monomials,
+    variables,
+)
 
 __all__ = ['Equations', 'build_equations', 'differential_equations', 'integral_equations',
            'is_prefix', 'segment_starts', 'shared_integral_equations', 'sliding_equations']
@@ -32,7 +41,8 @@ class Equations:
     Attributes
     ----------
     V : ndarray, shape (n, 13)
-        Per-sample variables; the blocks are ``A = V @ VARIABLE_MAP`` (:attr:`A`).
+        Per-sample variables; the blocks are ``A = V @ VARIABLE_MAP`` (:attr:`A`); (n, 22)
+        with a torque fixed in inertial axes (:data:`.regressors.VARIABLE_MAP_WIDE`).
     t : ndarray, shape (n,)
         Time of each equation [s].
     breaks : ndarray of bool, shape (n - 1,)
@@ -105,7 +115,7 @@ class Equations:
 
     @property
     def A(self) -> np.ndarray:
-        """Equation blocks, shape (n, 3, 10)."""
+        """Equation blocks, shape (n, 3, 10) (or (n, 3, 13) of wide variables)."""
         return blocks(self.V)
 
 
@@ -141,7 +151,8 @@ def segment_starts(t: np.ndarray, keep_break: np.ndarray, max_len: float | None)
 def integral_equations(tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.ndarray,
                        idx: slice | np.ndarray, breaks: np.ndarray, hold: str,
                        gyro_var: np.ndarray | None,
-                       regressors: np.ndarray | None = None) -> Equations:
+                       regressors: np.ndarray | None = None,
+                       inertial: bool = False) -> Equations:
     """Anchored momentum equations of the gyro samples ``idx``.
 
     ``I w_b + int w x (I w) dt - d t_b - h0 = int tau dt`` from the start of the record
@@ -166,24 +177,34 @@ def integral_equations(tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.nd
     regressors : ndarray, shape (n, 10), optional
         The first 10 columns ``[w, m, s]`` of the same rows from an earlier call with the same
         ``tg, w, idx, breaks, gyro_var`` (they do not depend on the torque or its hold): only
-        the torque integrals are computed (``hold='auto'`` builds both holds' equations).
+        the torque integrals are computed (``hold='auto'`` builds both holds' equations);
+        (n, 19) with ``inertial``: those and the attitude integral's nine.
+    inertial : bool
+        Also the nine variables ``C = int R' dt`` of a torque fixed in inertial axes (22
+        columns; :mod:`.attitude`), the attitude integrated over every gyro sample from the
+        first used to the last, across gaps at the mean rate of their end samples
+        (``info['attitude']``: the gyro time gaps crossed and the largest ``|w_after -
+        w_before| h / 2`` [rad], a bound of that bridge's attitude error).
     """
     rows = _as_range(idx, len(tg))
     sel = idx if rows is None else rows      # a contiguous run as a slice: copies, no gathers
     t = tg[sel]
     # the 13 variables written into one array (as :func:`.regressors.variables` stacks them)
-    V = np.empty((len(t), 13))
+    V = np.empty((len(t), 22 if inertial else 13))
     lo = 10 if regressors is not None else 3           # first column to re-anchor
+    info: dict[str, Any] = {}
     if regressors is not None:
-        V[:, :10] = regressors
+        V[:, REGRESSOR_COLUMNS_WIDE if inertial else slice(0, 10)] = regressors
     else:
+        if inertial:
+            info['attitude'] = _attitude_columns(tg, w, sel, rows, V[:, 13:])
         V[:, :3] = w[sel]
         if rows is not None:      # the usual case: integrated and written in cache-sized blocks
             cumulative_monomials(tg, w, gyro_var, rows=rows, out=V[:, 3:9])
         else:
             V[:, 3:9] = cumulative_monomials(tg, w, gyro_var)[idx]
         np.subtract(t, t[0], out=V[:, 9])
-    cumulative_torque(ts, tau, t, hold, out=V[:, 10:])
+    cumulative_torque(ts, tau, t, hold, out=V[:, 10:13])
     starts = np.flatnonzero(np.r_[True, breaks])
     if len(starts) > 1:
         # re-anchor the integrals at every forced segment start: nothing integrates across a
@@ -193,7 +214,26 @@ def integral_equations(tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.nd
         first = np.repeat(starts, np.diff(np.r_[starts, len(t)]))
         V[:, lo:] -= V[first, lo:]
     return Equations(V, t, breaks, 'anchored', eiv_var=gyro_var,
-                     weighted=gyro_var is not None)
+                     weighted=gyro_var is not None, info=info)
+
+
+def _attitude_columns(tg: np.ndarray, w: np.ndarray, sel: slice | np.ndarray,
+                      rows: slice | None, out: np.ndarray) -> dict[str, Any]:
+    """Write ``int R' dt`` (n, 9) of the used gyro samples ``sel`` into ``out``, the attitude
+    integrated over every gyro sample from the first used to the last (one run, body axes at
+    the first used sample); returns the gyro time gaps crossed (steps over
+    :data:`.options.GAP_FACTOR` median steps) and the largest ``|w_after - w_before| h / 2``
+    [rad] over them."""
+    if rows is not None:
+        a, b = rows.start, rows.stop
+        attitude_integral(tg[a:b], w[a:b], out=out)
+    else:
+        a, b = int(sel[0]), int(sel[-1]) + 1
+        out[:] = attitude_integral(tg[a:b], w[a:b])[np.asarray(sel) - a].reshape(-1, 9)
+    h = np.diff(tg[a:b])
+    gaps = np.flatnonzero(h > GAP_FACTOR * median(h)) if len(h) else np.zeros(0, int)
+    jump = np.linalg.norm(w[a + gaps + 1] - w[a + gaps], axis=1) * h[gaps] / 2.0
+    return {'gaps': len(gaps), 'bridge_error_rad': float(jump.max()) if len(gaps) else 0.0}
 
 
 def _as_range(idx: slice | np.ndarray, n: int) -> slice | None:
@@ -293,14 +333,15 @@ def differential_equations(method: str, tg: np.ndarray, w: np.ndarray, ts: np.nd
 def build_equations(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray,
                     tau: np.ndarray, mask: np.ndarray, breaks: np.ndarray, hold: str,
                     gyro_var: np.ndarray, window: float | None,
-                    regressors: np.ndarray | None = None) -> Equations:
+                    regressors: np.ndarray | None = None,
+                    inertial: bool = False) -> Equations:
     """Equations of ``method`` (a batch method other than ``auto`` and ``ml``) from the gyro
     samples selected by ``mask`` (N,) bool, the samples inside the torque coverage.
 
     ``tg, w, ts, tau, breaks, hold`` and ``regressors`` (``integral`` and ``integral_ls``
     only) are those of :func:`integral_equations`; ``gyro_var`` (3,) the gyro white-noise
     variance [rad^2/s^2]; ``window`` the window [s] of ``integral_sliding`` and
-    ``differential_sg``.
+    ``differential_sg``; ``inertial``: the inertial-torque columns (integral methods only).
     """
     # one contiguous run of samples (the common case: all, or all but the ends outside the
     # torque's coverage): views instead of fancy-indexed copies
@@ -309,7 +350,11 @@ def build_equations(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray,
         idx = slice(int(idx[0]), int(idx[-1]) + 1)
     if method in ('integral', 'integral_ls'):
         return integral_equations(tg, w, ts, tau, idx, breaks, hold,
-                                  gyro_var if method == 'integral' else None, regressors)
+                                  gyro_var if method == 'integral' else None, regressors,
+                                  inertial)
+    if inertial:
+        raise ValueError(f'{method}: the inertial-torque variables are built for the integral '
+                         'methods only')
     if method == 'integral_sliding':
         return sliding_equations(tg, w, ts, tau, idx, breaks, hold, window)
     return differential_equations(method, tg, w, ts, tau, idx, hold, gyro_var, window)
@@ -323,7 +368,7 @@ def is_prefix(idx: np.ndarray, longer: np.ndarray) -> bool:
 def shared_integral_equations(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray,
                               tau: np.ndarray, mask: np.ndarray, breaks: np.ndarray,
                               hold: str, gyro_var: np.ndarray,
-                              shared: dict[str, Any]) -> Equations:
+                              shared: dict[str, Any], inertial: bool = False) -> Equations:
     """:func:`build_equations` of ``integral`` or ``integral_ls``, sharing work between the
     runs of one ``hold='auto'`` estimate through ``shared`` (a dict, empty at first).
 
@@ -333,14 +378,20 @@ def shared_integral_equations(method: str, tg: np.ndarray, w: np.ndarray, ts: np
     sample, the held one's a torque period later), only integrates its torque.  The same
     numbers as a fresh build, bit for bit.  Every run's equations stay in
     ``shared['eqs'][hold]`` as ``(tg, idx, Equations)`` (the hold comparison's windows).
+    With ``inertial`` the attitude integral's nine columns are shared too.
     """
     idx = np.flatnonzero(mask)
     reg = shared.get('regressors')
-    key = (method, len(tg))
+    key = (method, len(tg), inertial)
     reg = reg[:len(idx)] if (reg is not None and shared.get('key') == key
                              and is_prefix(idx, shared['idx'])) else None
-    eq = build_equations(method, tg, w, ts, tau, mask, breaks, hold, gyro_var, None, reg)
+    eq = build_equations(method, tg, w, ts, tau, mask, breaks, hold, gyro_var, None, reg,
+                         inertial)
     if reg is None:
-        shared.update(key=key, idx=idx, regressors=eq.V[:, :10].copy())
+        cols = REGRESSOR_COLUMNS_WIDE if inertial else slice(0, 10)
+        shared.update(key=key, idx=idx, regressors=eq.V[:, cols].copy(),
+                      info={k: v for k, v in eq.info.items() if k == 'attitude'})
+    else:
+        eq.info.update(shared['info'])
     shared.setdefault('eqs', {})[hold] = (tg, idx, eq)
     return eq

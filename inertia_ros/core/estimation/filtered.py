@@ -234,8 +234,10 @@ def filtered_equations(tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.nd
 
 def equations_for(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.ndarray,
                   mask: np.ndarray, breaks: np.ndarray, hold: str, gyro_var: np.ndarray,
-                  window: float | None) -> Equations:
-    """:func:`.equations.build_equations`, with the ``filtered`` method added."""
-    if method == 'filtered':
+                  window: float | None, inertial: bool = False) -> Equations:
+    """:func:`.equations.build_equations`, with the ``filtered`` method added (``inertial``:
+    the integral methods' inertial-torque columns)."""
+    if method == 'filtered' and not inertial:
         return filtered_equations(tg, w, ts, tau, mask, breaks, hold, gyro_var, window)
-    return build_equations(method, tg, w, ts, tau, mask, breaks, hold, gyro_var, window)
+    return build_equations(method, tg, w, ts, tau, mask, breaks, hold, gyro_var, window,
+                           inertial=inertial)

@@ -37,7 +37,9 @@ class Fit:
     bias-compensated information and ``H0`` the raw one (conditioning), ``basis`` the
     parameter set (6, k), ``resid_rms`` the residual RMS per axis, ``n_eq`` the equations,
     ``excess`` the residual variance over the noise model's, ``offset`` a held part of theta
-    and ``H_full`` the information of all six elements (fits with an offset).
+    and ``H_full`` the information of all six elements (fits with an offset); ``inertial``: a
+    torque fixed in inertial axes ``d_i`` (3) follows the bias in ``beta`` (wide statistics,
+    :mod:`.regressors`; :attr:`bias_at`, :attr:`inertial_at` locate both).
     """
 
     beta: np.ndarray               # (p,)
@@ -51,6 +53,19 @@ class Fit:
     excess: float = 1.0            # residual variance / noise-model prediction
     offset: np.ndarray | None = None  # (6,) fixed part of theta
     H_full: np.ndarray | None = None  # information of the full model (fits with an offset)
+    inertial: bool = False         # d_i (3) after the bias
+
+    @property
+    def bias_at(self) -> slice:
+        """Where the torque bias sits in ``beta`` (empty without it)."""
+        k = self.basis.shape[1]
+        return slice(k, k + (3 if self.bias else 0))
+
+    @property
+    def inertial_at(self) -> slice:
+        """Where the torque fixed in inertial axes sits in ``beta`` (empty without it)."""
+        b = self.bias_at.stop
+        return slice(b, b + (3 if self.inertial else 0))
 
 
 def solve_symmetric(H: np.ndarray, rhs: np.ndarray) -> np.ndarray:
@@ -215,8 +230,8 @@ def hac_small_sample(X: np.ndarray, W: np.ndarray, e: np.ndarray, lag: int,
 
 def fit_weighted(st: SufficientStats, basis: np.ndarray, bias: bool, W: np.ndarray,
                  gyro_var: np.ndarray, torque_var: np.ndarray, bias_comp: bool,
-                 offset: np.ndarray | None = None, noise_theta: np.ndarray | None = None
-                 ) -> Fit:
+                 offset: np.ndarray | None = None, noise_theta: np.ndarray | None = None,
+                 inertial: bool = False) -> Fit:
     """Weighted LS of ``y = X6 (T psi + offset) (+ Xd d)`` with its covariance.
 
     Parameters
@@ -240,13 +255,16 @@ def fit_weighted(st: SufficientStats, basis: np.ndarray, bias: bool, W: np.ndarr
         the fit's own by default.  A short piece of a record (the bias split's) gives
         a nearly singular fit whose own tensor swings with the noise, and its noise model
         with it; the whole record's tensor is the model's under the null.
+    inertial : bool
+        Fit the torque fixed in inertial axes too (wide statistics only).
 
     Returns
     -------
     Fit
     """
     k = basis.shape[1]
-    T, p, G, H0, H, beta, B6 = _normal_solution(st, basis, bias, W, bias_comp, offset)
+    T, p, G, H0, H, beta, B6 = _normal_solution(st, basis, bias, W, bias_comp, offset,
+                                                inertial)
     compensate = B6 is not None
     Hinv = solve_symmetric(H, np.eye(p))
     c = np.append(-beta, 1.0)
@@ -266,18 +284,18 @@ def fit_weighted(st: SufficientStats, basis: np.ndarray, bias: bool, W: np.ndarr
     if offset is not None:
         # information of all six elements under the same weights: how the held elements
         # leak into the estimated ones (see selection.held_leak)
-        Tf = selector(np.eye(6), bias)
+        Tf = selector(np.eye(6), bias, None, inertial, st.C.shape[-1])
         pf = Tf.shape[1] - 1
         H_full = (Tf.T @ metric(st.C, W) @ Tf)[:pf, :pf]
         if compensate:
             H_full[:6, :6] -= st.n_eff * B6
     return Fit(beta=beta, cov=cov, H=H, H0=H0, basis=basis, bias=bias, offset=offset,
                resid_rms=np.sqrt(np.maximum(rss, 0.0) / dof), n_eq=st.n, excess=excess,
-               H_full=H_full)
+               H_full=H_full, inertial=inertial)
 
 
 def _normal_solution(st: SufficientStats, basis: np.ndarray, bias: bool, W: np.ndarray,
-                     bias_comp: bool, offset: np.ndarray | None
+                     bias_comp: bool, offset: np.ndarray | None, inertial: bool = False
                      ) -> tuple[np.ndarray, int, np.ndarray, np.ndarray, np.ndarray, np.ndarray,
                                 np.ndarray | None]:
     """The (bias-compensated) normal equations of :func:`fit_weighted` and their solution.
@@ -287,7 +305,7 @@ def _normal_solution(st: SufficientStats, basis: np.ndarray, bias: bool, W: np.n
     gyro-noise term ``B6`` (6, 6) (``None`` without compensation).
     """
     k = basis.shape[1]
-    T = selector(basis, bias, offset)
+    T = selector(basis, bias, offset, inertial, st.C.shape[-1])
     p = T.shape[1] - 1
     G = T.T @ metric(st.C, W) @ T
     H0 = G[:p, :p]
@@ -323,26 +341,26 @@ def equation_weight(theta: np.ndarray, gyro_var: np.ndarray,
 
 def fit_two_pass(st: SufficientStats, basis: np.ndarray, bias: bool, gyro_var: np.ndarray,
                  torque_var: np.ndarray, offset: np.ndarray | None = None,
-                 theta0: np.ndarray | None = None, noise_theta: np.ndarray | None = None
-                 ) -> Fit:
+                 theta0: np.ndarray | None = None, noise_theta: np.ndarray | None = None,
+                 inertial: bool = False) -> Fit:
     """Two-pass fit: unweighted, then weighted by the first pass's tensor (weighted methods).
 
     ``theta0`` (6,), a tensor from an earlier fit of the same data, gives the weights at once
     (one weighted pass; model selection refits the same equations several times).  Other
-    parameters as :func:`fit_weighted`.
+    parameters as :func:`fit_weighted` (``inertial``: the torque fixed in inertial axes too).
     """
     if theta0 is not None and st.weighted and np.all(gyro_var > 0) \
             and np.all(np.isfinite(theta0)) and np.any(theta0[:3] != 0):
         return fit_weighted(st, basis, bias,
                             equation_weight(theta0, gyro_var, st.white_y_cov), gyro_var,
-                            torque_var, st.weighted, offset, noise_theta)
+                            torque_var, st.weighted, offset, noise_theta, inertial)
     if st.weighted and np.all(gyro_var > 0):
         # the unweighted pass gives the weights only: its estimate, not its covariance
-        beta = _normal_solution(st, basis, bias, np.eye(3), st.weighted, offset)[5]
+        beta = _normal_solution(st, basis, bias, np.eye(3), st.weighted, offset, inertial)[5]
         theta = basis @ beta[:basis.shape[1]] + (0.0 if offset is None else offset)
         if np.all(np.isfinite(theta)) and np.any(theta[:3] != 0):
             return fit_weighted(st, basis, bias,
                                 equation_weight(theta, gyro_var, st.white_y_cov), gyro_var,
-                                torque_var, st.weighted, offset, noise_theta)
+                                torque_var, st.weighted, offset, noise_theta, inertial)
     return fit_weighted(st, basis, bias, np.eye(3), gyro_var, torque_var, st.weighted, offset,
-                        noise_theta)
+                        noise_theta, inertial)

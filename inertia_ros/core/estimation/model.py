@@ -16,11 +16,13 @@ import numpy as np
 from ..tensor import THETA_COLS, THETA_NAMES, THETA_ROWS
 from .options import MODELS
 
-__all__ = ['BIAS_NAMES', 'TRACE', 'TRACE_FREE', 'describe_direction', 'model_basis',
-           'parameter_names', 'selector', 'symmetry_axis']
+__all__ = ['BIAS_NAMES', 'INERTIAL_NAMES', 'TRACE', 'TRACE_FREE', 'describe_direction',
+           'model_basis', 'parameter_names', 'selector', 'symmetry_axis']
 
 #: Names of the constant torque-bias parameters [N m].
 BIAS_NAMES: tuple[str, ...] = ('dx', 'dy', 'dz')
+#: Names of the torque fixed in inertial axes (body axes at the start of the gyro run) [N m].
+INERTIAL_NAMES: tuple[str, ...] = ('ix_d', 'iy_d', 'iz_d')
 #: ``theta -> trace`` of the tensor, shape (6,).
 TRACE = np.array([1.0, 1.0, 1.0, 0.0, 0.0, 0.0])
 
@@ -78,7 +80,8 @@ def model_basis(model: str, symmetry_axis: np.ndarray | None = None) -> np.ndarr
     raise ValueError(f'model: must be one of {MODELS}, got {model!r}')
 
 
-def parameter_names(basis: np.ndarray, bias: bool, model: str) -> list[str]:
+def parameter_names(basis: np.ndarray, bias: bool, model: str,
+                    inertial: bool = False) -> list[str]:
     """Names of the fitted parameters ``[psi, d]`` of a parameter set.
 
     Parameters
@@ -89,21 +92,30 @@ def parameter_names(basis: np.ndarray, bias: bool, model: str) -> list[str]:
         Whether the torque bias is fitted.
     model : str
         ``'axisymmetric'`` names ``i_transverse, i_axial``; otherwise the elements.
+    inertial : bool
+        Whether the torque fixed in inertial axes is fitted (after the bias).
 
     Returns
     -------
     list of str
-        ``k`` (+ 3) names.
+        ``k`` (+ 3) (+ 3) names.
     """
     if model == 'axisymmetric':
         names = ['i_transverse', 'i_axial']
     else:
         names = [THETA_NAMES[int(np.argmax(basis[:, i]))] for i in range(basis.shape[1])]
-    return names + (list(BIAS_NAMES) if bias else [])
+    return names + (list(BIAS_NAMES) if bias else []) + (list(INERTIAL_NAMES) if inertial
+                                                          else [])
 
 
-def selector(basis: np.ndarray, bias: bool, offset: np.ndarray | None = None) -> np.ndarray:
+def selector(basis: np.ndarray, bias: bool, offset: np.ndarray | None = None,
+             inertial: bool = False, width: int = 10) -> np.ndarray:
     """Map (10, p + 1) from ``[psi, d, 1]`` to the columns ``[X6 | Xd | y]`` of a block.
+
+    With ``width=13`` the blocks are the wide ones ``[X6 | Xd | y | Xi]`` of a torque fixed
+    in inertial axes (:data:`.regressors.VARIABLE_MAP_WIDE`) and, with ``inertial``, the
+    parameters ``[psi, d, d_i, 1]``; without it the ``Xi`` columns get 0 (the narrow fit on
+    wide statistics).
 
     Parameters
     ----------
@@ -113,17 +125,28 @@ def selector(basis: np.ndarray, bias: bool, offset: np.ndarray | None = None) ->
         Fit the torque bias (``p = k + 3``; else ``p = k``).
     offset : ndarray, shape (6,), optional
         A fixed part of ``theta`` moved to the right-hand side.
+    inertial : bool
+        Fit the torque fixed in inertial axes (3 more parameters after the bias; needs
+        ``width=13``).
+    width : {10, 13}
+        Columns of the blocks.
 
     Returns
     -------
-    ndarray, shape (10, p + 1)
+    ndarray, shape (width, p + 1)
     """
+    if width not in (10, 13) or (inertial and width != 13):
+        raise ValueError(f'selector: width 10, or 13 with the inertial columns; got {width} '
+                         f'(inertial={inertial})')
     k = basis.shape[1]
-    p = k + (3 if bias else 0)
-    T = np.zeros((10, p + 1))
+    b = k + (3 if bias else 0)
+    p = b + (3 if inertial else 0)
+    T = np.zeros((width, p + 1))
     T[:6, :k] = basis
     if bias:
         T[6:9, k:k + 3] = np.eye(3)
+    if inertial:
+        T[10:13, b:b + 3] = np.eye(3)
     T[9, p] = 1.0
     if offset is not None:
         T[:6, p] = -offset

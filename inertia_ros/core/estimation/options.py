@@ -17,13 +17,15 @@ Rules
 """
 from __future__ import annotations
 
-__all__ = ['ADEQUACY_ALPHA', 'ADEQUACY_MIN_WINDOW_S', 'ADEQUACY_WINDOWS', 'ALPHA', 'BATCH_HOLDS',
+__all__ = ['ADEQUACY_ALPHA', 'ADEQUACY_MIN_WINDOW_S', 'ADEQUACY_WINDOWS', 'ALPHA',
+           'ATTITUDE_BRIDGE_RAD', 'BATCH_HOLDS',
            'GAP_FACTOR',
            'HOLDS', 'IDENTIFIABILITY_TOL', 'MAX_RESIDUAL_EXCESS', 'METHODS', 'MIN_EQUATIONS',
            'MIN_GYRO_SAMPLES', 'ML_AUTO_MAX_SAMPLES', 'MODELS', 'STATUSES', 'TORQUE_BIAS',
            'NUISANCE_EIV_SHARE', 'NUISANCE_INTERVALS_S', 'NUISANCE_MAX_DELAY_S',
            'NUISANCE_MAX_TIME_CONSTANT_S',
-           'NUISANCE_TERMS', 'TORQUE_FREE_SIGMAS', 'check_choice', 'check_nuisance']
+           'INERTIAL_TORQUE', 'NUISANCE_TERMS', 'TORQUE_FREE_SIGMAS', 'check_choice',
+           'check_nuisance']
 
 #: Batch methods (``estimate(method=...)``, ``--method``).
 METHODS: tuple[str, ...] = ('auto', 'ml', 'integral', 'integral_ls', 'integral_sliding',
@@ -32,6 +34,13 @@ METHODS: tuple[str, ...] = ('auto', 'ml', 'integral', 'integral_ls', 'integral_s
 MODELS: tuple[str, ...] = ('auto', 'full', 'diagonal', 'axisymmetric')
 #: Constant disturbance-torque choices (``torque_bias=``, ``--torque-bias``).
 TORQUE_BIAS: tuple[str, ...] = ('auto', 'on', 'off')
+#: A torque constant in inertial axes (``inertial_torque=``; :mod:`.attitude`): fitted beside
+#: the torque bias, ``auto`` by the joint Wald tests of :func:`.selection.select_disturbance`.
+INERTIAL_TORQUE: tuple[str, ...] = ('off', 'auto', 'on')
+#: Largest attitude error [rad] accepted where the attitude of the inertial torque is carried
+#: over a gyro gap at the mean rate of its end samples (bound ``|w_after - w_before| h / 2``);
+#: beyond it the inertial torque is not fitted (``diagnostics['disturbance']['skipped']``).
+ATTITUDE_BRIDGE_RAD = 0.01
 #: How the torque is held between its samples (online estimators, the node's ``hold``).
 HOLDS: tuple[str, ...] = ('zoh', 'linear')
 #: The batch ``hold=`` / ``--hold`` choices: ``auto`` fits both and keeps the one whose

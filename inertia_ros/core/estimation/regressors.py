@@ -18,6 +18,13 @@ is a fixed linear map (:data:`VARIABLE_MAP`) of 13 per-sample variables
 ``v_b = [w (3), m (6), s (1), y (3)]`` (:func:`variables`), so every statistic of the
 equations is a quadratic form in ``v``: the data are reduced to 13 x 13 Gram matrices
 (:func:`gram`) and lifted to the blocks' cross Grams (:func:`lift`).
+
+A torque ``d`` constant in inertial axes (body axes at the start of a gyro run,
+:mod:`.attitude`) adds nine variables, the entries of ``C = int R' dt``, after the 13:
+``v_b = [w, m, s, y, c (9)]`` (22), blocks ``[X6 | Xd | y | Xi]`` (3 x 13) with ``Xi = -C``
+(:data:`VARIABLE_MAP_WIDE`).  The torque integral stays block column 9, so the 13-variable
+map and its Grams are exact sub-blocks of the wide ones; :func:`blocks` and :func:`lift`
+take either width.
 """
 from __future__ import annotations
 
@@ -33,7 +40,10 @@ __all__ = [
     'MONOMIAL_I',
     'MONOMIAL_J',
     'N_REGRESSOR_VARIABLES',
+    'N_VARIABLES_WIDE',
+    'REGRESSOR_COLUMNS_WIDE',
     'VARIABLE_MAP',
+    'VARIABLE_MAP_WIDE',
     'blocks',
     'cumtrapz',
     'cumulative_monomials',
@@ -382,9 +392,44 @@ _VMAP2 = np.ascontiguousarray(VARIABLE_MAP.reshape(13, 30))
 #: ``L(e_c)`` for the three axes, shape (3, 3, 6): the gyro-noise bias of ``L(w)' L(w)``.
 MOMENTUM_BASIS = momentum_matrix(np.eye(3))
 
+#: Variables with a torque fixed in inertial axes: the 13, then ``c[3 r + k] = C[r, k]``.
+N_VARIABLES_WIDE = 22
+#: The regressor variables of the wide layout: all but the torque integral ``y`` (10:13).
+REGRESSOR_COLUMNS_WIDE = np.r_[0:10, 13:22]
 
-def variables(w: np.ndarray, m: np.ndarray, s: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """Stack the 13 per-sample variables ``[w, m, s, y]``.
+
+def _variable_map_wide() -> np.ndarray:
+    """``E`` (22, 3, 13): blocks ``[X6 | Xd | y | Xi]`` from ``[w, m, s, y, c]``.
+
+    The first 13 variables map as :data:`VARIABLE_MAP` onto the first 10 columns; the
+    inertial torque's columns are ``Xi[r, k] = -C[r, k]`` (the disturbance's angular impulse
+    ``C d`` moved to the left-hand side, as ``Xd = -s`` for the body-axis bias).
+    """
+    E = np.zeros((N_VARIABLES_WIDE, 3, 13))
+    E[:13, :, :10] = VARIABLE_MAP
+    for r in range(3):
+        for k in range(3):
+            E[13 + 3 * r + k, r, 10 + k] = -1.0
+    return E
+
+
+#: ``A_b[r, q] = sum_i v_b[i] VARIABLE_MAP_WIDE[i, r, q]``, shape (22, 3, 13).
+VARIABLE_MAP_WIDE = _variable_map_wide()
+_VMAP2_WIDE = np.ascontiguousarray(VARIABLE_MAP_WIDE.reshape(N_VARIABLES_WIDE, 39))
+
+
+def _map_of(n_var: int) -> tuple[np.ndarray, int]:
+    """The flat map (n_var, 3 q) and block width ``q`` of 13 or 22 variables."""
+    if n_var == 13:
+        return _VMAP2, 10
+    if n_var == N_VARIABLES_WIDE:
+        return _VMAP2_WIDE, 13
+    raise ValueError(f'expected 13 or {N_VARIABLES_WIDE} variables per sample, got {n_var}')
+
+
+def variables(w: np.ndarray, m: np.ndarray, s: np.ndarray, y: np.ndarray,
+              c: np.ndarray | None = None) -> np.ndarray:
+    """Stack the 13 per-sample variables ``[w, m, s, y]`` (22 with ``c``).
 
     Parameters
     ----------
@@ -396,17 +441,23 @@ def variables(w: np.ndarray, m: np.ndarray, s: np.ndarray, y: np.ndarray) -> np.
         Coefficient of the torque bias (time since the anchor [s], or 1).
     y : ndarray, shape (n, 3)
         Torque (or its integral).
+    c : ndarray, shape (n, 3, 3), optional
+        Coefficient of a torque fixed in inertial axes: ``int R' dt`` [s]
+        (:func:`.attitude.attitude_integral`), or ``R'`` in a differential form.
 
     Returns
     -------
-    ndarray, shape (n, 13)
+    ndarray, shape (n, 13) or (n, 22)
     """
-    return np.concatenate([w, m, s[:, None], y], axis=1)
+    parts = [w, m, s[:, None], y] + ([] if c is None else [c.reshape(len(c), 9)])
+    return np.concatenate(parts, axis=1)
 
 
 def blocks(V: np.ndarray) -> np.ndarray:
-    """Equation blocks ``A`` (n, 3, 10) of the variables ``V`` (n, 13)."""
-    return (V @ _VMAP2).reshape(-1, 3, 10)
+    """Equation blocks ``A`` (n, 3, 10) of the variables ``V`` (n, 13), or (n, 3, 13) of
+    the wide ``V`` (n, 22)."""
+    E, q = _map_of(V.shape[1])
+    return (V @ E).reshape(-1, 3, q)
 
 
 def gram(V: np.ndarray) -> np.ndarray:
@@ -420,14 +471,16 @@ def gram(V: np.ndarray) -> np.ndarray:
 
 
 def lift(G13: np.ndarray) -> np.ndarray:
-    """Cross Grams (3, 3, 10, 10) of the equation blocks from a 13 x 13 Gram of ``V``.
+    """Cross Grams (3, 3, 10, 10) of the equation blocks from a 13 x 13 Gram of ``V``
+    ((3, 3, 13, 13) from a 22 x 22 Gram of the wide ``V``).
 
     ``C[r, s, q, p] = sum_ij VARIABLE_MAP[i, r, q] G13[i, j] VARIABLE_MAP[j, s, p]``, as two
     small matrix products (a tenth of the time of the three-operand ``einsum``; the recursive
     estimator runs it twice per ``estimate()``).
     """
-    C = _VMAP2.T @ G13 @ _VMAP2                       # (30, 30): [r q] x [s p]
-    return np.ascontiguousarray(C.reshape(3, 10, 3, 10).transpose(0, 2, 1, 3))
+    E, q = _map_of(G13.shape[0])
+    C = E.T @ G13 @ E                                 # (3q, 3q): [r q] x [s p]
+    return np.ascontiguousarray(C.reshape(3, q, 3, q).transpose(0, 2, 1, 3))
 
 
 def metric(C: np.ndarray, M: np.ndarray) -> np.ndarray:

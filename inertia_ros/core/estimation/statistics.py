@@ -15,12 +15,36 @@ import numpy as np
 
 from .._numeric import median
 from .equations import Equations, segment_starts
-from .regressors import N_REGRESSOR_VARIABLES, VARIABLE_MAP, gram, lift
+from .regressors import (
+    N_REGRESSOR_VARIABLES,
+    REGRESSOR_COLUMNS_WIDE,
+    VARIABLE_MAP,
+    VARIABLE_MAP_WIDE,
+    gram,
+    lift,
+)
 
 __all__ = ['WALK_BASIS', 'SufficientStats', 'range_sums', 'segment_rss', 'shared_raw',
            'sufficient_stats', 'torque_stats', 'window_raw']
 
 _NREG = N_REGRESSOR_VARIABLES
+
+
+def _regressors(n_var: int) -> slice | np.ndarray:
+    """The regressor columns (all but the torque integral) of 13 or 22 variables: a slice
+    of the 13 (views, as before the wide layout), the index array of the 22."""
+    return slice(0, _NREG) if n_var == 13 else REGRESSOR_COLUMNS_WIDE
+
+
+def _placed(G: np.ndarray, cols: slice | np.ndarray, n_var: int) -> np.ndarray:
+    """``G`` (..., r, r) of the regressor columns ``cols`` placed in zeros (..., n_var,
+    n_var) (the torque integral's rows and columns stay 0)."""
+    out = np.zeros(G.shape[:-2] + (n_var, n_var))          # (np.pad: 10x the time)
+    if isinstance(cols, slice):
+        out[..., cols, cols] = G
+    else:
+        out[..., cols[:, None], cols[None, :]] = G
+    return out
 
 
 @dataclass
@@ -30,7 +54,9 @@ class SufficientStats:
     Attributes
     ----------
     C : ndarray, shape (3, 3, 10, 10)
-        Cross Grams ``sum_b A_b[r]' A_b[s]`` of the (segment-demeaned) blocks.
+        Cross Grams ``sum_b A_b[r]' A_b[s]`` of the (segment-demeaned) blocks ((3, 3, 13, 13)
+        from the wide variables of a torque fixed in inertial axes, :mod:`.regressors`; so
+        are ``CP`` and ``walk_grams``).
     CP : ndarray, shape (3, 3, 10, 10), optional
         Cross Grams of the torque-noise sums (anchored equations with torque noise).
     n : int
@@ -265,7 +291,8 @@ def shared_raw(eq: Equations, t_tau: np.ndarray, tau_end: float,
     raw: dict[str, Any] = {'G': gram(eq.V)}
     if walk:
         # the interval sums stay for the windows of the same rows (:func:`window_raw`)
-        raw['interval_sums'] = _interval_sums(eq.V[:, :_NREG], eq.t, t_tau)
+        raw['interval_sums'] = _interval_sums(eq.V[:, _regressors(eq.V.shape[1])], eq.t,
+                                              t_tau)
     _finish_raw(raw, eq.t, t_tau, tau_end, raw['interval_sums'][:2] if walk else None)
     if walk and eq.walk_cov is not None:    # on a prefix of the torque samples it was made on
         raw['walk'] = _walk_components(eq.walk_cov[:len(t_tau)])
@@ -321,7 +348,7 @@ def window_raw(eq: Equations, a: int, b: int, t_tau: np.ndarray,
             j = j0 + k
             lo, hi = max(int(first[j]), a), min(int(first[j + 1]), b)
             if (lo, hi) != (int(first[j]), int(first[j + 1])):
-                rows = eq.V[lo:hi, :_NREG]
+                rows = eq.V[lo:hi][:, _regressors(eq.V.shape[1])]
                 S[k] = rows.sum(axis=0)
                 St[k] = (eq.t[lo:hi] - t_tau[j]) @ rows
         sums = S, St
@@ -335,8 +362,9 @@ def window_raw(eq: Equations, a: int, b: int, t_tau: np.ndarray,
 def _demeaned_torque_gram(raw: dict[str, Any], starts: np.ndarray, m: np.ndarray,
                           Sp: np.ndarray, MTp: np.ndarray, CT: np.ndarray
                           ) -> tuple[np.ndarray, np.ndarray | None]:
-    """Gram (10, 10) of the torque-noise sums ``P`` of the segment-demeaned variables, and
-    (with ``raw['walk']``, (M, 6)) the six Grams (6, 10, 10) weighted per interval by it.
+    """Gram (r, r) of the torque-noise sums ``P`` of the segment-demeaned regressor variables
+    (r = 10, or 19 wide), and (with ``raw['walk']``, (M, 6)) the six Grams (6, r, r) weighted
+    per interval by it.
 
     Demeaning variable ``b`` by its segment's mean ``m_seg(b)`` changes ``P_j`` by
     ``h_j sum_{b >= k1_j} m + sum_{k0_j <= b < k1_j} (t_b - s_j) m`` (prefix sums over the
@@ -358,9 +386,10 @@ def _demeaned_torque_gram(raw: dict[str, Any], starts: np.ndarray, m: np.ndarray
         q += MTp.take(sk, axis=0)
         return z, q
 
-    G = np.zeros((_NREG, _NREG))
+    nr = P.shape[1]                                   # regressor variables (10 or 19)
+    G = np.zeros((nr, nr))
     walk = raw.get('walk')
-    Gw = None if walk is None else np.zeros((walk.shape[1], _NREG, _NREG))
+    Gw = None if walk is None else np.zeros((walk.shape[1], nr, nr))
     for a in range(0, len(P), _GRAM_BLOCK):
         b = min(a + _GRAM_BLOCK, len(P))
         k0, k1 = k0_all[a:b], k1_all[a:b]
@@ -404,17 +433,16 @@ def sufficient_stats(eq: Equations, segment: float | None, t_tau: np.ndarray, ta
     CP = walk_grams = walk_mean = None
     if 'P' in raw:
         CT = raw['CT']
-        S, m = S[:, :_NREG], m[:, :_NREG]                     # regressor variables only
-        Sp = np.vstack([np.zeros(_NREG), np.cumsum(S, axis=0)])
+        nv = eq.V.shape[1]
+        cols = _regressors(nv)
+        S, m = S[:, cols], m[:, cols]                         # regressor variables only
+        Sp = np.vstack([np.zeros(S.shape[1]), np.cumsum(S, axis=0)])
         TS = CT[bounds[1:]] - CT[starts]
-        MTp = np.vstack([np.zeros(_NREG), np.cumsum(m * TS[:, None], axis=0)])
-        GP = np.zeros((13, 13))
-        GP[:_NREG, :_NREG], Gw = _demeaned_torque_gram(raw, starts, m, Sp, MTp, CT)
-        CP = lift(GP)
+        MTp = np.vstack([np.zeros(S.shape[1]), np.cumsum(m * TS[:, None], axis=0)])
+        GPr, Gw = _demeaned_torque_gram(raw, starts, m, Sp, MTp, CT)
+        CP = lift(_placed(GPr, cols, nv))
         if Gw is not None:
-            G13 = np.zeros((len(Gw), 13, 13))             # (np.pad: 10x the time)
-            G13[:, :_NREG, :_NREG] = Gw
-            walk_grams = np.array([lift(g) for g in G13])
+            walk_grams = np.array([lift(g) for g in _placed(Gw, cols, nv)])
             walk_mean = raw['h'] @ raw['walk'] / float(np.sum(raw['h']))
     dur = eq.t[bounds[1:] - 1] - eq.t[starts]
     if 'torque_dt' not in raw:              # the same for every segmentation: once
@@ -431,13 +459,15 @@ def segment_rss(V: np.ndarray, starts: np.ndarray, c: np.ndarray, W: np.ndarray)
     """``sum_b (e_b - mean_s e)' W (e_b - mean_s e)`` per segment, shape (len(starts),).
 
     ``e_b = A_b c`` (3,) is the residual of equation ``b`` (its 13 variables ``V`` (n, 13)
-    through :data:`.regressors.VARIABLE_MAP`, ``c`` (10,) the coefficients ``[-psi, -d, 1]``),
+    through :data:`.regressors.VARIABLE_MAP`, ``c`` (10,) the coefficients ``[-psi, -d, 1]``;
+    or the 22 of :data:`.regressors.VARIABLE_MAP_WIDE`, ``c`` (13,) ``[-psi, -d, 1, -d_i]``),
     ``W`` (3, 3) the weight; segment ``s`` holds the rows ``starts[s]:starts[s + 1]`` (the last
     to the end; ``starts[0] = 0``, increasing) and loses its mean (its initial momentum).  The
     same sums as ``c' sum_b A_b' W A_b c`` of the segment-demeaned blocks' Gram, without a
     Gram per segment (and without its cancellation).
     """
-    R = np.ascontiguousarray(np.tensordot(VARIABLE_MAP, c, axes=([2], [0])))    # (13, 3)
+    E = VARIABLE_MAP if V.shape[1] == 13 else VARIABLE_MAP_WIDE
+    R = np.ascontiguousarray(np.tensordot(E, c, axes=([2], [0])))       # (13 or 22, 3)
     n = len(V)
     e = np.empty((n, 3))
     # thin products in blocks: one (100 000, 13) x (13, 3) product wakes the BLAS threads,
