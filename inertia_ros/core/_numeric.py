@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ['median', 'median_rows']
+__all__ = ['median', 'median_rows', 'psd_part']
 
 
 def median_rows(d: np.ndarray) -> np.ndarray:
@@ -24,3 +24,10 @@ def median(x: np.ndarray) -> float:
     ``np.median``'s overhead and its import of ``numpy.ma``, ~7 ms of a command's start-up).
     """
     return float(median_rows(np.asarray(x, dtype=float).reshape(-1, 1))[0])
+
+
+def psd_part(S: np.ndarray) -> np.ndarray:
+    """The positive semi-definite part of a symmetric matrix ``S`` (n, n): its symmetric half
+    with the negative eigenvalues set to 0 (a covariance or covariance rate never below 0)."""
+    lam, vec = np.linalg.eigh(0.5 * (S + S.T))
+    return (vec * np.maximum(lam, 0.0)) @ vec.T

@@ -55,6 +55,7 @@ from typing import Any
 
 import numpy as np
 
+from .._numeric import psd_part
 from .._validate import as_samples, as_times
 from ..tensor import theta_to_matrix
 from .align import cross_matrices, cumtrapz, gap_starts
@@ -614,9 +615,7 @@ def _added_cov(fit: NuisanceFit) -> np.ndarray:
         cond = np.linalg.inv(fit.info[np.ix_(keep, keep)])[:6, :6]
     except np.linalg.LinAlgError:
         return np.zeros((6, 6))
-    added = fit.cov[:6, :6] - cond
-    lam, vec = np.linalg.eigh(0.5 * (added + added.T))
-    return (vec * np.maximum(lam, 0.0)) @ vec.T
+    return psd_part(fit.cov[:6, :6] - cond)
 
 
 def nuisance_hook(fn: Callable[..., InertiaEstimate]) -> Callable[..., InertiaEstimate]:

@@ -40,6 +40,7 @@ from typing import Any
 
 import numpy as np
 
+from .._numeric import psd_part
 from .._validate import as_sample_block, require_after
 from ..tensor import theta_to_matrix
 from .align import OnlineAligner, gap_starts, hermite, run_slopes
@@ -571,8 +572,7 @@ class MomentumTrackingEstimator(MomentumInput, TrackingEstimator):
             return self._walk_rate
         W = self._walk_rate + self._tdt * walk_deviation(f, self._walk_levels,
                                                          self._walk_bases[1])
-        lam, V = np.linalg.eigh(0.5 * (W + W.T))   # a covariance rate: never negative
-        return (V * np.maximum(lam, 0.0)) @ V.T
+        return psd_part(W)                         # a covariance rate: never negative
 
     def _take(self, grid: np.ndarray, tau: np.ndarray, alt: np.ndarray | None,
               x: np.ndarray | None, t_in: np.ndarray, w_in: np.ndarray) -> None:

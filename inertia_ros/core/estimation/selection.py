@@ -28,6 +28,7 @@ from typing import Any
 
 import numpy as np
 
+from .._numeric import psd_part
 from .fit import Fit
 from .model import describe_direction, model_basis
 from .options import ALPHA, IDENTIFIABILITY_TOL
@@ -211,8 +212,7 @@ def held_by_test(restricted: Fit, full: Fit) -> np.ndarray:
     C_R = M @ restricted.cov @ M.T
     C_F = 0.5 * (full.cov + full.cov.T)
     P = M @ np.linalg.pinv(M)
-    lam, vec = np.linalg.eigh(P @ (C_R - C_F) @ P.T)
-    C = C_F + (vec * np.maximum(lam, 0.0)) @ vec.T
+    C = C_F + psd_part(P @ (C_R - C_F) @ P.T)
     added = C - C_R
     return 0.5 * (added + added.T)
 
@@ -237,10 +237,7 @@ def dropped_bias_cov(without: Fit, with_bias: Fit, weight: float) -> np.ndarray:
     weight : float
         0..1.
     """
-    C0 = 0.5 * (without.cov[:6, :6] + without.cov[:6, :6].T)
-    CB = 0.5 * (with_bias.cov[:6, :6] + with_bias.cov[:6, :6].T)
-    lam, vec = np.linalg.eigh(CB - C0)
-    return weight * (vec * np.maximum(lam, 0.0)) @ vec.T
+    return weight * psd_part(with_bias.cov[:6, :6] - without.cov[:6, :6])
 
 
 def wald(theta: np.ndarray, cov: np.ndarray, R: np.ndarray) -> tuple[float, int, float]:
