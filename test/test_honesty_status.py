@@ -359,3 +359,14 @@ def test_dropped_bias_covariance_is_the_weighted_positive_difference() -> None:
     assert np.all(np.linalg.eigvalsh(a) >= -1e-18)
     assert np.allclose(dropped_bias_cov(SimpleNamespace(cov=C0), SimpleNamespace(cov=CB), 0.0),
                        0.0)
+
+
+def test_bias_split_scatter_counts_pieces_not_parameters() -> None:
+    """With the torque fixed in inertial axes the split tests 6 parameters per piece: 4
+    pieces give 18 dof, and the scatter is 1 + 4 (B - 1), not 1 + 7 (B - 1) (the pieces
+    read back from the dof as if the disturbance had 3 parameters)."""
+    from inertia_ros.core.estimation.tails import chi2_sf
+    a = check_adequacy(*_windows(1.0, K=0), excess=1.0,
+                       split=(30.0, 18, chi2_sf(30.0, 18), 4))
+    assert a.ok and a.split_pieces == 4
+    assert a.inflation == pytest.approx(1.0 + 4.0 * (30.0 / 18 - 1.0))

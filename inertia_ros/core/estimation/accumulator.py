@@ -461,7 +461,7 @@ def window_test(acc: OnlineStats, f: Fit, nv: np.ndarray, tv: np.ndarray, *,
 
 
 def _split(acc: OnlineStats, f: Fit, nv: np.ndarray, tv: np.ndarray, **context: object
-           ) -> tuple[float, int, float] | None:
+           ) -> tuple[float, int, float, int] | None:
     """Too short for the groups: the fitted torque bias tested over up to four groups of
     :attr:`OnlineStats.short`'s segments (:func:`.adequacy.bias_split`, as the batch's
     :func:`.refits.bias_split_test`); ``None`` as :func:`_shift`."""

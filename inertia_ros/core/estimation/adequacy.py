@@ -106,6 +106,8 @@ class Adequacy:
         ``ok``, or the failure is covered by the widened covariance (status ``ok``).
     split_chi2, split_dof, split_p_value : float, int, float
         The bias split's test (``nan``/0/1 when not run).
+    split_pieces : int
+        Its pieces ``K`` (0 when not run).
     """
 
     ok: bool
@@ -125,6 +127,13 @@ class Adequacy:
     split_chi2: float = float('nan')
     split_dof: int = 0
     split_p_value: float = 1.0
+    split_pieces: int = 0
+
+    @property
+    def split_widening(self) -> float:
+        """:func:`split_scatter` of the bias split (1 when it did not run)."""
+        return split_scatter(self.split_chi2 / self.split_dof, self.split_pieces) \
+            if self.split_dof else 1.0
 
     def as_dict(self) -> dict[str, object]:
         """The JSON-ready record for ``diagnostics['adequacy']`` (the bias split's keys when
@@ -290,7 +299,7 @@ def _at_least(C: np.ndarray, floor: np.ndarray) -> np.ndarray:
     return (R * np.maximum(m, 1.0)) @ R.T
 
 
-def bias_split(fits: Sequence[Any], k: int) -> tuple[float, int, float]:
+def bias_split(fits: Sequence[Any], k: int) -> tuple[float, int, float, int]:
     """Wald test that time pieces fitted with a tensor and a torque bias each share one bias.
 
     The joint fit keeps one tensor and gives each piece its own bias: the pieces'
@@ -311,6 +320,8 @@ def bias_split(fits: Sequence[Any], k: int) -> tuple[float, int, float]:
     -------
     chi2, dof, p_value : float, int, float
         On ``q (K - 1)`` dof.
+    pieces : int
+        ``K`` (the scatter's multiplier, :func:`split_scatter`).
     """
     K = len(fits)
     q = len(fits[0].beta) - k
@@ -332,7 +343,7 @@ def bias_split(fits: Sequence[Any], k: int) -> tuple[float, int, float]:
         D[q * i - q:q * i, k + q * i:k + q * i + q] = np.eye(q)
     d, Vd = D @ phi, D @ V @ D.T
     chi2 = float(d @ np.linalg.pinv(0.5 * (Vd + Vd.T), rcond=1e-12, hermitian=True) @ d)
-    return chi2, q * (K - 1), chi2_sf(chi2, q * (K - 1))
+    return chi2, q * (K - 1), chi2_sf(chi2, q * (K - 1)), K
 
 
 def check_adequacy(thetas: np.ndarray, covs: np.ndarray, t_mid: np.ndarray, excess: float,
@@ -340,7 +351,8 @@ def check_adequacy(thetas: np.ndarray, covs: np.ndarray, t_mid: np.ndarray, exce
                    max_excess: float = MAX_RESIDUAL_EXCESS,
                    common: np.ndarray | None = None,
                    shift: tuple[float, int, float, float] | None = None,
-                   split: tuple[float, int, float] | None = None) -> Adequacy:
+                   split: tuple[float, int, float] | tuple[float, int, float, int]
+                   | None = None) -> Adequacy:
     """Run the tests, name the likely cause of a failure and judge whether it is covered.
 
     Parameters
@@ -358,7 +370,8 @@ def check_adequacy(thetas: np.ndarray, covs: np.ndarray, t_mid: np.ndarray, exce
     shift : tuple, optional
         :func:`segment_shift`'s result for the fit (``None``: not run).
     split : tuple, optional
-        ``(chi2, dof, p)`` of :func:`.refits.bias_split_test` (``None``: not run).
+        ``(chi2, dof, p, pieces)`` of :func:`.refits.bias_split_test` (``None``: not run;
+        without ``pieces``, a 3-parameter bias's ``dof / 3 + 1``).
 
     Returns
     -------
@@ -370,7 +383,8 @@ def check_adequacy(thetas: np.ndarray, covs: np.ndarray, t_mid: np.ndarray, exce
     excess = float(excess) if np.isfinite(excess) else 1.0
     s_chi2, s_dof, s_p, s_max = shift if shift is not None else (float('nan'), 0, 1.0,
                                                                   float('nan'))
-    b_chi2, b_dof, b_p = split if split is not None else (float('nan'), 0, 1.0)
+    b_chi2, b_dof, b_p, *b_k = split if split is not None else (float('nan'), 0, 1.0, 0)
+    b_pieces = b_k[0] if b_k else b_dof // 3 + 1
     causes = []
     if dof > 0 and pval < alpha:
         if change_at is not None:
@@ -404,14 +418,15 @@ def check_adequacy(thetas: np.ndarray, covs: np.ndarray, t_mid: np.ndarray, exce
     factor, benign = (1.0, True) if weight == 0.0 else widening(
         chi2 / dof if dof > 0 else 1.0, len(thetas), s_chi2 / s_dof if s_dof > 0 else 1.0,
         excess, change_at is not None and not ok,
-        split_scatter(b_chi2 / b_dof, b_dof // 3 + 1) if b_dof > 0 else 1.0)
+        split_scatter(b_chi2 / b_dof, b_pieces) if b_dof > 0 else 1.0)
     factor = partial_widening(weight, factor)
     benign = benign or ok
     return Adequacy(ok=ok, chi2=chi2, dof=dof, p_value=pval, windows=len(thetas),
                     excess=excess, inflation=float(factor), change_at=change_at,
                     reason='; '.join(causes), shift_chi2=s_chi2, shift_dof=s_dof,
                     shift_p_value=s_p, shift_max_sigma=s_max, benign=benign,
-                    split_chi2=b_chi2, split_dof=b_dof, split_p_value=b_p)
+                    split_chi2=b_chi2, split_dof=b_dof, split_p_value=b_p,
+                    split_pieces=b_pieces if b_dof > 0 else 0)
 
 
 

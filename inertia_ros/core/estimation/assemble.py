@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 
 from ..tensor import THETA_NAMES, check_physical, nearest_physical, theta_to_matrix
-from .adequacy import Adequacy, split_scatter, widening_weight
+from .adequacy import Adequacy, widening_weight
 from .fit import Fit
 from .model import model_basis, parameter_names
 from .result import InertiaEstimate
@@ -317,8 +317,7 @@ def _widened_by(a: Adequacy) -> str:
              'segment shift (chi2 per dof)': a.shift_chi2 / a.shift_dof if a.shift_dof > 0
              else 0.0,
              'bias split scatter (1 + K (B - 1), B its chi2 per dof)':
-             split_scatter(a.split_chi2 / a.split_dof, a.split_dof // 3 + 1)
-             if a.split_dof else 0.0,
+             a.split_widening if a.split_dof else 0.0,
              'residual excess': a.excess}
     return max(cands, key=lambda k: cands[k] if np.isfinite(cands[k]) else 0.0)
 

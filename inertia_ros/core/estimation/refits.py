@@ -113,7 +113,7 @@ def _window_fits(eq: Equations, segment: float | None, ts: np.ndarray, gyro_var:
 
 def bias_split_test(eq: Equations, segment: float | None, ts: np.ndarray, gyro_var: np.ndarray,
                     torque_var: np.ndarray, f: Fit, pieces: int = 4
-                    ) -> tuple[float, int, float] | None:
+                    ) -> tuple[float, int, float, int] | None:
     """Wald test that one constant torque bias serves the whole record (the tensor shared).
 
     The record is cut into ``pieces`` time pieces, each fitted with ``f``'s parameter set and
