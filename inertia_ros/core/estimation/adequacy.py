@@ -425,8 +425,7 @@ def check_adequacy(thetas: np.ndarray, covs: np.ndarray, t_mid: np.ndarray, exce
                     excess=excess, inflation=float(factor), change_at=change_at,
                     reason='; '.join(causes), shift_chi2=s_chi2, shift_dof=s_dof,
                     shift_p_value=s_p, shift_max_sigma=s_max, benign=benign,
-                    split_chi2=b_chi2, split_dof=b_dof, split_p_value=b_p,
-                    split_pieces=b_pieces if b_dof > 0 else 0)
+                    split_chi2=b_chi2, split_dof=b_dof, split_p_value=b_p, split_pieces=b_pieces)
 
 
 
