@@ -67,7 +67,11 @@ OPTION = {'input': {}, 'hold_auto': {'hold': 'auto'}, 'hold_zoh': {'hold': 'zoh'
           'hold_linear': {'hold': 'linear'}, 'model_auto': {'model': 'auto'},
           'torque_bias_auto': {'torque_bias': 'auto'}, 'nuisance': {'nuisance': 'auto'},
           'torque_scale_std': {'torque_scale_std': SCALE_STD},
-          'gyro_scale_std': {'gyro_scale_std': SCALE_STD}, 'adequacy': {}}
+          'gyro_scale_std': {'gyro_scale_std': SCALE_STD},
+          'inertial_torque': {'inertial_torque': 'auto'}, 'adequacy': {}}
+#: features the online entry points take no parameter for yet (the table refuses them;
+#: :func:`require` gives the line)
+NO_ONLINE_PARAMETER = ('inertial_torque',)
 BASE = {'model': 'full', 'torque_bias': 'off', 'hold': 'zoh'}
 #: inputs whose online entry point cannot tell them apart at construction (from the data)
 ONLINE_KIND = {'torque': 'torque', 'torque_free': 'torque', 'wheels': 'wheels',
@@ -231,9 +235,11 @@ def test_refused_cells_give_the_table_line(mode, kind, feature) -> None:
     opts = dict(BASE, **OPTION[feature])
     online_kind = ONLINE_KIND[kind]
     if mode != 'batch' and (refusal(mode, kind, 'input') is not None
+                            or feature in NO_ONLINE_PARAMETER
                             or online_kind != kind and refusal(mode, online_kind,
                                                                feature) is None):
-        # no entry point takes this input in this mode, or the kind shows only in the data
+        # no entry point takes this input in this mode, or the kind shows only in the data,
+        # or the option is not yet a parameter of the online estimators
         call = functools.partial(require, mode, kind, opts)
     elif mode == 'batch':
         call = functools.partial(run, mode, kind, opts, records(kind)[0])

@@ -19,8 +19,8 @@ from inertia_ros.io.mcap_reader import McapReader
 
 BAGS = sorted((ROOT / 'bags').glob('*.mcap'))
 CONTRACT_KEYS = {'status', 'inertia', 'inertia_std', 'principal_moments', 'principal_axes',
-                 'ratios', 'ratios_std', 'identifiable', 'torque_bias', 'model', 'method',
-                 'samples', 'covariance', 'diagnostics'}
+                 'ratios', 'ratios_std', 'identifiable', 'torque_bias', 'inertial_torque',
+                 'model', 'method', 'samples', 'covariance', 'diagnostics'}
 #: Expected status per committed bag (by file stem); any other bag must be 'ok'.
 EXPECTED = {'torque_free': ('scale_unobservable',),
             'single_axis': ('partially_identifiable', 'insufficient_excitation'),

@@ -176,8 +176,8 @@ def test_to_dict_is_the_json_contract(nominal20):
     d = estimate(t_g, w, t_t, tau).to_dict()
     assert set(d) == {'status', 'inertia', 'inertia_std', 'principal_moments',
                       'principal_axes', 'ratios', 'ratios_std', 'identifiable',
-                      'torque_bias', 'model', 'method', 'samples', 'covariance',
-                      'diagnostics'}
+                      'torque_bias', 'inertial_torque', 'model', 'method', 'samples',
+                      'covariance', 'diagnostics'}
     assert set(d['identifiable']) == set(THETA_NAMES)
     assert set(d['samples']) == {'used', 'dropped'}
     text = json.dumps(d, allow_nan=False)

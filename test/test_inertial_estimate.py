@@ -45,7 +45,7 @@ def test_auto_fits_the_inertial_torque_on_the_disturbance_records() -> None:
     assert 0.7 < np.sqrt(np.mean(z ** 2)) < 1.35
     for e, _, _ in rows:
         if e.model == 'full+inertial':                   # (with the bias: collinear)
-            d, sd = e.diagnostics['inertial_torque'], e.diagnostics['inertial_torque_std']
+            d, sd = e.inertial_torque, e.diagnostics['inertial_torque_std']
             assert np.all(np.abs(d - D_TRUE) < 4.0 * sd) and np.all(sd < 5e-3)
 
 
@@ -78,7 +78,7 @@ def test_off_is_the_default_and_changes_nothing() -> None:
     assert np.array_equal(default.inertia, off.inertia)
     assert np.array_equal(default.inertia_std, off.inertia_std)
     assert 'disturbance' not in default.diagnostics and '+inertial' not in default.model
-    assert 'inertial_torque' not in default.diagnostics
+    assert default.inertial_torque is None and 'inertial_torque_std' not in default.diagnostics
 
 
 def test_on_reports_the_inertial_torque_and_its_sigma() -> None:
@@ -86,7 +86,7 @@ def test_on_reports_the_inertial_torque_and_its_sigma() -> None:
     e = estimate(rec.t_gyro, rec.omega, rec.t_torque, rec.torque, method='integral_ls',
                  inertial_torque='on', torque_bias='off', model='full')
     assert e.model == 'full+inertial' and e.torque_bias is None
-    assert e.diagnostics['inertial_torque'].shape == (3,)
+    assert e.inertial_torque.shape == (3,)
     assert e.diagnostics['inertial_torque_std'].shape == (3,)
     assert e.diagnostics['disturbance']['tests'] == {}
     assert e.diagnostics['disturbance']['chosen'] == 'inertial'

@@ -27,6 +27,7 @@ from typing import Any
 from inertia_ros.cli import UserError, bounded, name_arg, path_arg, path_text_arg
 from inertia_ros.core.estimation.options import (
     BATCH_HOLDS,
+    INERTIAL_TORQUE,
     METHODS,
     MODELS,
     NUISANCE_TERMS,
@@ -60,6 +61,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help='body symmetry axis (needed by --model axisymmetric)')
     p.add_argument('--torque-bias', choices=TORQUE_BIAS, default='auto',
                    help='estimate a constant unmeasured disturbance torque (default auto)')
+    p.add_argument('--inertial-torque', choices=INERTIAL_TORQUE, default='off',
+                   help='also estimate a disturbance torque constant in inertial axes (e.g. '
+                        'gravity on an offset centre of mass of a slowly turning test rig, a '
+                        'steady air flow); auto keeps it when the data support it (default '
+                        'off; not with --wheels/--rotors yet)')
     p.add_argument('--method', choices=METHODS, default='auto',
                    help='estimator (default auto: maximum likelihood (ml) up to 100k gyro '
                         'samples, integral beyond)')
@@ -388,7 +394,8 @@ def _estimate_wheels(args: argparse.Namespace, log: Any) -> Any:
 def _estimator_options(args: argparse.Namespace) -> dict[str, Any]:
     """The keyword arguments of ``estimate()`` the command line chose."""
     return {'method': args.method, 'model': args.model, 'torque_bias': args.torque_bias,
-            'hold': args.hold, 'symmetry_axis': args.symmetry_axis,
+            'inertial_torque': args.inertial_torque, 'hold': args.hold,
+            'symmetry_axis': args.symmetry_axis,
             'torque_scale_std': args.torque_scale_std, 'gyro_scale_std': args.gyro_scale_std}
 
 

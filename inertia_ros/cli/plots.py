@@ -68,7 +68,7 @@ def _torque_panels(axes: list[Any], est: InertiaEstimate, log: LogData, hold: st
         ax.set_ylabel(f'torque {"xyz"[k]} [N m]')
     axes[0].set_title(f'{what}, {width:.3g} s window means: measured (circles) and model '
                       '(I dw/dt + w x I w' + (' - bias' if est.torque_bias is not None else '')
-                      + ', line)')
+                      + (" - R' d" if est.inertial_torque is not None else '') + ', line)')
     axes[0].legend(loc='upper right', fontsize=8)
     resid = meas - model
     for k in range(3):

@@ -312,6 +312,12 @@ def _tensor_lines(report: dict) -> list[str]:
         b = report['torque_bias']
         lines.append(f'disturbance torque (estimated bias) [N m]: '
                      f'[{b[0]:.4g} {b[1]:.4g} {b[2]:.4g}]')
+    if report.get('inertial_torque') is not None:
+        d, sd = report['inertial_torque'], diag.get('inertial_torque_std') or [None] * 3
+        err = '' if None in sd else f' ± [{sd[0]:.2g} {sd[1]:.2g} {sd[2]:.2g}]'
+        lines.append(f'disturbance torque fixed in inertial axes [N m]: [{d[0]:.4g} {d[1]:.4g} '
+                     f'{d[2]:.4g}]{err} (in body axes at the first gyro sample of the epoch, '
+                     'the first one used; it turns with the body in these axes)')
     return lines
 
 
@@ -401,9 +407,26 @@ def window_torques(est: InertiaEstimate, tg: np.ndarray, w: np.ndarray, tt: np.n
     model = (L[k:] - L[:-k] + G[k:] - G[:-k]) / span
     if est.torque_bias is not None:
         model = model - np.asarray(est.torque_bias)
+    if est.inertial_torque is not None:
+        model = model - _inertial_windows(est.inertial_torque, tg, w, tt, k) / span
     meas = (T[k:] - T[:-k]) / span
     ok = span[:, 0] < 1.5 * width + 1e-9          # windows spanning a gap are meaningless
     return 0.5 * (tg[k:] + tg[:-k])[ok], meas[ok], model[ok]
+
+
+def _inertial_windows(d: np.ndarray, tg: np.ndarray, w: np.ndarray, tt: np.ndarray,
+                      k: int) -> np.ndarray:
+    """Angular impulse (K, 3) [N m s] of the torque ``d`` fixed in inertial axes over the
+    windows of ``k`` gyro steps: ``int R(s)' ds`` per window (:mod:`.attitude`, integrated
+    over the plotted gyro samples) times ``d``, turned from the estimate's frame (body axes at
+    its first gyro sample, taken as the first at or after the first torque stamp) to that of
+    the plot's first sample."""
+    from inertia_ros.core.estimation.attitude import attitude_integral
+
+    C, R = attitude_integral(tg, w, rotations=True)
+    start = min(int(np.searchsorted(tg, tt[0])) if len(tt) else 0, len(tg) - 1)
+    d_plot = R[start] @ np.asarray(d, dtype=float)
+    return (C[k:] - C[:-k]) @ d_plot
 
 
 def momentum_view(log: LogData, momentum: Any, hold: str = 'zoh') -> LogData:

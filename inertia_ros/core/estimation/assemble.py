@@ -29,7 +29,7 @@ import numpy as np
 from ..tensor import THETA_NAMES, check_physical, nearest_physical, theta_to_matrix
 from .adequacy import Adequacy, widening_weight
 from .fit import Fit
-from .model import model_basis, parameter_names
+from .model import model_basis, model_name, parameter_names
 from .result import InertiaEstimate
 from .selection import (
     FitFunction,
@@ -50,6 +50,8 @@ from .uncertainty import principal_with_std, ratio_cov
 __all__ = ['assemble', 'conclude', 'status_only']
 
 _NONE_DETERMINED = 'no principal-diagonal element is determined by the data'
+#: The frame of ``InertiaEstimate.inertial_torque`` in words (``diagnostics.disturbance``).
+INERTIAL_FRAME = 'body axes at the first gyro sample of the epoch (the first one used)'
 
 
 def _matrix(theta: np.ndarray) -> np.ndarray:
@@ -213,6 +215,7 @@ def conclude(fit: FitFunction, model: str, torque_bias: str, axis: np.ndarray | 
     if policy.inertial_torque != 'off':     # which disturbances, before anything else
         keep_b, keep_i, diag['disturbance'] = select_disturbance(
             fit, torque_bias, policy.inertial_torque, policy.alpha)
+        diag['disturbance']['frame'] = INERTIAL_FRAME
         torque_bias = 'on' if keep_b else 'off'
         fit = functools.partial(fit, inertial=keep_i) if keep_i else fit
     gen_bias = torque_bias != 'off'
@@ -352,8 +355,8 @@ def assemble(status: str, f: Fit, model: str, free: np.ndarray, diag: dict[str, 
     if held is not None:
         cov6 = cov6 + held[:6, :6]
         bias_var = bias_var + np.diag(held)[6:]
-    if f.inertial:                                 # [d_i], its std in the diagnostics
-        diag['inertial_torque'] = f.beta[f.inertial_at]
+    inertial = f.beta[f.inertial_at] if f.inertial else None
+    if f.inertial:                                 # [d_i]; its std in the diagnostics
         diag['inertial_torque_std'] = np.sqrt(np.maximum(bias_var[-3:], 0.0))
         bias_var = bias_var[:-3]
     se = np.sqrt(np.maximum(np.diag(cov6), 0.0))
@@ -390,12 +393,13 @@ def assemble(status: str, f: Fit, model: str, free: np.ndarray, diag: dict[str, 
     bias = f.beta[k:k + 3] if f.bias else None
     if f.bias:
         diag['torque_bias_std'] = np.sqrt(np.maximum(bias_var, 0.0))
-    name = model + ('+bias' if f.bias else '') + ('+inertial' if f.inertial else '')
+    name = model_name(model, f.bias, f.inertial)
     both = free[:, None] & free[None, :]
     return InertiaEstimate(status=status, inertia=I, inertia_std=I_std,
                            covariance=np.where(both, 0.5 * (cov6 + cov6.T), np.nan),
                            principal_moments=moments, principal_axes=axes, ratios=ratios,
                            ratios_std=ratios_std,
                            identifiable=dict(zip(THETA_NAMES, map(bool, free), strict=True)),
-                           torque_bias=bias, model=name, diagnostics=diag,
+                           torque_bias=bias, inertial_torque=inertial, model=name,
+                           diagnostics=diag,
                            **base)   # type: ignore[arg-type]

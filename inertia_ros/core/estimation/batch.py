@@ -98,7 +98,7 @@ from .filtered import equations_for
 from .fit import Fit, fit_two_pass
 from .hold_choice import auto_hold, coverage
 from .homogeneous import is_torque_free, torque_free_checked
-from .model import model_basis
+from .model import model_basis, model_parts
 from .model import symmetry_axis as unit_axis
 from .noise import isotropy_floor, noise_std_from_differences
 from .nuisance import nuisance_hook
@@ -619,7 +619,7 @@ def _refine(first: InertiaEstimate, tg: np.ndarray, w: np.ndarray, ts: np.ndarra
     tg, ts = tg - t0, ts - t0
     # the gyro samples the integral stage used: inside the held torque's coverage
     inside = (tg >= ts[0]) & (tg <= ts[-1] + median(np.diff(ts)))
-    name = first.model.removesuffix('+bias')
+    name = model_parts(first.model)[0]
     basis = model_basis(name, axis)
     theta0 = first.theta
     assert theta0 is not None

@@ -18,7 +18,8 @@ Inputs (:data:`INPUTS`)
     known torque).
 Features (:data:`FEATURES`)
     ``hold_auto``, ``hold_zoh``, ``hold_linear``, ``model_auto``, ``torque_bias_auto``,
-    ``nuisance``, ``torque_scale_std``, ``gyro_scale_std`` (options a caller asks for) and
+    ``nuisance``, ``torque_scale_std``, ``gyro_scale_std``, ``inertial_torque`` (options a
+    caller asks for; ``inertial_torque`` is asked for by ``'auto'`` or ``'on'``) and
     ``adequacy`` (whether the status can say ``model_mismatch``: not an option, so the table
     states it and :func:`require` never refuses on it).
 
@@ -36,6 +37,7 @@ from .options import (
     ALPHA,
     BATCH_HOLDS,
     IDENTIFIABILITY_TOL,
+    INERTIAL_TORQUE,
     MODELS,
     TORQUE_BIAS,
     check_choice,
@@ -53,12 +55,13 @@ INPUTS: tuple[str, ...] = ('torque', 'wheels', 'rotors', 'torque_free', 'wheels_
 #: Rows of the table: ``input`` (the mode takes this input at all), then the features.
 FEATURES: tuple[str, ...] = ('input', 'hold_auto', 'hold_zoh', 'hold_linear', 'model_auto',
                              'torque_bias_auto', 'nuisance', 'torque_scale_std',
-                             'gyro_scale_std', 'adequacy')
+                             'gyro_scale_std', 'inertial_torque', 'adequacy')
 #: How each feature is named in a refusal.
 _LABELS = {'input': 'this input', 'hold_auto': "hold='auto'", 'hold_zoh': "hold='zoh'",
            'hold_linear': "hold='linear'", 'model_auto': "model='auto'",
            'torque_bias_auto': "torque_bias='auto'", 'nuisance': 'nuisance terms',
            'torque_scale_std': 'torque_scale_std > 0', 'gyro_scale_std': 'gyro_scale_std > 0',
+           'inertial_torque': "inertial_torque='auto'/'on'",
            'adequacy': 'the adequacy test (model_mismatch)'}
 
 #: A supported cell.
@@ -90,6 +93,14 @@ _TF_TORQUE_SCALE = (SUBSTITUTED + 'torque_scale_std=0: a torque scale has no eff
 _TF_NUISANCE = (SUBSTITUTED + "nuisance='off': no torque stream to offset or filter "
                                '(diagnostics.nuisance.skipped says so)')
 
+#: the inertial torque (issue 27, docs/dev/inertial_torque_design.md section 6)
+_MOM_INERTIAL = ("the inertial torque is fitted on a torque input only yet; use "
+                 "inertial_torque='off' with wheels or rotors")
+_TF_INERTIAL = (SUBSTITUTED + "inertial_torque='off': no torque to give the scale (an inertial "
+                              'torque of unknown size is no scale source)')
+_ONLINE_INERTIAL = 'the online estimators have no inertial torque yet; use batch mode'
+_TRACKING_INERTIAL = 'the tracking filter has no inertial torque; use batch mode'
+
 _MOM_NUISANCE = "nuisance terms are fitted on a torque stream only; use nuisance='off' with "\
     'wheels or rotors'
 
@@ -106,6 +117,8 @@ CAPABILITIES: dict[str, dict[str, dict[str, str]]] = {
         'torque_scale_std': _row(wheels=_TORQUE_SCALE_MOM, rotors=_TORQUE_SCALE_MOM,
                                  torque_free=_TF_TORQUE_SCALE),
         'gyro_scale_std': _row(),
+        'inertial_torque': _row(wheels=_MOM_INERTIAL, rotors=_MOM_INERTIAL,
+                                torque_free=_TF_INERTIAL, wheels_torque=_MOM_INERTIAL),
         'adequacy': _row(),
     },
     # the batch cells but the nuisance terms (derived below): both holds' statistics on the
@@ -127,7 +140,8 @@ CAPABILITIES: dict[str, dict[str, dict[str, str]]] = {
                                  "'off' explicitly, or use recursive mode"),
         'nuisance': _all(_NO_NUISANCE),
         'torque_scale_std': _row(wheels=_TORQUE_SCALE_MOM, rotors=_TORQUE_SCALE_MOM),
-        'gyro_scale_std': _row(), 'adequacy': _row(),
+        'gyro_scale_std': _row(), 'inertial_torque': _all(_TRACKING_INERTIAL),
+        'adequacy': _row(),
     },
     # each re-solve is the batch estimator on the window (the momentum inputs: its
     # estimate_with_momentum), so the cells are the batch ones: derived, not copied
@@ -135,7 +149,10 @@ CAPABILITIES: dict[str, dict[str, dict[str, str]]] = {
 }
 CAPABILITIES['recursive'] = {feature: dict(row) for feature, row in CAPABILITIES['batch'].items()}
 CAPABILITIES['recursive']['nuisance'] = _all(_NO_NUISANCE)
+CAPABILITIES['recursive']['inertial_torque'] = _all(_ONLINE_INERTIAL)
 CAPABILITIES['window'] = {feature: dict(row) for feature, row in CAPABILITIES['batch'].items()}
+# the node's window re-solves take no inertial_torque parameter yet
+CAPABILITIES['window']['inertial_torque'] = _all(_ONLINE_INERTIAL)
 
 
 @dataclass(frozen=True)
@@ -160,6 +177,8 @@ class EstimatorOptions:
         Relative one-sigma scale uncertainties in [0, 0.5] (0.01 = 1 %).
     nuisance : 'auto', 'off' or tuple of str
         Sensor nuisance terms (:data:`.options.NUISANCE_TERMS`).
+    inertial_torque : {'off', 'auto', 'on'}
+        A disturbance torque constant in inertial axes (:data:`.options.INERTIAL_TORQUE`).
     """
 
     model: str = 'auto'
@@ -171,6 +190,7 @@ class EstimatorOptions:
     torque_scale_std: float = 0.0
     gyro_scale_std: float = 0.0
     nuisance: Any = 'off'
+    inertial_torque: str = 'off'
 
     def __post_init__(self) -> None:
         """Check every option once; normalise ``torque_bias`` and ``nuisance``."""
@@ -192,6 +212,7 @@ class EstimatorOptions:
                 raise ValueError(f'{name}: must be a relative one-sigma scale uncertainty in '
                                  f'[0, 0.5] (0.01 = 1 %), got {v!r}')
         object.__setattr__(self, 'nuisance', check_nuisance(self.nuisance))
+        check_choice('inertial_torque', self.inertial_torque, INERTIAL_TORQUE)
 
     def features(self) -> tuple[str, ...]:
         """The table rows these options ask for (``input`` first)."""
@@ -203,6 +224,8 @@ class EstimatorOptions:
         if self.nuisance != 'off':
             out.append('nuisance')
         out += [n for n in ('torque_scale_std', 'gyro_scale_std') if getattr(self, n) > 0]
+        if self.inertial_torque != 'off':
+            out.append('inertial_torque')
         return tuple(out)
 
 

@@ -15,6 +15,7 @@ import numpy as np
 from .._numeric import median
 from .equations import build_equations, is_prefix
 from .fit import equation_weight
+from .model import model_parts
 from .options import GAP_FACTOR, HOLDS
 from .result import InertiaEstimate
 from .selection import HOLD_ALPHA, hold_rule, select_hold
@@ -99,7 +100,7 @@ def fixed_inertial(est: InertiaEstimate | None) -> str | None:
     inertial torque allowed (``diagnostics['disturbance']``) kept it, else ``None``."""
     if est is None or 'disturbance' not in est.diagnostics:
         return None
-    return 'on' if est.model.endswith('+inertial') else 'off'
+    return 'on' if model_parts(est.model)[2] else 'off'
 
 
 def hold_by_adequacy(run: Any, results: dict[str, InertiaEstimate], held: InertiaEstimate,
@@ -151,8 +152,8 @@ def hold_window_rss(results: dict[str, InertiaEstimate], data: tuple[np.ndarray,
                     'are null): the holds are not compared')
         bias = np.zeros(3) if r.torque_bias is None else np.asarray(r.torque_bias, float)
         coef[h] = np.concatenate([-theta, -bias, [1.0],            # [psi, d, 1] -> residual
-                                  -np.asarray(r.diagnostics.get('inertial_torque', np.zeros(3)),
-                                              float)])          # (and d_i, wide equations)
+                                  -(np.zeros(3) if r.inertial_torque is None else   # (d_i,
+                                    np.asarray(r.inertial_torque, float))])  # wide equations)
     W = equation_weight(-coef['zoh'][:6], gyro_var)
     mask, _ = coverage(tg, ts, 'linear', {'warnings': []})       # inside both coverages
     idx = np.flatnonzero(mask)

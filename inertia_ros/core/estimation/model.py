@@ -17,7 +17,8 @@ from ..tensor import THETA_COLS, THETA_NAMES, THETA_ROWS
 from .options import MODELS
 
 __all__ = ['BIAS_NAMES', 'INERTIAL_NAMES', 'TRACE', 'TRACE_FREE', 'describe_direction',
-           'model_basis', 'parameter_names', 'selector', 'symmetry_axis']
+           'model_basis', 'model_name', 'model_parts', 'parameter_names', 'selector',
+           'symmetry_axis']
 
 #: Names of the constant torque-bias parameters [N m].
 BIAS_NAMES: tuple[str, ...] = ('dx', 'dy', 'dz')
@@ -28,6 +29,33 @@ TRACE = np.array([1.0, 1.0, 1.0, 0.0, 0.0, 0.0])
 
 _AXES = {'x': np.array([1.0, 0.0, 0.0]), 'y': np.array([0.0, 1.0, 0.0]),
          'z': np.array([0.0, 0.0, 1.0])}
+
+
+def model_parts(name: str | None) -> tuple[str, bool, bool]:
+    """A result's ``model`` string split into its parameter set and its disturbance terms.
+
+    Parameters
+    ----------
+    name : str or None
+        E.g. ``'full'``, ``'diagonal+bias'``, ``'full+bias+inertial'``, ``'full+inertial'``
+        (:func:`model_name`); ``None`` or ``''`` reads as ``'full'``.
+
+    Returns
+    -------
+    parameter_set : str
+        ``'full'``, ``'diagonal'``, ``'axisymmetric'`` (or ``'homogeneous'``, ``'none'``).
+    bias : bool
+        The constant body-axis torque bias was fitted.
+    inertial : bool
+        The torque fixed in inertial axes was fitted.
+    """
+    parts = (name or 'full').split('+')
+    return parts[0], 'bias' in parts[1:], 'inertial' in parts[1:]
+
+
+def model_name(parameter_set: str, bias: bool, inertial: bool = False) -> str:
+    """The ``model`` string of a result (the inverse of :func:`model_parts`)."""
+    return parameter_set + ('+bias' if bias else '') + ('+inertial' if inertial else '')
 
 
 def symmetry_axis(value: Any) -> np.ndarray | None:

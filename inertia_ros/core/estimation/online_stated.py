@@ -42,7 +42,7 @@ import numpy as np
 from ..tensor import theta_to_matrix
 from .accumulator import noise_map
 from .fit import _anchored_meat, equation_weight, fit_two_pass
-from .model import model_basis
+from .model import model_basis, model_parts
 from .options import MIN_EQUATIONS, MIN_GYRO_SAMPLES
 from .regressors import MOMENTUM_BASIS, VARIABLE_MAP
 from .schedule import STALE_FRACTION
@@ -316,8 +316,7 @@ class StatedInputs:
                 or not np.all(np.isfinite(res.theta)):
             return res
         self.theta = np.asarray(res.theta, dtype=float)
-        if (res.model or 'full').removesuffix('+bias') not in ('full', 'diagonal',
-                                                                'axisymmetric'):
+        if model_parts(res.model)[0] not in ('full', 'diagonal', 'axisymmetric'):
             return res
         span = (est._acc.t_last or 0.0) - (est._align.t0 or 0.0)
         key = f'{res.model} {est._active}'        # the parameter set and the hold estimated
@@ -341,9 +340,8 @@ def sensitivities(stats: Any, u_hat: np.ndarray, est: Any, axis: Any, nv: np.nda
     statistics read with the inputs ``u`` off, fitted with ``est``'s parameter set and its
     weights (the batch's refits at ``u_hat + e_j``; exact for the impulse's inputs, which
     enter linearly; the gyro scale's a one-sigma difference, as the batch's)."""
-    name = (est.model or 'full').removesuffix('+bias')
+    name, bias, _ = model_parts(est.model)
     basis = model_basis(name, axis)
-    bias = bool(est.model and est.model.endswith('+bias'))
     k = basis.shape[1]
 
     def theta(u: np.ndarray) -> np.ndarray:

@@ -95,9 +95,16 @@ class InertiaEstimate:
         One entry per name in ``THETA_NAMES``.
     torque_bias : ndarray, shape (3,), or None
         Estimated constant disturbance torque [N m] when the model has a bias term.
+    inertial_torque : ndarray, shape (3,), or None
+        Estimated disturbance torque constant in inertial axes [N m] when the model has that
+        term (``inertial_torque`` option), given in the body axes at the first gyro sample of
+        the epoch (the first gyro sample the estimate used): at time ``t`` it acts on the
+        body as ``R(t)' d``, ``R(t)`` the rotation from body axes at ``t`` to those at the
+        epoch's start.  Not a body-fixed torque like ``torque_bias``.
     model : str
         Parameter set used: ``full``, ``diagonal``, ``axisymmetric``, each optionally
-        ``+bias``; ``homogeneous`` for the scale-free torque-free solution; ``none``.
+        ``+bias`` then ``+inertial`` (:func:`.model.model_parts`); ``homogeneous`` for the
+        scale-free torque-free solution; ``none``.
     method : str
         Estimator name (one of ``METHODS`` or ``recursive``).
     samples_used : int
@@ -129,6 +136,7 @@ class InertiaEstimate:
     samples_dropped: int = 0
     diagnostics: dict[str, Any] = field(default_factory=dict)
     covariance: np.ndarray | None = None
+    inertial_torque: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         """Validate the status and freeze the arrays (read-only float64 copies)."""
@@ -137,7 +145,8 @@ class InertiaEstimate:
         for name, shape in (('inertia', (3, 3)), ('inertia_std', (3, 3)),
                             ('principal_moments', (3,)), ('principal_axes', (3, 3)),
                             ('ratios', (3, 3)), ('ratios_std', (3, 3)),
-                            ('torque_bias', (3,)), ('covariance', (6, 6))):
+                            ('torque_bias', (3,)), ('covariance', (6, 6)),
+                            ('inertial_torque', (3,))):
             object.__setattr__(self, name, _opt_array(getattr(self, name), shape, name))
         ident = {k: bool(self.identifiable.get(k, False)) for k in THETA_NAMES}
         object.__setattr__(self, 'identifiable', ident)
@@ -168,12 +177,13 @@ class InertiaEstimate:
         -------
         dict
             Keys ``status, inertia, inertia_std, principal_moments, principal_axes, ratios,
-            ratios_std, identifiable, torque_bias, model, method, samples, covariance,
-            diagnostics``; NaN -> None.
+            ratios_std, identifiable, torque_bias, inertial_torque, model, method, samples,
+            covariance, diagnostics``; NaN -> None.
         """
         out: dict[str, Any] = {'status': self.status}
         for name in ('inertia', 'inertia_std', 'principal_moments', 'principal_axes', 'ratios',
-                     'ratios_std', 'identifiable', 'torque_bias', 'model', 'method'):
+                     'ratios_std', 'identifiable', 'torque_bias', 'inertial_torque', 'model',
+                     'method'):
             out[name] = to_jsonable(getattr(self, name))
         out['samples'] = {'used': int(self.samples_used), 'dropped': int(self.samples_dropped)}
         out['covariance'] = to_jsonable(self.covariance)

@@ -22,6 +22,7 @@ import numpy as np
 from .adequacy import Adequacy
 from .assemble import conclude
 from .fit import Fit
+from .model import model_parts
 from .result import InertiaEstimate
 from .selection import SelectionPolicy
 
@@ -126,7 +127,7 @@ class Reselection:
             record = dict(est.diagnostics.get('model_selection') or {},
                           selected_at_samples=samples_used)
             est.diagnostics['model_selection'] = record
-            self.selection = ('on' if est.model.endswith('+bias') else 'off',
-                              est.model.removesuffix('+bias'), record)
+            name, bias, _ = model_parts(est.model)
+            self.selection = ('on' if bias else 'off', name, record)
             self.selection_left, self.selected_at = self.every - 1, samples_used
         return est

@@ -23,6 +23,7 @@ from typing import Any
 
 import numpy as np
 
+from .model import model_parts
 from .momentum import Momentum, Reduction
 from .regressors import cumulative_monomials, gyroscopic_matrix, momentum_matrix
 from .uncertainty import widen
@@ -117,7 +118,7 @@ def _profile(res: Any, st: Stated, gyro_noise: Any = None) -> tuple[np.ndarray, 
     est = MomentumRecursiveEstimator(
         names=m.names, other_torque=other, hold=st.hold, torque_scale_std=st.scale,
         gyro_scale_std=st.gscale, gyro_noise=gyro_noise, model='full',
-        torque_bias=res.model.endswith('+bias'), segment=res.diagnostics.get('segment_s'))
+        torque_bias=model_parts(res.model)[1], segment=res.diagnostics.get('segment_s'))
     edges = np.r_[-np.inf, np.arange(st.tg[0], st.tg[-1], _BLOCK_S)[1:], np.inf]
     for a, b in zip(edges[:-1], edges[1:], strict=True):   # under the buffers' bound
         if other:
@@ -143,10 +144,12 @@ def _fixed(res: Any, options: dict[str, Any]) -> dict[str, Any] | None:
     """``res``'s method, model, bias, noise and segments, fixed (None: not propagated)."""
     diag = res.diagnostics
     fixed = dict(options)
-    fixed.update(method='integral' if res.method == 'ml' else res.method,
-                 model=res.model.removesuffix('+bias'),
-                 torque_bias='on' if res.model.endswith('+bias') else 'off',
+    name, bias, inertial = model_parts(res.model)
+    fixed.update(method='integral' if res.method == 'ml' else res.method, model=name,
+                 torque_bias='on' if bias else 'off',
                  gyro_noise=diag.get('gyro_noise_std'))
+    if inertial or 'inertial_torque' in options:      # (the disturbance chosen, fixed too)
+        fixed['inertial_torque'] = 'on' if inertial else 'off'
     if diag.get('segment_s') is not None:
         fixed['segment'] = diag['segment_s']
     if diag.get('filter_cutoff_hz'):    # the same band (method='auto' may pick filtered)
