@@ -131,6 +131,9 @@ _HOLD_PREFIX_FROM = 300_000                    # gyro samples from which holds a
                                                # the first _SELECT_MAX_ROWS only
 _SEGMENT_CANDIDATES = (5.0, 10.0, 20.0, 40.0)   # s, anchored-segment lengths tried
 _EIV_MAX_SHARE = 0.02                          # differentiated-gyro noise share tolerated
+#: The methods that take ``inertial_torque``: ``ml`` (and ``auto``'s ml) through its integral
+#: stage, whose result it keeps when the inertial torque is kept (:func:`_refine`).
+_INERTIAL_METHODS = ('auto', 'integral', 'integral_ls', 'ml', 'filtered')
 
 
 @nuisance_hook
@@ -188,7 +191,9 @@ def estimate(t_gyro: Any, omega: Any, t_torque: Any, torque: Any, *,
     rotation_hz : float, optional
         Lowest rotation frequency of spinning parts [Hz] (``auto``: :mod:`.method_choice`).
     inertial_torque : {'off', 'auto', 'on'}
-        A torque constant in inertial axes beside the bias (``integral`` methods only yet).
+        A torque constant in inertial axes beside the bias (``auto``: kept by its Wald test at
+        ``alpha``; ``InertiaEstimate.inertial_torque``); not with the sliding and differential
+        methods; ``ml`` keeps the integral result when it is kept (``diagnostics['ml']``).
 
     Returns
     -------
@@ -243,8 +248,8 @@ def estimate_arrays(tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.ndarr
         torque_bias = 'on' if torque_bias else 'off'
     check_choice('torque_bias', torque_bias, TORQUE_BIAS)
     if check_choice('inertial_torque', inertial_torque, INERTIAL_TORQUE) != 'off' \
-            and method not in ('integral', 'integral_ls'):
-        raise ValueError(f"inertial_torque: needs method='integral' or 'integral_ls' (the "
+            and method not in _INERTIAL_METHODS:
+        raise ValueError(f"inertial_torque: needs method {', '.join(_INERTIAL_METHODS)} (the "
                          f"other methods have no inertial torque yet); got method={method!r}")
     policy = SelectionPolicy(alpha, identifiability_tol, physical, torque_scale_std,
                              gyro_scale_std, inertial_torque=inertial_torque)
@@ -609,6 +614,9 @@ def _refine(first: InertiaEstimate, tg: np.ndarray, w: np.ndarray, ts: np.ndarra
         info['reason'] = reason + '; the integral estimate is reported'
         return replace(first, method='integral', diagnostics=diag)
 
+    if model_parts(first.model)[2]:
+        return keep('the integral stage kept a torque fixed in inertial axes, which the '
+                    'likelihood model does not have yet')
     if hold != 'zoh':
         return keep("the likelihood model holds each torque sample (hold='zoh' only)")
     if first.status != 'ok' or first.inertia is None:

@@ -178,7 +178,9 @@ def _choose(base: Equations, dt: float, gyro_var: np.ndarray) -> tuple[float, di
         # choice compares the plain one, without the small-sample correction)
         eq.info.pop('hac_error_shapes', None)
         st = sufficient_stats(eq, None, np.zeros(0), 0.0, np.zeros(3))
-        f = fit_two_pass(st, np.eye(6), True, gyro_var, np.zeros(3))
+        # the general model: the bias, and the inertial torque when its columns are built
+        f = fit_two_pass(st, np.eye(6), True, gyro_var, np.zeros(3),
+                         inertial=eq.V.shape[1] > 13)
         scale = float(np.mean(np.abs(f.beta[:3])))
         score = float(np.trace(f.cov[:6, :6])) / scale ** 2 if scale > 0 else np.inf
         scores[f'{fc:.6g}'] = score
@@ -197,7 +199,7 @@ def _choose(base: Equations, dt: float, gyro_var: np.ndarray) -> tuple[float, di
 
 def filtered_equations(tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.ndarray,
                        mask: np.ndarray, breaks: np.ndarray, hold: str, gyro_var: np.ndarray,
-                       window: float | None) -> Equations:
+                       window: float | None, inertial: bool = False) -> Equations:
     """Equations of the ``filtered`` method (see the module docstring).
 
     Parameters
@@ -206,17 +208,20 @@ def filtered_equations(tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.nd
         As :func:`.equations.build_equations`.
     window : float, optional
         ``1 / fc`` [s], the filter's cutoff period (default: chosen from the data).
+    inertial : bool
+        Also the nine attitude-integral columns of a torque fixed in inertial axes (22
+        columns): filtered like the others, ``D C = H R'`` (the relation stays exact).
 
     Returns
     -------
     Equations
         ``kind='hac'``, unweighted; ``info`` holds the cutoff, the decimation, the regressor
         noise share (also as ``regressor_noise_share``, judged by the shared
-        errors-in-variables rule) and the selection.
+        errors-in-variables rule) and the selection (and ``attitude`` with ``inertial``).
     """
     idx: slice | np.ndarray = slice(None) if mask.all() else np.flatnonzero(mask)
     # (the squared rates' noise bias is removed with the gyro variance, as for integral)
-    base = integral_equations(tg, w, ts, tau, idx, breaks, hold, gyro_var)
+    base = integral_equations(tg, w, ts, tau, idx, breaks, hold, gyro_var, inertial=inertial)
     dt = float(np.median(np.diff(base.t)))
     if window is None:
         fc, sel = _choose(base, dt, gyro_var)
@@ -226,6 +231,7 @@ def filtered_equations(tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.nd
             raise ValueError(f'window: the filtered cutoff 1/window = {fc:.6g} Hz must be below '
                              f'the gyro Nyquist frequency {0.5 / dt:.6g} Hz; give a longer window')
     eq = _build(base, fc, dt, gyro_var)
+    eq.info.update(base.info)                     # (the attitude's gaps, with ``inertial``)
     eq.info['regressor_noise_share'] = np.full(3, eq.info['filtered_noise_share'])
     if sel is not None:
         eq.info['filter_selection'] = sel
@@ -236,8 +242,9 @@ def equations_for(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray, ta
                   mask: np.ndarray, breaks: np.ndarray, hold: str, gyro_var: np.ndarray,
                   window: float | None, inertial: bool = False) -> Equations:
     """:func:`.equations.build_equations`, with the ``filtered`` method added (``inertial``:
-    the integral methods' inertial-torque columns)."""
-    if method == 'filtered' and not inertial:
-        return filtered_equations(tg, w, ts, tau, mask, breaks, hold, gyro_var, window)
+    the inertial-torque columns, of the integral methods and ``filtered``)."""
+    if method == 'filtered':
+        return filtered_equations(tg, w, ts, tau, mask, breaks, hold, gyro_var, window,
+                                  inertial)
     return build_equations(method, tg, w, ts, tau, mask, breaks, hold, gyro_var, window,
                            inertial=inertial)

@@ -37,7 +37,10 @@ lowest line keeps only the rigid-body motion.  On data the model does describe, 
    against ``integral`` and ``ml``, whose band is the whole spectrum, not against
    ``filtered`` below the edge).  The candidate with the fewest failed tests wins; among
    equals the smallest predicted relative variance of the tensor (``trace(cov) /
-   scale^2``).  No fixed margin.
+   scale^2``).  No fixed margin.  When the integral fit keeps a torque fixed in inertial
+   axes (``inertial_torque``), ``ml`` is no candidate (its likelihood has no such torque
+   yet: the ``ml`` default reports the integral result, ``diagnostics['ml']`` says why) and
+   the residual spectrum is that of the fit with it.
 
 The record, in ``diagnostics['method_selection']``: ``requested``, ``chosen``, ``rule`` (as
 before), and ``evidence`` (the lines, the excess, the floor, the band edge and cutoff, the
@@ -112,7 +115,7 @@ def lowest_rotation_hz(speed: Any) -> float | None:
 
 
 def residual_spectrum(tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.ndarray,
-                      inertia: np.ndarray, bias: Any, hold: str
+                      inertia: np.ndarray, bias: Any, hold: str, inertial: Any = None
                       ) -> tuple[np.ndarray, np.ndarray, int]:
     """Welch spectrum of the momentum-equation residual of a fitted tensor.
 
@@ -128,6 +131,9 @@ def residual_spectrum(tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.nda
         Fitted torque bias [N m].
     hold : str
         ``'zoh'`` or ``'linear'``.
+    inertial : array_like (3,), optional
+        Fitted torque fixed in inertial axes [N m], in body axes at the first gyro sample in
+        the torque coverage: its impulse ``C(t) d`` (:mod:`.attitude`) is removed too.
 
     Returns
     -------
@@ -146,14 +152,23 @@ def residual_spectrum(tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.nda
     nper = min(nper, 1024)
     step = max(nper // 2, 1)
     n_seg = max((len(t) - nper) // step + 1, 0)
+    impulse = None
+    if inertial is not None:                 # C(t) d, (n, 3), over the run from its start
+        from .attitude import attitude_integral
+
+        impulse = attitude_integral(t, w[a:b]) @ np.asarray(inertial, dtype=float)
     if n_seg <= MAX_SEGMENTS:
         r = _residual(t, w[a:b], ts, tau, inertia, bias, hold, t[0])
+        if impulse is not None:
+            r -= impulse
         return _welch(r, fs, nper)
     # a long record: an evenly spread subset of the same segments, each residual from its own
     # start (the integral's constant and the bias's ramp are removed by the detrending)
     first = step * np.round(np.linspace(0, n_seg - 1, MAX_SEGMENTS)).astype(np.intp)
     rows = (a + first)[:, None] + np.arange(nper)                   # (K, nper)
     r = _residual(tg[rows], w[rows], ts, tau, inertia, bias, hold, t[0])
+    if impulse is not None:
+        r -= impulse[rows - a]
     f, p = _welch_power(r.transpose(2, 0, 1), fs, nper)
     return f, p, MAX_SEGMENTS
 
@@ -377,6 +392,12 @@ def choose(first: Any, data: tuple[np.ndarray, ...], hold: str, n_gyro: int,
     """
     default = 'ml' if n_gyro <= ML_AUTO_MAX_SAMPLES else 'integral'
     sel: dict[str, Any] = {'requested': 'auto', 'chosen': default, 'rule': DEFAULT_RULE}
+    if default == 'ml' and first.inertial_torque is not None:
+        # the likelihood has no inertial torque yet: refine keeps the integral result (its
+        # diagnostics say why), and the candidates are integral and filtered
+        first, default = refine(first), 'integral'
+        sel.update(chosen=default, rule=DEFAULT_RULE + '; integral when a torque fixed in '
+                   'inertial axes is kept (the likelihood model has none yet)')
     ev = _evidence(first, data, hold, rotation_hz)
     sel['evidence'] = ev
     if ev['cutoff_hz'] is None:
@@ -412,7 +433,7 @@ def _evidence(first: Any, data: tuple[np.ndarray, ...], hold: str,
                         f'{inside} gyro samples in the torque coverage: too few for a spectrum')
         return ev
     f, psd, seg = residual_spectrum(tg, w, ts, tau, np.asarray(first.inertia),
-                                    first.torque_bias, hold)
+                                    first.torque_bias, hold, first.inertial_torque)
     ev.update(spectral_evidence(f, psd, seg, span))
     edges = [x for x in (ev['edge_hz'], rotation_hz) if x is not None]
     # a known rotation line is a suspect when the integral fit fails its adequacy tests,
