@@ -178,7 +178,7 @@ def _write_mcap(rec: TruthRecord, path: Path) -> None:
 
 _CLI_FLAGS = {'gyro_scale_std': '--gyro-scale-std', 'torque_scale_std': '--torque-scale-std',
               'method': '--method', 'model': '--model', 'torque_bias': '--torque-bias',
-              'hold': '--hold'}
+              'hold': '--hold', 'inertial_torque': '--inertial-torque'}
 
 
 def _cli(rec: TruthRecord, opts: dict[str, Any]) -> tuple[str, Any, Any]:
