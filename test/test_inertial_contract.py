@@ -177,3 +177,17 @@ def test_residual_plot_removes_the_inertial_torque() -> None:
     with_term, without = rms(e), rms(replace(e, inertial_torque=None))
     # measured 1 s windows: 0.0030 N m with the term, 0.0101 without, 0.0195 with -d
     assert with_term < 0.4 * without, (with_term, without)
+
+
+@pytest.mark.skipif(not (ROOT / 'bags' / 'wheels.mcap').exists(), reason='bags/wheels.mcap absent')
+def test_wheels_with_the_inertial_torque_is_the_table_refusal(capsys) -> None:
+    """With --wheels the option is the capability table's one-line refusal, exit 2 (the
+    stated wheel profile has no inertial torque yet)."""
+    from inertia_ros.core.estimation.config import refusal
+    code = main(['estimate', str(ROOT / 'bags' / 'wheels.mcap'), '--wheels',
+                 str(ROOT / 'bags' / 'wheels_wheels.yaml'), '--inertial-torque', 'auto',
+                 '--no-progress'])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count('\n') == 1
+    # (the bag has a torque topic too: wheels_torque input)
+    assert refusal('batch', 'wheels_torque', 'inertial_torque') in err

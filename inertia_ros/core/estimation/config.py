@@ -94,8 +94,9 @@ _TF_NUISANCE = (SUBSTITUTED + "nuisance='off': no torque stream to offset or fil
                                '(diagnostics.nuisance.skipped says so)')
 
 #: the inertial torque (issue 27, docs/dev/inertial_torque_design.md section 6)
-_MOM_INERTIAL = ("the inertial torque is fitted on a torque input only yet; use "
-                 "inertial_torque='off' with wheels or rotors")
+_MOM_INERTIAL = ("the inertial torque is fitted on a torque input only yet (the stated "
+                 "wheel/rotor profile has none); use inertial_torque='off' with wheels or "
+                 "rotors")
 _TF_INERTIAL = (SUBSTITUTED + "inertial_torque='off': no torque to give the scale (an inertial "
                               'torque of unknown size is no scale source)')
 _ONLINE_INERTIAL = 'the online estimators have no inertial torque yet; use batch mode'
