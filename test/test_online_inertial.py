@@ -129,3 +129,18 @@ def test_off_keeps_the_13_variables() -> None:
     assert e._align.attitude is None
     assert all(a.dim == a.width == 13 for a in e._accs.values())
     assert e._auto is not None and e._auto.windows.n_var == 16
+
+
+def test_the_node_parameter_reaches_the_recursive_estimator_only() -> None:
+    """``inertial_torque`` (node parameter, default 'off'): passed to the recursive
+    estimator; the tracking and batch methods refuse anything but 'off' in one line."""
+    from inertia_ros.nodes import params
+    from inertia_ros.nodes.selection import make_estimator
+    cfg = {name: spec.default for name, spec in params.ESTIMATOR.items()}
+    assert cfg['inertial_torque'] == 'off'
+    assert make_estimator(cfg)().policy.inertial_torque == 'off'
+    assert make_estimator(dict(cfg, inertial_torque='auto'))().policy.inertial_torque == 'auto'
+    for method in ('tracking', 'batch'):
+        with pytest.raises(ValueError, match="'inertial_torque' must be 'off'") as exc:
+            make_estimator(dict(cfg, method=method, inertial_torque='on'))
+        assert '\n' not in str(exc.value)
