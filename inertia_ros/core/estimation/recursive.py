@@ -421,7 +421,7 @@ class RecursiveEstimator:
                                **self._context())
 
     def _choose_hold(self, nv: np.ndarray, torque_free: bool, diag: dict[str, Any],
-                     inertial: bool) -> None:
+                     inertial: str) -> None:
         """``hold='auto'``: the hold by the batch rule at each re-selection (reused between);
         a change drops the verdicts of the other hold's statistics."""
         assert self._auto is not None
@@ -469,9 +469,9 @@ class RecursiveEstimator:
         tq_std = np.sqrt(self._tau_var) if self._tau_var is not None else np.zeros(3)
         diag['torque_noise_std'] = tq_std
         policy = effective_policy(self.policy, self._align.attitude, diag)
-        if self._auto is not None:
-            self._choose_hold(nv, is_torque_free(torque_rms, tq_std), diag,
-                              policy.inertial_torque != 'off')
+        if self._auto is not None:     # (the linear hold keeps the held fit's inertial torque)
+            self._choose_hold(nv, is_torque_free(torque_rms, tq_std), diag, policy.inertial_torque)
+            policy = self._auto.held_inertial(policy, self._active)
         st = self._stats(nv, n_eff)
         # the meat of weighted sums scales by w^2 / w
         ratio = (self._acc.w00 + self._acc.w00c) / (self._acc.w0 + self._acc.wc)
