@@ -163,3 +163,23 @@ def test_a_constant_torque_keeps_its_scale_with_the_inertial_torque_allowed() ->
         z = (_theta(est) - rec.inertia_end[THETA_ROWS, THETA_COLS]) \
             / est.inertia_std[THETA_ROWS, THETA_COLS]
         assert np.abs(z).max() < 4.0, z
+
+
+def test_the_node_path_says_which_disturbance_it_kept() -> None:
+    """Seed 31 (5 s, the torque fixed in space) fed as the node feeds it, re-selecting about
+    once a second: every estimate after the first selection names the disturbance kept
+    (reused between re-selections, ``reused``), here the inertial torque, and the hold choice
+    records the held fit's."""
+    from inertia_ros.bench.honesty import feed_online
+    rec = _record(5.0, 31)
+    seen = []
+    e = feed_online(RecursiveEstimator(model='full', torque_bias='auto', hold='auto',
+                                       reselect_every=10, defer_adequacy=True,
+                                       inertial_torque='auto'), rec, 10.0,
+                    lambda t, est: seen.append((t, est)))
+    late = [est for t, est in seen if t > 4.0 and est.status in ('ok', 'model_mismatch')]
+    assert late and all('disturbance' in est.diagnostics for est in late)
+    assert any(est.diagnostics['disturbance'].get('reused') for est in late)
+    assert e.model.endswith('+inertial') and e.diagnostics['disturbance']['chosen'] in (
+        'inertial', 'both')
+    assert e.diagnostics['hold_selection']['inertial_torque_of_the_held_fit'] in ('on', 'off')

@@ -66,6 +66,7 @@ class Reselection:
         # inertial_torque)
         self.selection: tuple[str, str, dict[str, Any], str] | None = None
         self.selection_left = self.selected_at = 0   # (and the samples it saw)
+        self.disturbance: dict[str, Any] | None = None   # its diagnostics['disturbance']
 
     def reset_verdicts(self) -> None:
         """Drop the reused selection and adequacy verdicts (the statistics they judged changed:
@@ -122,6 +123,8 @@ class Reselection:
             if est.status in ('ok', 'model_mismatch'):   # (this fit's held covariance)
                 est.diagnostics['model_selection'] = dict(
                     record, **est.diagnostics.get('model_selection', {}), reused=True)
+                if self.disturbance is not None:          # (the choice's record)
+                    est.diagnostics['disturbance'] = dict(self.disturbance, reused=True)
                 return est
         est = conclude(fit, model, torque_bias, axis, policy, diag, base, adequacy,
                        sensitivity)
@@ -133,5 +136,6 @@ class Reselection:
             parts = est.model.split('+')
             self.selection = ('on' if 'bias' in parts else 'off', parts[0], record,
                               'on' if 'inertial' in parts else 'off')
+            self.disturbance = est.diagnostics.get('disturbance')
             self.selection_left, self.selected_at = self.every - 1, samples_used
         return est
