@@ -421,7 +421,7 @@ class RecursiveEstimator:
                                **self._context())
 
     def _choose_hold(self, nv: np.ndarray, torque_free: bool, diag: dict[str, Any],
-                     inertial: str) -> None:
+                     inertial: str = 'off') -> None:
         """``hold='auto'``: the hold by the batch rule at each re-selection (reused between);
         a change drops the verdicts of the other hold's statistics."""
         assert self._auto is not None
