@@ -197,6 +197,7 @@ def test_every_parameter_has_description_and_range(harness):
     ('model', 'octagonal', "parameter 'model' must be one of"),
     ('model', 'axisymmetric', 'symmetry_axis'),
     ('torque_bias', 'maybe', "parameter 'torque_bias' must be one of"),
+    ('inertial_torque', 'maybe', "parameter 'inertial_torque' must be one of"),
     ('forgetting', 1.5, ''),
     ('publish_rate', 0.0, ''),
     ('qos_depth', 5, ''),
@@ -224,6 +225,20 @@ def test_valid_parameter_change_resets(harness):
     assert h.est.set_parameters([Parameter('publish_rate', value=5.0)])[0].successful
     assert h.est.counts()['resets'] == resets + 1
     assert h.est._estimator.reselect_every == 5
+
+
+def test_inertial_torque_parameter_rebuilds_the_recursive_estimator(harness):
+    """``inertial_torque`` (default 'off'): 'auto' rebuilds the recursive estimator with it;
+    switching to the tracking method while it is on is refused with the one-line reason."""
+    h = harness()
+    assert h.est._estimator.policy.inertial_torque == 'off'
+    resets = h.est.counts()['resets']
+    assert h.est.set_parameters([Parameter('inertial_torque', value='auto')])[0].successful
+    assert h.est.counts()['resets'] == resets + 1
+    assert h.est._estimator.policy.inertial_torque == 'auto'
+    result = h.est.set_parameters([Parameter('method', value='tracking')])[0]
+    assert not result.successful and "'inertial_torque' must be 'off'" in result.reason
+    assert '\n' not in result.reason and h.est.get_parameter('method').value == 'recursive'
 
 
 def test_invalid_startup_parameters_raise(context):

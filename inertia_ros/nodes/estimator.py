@@ -110,8 +110,8 @@ TORQUE_TYPES = {'wrench': (WrenchStamped, 'torque', 'geometry_msgs/msg/WrenchSta
 PARAMETERS: dict[str, ParamSpec] = params.ESTIMATOR
 #: Parameters whose change rebuilds the estimator (a reset).
 REBUILD_PARAMETERS = ('method', 'batch_method', 'model', 'symmetry_axis', 'torque_bias',
-                      'forgetting', 'window', 'hold', 'torque_scale_std', 'gyro_scale_std',
-                      'frame_id')
+                      'inertial_torque', 'forgetting', 'window', 'hold', 'torque_scale_std',
+                      'gyro_scale_std', 'frame_id')
 
 
 class InertiaEstimatorNode(Node):

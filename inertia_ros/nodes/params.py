@@ -30,7 +30,13 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from inertia_ros.core.estimation.options import BATCH_HOLDS, METHODS, MODELS, TORQUE_BIAS
+from inertia_ros.core.estimation.options import (
+    BATCH_HOLDS,
+    INERTIAL_TORQUE,
+    METHODS,
+    MODELS,
+    TORQUE_BIAS,
+)
 from inertia_ros.core.estimation.windowed import ONLINE_METHODS
 
 __all__ = ['BAG_PLAYER', 'ESTIMATOR', 'EXCITER', 'NODE_TABLES', 'PLAYBACK', 'SCENE_SIMULATOR',
@@ -351,6 +357,10 @@ ESTIMATOR: dict[str, ParamSpec] = {
                              "[N m]: 'off', 'on' or 'auto' (kept when significant; the "
                              'recursive method re-tests it about once a second)',
                              choices=TORQUE_BIAS),
+    'inertial_torque': ParamSpec('off', "estimate a disturbance torque constant in inertial "
+                                 "axes [N m] beside torque_bias: 'off', 'on' or 'auto' (kept "
+                                 'when significant; recursive method only, without '
+                                 'wheels/rotors)', choices=INERTIAL_TORQUE),
     'forgetting': ParamSpec(1.0, 'recursive forgetting factor per gyro sample; 1 = none '
                             '[dimensionless]', 0.5, 1.0),
     'window': ParamSpec(0.0, 'recursive: memory time constant, weights decay as '

@@ -50,7 +50,8 @@ def make_estimator(cfg: dict[str, Any], actuators: Any = None
         The node's parameter values (``method``, ``batch_method``, ``model``,
         ``symmetry_axis``, ``torque_bias``, ``forgetting``, ``window`` [s], ``hold``,
         ``publish_rate`` [Hz], ``wheels_file``, ``rotors_file``, ``torque_topic``,
-        ``torque_scale_std``, ``gyro_scale_std``).
+        ``torque_scale_std``, ``gyro_scale_std``, ``inertial_torque``: the recursive
+        method's only; the others refuse anything but 'off' in one line).
     actuators : inertia_ros.io.rotors.ActuatorInput, optional
         Wheels or rotors on ``joint_states``: a
         :class:`~inertia_ros.core.estimation.recursive_momentum.MomentumRecursiveEstimator`
@@ -71,6 +72,7 @@ def make_estimator(cfg: dict[str, Any], actuators: Any = None
         From the core, naming the offending setting.
     """
     axis = cfg['symmetry_axis'] or None
+    inertial = _inertial(cfg, actuators)
     if cfg['method'] == 'recursive':
         # model selection ('auto') re-run about once a second, its choice reused in between:
         # the per-update cost (and so the latency) stays that of one fit
@@ -80,7 +82,7 @@ def make_estimator(cfg: dict[str, Any], actuators: Any = None
                       symmetry_axis=axis, reselect_every=reselect_every(cfg),
                       # the once-a-second adequacy test runs after publishing (refresh()),
                       # not between the newest input and the estimate
-                      defer_adequacy=True, **_calibration(cfg))
+                      defer_adequacy=True, **_calibration(cfg), **inertial)
         RecursiveEstimator(**kwargs)  # validates
         if actuators is not None:
             names = actuators.names
@@ -110,6 +112,22 @@ def make_estimator(cfg: dict[str, Any], actuators: Any = None
         options.update(momentum=True, other_torque=not no_torque_topic(cfg))
     BatchWindow(window, **options)  # validates
     return lambda: BatchWindow(window, **options)
+
+
+def _inertial(cfg: dict[str, Any], actuators: Any) -> dict[str, str]:
+    """The ``inertial_torque`` keyword of the recursive estimator (``{}`` when off); a
+    one-line ValueError when another method, or wheels/rotors, are asked for it."""
+    value = str(cfg.get('inertial_torque', 'off'))
+    if value == 'off':
+        return {}
+    if cfg['method'] != 'recursive':
+        raise ValueError(f"parameter 'inertial_torque' must be 'off' with method "
+                         f"{cfg['method']!r} (its estimator has no inertial torque), got "
+                         f"{value!r}: use method 'recursive'")
+    if actuators is not None:
+        raise ValueError(f"parameter 'inertial_torque' must be 'off' with wheels or rotors "
+                         f"(not available with a momentum input yet), got {value!r}")
+    return {'inertial_torque': value}
 
 
 def torque_free_estimator(cfg: dict[str, Any]) -> Callable[[], OnlineEstimator]:

@@ -9,7 +9,8 @@ disturbance fixed in inertial axes of LEVEL x (1, -0.75, 0.5) N m, 2e-4 when not
 ``_nodist`` for none).  Prints the statuses, RMS z over all records and over the ok ones,
 max |z| of the ok ones, the ok records with some |z| > 5 and the median error.
 ``KEY=VALUE`` options go to the estimator of the path (``node``: over the honesty benchmark's
-node options, e.g. ``hold=auto``, the node's default; numbers are read as floats).
+node options, e.g. ``hold=auto``, the node's default, or ``inertial_torque=auto``, the
+node's parameter of the torque fixed in inertial axes; numbers are read as floats).
 ``tracking``: the node's ``method: tracking`` estimator at the node's defaults
 (:class:`TrackingEstimator`, memory 10 s, torque bias and hold 'auto'), fed as the node feeds
 it (10 Hz blocks, an estimate after each); the options go to it.  It also prints how many

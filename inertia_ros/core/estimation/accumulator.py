@@ -47,6 +47,9 @@ class OnlineStats:
         ``forgetting``.
     forgetting : float
         Per-sample forgetting factor in (0, 1].
+    width : int
+        Variables read back: 13 ``[w, m, t, T]``, or 22 with the inertial torque's nine
+        ``vec C`` after them (:mod:`.online_inertial`).
 
     Attributes
     ----------
@@ -61,19 +64,22 @@ class OnlineStats:
     """
 
     def __init__(self, segment: float, window: float | None, forgetting: float,
-                 shadow: bool = True) -> None:
+                 shadow: bool = True, width: int = 13) -> None:
         self.segment = float(segment)
         self.window = window
         self.forgetting = float(forgetting)
-        #: variables per row: the 13 ``[w, m, t, T]`` and any extra columns of the same
+        #: variables read back (13, or 22 with the inertial torque's)
+        self.width = int(width)
+        #: variables per row: the ``width`` read back and any extra columns of the same
         #: equations after them (:mod:`.online_stated`: the stated inputs' impulse changes)
-        self.dim = 13
+        self.dim = self.width
         #: map (dim, 13) of the variables read back by :meth:`stats` and
-        #: :meth:`group_stats` (None: the first 13), e.g. the inputs corrected
+        #: :meth:`group_stats` (None: the first ``width``), e.g. the inputs corrected
         self.correction: np.ndarray | None = None
         #: the same equations on anchored segments 4x shorter (the segment shift, the bias split;
         #: 8x made a false alarm on a correct 50 rad/s spin, chi2 53 on 6 dof)
-        self.short = OnlineStats(segment / 4.0, window, forgetting, False) if shadow else None
+        self.short = OnlineStats(segment / 4.0, window, forgetting, False,
+                                 width) if shadow else None
         self._queue: list[Any] = []      # lazy: queued blocks (t, V, ts) and closes (start)
         self._queued = 0
         self._lazy = False
@@ -402,12 +408,12 @@ class OnlineStats:
                  g.w00 / g.w0, 0.5 * (g.t0 + g.t1)) for g in groups]
 
     def _read_map(self, nv: np.ndarray, gyro_scale: float) -> np.ndarray:
-        """The map (dim, 13) from the accumulated variables to the 13 read back: the
-        :attr:`correction` (or the first 13), then :func:`noise_map`."""
-        K = noise_map(nv, gyro_scale)
+        """The map (dim, width) from the accumulated variables to the ``width`` read back:
+        the :attr:`correction` (or the first ``width``), then :func:`noise_map`."""
+        K = noise_map(nv, gyro_scale, self.width)
         if self.correction is not None:
             return self.correction @ K
-        return K if self.dim == 13 else np.eye(self.dim, 13) @ K
+        return K if self.dim == self.width else np.eye(self.dim, self.width) @ K
 
     def totals(self) -> tuple[np.ndarray, np.ndarray, float]:
         """Centred Gram (dim, dim) of everything merged, the torque-noise Gram and the
@@ -417,15 +423,17 @@ class OnlineStats:
         return self.C + self.Cc, self.GPc + gp, self.walkc + walk
 
 
-def noise_map(nv: np.ndarray, gyro_scale: float = 1.0) -> np.ndarray:
-    """The linear map (13, 13) of the variables ``[w, m, t, T]`` applying the gyro-noise
-    correction ``m_c -> m_c - sigma_c^2 s`` (``nv`` (3,) [rad^2/s^2]) and, for
-    ``gyro_scale`` != 1, a gyro read that many times larger (``w`` and ``m`` scale)."""
-    K = np.eye(13)
+def noise_map(nv: np.ndarray, gyro_scale: float = 1.0, width: int = 13) -> np.ndarray:
+    """The linear map (width, width) of the variables ``[w, m, t, T]`` (and, width 22, the
+    inertial torque's ``vec C``) applying the gyro-noise correction ``m_c -> m_c - sigma_c^2
+    s`` (``nv`` (3,) [rad^2/s^2]) and, for ``gyro_scale`` != 1, a gyro read that many times
+    larger (``w`` and ``m`` scale; ``C`` kept: first order, as the batch's
+    :func:`.refits.gyro_sensitivity`)."""
+    K = np.eye(width)
     K[9, 3:6] = -nv
     if gyro_scale != 1.0:
         K = np.diag(np.r_[np.full(3, gyro_scale), np.full(6, gyro_scale ** 2),
-                          np.ones(4)]) @ K
+                          np.ones(width - 9)]) @ K
     return K
 
 
@@ -449,22 +457,24 @@ def window_test(acc: OnlineStats, f: Fit, nv: np.ndarray, tv: np.ndarray, *,
         theta0 = f.basis @ f.beta[:k]
         fits = []
         for st, factor, mid in groups:
-            fk = fit_two_pass(st, f.basis, f.bias, nv, tv, None, theta0)
+            fk = fit_two_pass(st, f.basis, f.bias, nv, tv, None, theta0, inertial=f.inertial)
             fits.append((fk.beta, fk.cov * factor, mid))
         thetas = np.array([x[0] for x in fits])
         covs = np.array([x[1] for x in fits])
         mids = np.array([x[2] for x in fits])
     ctx = {'torque_dt': torque_dt, 'gyro_dt': gyro_dt, 'white_y_cov': white_y_cov}
-    split = _split(acc, f, nv, tv, **ctx) if len(groups) < 2 and f.bias else None
+    split = _split(acc, f, nv, tv, **ctx) if len(groups) < 2 and (f.bias or f.inertial) \
+        else None
     return check_adequacy(thetas, covs, mids, f.excess, shift=_shift(acc, f, nv, tv, **ctx),
                           split=split)
 
 
 def _split(acc: OnlineStats, f: Fit, nv: np.ndarray, tv: np.ndarray, **context: object
            ) -> tuple[float, int, float, int] | None:
-    """Too short for the groups: the fitted torque bias tested over up to four groups of
-    :attr:`OnlineStats.short`'s segments (:func:`.adequacy.bias_split`, as the batch's
-    :func:`.refits.bias_split_test`); ``None`` as :func:`_shift`."""
+    """Too short for the groups: the fitted torque bias (and / or inertial torque) tested
+    over up to four groups of :attr:`OnlineStats.short`'s segments
+    (:func:`.adequacy.bias_split`, as the batch's :func:`.refits.bias_split_test`); ``None``
+    as :func:`_shift`."""
     s = acc.short
     if s is None or context['white_y_cov'] is not None:
         return None
@@ -473,7 +483,8 @@ def _split(acc: OnlineStats, f: Fit, nv: np.ndarray, tv: np.ndarray, **context: 
     theta0 = f.basis @ f.beta[:k]
     fits = []
     for st, factor, _ in s.group_stats(nv, min_s=0.0, **context):  # type: ignore[arg-type]
-        fk = fit_two_pass(st, f.basis, True, nv, tv, None, theta0, theta0)
+        fk = fit_two_pass(st, f.basis, f.bias, nv, tv, None, theta0, theta0,
+                          inertial=f.inertial)
         fk.cov = fk.cov * factor
         fits.append(fk)
     return bias_split(fits, k) if len(fits) >= 2 else None
@@ -493,7 +504,8 @@ def _shift(acc: OnlineStats, f: Fit, nv: np.ndarray, tv: np.ndarray, **context: 
     s.correction = acc.correction
     # both refitted: ``f``'s own covariance may have been widened since (a deferred test)
     fl, fs = (fit_two_pass(a.stats(nv, a.n_eff(), True, **context),  # type: ignore[arg-type]
-                           f.basis, f.bias, nv, tv, f.offset, theta0) for a in (acc, s))
+                           f.basis, f.bias, nv, tv, f.offset, theta0, inertial=f.inertial)
+              for a in (acc, s))
     rl, rs = ((a.w00 + a.w00c) / (a.w0 + a.wc) for a in (acc, s))   # meat of weighted sums
     return segment_shift(fl.beta[:k], fl.cov[:k, :k] * rl / max(fl.excess, 1.0),
                          fs.beta[:k], fs.cov[:k, :k] * rs / max(fs.excess, 1.0))

@@ -15,6 +15,8 @@ intervals) and the anchored equations' variables.
 """
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from .noise import median_rows
@@ -137,7 +139,8 @@ class OnlineAligner:
     (the nominal intervals of the gap rule) and the continuation of the monomial integral.
     :meth:`ready` splits gyro samples into covered and waiting ones, :meth:`gaps` applies the
     gap rule, :meth:`variables` turns covered samples into the 13 variables ``[w, m, t, T]``
-    of the anchored equations and :meth:`trim` drops the torque samples no longer needed.
+    of the anchored equations (22 with :attr:`attitude`: the inertial torque's nine after
+    them) and :meth:`trim` drops the torque samples no longer needed.
     """
 
     def __init__(self, extra: int = 0) -> None:
@@ -157,6 +160,10 @@ class OnlineAligner:
         self.g_dts = np.empty(0)
         self.g_dt = 0.0                 # their median (0 before two samples)
         self.tq_last: float | None = None
+        #: the carried attitude of the inertial torque (:class:`.online_inertial.
+        #: AttitudeState`, advanced over every covered gyro sample by :meth:`gaps`), or None
+        self.attitude: Any = None
+        self._c = np.zeros((0, 9))      # its ``vec C`` (n, 9) of the samples gaps() kept
 
     def take(self, new_t: np.ndarray, new_tau: np.ndarray,
              new_alt: np.ndarray | None = None) -> None:
@@ -191,7 +198,8 @@ class OnlineAligner:
         return t[ready], w[ready], t[~ready], w[~ready], dropped, True
 
     def variables(self, t: np.ndarray, w: np.ndarray, hold: str) -> np.ndarray:
-        """The variables ``V`` (n, 13) ``[w, m, t - t0, T]`` of covered gyro samples.
+        """The variables ``V`` (n, 13) ``[w, m, t - t0, T]`` of covered gyro samples, (n, 22)
+        with :attr:`attitude` (``vec C`` of the samples :meth:`gaps` kept, after them).
 
         ``T`` is the torque integral at the gyro times (``hold`` between torque samples) and
         ``m`` the raw monomial integrals: the gyro-noise correction ``m - s sigma^2`` is
@@ -200,7 +208,12 @@ class OnlineAligner:
         T = self.T_base + cumulative_torque(self.ts, self.tau, t, hold,
                                             out=np.empty((len(t), self.tau.shape[1])))
         M = self._monomials(t, w)
-        return np.concatenate([w, M, (t - self.t0)[:, None], T], axis=1)
+        parts = [w, M, (t - self.t0)[:, None], T]
+        if self.attitude is not None:
+            if len(self._c) != len(t):
+                raise RuntimeError('OnlineAligner.variables: call gaps() on the block first')
+            parts.append(self._c)
+        return np.concatenate(parts, axis=1)
 
     def trim(self, t_last: float, hold: str) -> None:
         """Keep torque samples from the last one at or before ``t_last`` [s] (the last merged
@@ -247,7 +260,8 @@ class OnlineAligner:
         paused controller) would be integrated as the last command held throughout, and a
         gyro gap would be bridged by one trapezoid: both corrupt every later equation of the
         segment.  Gyro samples the held torque cannot cover are dropped (counted), and the
-        first sample after each gap starts a new anchored segment.
+        first sample after each gap starts a new anchored segment.  The :attr:`attitude`, if
+        any, is advanced over every sample first (its own gap rule: bridged or stopped).
 
         Returns
         -------
@@ -273,9 +287,13 @@ class OnlineAligner:
         if len(self.g_dts) >= 2:
             big = np.flatnonzero(dg > GAP_FACTOR * self.g_dt)
             starts.extend(float(edges[i + 1]) for i in big)
+        if self.attitude is not None:
+            self._c = self.attitude.advance(t, w, self.g_dt if len(self.g_dts) >= 2 else None)
         if not starts:
             return t, w, [], 0
         dropped = int(np.sum(~keep))
         t, w = t[keep], w[keep]
+        if self.attitude is not None:
+            self._c = self._c[keep]
         breaks = sorted({int(np.searchsorted(t, b, side='left')) for b in starts})
         return t, w, [k for k in breaks if k < len(t)], dropped

@@ -212,6 +212,7 @@ def conclude(fit: FitFunction, model: str, torque_bias: str, axis: np.ndarray | 
     -------
     InertiaEstimate
     """
+    requested = torque_bias                 # (the inseparable bias: dropped if it was 'auto')
     if policy.inertial_torque != 'off':     # which disturbances, before anything else
         keep_b, keep_i, diag['disturbance'] = select_disturbance(
             fit, torque_bias, policy.inertial_torque, policy.alpha)
@@ -222,8 +223,9 @@ def conclude(fit: FitFunction, model: str, torque_bias: str, axis: np.ndarray | 
     # ---- identifiability on the general model
     f = fit(np.eye(6), gen_bias)
     und = undetermined(f)
-    if torque_bias == 'auto' and np.any(und):
-        f, und, gen_bias, torque_bias = _without_inseparable_bias(fit, f, und, diag)
+    if requested == 'auto' and gen_bias and np.any(und):   # (kept: as selected)
+        f, und, gen_bias, dropped = _without_inseparable_bias(fit, f, und, diag)
+        torque_bias = torque_bias if gen_bias else dropped
     diag.update(conditioning(f, parameter_names(np.eye(6), gen_bias, 'full', f.inertial)))
     none_determined = dict(diag, reason=_NONE_DETERMINED)
     if not np.any(~und[:3]):

@@ -32,6 +32,10 @@ The two streams arrive asynchronously: gyro samples are buffered until torque co
 has arrived (a torque sample at or after the gyro time), then integrated exactly under the
 zero-order hold (or linear interpolation) of the torque samples; with ``hold='auto'`` both,
 into two accumulators, and the batch rule chooses between them (:mod:`.online_hold`).
+
+With ``inertial_torque`` on or ``auto`` the rows carry the attitude integral's nine variables
+too (22, the batch's wide layout) and the torque fixed in inertial axes is selected and fitted
+as the batch's (:mod:`.online_inertial`).
 """
 from __future__ import annotations
 
@@ -46,11 +50,12 @@ from .adequacy import Adequacy
 from .align import OnlineAligner
 from .assemble import status_only
 from .config import require, unapplied
-from .fit import Fit, fit_two_pass
+from .fit import Fit
 from .homogeneous import homogeneous_estimate, is_torque_free
 from .model import symmetry_axis as unit_axis
 from .noise import StreamingNoise
 from .online_hold import AutoHold
+from .online_inertial import AttitudeState, check_inertial, effective_policy, online_fits
 from .online_shift import ShiftRows, online_checks
 from .options import (
     ALPHA,
@@ -136,6 +141,8 @@ class RecursiveEstimator:
         and one whose verdict is stale (:data:`.schedule.STALE_FRACTION`) run in estimate().
     nuisance : str
         Only ``'off'``: any other value is refused by :func:`.config.require` (one line).
+    inertial_torque : {'off', 'auto', 'on'}
+        A torque constant in inertial axes beside the bias (:mod:`.online_inertial`).
     """
 
     #: White noise in the equations' right-hand side besides the gyro's (a momentum input's,
@@ -148,7 +155,7 @@ class RecursiveEstimator:
                  block: int = 256, segment: float | None = None,
                  reselect_every: int = 1, torque_scale_std: float = 0.0,
                  gyro_scale_std: float = 0.0, defer_adequacy: bool = False,
-                 nuisance: Any = 'off') -> None:
+                 nuisance: Any = 'off', inertial_torque: str = 'off') -> None:
         opts = require('recursive', 'torque', dict(
             model=model, torque_bias=torque_bias, hold=hold, symmetry_axis=symmetry_axis,
             alpha=alpha, torque_scale_std=torque_scale_std, gyro_scale_std=gyro_scale_std,
@@ -159,7 +166,8 @@ class RecursiveEstimator:
         if window is not None and not window > 0:
             raise ValueError(f'window: must be > 0 s, got {window!r}')
         self.policy = SelectionPolicy(alpha, torque_scale_std=torque_scale_std,
-                                      gyro_scale_std=gyro_scale_std)
+                                      gyro_scale_std=gyro_scale_std,
+                                      inertial_torque=check_inertial(inertial_torque))
         if segment is not None and not segment > 0:
             raise ValueError(f'segment: must be > 0 s, got {segment!r}')
         self.segment = float(segment if segment is not None else (window or 10.0))
@@ -192,10 +200,13 @@ class RecursiveEstimator:
         self._gt: list[np.ndarray] = []
         self._gw: list[np.ndarray] = []
         self._align = OnlineAligner()    # the held torque, intervals, monomial integral
+        wide = self.policy.inertial_torque != 'off'      # (and the attitude: 22 variables)
+        self._align.attitude = AttitudeState() if wide else None
         # the statistics of the merged equations, owning their state (one per hold kept)
-        self._accs = {h: OnlineStats(self.segment, self.window, self.forgetting)
+        self._accs = {h: OnlineStats(self.segment, self.window, self.forgetting,
+                                     width=22 if wide else 13)
                       for h in (HOLDS if self.hold == 'auto' else (self.hold,))}
-        self._auto = AutoHold() if self.hold == 'auto' else None
+        self._auto = AutoHold(wide) if self.hold == 'auto' else None
         self._shift_rows = ShiftRows(self.segment, self.window is None and self.forgetting == 1)
         self._set_active('zoh' if self.hold == 'auto' else self.hold)   # the hold estimated
         self._tau_var: np.ndarray | None = None
@@ -299,7 +310,7 @@ class RecursiveEstimator:
         if self._gyro_noise is None:
             self._gyro_nv.add(w)
         held = 'zoh' if self._auto is not None else self.hold
-        V = self._align.variables(t, w, held)       # [w, m, t, T] (n, 13)
+        V = self._align.variables(t, w, held)       # [w, m, t, T] (n, 13), [.., c] (n, 22)
         Vs = {held: V} if self._auto is None else self._auto.rows(self._align, t, V, breaks)
         # a gap starts a new anchored segment: the wrongly held torque and the trapezoid across
         # the gap shift T and M by constants, which the new segment's momentum absorbs
@@ -409,7 +420,8 @@ class RecursiveEstimator:
         return self._acc.stats(nv, n_eff, self._tau_var is not None, gyro_scale=gyro_scale,
                                **self._context())
 
-    def _choose_hold(self, nv: np.ndarray, torque_free: bool, diag: dict[str, Any]) -> None:
+    def _choose_hold(self, nv: np.ndarray, torque_free: bool, diag: dict[str, Any],
+                     inertial: str = 'off') -> None:
         """``hold='auto'``: the hold by the batch rule at each re-selection (reused between);
         a change drops the verdicts of the other hold's statistics."""
         assert self._auto is not None
@@ -419,7 +431,7 @@ class RecursiveEstimator:
         changed, diag['hold_selection'] = self._auto.select(
             due, torque_free, lambda h: self._accs[h].stats(
                 nv, n_eff, self._tau_var is not None, **self._context()),
-            self.torque_bias != 'off', nv, tv, self._white_y_cov, self.samples_used)
+            self.torque_bias != 'off', nv, tv, self._white_y_cov, self.samples_used, inertial)
         if changed:
             self._set_active(self._auto.chosen)
             self._schedule.reset_verdicts()
@@ -456,8 +468,10 @@ class RecursiveEstimator:
         diag['torque_rms'] = torque_rms
         tq_std = np.sqrt(self._tau_var) if self._tau_var is not None else np.zeros(3)
         diag['torque_noise_std'] = tq_std
-        if self._auto is not None:
-            self._choose_hold(nv, is_torque_free(torque_rms, tq_std), diag)
+        policy = effective_policy(self.policy, self._align.attitude, diag)
+        if self._auto is not None:     # (the linear hold keeps the held fit's inertial torque)
+            self._choose_hold(nv, is_torque_free(torque_rms, tq_std), diag, policy.inertial_torque)
+            policy = self._auto.held_inertial(policy, self._active)
         st = self._stats(nv, n_eff)
         # the meat of weighted sums scales by w^2 / w
         ratio = (self._acc.w00 + self._acc.w00c) / (self._acc.w0 + self._acc.wc)
@@ -466,26 +480,7 @@ class RecursiveEstimator:
             return homogeneous_estimate(st, nv, diag, base, cov_scale=ratio,
                                         checks=online_checks(self, nv, n_eff, st))
         tv = self._tau_var if self._tau_var is not None else np.zeros(3)
-
-        def fit(basis: np.ndarray, bias: bool, offset: np.ndarray | None = None,
-                theta0: np.ndarray | None = None) -> Fit:
-            """Fit on the weighted statistics; the meat of weighted sums scales by w^2/w."""
-            f = fit_two_pass(st, basis, bias, nv, tv, offset, theta0)
-            f.cov = f.cov * ratio
-            return f
-
-        def adequacy(f: Fit, chosen: str) -> Adequacy:
-            """Window consistency over the kept segments and the residual excess."""
-            n = self.samples_used
-            return self._schedule.window_adequacy(f, nv, tv, self._test_adequacy, n)
-
-        def gyro_sensitivity(f: Fit) -> np.ndarray:
-            """``d beta / d g``: refit of the statistics of a gyro read 1e-4 larger."""
-            k = f.basis.shape[1]
-            theta0 = f.basis @ f.beta[:k] + (0.0 if f.offset is None else f.offset)
-            b = [fit_two_pass(self._stats(nv, n_eff, s), f.basis, f.bias, nv, tv, f.offset,
-                              theta0).beta for s in (1.0, 1.0 + 1e-4)]
-            return (b[1] - b[0]) / 1e-4
-
-        return self._schedule.decide(fit, self.model, self.torque_bias, self.axis, self.policy,
+        # fit(basis, bias, offset, theta0, inertial), the adequacy test, d beta / d g
+        fit, adequacy, gyro_sensitivity = online_fits(self, st, nv, tv, n_eff, ratio)
+        return self._schedule.decide(fit, self.model, self.torque_bias, self.axis, policy,
                                      diag, base, adequacy, gyro_sensitivity, self.samples_used)

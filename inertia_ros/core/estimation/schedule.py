@@ -15,6 +15,7 @@ the tests themselves are passed in as callables.
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -62,9 +63,11 @@ class Reselection:
         self.due: tuple[int, Fit, np.ndarray, np.ndarray, int] | None = None
         self.tested_at = 0               # samples the adequacy verdict saw
         self.estimates = 0               # estimate() calls (serial of the last one)
-        # model selection reused between re-selections: (torque_bias, model, its record)
-        self.selection: tuple[str, str, dict[str, Any]] | None = None
+        # model selection reused between re-selections: (torque_bias, model, its record,
+        # inertial_torque)
+        self.selection: tuple[str, str, dict[str, Any], str] | None = None
         self.selection_left = self.selected_at = 0   # (and the samples it saw)
+        self.disturbance: dict[str, Any] | None = None   # its diagnostics['disturbance']
 
     def reset_verdicts(self) -> None:
         """Drop the reused selection and adequacy verdicts (the statistics they judged changed:
@@ -108,17 +111,21 @@ class Reselection:
                  adequacy: Any, sensitivity: Any, samples_used: int) -> InertiaEstimate:
         """Model selection (the last choice reused between re-selections) and the result
         (:func:`.assemble.conclude`)."""
-        auto = model == 'auto' or torque_bias == 'auto'
+        auto = 'auto' in (model, torque_bias, policy.inertial_torque)
         fresh = samples_used - self.selected_at <= STALE_FRACTION * samples_used
         if auto and self.selection is not None and self.selection_left > 0 and fresh:
             self.selection_left -= 1
-            bias, chosen, record = self.selection
-            est = conclude(fit, chosen, bias, axis, policy,
+            bias, chosen, record, inertial = self.selection
+            kept = policy if policy.inertial_torque == 'off' else replace(
+                policy, inertial_torque=inertial)      # (the disturbance chosen with it)
+            est = conclude(fit, chosen, bias, axis, kept,
                            dict(diag, warnings=list(diag['warnings'])), base, adequacy,
                            sensitivity, by_test=True)
             if est.status in ('ok', 'model_mismatch'):   # (this fit's held covariance)
                 est.diagnostics['model_selection'] = dict(
                     record, **est.diagnostics.get('model_selection', {}), reused=True)
+                if self.disturbance is not None:          # (the choice's record)
+                    est.diagnostics['disturbance'] = dict(self.disturbance, reused=True)
                 return est
         est = conclude(fit, model, torque_bias, axis, policy, diag, base, adequacy,
                        sensitivity)
@@ -127,7 +134,9 @@ class Reselection:
             record = dict(est.diagnostics.get('model_selection') or {},
                           selected_at_samples=samples_used)
             est.diagnostics['model_selection'] = record
-            name, bias, _ = model_parts(est.model)
-            self.selection = ('on' if bias else 'off', name, record)
+            name, bias, inertial = model_parts(est.model)
+            self.selection = ('on' if bias else 'off', name, record,
+                              'on' if inertial else 'off')
+            self.disturbance = est.diagnostics.get('disturbance')
             self.selection_left, self.selected_at = self.every - 1, samples_used
         return est
