@@ -71,7 +71,7 @@ OPTION = {'input': {}, 'hold_auto': {'hold': 'auto'}, 'hold_zoh': {'hold': 'zoh'
           'inertial_torque': {'inertial_torque': 'auto'}, 'adequacy': {}}
 #: features the online entry points take no parameter for yet (the table refuses them;
 #: :func:`require` gives the line)
-NO_ONLINE_PARAMETER = ('inertial_torque',)
+NO_ONLINE_PARAMETER = (('window', 'inertial_torque'), ('tracking', 'inertial_torque'))
 BASE = {'model': 'full', 'torque_bias': 'off', 'hold': 'zoh'}
 #: inputs whose online entry point cannot tell them apart at construction (from the data)
 ONLINE_KIND = {'torque': 'torque', 'torque_free': 'torque', 'wheels': 'wheels',
@@ -235,7 +235,7 @@ def test_refused_cells_give_the_table_line(mode, kind, feature) -> None:
     opts = dict(BASE, **OPTION[feature])
     online_kind = ONLINE_KIND[kind]
     if mode != 'batch' and (refusal(mode, kind, 'input') is not None
-                            or feature in NO_ONLINE_PARAMETER
+                            or (mode, feature) in NO_ONLINE_PARAMETER
                             or online_kind != kind and refusal(mode, online_kind,
                                                                feature) is None):
         # no entry point takes this input in this mode, or the kind shows only in the data,

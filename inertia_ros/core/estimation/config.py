@@ -99,7 +99,7 @@ _MOM_INERTIAL = ("the inertial torque is fitted on a torque input only yet (the 
                  "rotors")
 _TF_INERTIAL = (SUBSTITUTED + "inertial_torque='off': no torque to give the scale (an inertial "
                               'torque of unknown size is no scale source)')
-_ONLINE_INERTIAL = 'the online estimators have no inertial torque yet; use batch mode'
+_WINDOW_INERTIAL = "the node's window re-solves have no inertial torque yet; use recursive or batch mode"
 _TRACKING_INERTIAL = 'the tracking filter has no inertial torque; use batch mode'
 
 _MOM_NUISANCE = "nuisance terms are fitted on a torque stream only; use nuisance='off' with "\
@@ -150,10 +150,9 @@ CAPABILITIES: dict[str, dict[str, dict[str, str]]] = {
 }
 CAPABILITIES['recursive'] = {feature: dict(row) for feature, row in CAPABILITIES['batch'].items()}
 CAPABILITIES['recursive']['nuisance'] = _all(_NO_NUISANCE)
-CAPABILITIES['recursive']['inertial_torque'] = _all(_ONLINE_INERTIAL)
 CAPABILITIES['window'] = {feature: dict(row) for feature, row in CAPABILITIES['batch'].items()}
 # the node's window re-solves take no inertial_torque parameter yet
-CAPABILITIES['window']['inertial_torque'] = _all(_ONLINE_INERTIAL)
+CAPABILITIES['window']['inertial_torque'] = _all(_WINDOW_INERTIAL)
 
 
 @dataclass(frozen=True)

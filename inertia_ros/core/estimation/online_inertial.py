@@ -35,16 +35,10 @@ from .selection import SelectionPolicy
 
 __all__ = ['AttitudeState', 'check_inertial', 'effective_policy', 'online_fits']
 
-def check_inertial(value: Any, momentum: bool = False) -> str:
+def check_inertial(value: Any) -> str:
     """``inertial_torque`` checked (one ``ValueError`` line): ``'off'``, ``'auto'`` or
-    ``'on'``; refused with a momentum input (``momentum``), whose stated inputs' columns
-    take the places after the 13 variables."""
-    value = check_choice('inertial_torque', value, INERTIAL_TORQUE)
-    if momentum and value != 'off':
-        raise ValueError(f"inertial_torque: {value!r} is not available with wheels or rotors "
-                         "in recursive mode yet; use inertial_torque='off', or the batch "
-                         'estimator with a torque input')
-    return value
+    ``'on'`` (a momentum input is refused by the capability table, :func:`.config.require`)."""
+    return check_choice('inertial_torque', value, INERTIAL_TORQUE)
 
 
 class AttitudeState:

@@ -48,7 +48,6 @@ from .config import require, substitutions
 from .fit import walk_bases
 from .momentum import Momentum, held_over, interval_torque, walk_sums, walk_variance
 from .noise import StreamingNoise
-from .online_inertial import check_inertial
 from .online_stated import StatedInputs
 from .online_walk import FeatureStore, walk_deviation, walk_model
 from .options import HOLDS
@@ -431,7 +430,6 @@ class MomentumRecursiveEstimator(MomentumInput, RecursiveEstimator):
 
     def __init__(self, names: Sequence[str] = (), other_torque: bool = True,
                  hold: str = 'zoh', **kwargs: Any) -> None:
-        check_inertial(kwargs.get('inertial_torque', 'off'), momentum=True)   # (not yet)
         kwargs = self._options('recursive', names, other_torque, hold, kwargs)
         # the equivalent torque is held over each grid interval: integrated as held, whatever
         # the other torque's hold (which _other_on has applied already); 'auto' keeps both
