@@ -68,7 +68,7 @@ def test_recursive_equals_the_batch_with_the_inertial_torque(bias: str) -> None:
     sd = _noise_sigma(b)
     assert np.all(np.abs(_theta(r) - _theta(b)) < 0.05 * sd), (_theta(r) - _theta(b)) / sd
     np.testing.assert_allclose(_noise_sigma(r), sd, rtol=0.03)
-    d_b, d_r = b.diagnostics['inertial_torque'], r.diagnostics['inertial_torque']
+    d_b, d_r = b.inertial_torque, r.inertial_torque
     sd_d = b.diagnostics['inertial_torque_std']
     assert np.all(np.abs(d_r - d_b) < 0.05 * sd_d), (d_r - d_b) / sd_d
     assert np.all(np.abs(d_r - D_TRUE) < 4.0 * r.diagnostics['inertial_torque_std'])

@@ -99,7 +99,8 @@ _MOM_INERTIAL = ("the inertial torque is fitted on a torque input only yet (the 
                  "rotors")
 _TF_INERTIAL = (SUBSTITUTED + "inertial_torque='off': no torque to give the scale (an inertial "
                               'torque of unknown size is no scale source)')
-_WINDOW_INERTIAL = "the node's window re-solves have no inertial torque yet; use recursive or batch mode"
+_WINDOW_INERTIAL = ("the node's window re-solves have no inertial torque yet; use recursive "
+                    'or batch mode')
 _TRACKING_INERTIAL = 'the tracking filter has no inertial torque; use batch mode'
 
 _MOM_NUISANCE = "nuisance terms are fitted on a torque stream only; use nuisance='off' with "\
