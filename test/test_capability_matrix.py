@@ -68,7 +68,7 @@ OPTION = {'input': {}, 'hold_auto': {'hold': 'auto'}, 'hold_zoh': {'hold': 'zoh'
           'torque_bias_auto': {'torque_bias': 'auto'}, 'nuisance': {'nuisance': 'auto'},
           'torque_scale_std': {'torque_scale_std': SCALE_STD},
           'gyro_scale_std': {'gyro_scale_std': SCALE_STD},
-          'inertial_torque': {'inertial_torque': 'auto'}, 'adequacy': {}}
+          'inertial_torque': {'inertial_torque': 'on'}, 'adequacy': {}}
 #: features the online entry points take no parameter for yet (the table refuses them;
 #: :func:`require` gives the line)
 NO_ONLINE_PARAMETER = (('window', 'inertial_torque'), ('tracking', 'inertial_torque'))

@@ -61,11 +61,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help='body symmetry axis (needed by --model axisymmetric)')
     p.add_argument('--torque-bias', choices=TORQUE_BIAS, default='auto',
                    help='estimate a constant unmeasured disturbance torque (default auto)')
-    p.add_argument('--inertial-torque', choices=INERTIAL_TORQUE, default='off',
-                   help='also estimate a disturbance torque constant in inertial axes (e.g. '
-                        'gravity on an offset centre of mass of a slowly turning test rig, a '
-                        'steady air flow); auto keeps it when the data support it (default '
-                        'off; not with --wheels/--rotors yet)')
+    p.add_argument('--inertial-torque', choices=INERTIAL_TORQUE, default='auto',
+                   help='also estimate a disturbance torque constant in inertial axes (e.g. a '
+                        'steady air flow, a tether); auto (default) keeps it when the data '
+                        'support it, and runs without it with --wheels/--rotors and the '
+                        'sliding and differential methods; on always fits it')
     p.add_argument('--method', choices=METHODS, default='auto',
                    help='estimator (default auto: maximum likelihood (ml) up to 100k gyro '
                         'samples, integral beyond)')

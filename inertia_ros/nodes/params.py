@@ -357,10 +357,11 @@ ESTIMATOR: dict[str, ParamSpec] = {
                              "[N m]: 'off', 'on' or 'auto' (kept when significant; the "
                              'recursive method re-tests it about once a second)',
                              choices=TORQUE_BIAS),
-    'inertial_torque': ParamSpec('off', "estimate a disturbance torque constant in inertial "
+    'inertial_torque': ParamSpec('auto', "estimate a disturbance torque constant in inertial "
                                  "axes [N m] beside torque_bias: 'off', 'on' or 'auto' (kept "
-                                 'when significant; recursive method only, without '
-                                 'wheels/rotors)', choices=INERTIAL_TORQUE),
+                                 "when significant; recursive method with a torque input: "
+                                 "elsewhere 'auto' runs without it and 'on' is refused)",
+                                 choices=INERTIAL_TORQUE),
     'forgetting': ParamSpec(1.0, 'recursive forgetting factor per gyro sample; 1 = none '
                             '[dimensionless]', 0.5, 1.0),
     'window': ParamSpec(0.0, 'recursive: memory time constant, weights decay as '

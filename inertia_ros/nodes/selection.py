@@ -116,9 +116,11 @@ def make_estimator(cfg: dict[str, Any], actuators: Any = None
 
 def _inertial(cfg: dict[str, Any], actuators: Any) -> dict[str, str]:
     """The ``inertial_torque`` keyword of the recursive estimator (``{}`` when off); a
-    one-line ValueError when another method, or wheels/rotors, are asked for it."""
-    value = str(cfg.get('inertial_torque', 'off'))
-    if value == 'off':
+    one-line ValueError when another method, or wheels/rotors, are asked for it (``'on'``;
+    ``'auto'``, the default, runs without it there)."""
+    value = str(cfg.get('inertial_torque', 'auto'))
+    if value == 'off' or value == 'auto' and (cfg['method'] != 'recursive'
+                                              or actuators is not None):
         return {}
     if cfg['method'] != 'recursive':
         raise ValueError(f"parameter 'inertial_torque' must be 'off' with method "

@@ -145,7 +145,7 @@ def estimate(t_gyro: Any, omega: Any, t_torque: Any, torque: Any, *,
              window: float | None = None, identifiability_tol: float = IDENTIFIABILITY_TOL,
              physical: bool = True, torque_scale_std: float = 0.0,
              gyro_scale_std: float = 0.0, nuisance: Any = 'off', rotation_hz: float | None = None,
-             inertial_torque: str = 'off') -> InertiaEstimate:
+             inertial_torque: str = 'auto') -> InertiaEstimate:
     """Estimate the inertia tensor from gyro and torque samples (Euler's equations).
 
     Parameters
@@ -190,10 +190,11 @@ def estimate(t_gyro: Any, omega: Any, t_torque: Any, torque: Any, *,
         Sensor nuisance terms, applied by :func:`.nuisance.nuisance_hook` (default ``off``).
     rotation_hz : float, optional
         Lowest rotation frequency of spinning parts [Hz] (``auto``: :mod:`.method_choice`).
-    inertial_torque : {'off', 'auto', 'on'}
-        A torque constant in inertial axes beside the bias (``auto``: kept by its Wald test at
-        ``alpha``; ``InertiaEstimate.inertial_torque``); not with the sliding and differential
-        methods; ``ml`` keeps the integral result when it is kept (``diagnostics['ml']``).
+    inertial_torque : {'auto', 'off', 'on'}
+        A torque constant in inertial axes beside the bias (``InertiaEstimate.inertial_torque``):
+        ``auto`` (default) kept by its Wald test at ``alpha``, left out by the sliding and
+        differential methods (``diagnostics['disturbance']['skipped']``), which refuse ``on``;
+        ``ml`` keeps the integral result when it is kept (``diagnostics['ml']``).
 
     Returns
     -------
@@ -229,7 +230,7 @@ def estimate_arrays(tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.ndarr
                     rotation_hz: float | None = None, white_y_cov: np.ndarray | None = None,
                     final: bool = True, walk_cov: np.ndarray | None = None,
                     walk_wh: np.ndarray | None = None,
-                    inertial_torque: str = 'off') -> InertiaEstimate:
+                    inertial_torque: str = 'auto') -> InertiaEstimate:
     """:func:`estimate` on validated arrays, every input's one dispatch (a momentum input's
     equivalent held torque too, :func:`.momentum.estimate_with_momentum`): the options
     checked, the method choice, ``integral`` then the ``ml`` refinement.
@@ -247,10 +248,7 @@ def estimate_arrays(tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.ndarr
     if isinstance(torque_bias, (bool, np.bool_)):
         torque_bias = 'on' if torque_bias else 'off'
     check_choice('torque_bias', torque_bias, TORQUE_BIAS)
-    if check_choice('inertial_torque', inertial_torque, INERTIAL_TORQUE) != 'off' \
-            and method not in _INERTIAL_METHODS:
-        raise ValueError(f"inertial_torque: needs method {', '.join(_INERTIAL_METHODS)} (the "
-                         f"other methods have no inertial torque yet); got method={method!r}")
+    inertial_torque, skipped = _inertial_for(method, inertial_torque)
     policy = SelectionPolicy(alpha, identifiability_tol, physical, torque_scale_std,
                              gyro_scale_std, inertial_torque=inertial_torque)
     axis = unit_axis(symmetry_axis)
@@ -267,9 +265,26 @@ def estimate_arrays(tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.ndarr
                              gyro_noise, torque_noise, segment, window, model, torque_bias,
                              axis, policy, (white_y_cov, walk_cov, walk_wh),
                              final or method == 'ml')
+    if skipped is not None:
+        first.diagnostics['disturbance'] = {'requested': {'inertial_torque': 'auto'},
+                                            'chosen': None, 'skipped': skipped}
     if method != 'ml':
         return first
     return _refine(first, tg, w, ts, tau, first.diagnostics.get('hold', hold), axis)
+
+
+def _inertial_for(method: str, inertial_torque: str) -> tuple[str, str | None]:
+    """The ``inertial_torque`` setting a method runs with, and why ``auto`` was left out
+    (``None``: it was not): ``auto`` on a method without the term runs without it, ``on``
+    there is refused in one line."""
+    value = check_choice('inertial_torque', inertial_torque, INERTIAL_TORQUE)
+    if value == 'off' or method in _INERTIAL_METHODS:
+        return value, None
+    if value == 'on':
+        raise ValueError(f"inertial_torque: 'on' needs method {', '.join(_INERTIAL_METHODS)} "
+                         f"(the other methods have no inertial torque yet); got method="
+                         f"{method!r}: use inertial_torque='auto' or 'off'")
+    return 'off', f'method {method!r} has no inertial torque term (it runs without it)'
 
 
 def _auto_method(tg: np.ndarray, w: np.ndarray, ts: np.ndarray, tau: np.ndarray, hold: str,

@@ -19,7 +19,8 @@ Inputs (:data:`INPUTS`)
 Features (:data:`FEATURES`)
     ``hold_auto``, ``hold_zoh``, ``hold_linear``, ``model_auto``, ``torque_bias_auto``,
     ``nuisance``, ``torque_scale_std``, ``gyro_scale_std``, ``inertial_torque`` (options a
-    caller asks for; ``inertial_torque`` is asked for by ``'auto'`` or ``'on'``) and
+    caller asks for; ``inertial_torque`` is asked for by ``'on'``: its default ``'auto'``
+    runs without the term where a mode or input has none, and says so) and
     ``adequacy`` (whether the status can say ``model_mismatch``: not an option, so the table
     states it and :func:`require` never refuses on it).
 
@@ -61,7 +62,7 @@ _LABELS = {'input': 'this input', 'hold_auto': "hold='auto'", 'hold_zoh': "hold=
            'hold_linear': "hold='linear'", 'model_auto': "model='auto'",
            'torque_bias_auto': "torque_bias='auto'", 'nuisance': 'nuisance terms',
            'torque_scale_std': 'torque_scale_std > 0', 'gyro_scale_std': 'gyro_scale_std > 0',
-           'inertial_torque': "inertial_torque='auto'/'on'",
+           'inertial_torque': "inertial_torque='on'",
            'adequacy': 'the adequacy test (model_mismatch)'}
 
 #: A supported cell.
@@ -178,8 +179,9 @@ class EstimatorOptions:
         Relative one-sigma scale uncertainties in [0, 0.5] (0.01 = 1 %).
     nuisance : 'auto', 'off' or tuple of str
         Sensor nuisance terms (:data:`.options.NUISANCE_TERMS`).
-    inertial_torque : {'off', 'auto', 'on'}
-        A disturbance torque constant in inertial axes (:data:`.options.INERTIAL_TORQUE`).
+    inertial_torque : {'auto', 'off', 'on'}
+        A disturbance torque constant in inertial axes (:data:`.options.INERTIAL_TORQUE`);
+        ``'auto'`` (the estimators' default) is no request where the term is absent.
     """
 
     model: str = 'auto'
@@ -191,7 +193,7 @@ class EstimatorOptions:
     torque_scale_std: float = 0.0
     gyro_scale_std: float = 0.0
     nuisance: Any = 'off'
-    inertial_torque: str = 'off'
+    inertial_torque: str = 'auto'
 
     def __post_init__(self) -> None:
         """Check every option once; normalise ``torque_bias`` and ``nuisance``."""
@@ -225,7 +227,7 @@ class EstimatorOptions:
         if self.nuisance != 'off':
             out.append('nuisance')
         out += [n for n in ('torque_scale_std', 'gyro_scale_std') if getattr(self, n) > 0]
-        if self.inertial_torque != 'off':
+        if self.inertial_torque == 'on':         # ('auto' runs without it where it is absent)
             out.append('inertial_torque')
         return tuple(out)
 

@@ -525,6 +525,12 @@ def walk_variance(H: np.ndarray, W: np.ndarray, n: int, gyro_var: np.ndarray,
     return (H @ gyro_var + share * np.einsum('ijk,jk->i', W, h_cov)) / n
 
 
+#: ``diagnostics['disturbance']`` of a momentum input's estimate under ``inertial_torque='auto'``
+_NO_INERTIAL = {'requested': {'inertial_torque': 'auto'}, 'chosen': None,
+                'skipped': 'the inertial torque is fitted on a torque input only yet (the '
+                           'stated wheel/rotor profile has none)'}
+
+
 def estimate_with_momentum(t_gyro: Any, omega: Any, t_torque: Any, torque: Any,
                            momentum: Any, **options: Any) -> Any:
     """:func:`.batch.estimate` with internal momentum (see the module docstring).
@@ -561,6 +567,8 @@ def estimate_with_momentum(t_gyro: Any, omega: Any, t_torque: Any, torque: Any,
     hold = options.pop('hold', HOLDS[0])
     kind = 'wheels_torque' if len(ts) else ('rotors' if mom.torque is not None else 'wheels')
     require('batch', kind, dict(options, hold=hold))      # every option validated once
+    skipped = {'disturbance': _NO_INERTIAL} if options.get('inertial_torque') != 'off' else {}
+    options['inertial_torque'] = 'off'          # ('auto': no term here; 'on' refused above)
     # the torque sensor's scale error scales the other torque only, never the momentum; the
     # gyro's scales the measured rate in both sides, w x h included: both are stated inputs
     # (:func:`.stated.propagate`), not scales of y
@@ -585,7 +593,7 @@ def estimate_with_momentum(t_gyro: Any, omega: Any, t_torque: Any, torque: Any,
         base = estimate_arrays(tg[inside], wi, grid_i, tq_i, hold=HOLDS[0], torque_noise=tn,
                                walk_cov=interval_walk(grid, walk, grid_i),
                                walk_wh=interval_walk(grid, wh, grid_i), **opts)
-        diag = dict(base.diagnostics, momentum=info)
+        diag = dict(base.diagnostics, momentum=info, **skipped)
         return replace(base, samples_dropped=base.samples_dropped + int(np.sum(~inside)),
                        diagnostics=diag)
 
