@@ -99,20 +99,21 @@ def test_the_fleet_takes_the_option_as_estimate_does() -> None:
     from inertia_ros.cli.fleet import _add_estimate_options, estimate_flags
     p = argparse.ArgumentParser()
     _add_estimate_options(p)
-    args = p.parse_args(['--inertial-torque', 'auto'])
-    assert estimate_flags(args) == ['--inertial-torque', 'auto']
-    assert estimate_flags(p.parse_args([])) == []
+    args = p.parse_args(['--inertial-torque', 'off'])
+    assert estimate_flags(args) == ['--inertial-torque', 'off']
+    assert estimate_flags(p.parse_args([])) == []           # (the default: auto)
 
 
 def test_method_auto_with_the_inertial_torque_catches_seed_31() -> None:
-    """The default method on seed 31: ``ok`` at |z| 6 without the term (the fault); with
-    ``inertial_torque='auto'`` the term is kept, ml cannot model it and says so, and the
-    integral estimate is reported: not ``ok`` beyond 4 sigma (measured ok, 0.25 %, |z| 1.8)."""
+    """The default method on seed 31: ``ok`` at |z| 6 without the term (the fault,
+    ``inertial_torque='off'``); with the default ``'auto'`` the term is kept, ml cannot model
+    it and says so, and the integral estimate is reported: not ``ok`` beyond 4 sigma
+    (measured ok, 0.25 %, |z| 1.8)."""
     rec = _record(31)
-    e0 = estimate(rec.t_gyro, rec.omega, rec.t_torque, rec.torque)
+    e0 = estimate(rec.t_gyro, rec.omega, rec.t_torque, rec.torque, inertial_torque='off')
     z0, _ = _z_err(e0, rec)
     assert e0.method == 'ml' and e0.status == 'ok' and np.abs(z0).max() > 5.0
-    e = estimate(rec.t_gyro, rec.omega, rec.t_torque, rec.torque, inertial_torque='auto')
+    e = estimate(rec.t_gyro, rec.omega, rec.t_torque, rec.torque)
     z, err = _z_err(e, rec)
     assert not (e.status == 'ok' and np.abs(z).max() > 4.0), (e.status, np.abs(z).max())
     assert e.status == 'ok' and err < 0.01
@@ -181,11 +182,11 @@ def test_residual_plot_removes_the_inertial_torque() -> None:
 
 @pytest.mark.skipif(not (ROOT / 'bags' / 'wheels.mcap').exists(), reason='bags/wheels.mcap absent')
 def test_wheels_with_the_inertial_torque_is_the_table_refusal(capsys) -> None:
-    """With --wheels the option is the capability table's one-line refusal, exit 2 (the
-    stated wheel profile has no inertial torque yet)."""
+    """With --wheels ``on`` is the capability table's one-line refusal, exit 2 (the
+    stated wheel profile has no inertial torque yet); the default ``auto`` runs without it."""
     from inertia_ros.core.estimation.config import refusal
     code = main(['estimate', str(ROOT / 'bags' / 'wheels.mcap'), '--wheels',
-                 str(ROOT / 'bags' / 'wheels_wheels.yaml'), '--inertial-torque', 'auto',
+                 str(ROOT / 'bags' / 'wheels_wheels.yaml'), '--inertial-torque', 'on',
                  '--no-progress'])
     err = capsys.readouterr().err
     assert code == 2 and err.count('\n') == 1

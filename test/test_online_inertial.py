@@ -119,8 +119,12 @@ def test_the_option_is_checked_in_one_line() -> None:
         RecursiveEstimator(inertial_torque='maybe')
     assert '\n' not in str(exc.value)
     from inertia_ros.core.estimation.recursive_momentum import MomentumRecursiveEstimator
-    with pytest.raises(ValueError, match='inertial_torque.*wheels or rotors'):
-        MomentumRecursiveEstimator(names=('w1',), inertial_torque='auto')
+    with pytest.raises(ValueError, match="inertial_torque='on' is not supported") as exc:
+        MomentumRecursiveEstimator(names=('w1',), inertial_torque='on')
+    assert '\n' not in str(exc.value)
+    # 'auto' (the node's default) runs without the term with wheels or rotors
+    assert MomentumRecursiveEstimator(names=('w1',),
+                                      inertial_torque='auto').policy.inertial_torque == 'off'
 
 
 def test_off_keeps_the_13_variables() -> None:
@@ -132,15 +136,17 @@ def test_off_keeps_the_13_variables() -> None:
 
 
 def test_the_node_parameter_reaches_the_recursive_estimator_only() -> None:
-    """``inertial_torque`` (node parameter, default 'off'): passed to the recursive
-    estimator; the tracking and batch methods refuse anything but 'off' in one line."""
+    """``inertial_torque`` (node parameter, default 'auto'): passed to the recursive
+    estimator; the tracking and batch methods run without it under 'auto' and refuse 'on'
+    in one line."""
     from inertia_ros.nodes import params
     from inertia_ros.nodes.selection import make_estimator
     cfg = {name: spec.default for name, spec in params.ESTIMATOR.items()}
-    assert cfg['inertial_torque'] == 'off'
-    assert make_estimator(cfg)().policy.inertial_torque == 'off'
-    assert make_estimator(dict(cfg, inertial_torque='auto'))().policy.inertial_torque == 'auto'
+    assert cfg['inertial_torque'] == 'auto'
+    assert make_estimator(cfg)().policy.inertial_torque == 'auto'
+    assert make_estimator(dict(cfg, inertial_torque='off'))().policy.inertial_torque == 'off'
     for method in ('tracking', 'batch'):
+        make_estimator(dict(cfg, method=method))()              # (the default: runs)
         with pytest.raises(ValueError, match="'inertial_torque' must be 'off'") as exc:
             make_estimator(dict(cfg, method=method, inertial_torque='on'))
         assert '\n' not in str(exc.value)

@@ -103,7 +103,9 @@ class MomentumInput:
         return the others without the scales (stated inputs here, never a scale of y)."""
         self._opts = require(mode, 'wheels_torque' if other_torque else 'wheels',
                              dict({'model': 'full', 'torque_bias': False}, **kwargs, hold=hold))
-        kwargs = dict(kwargs)
+        # the stated inputs' columns take the places after the 13 variables: no inertial
+        # torque here ('on' refused by the table; 'auto' runs without it)
+        kwargs = dict(kwargs, inertial_torque='off')
         scale = kwargs.pop('torque_scale_std', 0.0)
         # the gyro's scales the measured rate in both sides, w x h included: a stated input
         # like the others (:mod:`.online_stated`), not a scale of y
