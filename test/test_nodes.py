@@ -228,14 +228,15 @@ def test_valid_parameter_change_resets(harness):
 
 
 def test_inertial_torque_parameter_rebuilds_the_recursive_estimator(harness):
-    """``inertial_torque`` (default 'off'): 'auto' rebuilds the recursive estimator with it;
-    switching to the tracking method while it is on is refused with the one-line reason."""
+    """``inertial_torque`` (default 'auto'): 'on' rebuilds the recursive estimator with it;
+    switching to the tracking method while it is 'on' is refused with the one-line reason
+    ('auto' runs without the term there)."""
     h = harness()
-    assert h.est._estimator.policy.inertial_torque == 'off'
-    resets = h.est.counts()['resets']
-    assert h.est.set_parameters([Parameter('inertial_torque', value='auto')])[0].successful
-    assert h.est.counts()['resets'] == resets + 1
     assert h.est._estimator.policy.inertial_torque == 'auto'
+    resets = h.est.counts()['resets']
+    assert h.est.set_parameters([Parameter('inertial_torque', value='on')])[0].successful
+    assert h.est.counts()['resets'] == resets + 1
+    assert h.est._estimator.policy.inertial_torque == 'on'
     result = h.est.set_parameters([Parameter('method', value='tracking')])[0]
     assert not result.successful and "'inertial_torque' must be 'off'" in result.reason
     assert '\n' not in result.reason and h.est.get_parameter('method').value == 'recursive'
