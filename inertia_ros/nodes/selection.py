@@ -115,7 +115,7 @@ def make_estimator(cfg: dict[str, Any], actuators: Any = None
 
 
 def _inertial(cfg: dict[str, Any], actuators: Any) -> dict[str, str]:
-    """The ``inertial_torque`` keyword of the recursive estimator (``{}`` when off); a
+    """The ``inertial_torque`` keyword of the recursive estimator (``{}``: without it); a
     one-line ValueError when another method, or wheels/rotors, are asked for it (``'on'``;
     ``'auto'``, the default, runs without it there)."""
     value = str(cfg.get('inertial_torque', 'auto'))
@@ -123,12 +123,12 @@ def _inertial(cfg: dict[str, Any], actuators: Any) -> dict[str, str]:
                                               or actuators is not None):
         return {}
     if cfg['method'] != 'recursive':
-        raise ValueError(f"parameter 'inertial_torque' must be 'off' with method "
+        raise ValueError(f"parameter 'inertial_torque' must be 'off' or 'auto' with method "
                          f"{cfg['method']!r} (its estimator has no inertial torque), got "
                          f"{value!r}: use method 'recursive'")
     if actuators is not None:
-        raise ValueError(f"parameter 'inertial_torque' must be 'off' with wheels or rotors "
-                         f"(not available with a momentum input yet), got {value!r}")
+        raise ValueError(f"parameter 'inertial_torque' must be 'off' or 'auto' with wheels or "
+                         f"rotors (not available with a momentum input yet), got {value!r}")
     return {'inertial_torque': value}
 
 
