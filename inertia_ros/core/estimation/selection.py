@@ -379,8 +379,9 @@ SCREEN_ALPHA = 0.05
 #: when the bias given the inertial torque is below this fraction of :data:`.options.ALPHA`
 #: (the rule keeps both where neither is significant alone at its level).
 _SCREEN_BIAS_CLEAR = 0.1
-#: Equations the screen fits all of, up to this many; of a longer record every k-th, about a
-#: fifth as many (its cost is then the torque samples', not the equations').
+#: Equations the screen fits all of, up to this many (exact: the rule's own statistics at
+#: the 13-variable run's segment length); of a longer record every k-th, about a fifth as
+#: many (its cost is then mostly the torque samples').
 SCREEN_ROWS = 100_000
 
 
