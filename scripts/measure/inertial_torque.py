@@ -123,7 +123,7 @@ def _screen(a) -> None:
         chosen[(str(ds.get('chosen')), str(df.get('chosen')))] += 1
         if a.show:
             sc = ds.get('screen', {})
-            print(f'  seed {rec.seed}: screen {sc.get("test")} p {sc.get("p_value", np.nan):.2e} '
+            print(f'  seed {rec.seed}: screen {sc.get("test")} p {sc.get("p_value") or np.nan:.2e} '
                   f'wide {went}; chosen {ds.get("chosen")} (full rule {df.get("chosen")})')
     n = len(a.seeds)
     med = {k: 1e3 * float(np.median(v)) for k, v in times.items()}

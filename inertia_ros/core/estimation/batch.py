@@ -124,7 +124,7 @@ from .options import (
     check_choice,
 )
 from .result import InertiaEstimate
-from .selection import SelectionPolicy, screen_inertial, screen_step
+from .selection import SelectionPolicy, screen_inertial, screen_step, select_disturbance
 from .statistics import sufficient_stats
 from .uncertainty import principal_with_std, ratio_cov
 
@@ -195,7 +195,8 @@ def estimate(t_gyro: Any, omega: Any, t_torque: Any, torque: Any, *,
     inertial_torque : {'off', 'auto', 'on'}
         A torque constant in inertial axes beside the bias (``integral`` methods only yet;
         ``'auto'`` is screened first: the wide fit only when
-        :func:`.selection.screen_inertial` keeps it).
+        :func:`.selection.screen_inertial` keeps it, the 13-variable estimate, as ``'off'``,
+        unless the rule keeps it).
 
     Returns
     -------
@@ -478,8 +479,9 @@ def _screened(eq: Equations, method: str, data: tuple[np.ndarray, ...], hold: st
     (:func:`_statistics`).  ``inertial_torque='auto'``: the 13-variable equations ``eq`` and
     the policy without the inertial torque, unless its screen
     (:func:`.selection.screen_inertial`, on every :func:`.selection.screen_step`-th
-    equation, at the segment length the 13-variable run chose) keeps it: then the wide
-    equations, the rule to run at its own level.  ``run``: ``ts, tau_end, torque_var,
+    equation, at the segment length the 13-variable run chose) keeps it and then the rule at
+    its own level on the wide statistics does too: then the wide equations (otherwise the
+    13-variable estimate, as ``'off'``).  ``run``: ``ts, tau_end, torque_var,
     torque_bias``."""
     found = stats(eq)
     if policy.inertial_torque != 'auto' or eq.V.shape[1] != 13:
@@ -503,20 +505,36 @@ def _screened(eq: Equations, method: str, data: tuple[np.ndarray, ...], hold: st
         torque_bias, len(thin.t), step, level=policy.alpha)
     screen['torque_grid_coarser_by'] = g
     if not wide:
+        diag['disturbance'] = {'requested': {'torque_bias': torque_bias,
+                                             'inertial_torque': 'auto'}, 'chosen': None}
         return eq, replace(policy, inertial_torque='off'), screen, found
-    full, policy = _equations(method, data, hold, gyro_var, None, shared, policy, diag, True)
+    full, wide_policy = _equations(method, data, hold, gyro_var, None, shared, policy, diag,
+                                   True)
     full.motion, full.white_y_cov, full.walk_cov, full.walk_wh = (
         eq.motion, eq.white_y_cov, eq.walk_cov, eq.walk_wh)
-    diag.update(full.info)
-    return full, policy, screen, stats(full)
+    searched = diag.get('segment_selection')
+    wide_found = stats(full)
+    if wide_policy.inertial_torque != 'off':
+        # the rule at its own level (conclude runs it again, on the same fit): without d the
+        # estimate is the 13-variable one, as 'off' (its segment length, its bias test)
+        keep_d, rule = select_disturbance(wide_found[1], torque_bias, 'auto', policy.alpha)[1:]
+        if keep_d:
+            diag.update(full.info)
+            return full, wide_policy, screen, wide_found
+        diag['segment_selection'] = searched
+        diag['disturbance'] = {'requested': {'torque_bias': torque_bias,
+                                             'inertial_torque': 'auto'}, 'chosen': None,
+                               'tests': rule['tests'], 'rule': rule['rule'] + (
+                                   '; d not kept: the 13-variable estimate')}
+    return eq, replace(policy, inertial_torque='off'), screen, found
 
 
 def _note_screen(est: InertiaEstimate, screen: dict[str, Any]) -> None:
-    """``diagnostics.disturbance.screen`` of the result, and its choice when the screen
-    kept the 13 variables (the bias selected as without the option)."""
+    """``diagnostics.disturbance.screen`` of the result, and its choice when the estimate
+    is the 13-variable one (the bias selected as without the option)."""
     dist = est.diagnostics.setdefault('disturbance', {})
     dist['screen'] = screen
-    if not screen['went_wide']:
+    if dist.get('chosen') is None and '+inertial' not in est.model:
         dist['chosen'] = 'none' if est.torque_bias is None else 'body'
 
 

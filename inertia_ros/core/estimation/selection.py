@@ -380,28 +380,31 @@ SCREEN_ALPHA = 0.05
 #: (the rule keeps both where neither is significant alone at its level).
 _SCREEN_BIAS_CLEAR = 0.1
 #: Equations the screen fits all of, up to this many (exact: the rule's own statistics at
-#: the 13-variable run's segment length); of a longer record every k-th, about a fifth as
-#: many (its cost is then mostly the torque samples').
+#: the 13-variable run's segment length); of a longer record every k-th, about
+#: 1 / :data:`_SCREEN_THINNER` as many (its cost is then mostly the torque samples').
 SCREEN_ROWS = 100_000
+_SCREEN_THINNER = 5
 
 
 def screen_step(n: int) -> int:
     """Every how many of ``n`` equations the screen keeps (:data:`SCREEN_ROWS`)."""
-    return 1 if n <= SCREEN_ROWS else -(-5 * n // SCREEN_ROWS)
+    return 1 if n <= SCREEN_ROWS else -(-_SCREEN_THINNER * n // SCREEN_ROWS)
 
 
 def screen_inertial(fit: FitFunction, torque_bias: str, rows: int, step: int,
-                    alpha: float | None = None, level: float = ALPHA
+                    lenient: float | None = None, level: float = ALPHA
                     ) -> tuple[bool, dict[str, Any]]:
     """Whether the inertial torque ``d`` may be needed (``inertial_torque='auto'``): the
-    joint rule of :func:`select_disturbance` at the lenient level ``alpha`` on cheap wide
-    statistics (every ``step``-th equation, ``rows`` of them; ``alpha`` default
-    :data:`SCREEN_ALPHA`); with both disturbances allowed and the joint test significant,
-    ``d`` is screened out only when it is not significant given the bias at ``alpha`` and
+    joint rule of :func:`select_disturbance` at the level ``lenient`` (default
+    :data:`SCREEN_ALPHA`) on cheap wide statistics (every ``step``-th equation, ``rows`` of
+    them); with both disturbances allowed and the joint test significant,
+    ``d`` is screened out only when it is not significant given the bias at ``lenient`` and
     the bias given ``d`` is below a tenth of the rule's ``level`` (where the rule at its level
     could keep both, the collinear case, the screen keeps ``d``).  Only when it keeps ``d`` are
     the full wide equations built and the rule run again at its own level; otherwise the
     estimate is the 13-variable one (as ``'off'``), the bias selected as without the option.
+    Not tested (narrow) when the wide general fit leaves tensor elements undetermined
+    (:func:`undetermined`: single-axis motion, where ``d`` and the bias are inseparable).
 
     Returns ``went_wide`` and the record for ``diagnostics.disturbance.screen``:
     ``statistic, dof, p_value`` of the test that decided ``d`` (``inertial_given_body``,
@@ -409,8 +412,15 @@ def screen_inertial(fit: FitFunction, torque_bias: str, rows: int, step: int,
     ``alpha``, ``went_wide``,
     ``chosen`` (the rule's choice at ``alpha``), ``equations``, ``thinned_by``, ``tests``.
     """
-    alpha = SCREEN_ALPHA if alpha is None else alpha
-    _, keep_d, rec = select_disturbance(fit, torque_bias, 'auto', alpha)
+    alpha = SCREEN_ALPHA if lenient is None else lenient
+    f = fit(np.eye(6), torque_bias != 'off', inertial=True)
+    if np.any(undetermined(f)):      # (single-axis motion: d and the bias leak into the
+        return False, {               # tensor's undetermined directions; untestable)
+            'test': None, 'statistic': None, 'dof': None, 'p_value': None, 'alpha': alpha,
+            'went_wide': False, 'chosen': None, 'equations': rows, 'thinned_by': step,
+            'tests': {}, 'rule': ('the tensor is not fully determined with the inertial '
+                                  'torque: it is not tested (the 13-variable estimate)')}
+    _, keep_d, rec = select_disturbance(lambda *a, **k: f, torque_bias, 'auto', alpha)
     tests = rec['tests']
     given, body = tests.get('inertial_given_body'), tests.get('body_given_inertial')
     if 'joint' in tests and given is not None and body is not None:
