@@ -23,6 +23,12 @@ Measured (hspace2 15dce70, 2026-11-28, method integral, hold auto, 5 s, seeds 0-
     zero      off   ok 40                        0.41 %  RMS z 1.07
     zero      auto  ok 40 (none 38, both 2)      0.41 %  RMS z 0.99
     body      auto  ok 40 (body 38, both 2)      0.43 %  RMS z 1.00
+
+With the screen (h9speed, 2026-11-28, 5 s, seeds 0-199, ``--screen``): inertial 0 misses,
+the full rule's choice on 200/200 (inertial 187, both 13); zero 7/200 went wide, 0 misses,
+200/200 the same (none 198); body 21/200 wide, 0 misses, 200/200 the same (body 190, both
+10).  ``--option auto`` against main 3321eac: the same statuses, choices, errors (0.39,
+0.37, 0.41 %) and RMS z (1.03, 1.00 -> 0.99, 1.02).
 """
 from __future__ import annotations
 
