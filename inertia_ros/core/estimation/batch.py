@@ -93,7 +93,12 @@ from . import refits
 from .adequacy import Adequacy
 from .assemble import conclude, status_only
 from .config import unapplied
-from .equations import Equations, build_equations, shared_integral_equations
+from .equations import (
+    Equations,
+    build_equations,
+    shared_integral_equations,
+    thinned_inertial_equations,
+)
 from .filtered import equations_for
 from .fit import Fit, fit_two_pass
 from .hold_choice import auto_hold, coverage
@@ -119,7 +124,7 @@ from .options import (
     check_choice,
 )
 from .result import InertiaEstimate
-from .selection import SelectionPolicy
+from .selection import SelectionPolicy, screen_inertial, screen_step, select_disturbance
 from .statistics import sufficient_stats
 from .uncertainty import principal_with_std, ratio_cov
 
@@ -192,8 +197,8 @@ def estimate(t_gyro: Any, omega: Any, t_torque: Any, torque: Any, *,
         Lowest rotation frequency of spinning parts [Hz] (``auto``: :mod:`.method_choice`).
     inertial_torque : {'auto', 'off', 'on'}
         A torque constant in inertial axes beside the bias (``InertiaEstimate.inertial_torque``):
-        ``auto`` (default) kept by its Wald test at ``alpha``, left out by the sliding and
-        differential methods (``diagnostics['disturbance']['skipped']``), which refuse ``on``;
+        ``auto`` (default) screened (:func:`.selection.screen_inertial`), kept by its Wald test
+        at ``alpha``; left out by the sliding and differential methods, which refuse ``on``;
         ``ml`` keeps the integral result when it is kept (``diagnostics['ml']``).
 
     Returns
@@ -403,8 +408,8 @@ def _estimate_shifted(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray
         diag['warnings'] += unapplied('batch', policy)
         return _homogeneous(method, tg, w, ts, tau, mask, breaks, hold, gyro_var,
                             segment or 10.0, window, diag, base, policy)
-    eq, policy = _equations(method, (tg, w, ts, tau, mask, breaks), hold, gyro_var, window,
-                            shared, policy, diag)
+    data = (tg, w, ts, tau, mask, breaks)
+    eq, policy = _equations(method, data, hold, gyro_var, window, shared, policy, diag)
     wm = w[mask]
     eq.motion = (wm.T @ wm / len(wm), med_g)          # gyroscopic noise walk (fit meat)
     eq.white_y_cov, eq.walk_cov, eq.walk_wh = mom_noise   # a momentum input's noise, walk
@@ -412,8 +417,10 @@ def _estimate_shifted(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray
     early = _equation_rules(eq, method, diag, base)
     if early is not None:
         return early
-    segments, fit = _statistics(eq, segment, chosen, ts, tau_end, gyro_var, torque_var,
-                                torque_bias != 'off', diag)
+    eq, policy, screen, (segments, fit) = _screened(
+        eq, method, data, hold, gyro_var, shared, policy, diag,
+        (ts, tau_end, torque_var, torque_bias), lambda e: _statistics(
+            e, segment, chosen, ts, tau_end, gyro_var, torque_var, torque_bias != 'off', diag))
     segment, st = segments[torque_bias != 'off']
     if eq.kind == 'anchored':
         diag['segments'] = st.n_seg
@@ -442,6 +449,8 @@ def _estimate_shifted(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray
 
     est = conclude(fit, model, torque_bias, axis, policy, diag, base,
                    adequacy if final else None, gyro_sensitivity)
+    if screen is not None:                  # what the inertial torque's screen said
+        _note_screen(est, screen)
     if eq.kind == 'anchored' and est.inertia is not None and est.torque_bias is None \
             and False in segments:       # the final fit without the bias: its length
         est.diagnostics['segment_s'], st = segments[False]
@@ -451,25 +460,99 @@ def _estimate_shifted(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray
 
 def _equations(method: str, data: tuple[np.ndarray, ...], hold: str, gyro_var: np.ndarray,
                window: float | None, shared: dict[str, Any] | None, policy: SelectionPolicy,
-               diag: dict[str, Any]) -> tuple[Equations, SelectionPolicy]:
+               diag: dict[str, Any], wide: bool = False) -> tuple[Equations, SelectionPolicy]:
     """The run's equations (``data``: ``tg, w, ts, tau, mask, breaks``; shared with the other
-    hold's run through ``shared``) and its policy: with the inertial torque allowed, its
-    columns, and the torque left out (``diag['disturbance']['skipped']``, the policy's
-    ``inertial_torque`` off) when a gyro gap is too long to carry the attitude over
-    (:data:`.options.ATTITUDE_BRIDGE_RAD`)."""
-    wide = policy.inertial_torque != 'off'           # the inertial torque's columns
+    hold's run through ``shared``) and its policy: with the inertial torque ``'on'`` (or
+    ``wide``, after :func:`_screened`), its columns, and the torque left out
+    (``diag['disturbance']['skipped']``, the policy's ``inertial_torque`` off) when a gyro
+    gap is too long to carry the attitude over (:data:`.options.ATTITUDE_BRIDGE_RAD`);
+    ``'auto'`` starts from the 13 variables."""
+    wide = wide or policy.inertial_torque == 'on'     # the inertial torque's columns
     eq = (equations_for(method, *data, hold, gyro_var, window, wide)
           if shared is None or method not in ('integral', 'integral_ls') else
           shared_integral_equations(method, *data, hold, gyro_var, shared, wide))
     gap = eq.info.get('attitude', {}).get('bridge_error_rad', 0.0)
     if gap > ATTITUDE_BRIDGE_RAD:
-        diag['disturbance'] = {
-            'requested': {'inertial_torque': policy.inertial_torque}, 'chosen': None,
-            'skipped': (f'a gyro gap is too long to carry the attitude over (error bound '
-                        f'{gap:.3g} rad > {ATTITUDE_BRIDGE_RAD:g}): the inertial torque is not '
-                        'fitted')}
-        policy = replace(policy, inertial_torque='off')
+        policy = _skipped(gap, policy, diag)
     return eq, policy
+
+
+def _skipped(gap: float, policy: SelectionPolicy, diag: dict[str, Any]) -> SelectionPolicy:
+    """The policy without the inertial torque, and why (a gyro gap of attitude error bound
+    ``gap`` [rad] beyond :data:`.options.ATTITUDE_BRIDGE_RAD`)."""
+    diag['disturbance'] = {
+        'requested': {'inertial_torque': policy.inertial_torque}, 'chosen': None,
+        'skipped': (f'a gyro gap is too long to carry the attitude over (error bound '
+                    f'{gap:.3g} rad > {ATTITUDE_BRIDGE_RAD:g}): the inertial torque is not '
+                    'fitted')}
+    return replace(policy, inertial_torque='off')
+
+
+def _screened(eq: Equations, method: str, data: tuple[np.ndarray, ...], hold: str,
+              gyro_var: np.ndarray, shared: dict[str, Any] | None, policy: SelectionPolicy,
+              diag: dict[str, Any], run: tuple[Any, ...], stats: Any
+              ) -> tuple[Equations, SelectionPolicy, dict[str, Any] | None, tuple[Any, Any]]:
+    """The run's equations, policy, screen record and ``stats(eq) -> (segments, fit)``
+    (:func:`_statistics`).  ``inertial_torque='auto'``: the 13-variable equations ``eq`` and
+    the policy without the inertial torque, unless its screen
+    (:func:`.selection.screen_inertial`, on every :func:`.selection.screen_step`-th
+    equation, at the segment length the 13-variable run chose) keeps it and then the rule at
+    its own level on the wide statistics does too: then the wide equations (otherwise the
+    13-variable estimate, as ``'off'``).  ``run``: ``ts, tau_end, torque_var,
+    torque_bias``."""
+    found = stats(eq)
+    if policy.inertial_torque != 'auto' or eq.V.shape[1] != 13:
+        return eq, policy, None, found
+    ts, tau_end, torque_var, torque_bias = run
+    segment = found[0][torque_bias != 'off'][0]
+    step = screen_step(len(eq.t))
+    thin = thinned_inertial_equations(eq, data[0], data[1], np.flatnonzero(data[4]), step)
+    gap = thin.info['attitude']['bridge_error_rad']
+    if gap > ATTITUDE_BRIDGE_RAD:
+        diag['attitude'] = thin.info['attitude']
+        return eq, _skipped(gap, policy, diag), None, found
+    # the torque noise on a grid about as coarse as the kept equations (the walk between
+    # them is the same; g intervals' held noise as one with 1/g of the variance)
+    g = 1 if eq.walk_cov is not None or len(ts) < 3 else max(
+        1, int(median(np.diff(thin.t)) / median(np.diff(ts))))
+    st = sufficient_stats(thin, segment, ts[::g], tau_end, torque_var / g)
+    wide, screen = screen_inertial(
+        lambda basis, bias, offset=None, theta0=None, inertial=False: fit_two_pass(
+            st, basis, bias, gyro_var, torque_var / g, offset, theta0, inertial=inertial),
+        torque_bias, len(thin.t), step, level=policy.alpha)
+    screen['torque_grid_coarser_by'] = g
+    if not wide:
+        diag['disturbance'] = {'requested': {'torque_bias': torque_bias,
+                                             'inertial_torque': 'auto'}, 'chosen': None}
+        return eq, replace(policy, inertial_torque='off'), screen, found
+    full, wide_policy = _equations(method, data, hold, gyro_var, None, shared, policy, diag,
+                                   True)
+    full.motion, full.white_y_cov, full.walk_cov, full.walk_wh = (
+        eq.motion, eq.white_y_cov, eq.walk_cov, eq.walk_wh)
+    searched = diag.get('segment_selection')
+    wide_found = stats(full)
+    if wide_policy.inertial_torque != 'off':
+        # the rule at its own level (conclude runs it again, on the same fit): without d the
+        # estimate is the 13-variable one, as 'off' (its segment length, its bias test)
+        keep_d, rule = select_disturbance(wide_found[1], torque_bias, 'auto', policy.alpha)[1:]
+        if keep_d:
+            diag.update(full.info)
+            return full, wide_policy, screen, wide_found
+        diag['segment_selection'] = searched
+        diag['disturbance'] = {'requested': {'torque_bias': torque_bias,
+                                             'inertial_torque': 'auto'}, 'chosen': None,
+                               'tests': rule['tests'], 'rule': rule['rule'] + (
+                                   '; d not kept: the 13-variable estimate')}
+    return eq, replace(policy, inertial_torque='off'), screen, found
+
+
+def _note_screen(est: InertiaEstimate, screen: dict[str, Any]) -> None:
+    """``diagnostics.disturbance.screen`` of the result, and its choice when the estimate
+    is the 13-variable one (the bias selected as without the option)."""
+    dist = est.diagnostics.setdefault('disturbance', {})
+    dist['screen'] = screen
+    if dist.get('chosen') is None and '+inertial' not in est.model:
+        dist['chosen'] = 'none' if est.torque_bias is None else 'body'
 
 
 def _statistics(eq: Equations, segment: float | None,

@@ -31,7 +31,8 @@ from .regressors import (
 )
 
 __all__ = ['Equations', 'build_equations', 'differential_equations', 'integral_equations',
-           'is_prefix', 'segment_starts', 'shared_integral_equations', 'sliding_equations']
+           'is_prefix', 'segment_starts', 'shared_integral_equations', 'sliding_equations',
+           'thinned_inertial_equations']
 
 
 @dataclass
@@ -230,10 +231,65 @@ def _attitude_columns(tg: np.ndarray, w: np.ndarray, sel: slice | np.ndarray,
     else:
         a, b = int(sel[0]), int(sel[-1]) + 1
         out[:] = attitude_integral(tg[a:b], w[a:b])[np.asarray(sel) - a].reshape(-1, 9)
-    h = np.diff(tg[a:b])
+    return _bridges(tg[a:b], w[a:b], np.diff(tg[a:b]))
+
+
+def _bridges(t: np.ndarray, w: np.ndarray, h: np.ndarray) -> dict[str, Any]:
+    """The gyro time gaps (steps ``h`` over :data:`.options.GAP_FACTOR` median steps) of the
+    run ``t`` (n,), ``w`` (n, 3) the attitude is carried over, and the largest ``|w_after -
+    w_before| h / 2`` [rad] over them (a bound of that bridge's attitude error)."""
     gaps = np.flatnonzero(h > GAP_FACTOR * median(h)) if len(h) else np.zeros(0, int)
-    jump = np.linalg.norm(w[a + gaps + 1] - w[a + gaps], axis=1) * h[gaps] / 2.0
+    return _gap_jumps(w, gaps, h)
+
+
+def _gap_jumps(w: np.ndarray, gaps: np.ndarray, h: np.ndarray) -> dict[str, Any]:
+    """:func:`_bridges`' record from the gap positions ``gaps`` (steps ``h[gaps]`` [s])."""
+    jump = np.linalg.norm(w[gaps + 1] - w[gaps], axis=1) * h[gaps] / 2.0
     return {'gaps': len(gaps), 'bridge_error_rad': float(jump.max()) if len(gaps) else 0.0}
+
+
+def thinned_inertial_equations(eq: Equations, tg: np.ndarray, w: np.ndarray,
+                               idx: np.ndarray, step: int) -> Equations:
+    """Every ``step``-th of the 13-variable integral equations ``eq`` with the attitude
+    integral's nine columns added (22 variables): a cheap screen of the inertial torque.
+
+    The kept rows are exact equations (their integrals run over every sample); the attitude
+    is carried between the kept stamps at each interval's mean rate, the trapezoid integral
+    of every gyro sample in it (taken at the interval's mean step unless a gap is inside: no
+    (N, 3) temporaries; the default rate when ``step`` is 1, the same columns as
+    :func:`integral_equations`' up to a constant per segment, which the statistics remove).
+    ``idx`` (n,): the gyro samples of ``eq``'s rows.  ``info['attitude']`` as
+    :func:`integral_equations`' (gaps crossed, bridge error bound), ``info['thinned_by']``.
+    """
+    step = max(int(step), 1)
+    rows = np.arange(0, len(eq.t), step)
+    a, b = int(idx[0]), int(idx[-1]) + 1
+    t, wr = tg[a:b], w[a:b]
+    s = idx[rows] - a
+    h = np.diff(t) if len(idx) != b - a else None     # (a contiguous run: its gaps are
+    bridges = (_bridges(t, wr, h) if h is not None    # the equations' breaks)
+               else _gap_jumps(wr, np.flatnonzero(eq.breaks), np.diff(eq.t)))
+    rates = np.zeros((len(s) - 1, 3))
+    if len(s) > 1 and bridges['gaps']:                # the trapezoid int w dt / its span
+        inc = wr[1:s[-1] + 1] + wr[:s[-1]]
+        inc *= np.diff(t[:s[-1] + 1])[:, None]
+        span = np.diff(t[s])
+        np.divide(0.5 * np.add.reduceat(inc, s[:-1], axis=0), span[:, None], out=rates,
+                  where=span[:, None] > 0)
+    elif len(s) > 1 and step > 1:                     # the same at equal steps: no products
+        rates[:] = np.add.reduceat(wr[:s[-1]], s[:-1], axis=0)
+        rates += 0.5 * (wr[s[1:]] - wr[s[:-1]])
+        rates /= np.diff(s)[:, None]
+    V = np.empty((len(rows), 22))
+    V[:, :13] = eq.V[::step]
+    attitude_integral(t[s], wr[s], None if step == 1 and h is None else rates, out=V[:, 13:])
+    at = np.flatnonzero(eq.breaks)                    # a break anywhere between kept rows
+    crossed = np.searchsorted(at, rows[1:]) > np.searchsorted(at, rows[:-1])
+    return Equations(V, eq.t[::step], crossed, eq.kind,
+                     eiv_var=eq.eiv_var, weighted=eq.weighted,
+                     info={'attitude': bridges, 'thinned_by': step},
+                     motion=eq.motion, white_y_cov=eq.white_y_cov, walk_cov=eq.walk_cov,
+                     walk_wh=eq.walk_wh)
 
 
 def _as_range(idx: slice | np.ndarray, n: int) -> slice | None:

@@ -34,10 +34,11 @@ from .model import describe_direction, model_basis
 from .options import ALPHA, IDENTIFIABILITY_TOL
 from .tails import chi2_sf
 
-__all__ = ['HOLD_ALPHA', 'MODEL_ALPHA', 'FitFunction', 'SelectionPolicy', 'bias_test',
-           'complement', 'conditioning', 'dropped_bias_cov', 'held_by_test', 'held_leak',
-           'hold_rule', 'identifiable', 'mse_test_p', 'select_bias', 'select_disturbance',
-           'select_hold', 'select_model', 'undetermined', 'wald']
+__all__ = ['HOLD_ALPHA', 'MODEL_ALPHA', 'SCREEN_ALPHA', 'SCREEN_ROWS', 'FitFunction',
+           'SelectionPolicy', 'bias_test', 'complement', 'conditioning', 'dropped_bias_cov',
+           'held_by_test', 'held_leak', 'hold_rule', 'identifiable', 'mse_test_p',
+           'screen_inertial', 'screen_step', 'select_bias', 'select_disturbance', 'select_hold',
+           'select_model', 'undetermined', 'wald']
 
 _SIGNAL_SHARE = 0.5                            # conditional signal share of a determined element
 _NULL_FRACTION = 0.01                          # signal fraction of an empty direction
@@ -369,6 +370,73 @@ def select_disturbance(fit: FitFunction, torque_bias: str, inertial_torque: str,
         'rule': (f'Wald tests at alpha={alpha:g} in the fit with every allowed block: with '
                  'both auto, the joint test of (b, d), then each given the other; both kept '
                  'when only the joint test rejects')}
+
+
+#: Level of the inertial torque's screen (:func:`screen_inertial`): lenient, so that the
+#: screen never loses a torque the joint rule at :data:`.options.ALPHA` keeps.
+SCREEN_ALPHA = 0.05
+#: With both disturbances allowed the screen stays narrow on a significant joint test only
+#: when the bias given the inertial torque is below this fraction of :data:`.options.ALPHA`
+#: (the rule keeps both where neither is significant alone at its level).
+_SCREEN_BIAS_CLEAR = 0.1
+#: Equations the screen fits all of, up to this many (exact: the rule's own statistics at
+#: the 13-variable run's segment length); of a longer record every k-th, about
+#: 1 / :data:`_SCREEN_THINNER` as many (its cost is then mostly the torque samples').
+SCREEN_ROWS = 100_000
+_SCREEN_THINNER = 5
+
+
+def screen_step(n: int) -> int:
+    """Every how many of ``n`` equations the screen keeps (:data:`SCREEN_ROWS`)."""
+    return 1 if n <= SCREEN_ROWS else -(-_SCREEN_THINNER * n // SCREEN_ROWS)
+
+
+def screen_inertial(fit: FitFunction, torque_bias: str, rows: int, step: int,
+                    lenient: float | None = None, level: float = ALPHA
+                    ) -> tuple[bool, dict[str, Any]]:
+    """Whether the inertial torque ``d`` may be needed (``inertial_torque='auto'``): the
+    joint rule of :func:`select_disturbance` at the level ``lenient`` (default
+    :data:`SCREEN_ALPHA`) on cheap wide statistics (every ``step``-th equation, ``rows`` of
+    them); with both disturbances allowed and the joint test significant,
+    ``d`` is screened out only when it is not significant given the bias at ``lenient`` and
+    the bias given ``d`` is below a tenth of the rule's ``level`` (where the rule at its level
+    could keep both, the collinear case, the screen keeps ``d``).  Only when it keeps ``d`` are
+    the full wide equations built and the rule run again at its own level; otherwise the
+    estimate is the 13-variable one (as ``'off'``), the bias selected as without the option.
+    Not tested (narrow) when the wide general fit leaves tensor elements undetermined
+    (:func:`undetermined`: single-axis motion, where ``d`` and the bias are inseparable).
+
+    Returns ``went_wide`` and the record for ``diagnostics.disturbance.screen``:
+    ``statistic, dof, p_value`` of the test that decided ``d`` (``inertial_given_body``,
+    ``inertial``, or the joint test when it did not reject or when it alone did: both kept),
+    ``alpha``, ``went_wide``,
+    ``chosen`` (the rule's choice at ``alpha``), ``equations``, ``thinned_by``, ``tests``.
+    """
+    alpha = SCREEN_ALPHA if lenient is None else lenient
+    f = fit(np.eye(6), torque_bias != 'off', inertial=True)
+    if np.any(undetermined(f)):      # (single-axis motion: d and the bias leak into the
+        return False, {               # tensor's undetermined directions; untestable)
+            'test': None, 'statistic': None, 'dof': None, 'p_value': None, 'alpha': alpha,
+            'went_wide': False, 'chosen': None, 'equations': rows, 'thinned_by': step,
+            'tests': {}, 'rule': ('the tensor is not fully determined with the inertial '
+                                  'torque: it is not tested (the 13-variable estimate)')}
+    _, keep_d, rec = select_disturbance(lambda *a, **k: f, torque_bias, 'auto', alpha)
+    tests = rec['tests']
+    given, body = tests.get('inertial_given_body'), tests.get('body_given_inertial')
+    if 'joint' in tests and given is not None and body is not None:
+        # the rule at its own level keeps d also when neither block alone is significant
+        # there: narrow only when the bias alone clearly explains the disturbance
+        keep_d = given['kept'] or not body['p_value'] < _SCREEN_BIAS_CLEAR * level
+    name = ('inertial' if 'inertial' in tests else
+            'inertial_given_body' if given is not None and (given['kept'] or not keep_d)
+            else 'joint' if 'joint' in tests else None)
+    main = tests[name] if name is not None else {}
+    return keep_d, {
+        'test': name, 'statistic': main.get('wald'), 'dof': main.get('dof'),
+        'p_value': main.get('p_value'), 'alpha': alpha, 'went_wide': keep_d,
+        'chosen': rec['chosen'], 'equations': rows, 'thinned_by': step, 'tests': tests,
+        'rule': (f'the joint rule at alpha={alpha:g} on every {step}-th equation (attitude at '
+                 "each interval's mean rate); the wide fit only when it keeps d")}
 
 
 def mse_test_p(stat: float, dof: int, noncentrality: float = _MSE_NONCENTRALITY) -> float:
