@@ -51,14 +51,16 @@ def auto_hold(run: Any, torque_std: np.ndarray, head: int | None,
     directions absorbed the misfit, made it win the comparison (zero-control 5 s seed 36) or
     pass the tests that would have sent it back (seed 184: linear at 3.9 %, where the package
     keeps zoh at 0.5 %); keeping the held run's bias as well moved the comparison away from
-    the package's (seed 134 went linear at 3.8 %).
+    the package's (seed 134 went linear at 3.8 %).  A long record's holds are compared
+    without it (on the head, as ``'off'``: the comparison is the package's); the whole-record
+    run of the chosen hold screens and selects it (:func:`.batch._screened`).
     """
     results = {}
     shared: dict[str, Any] = {}          # the runs' equations (shared_integral_equations)
     for h in HOLDS:
         # the held result is the usual answer: complete; the linear one only when chosen, and
         # at the held one's segment length (the same segmentation compares the holds fairly)
-        fixed = fixed_inertial(results.get('zoh'))
+        fixed = 'off' if head is not None else fixed_inertial(results.get('zoh'))
         same = {} if fixed is None else {'inertial': fixed}    # (for the linear runs)
         results[h] = run(h, head, final=h == 'zoh' and head is None,
                          chosen=segment_choice(results.get('zoh'), False), shared=shared,
@@ -77,7 +79,7 @@ def auto_hold(run: Any, torque_std: np.ndarray, head: int | None,
         chosen, record = select_hold(*rss, HOLD_ALPHA)
     est = results[chosen] if chosen == 'zoh' and head is None else run(
         chosen, chosen=segment_choice(results[chosen], head is not None),
-        **(same if chosen == 'linear' else {}))
+        **(same if chosen == 'linear' and head is None else {}))
     if head is None and record.get('p_value') is not None and chosen == 'zoh' and (
             record['p_value'] >= HOLD_ALPHA or est.status == 'model_mismatch'):
         rec = record if record['p_value'] >= HOLD_ALPHA else {}   # (noted when it moves)
