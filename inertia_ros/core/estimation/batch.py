@@ -538,7 +538,10 @@ def _screened(eq: Equations, method: str, data: tuple[np.ndarray, ...], hold: st
         if keep_d:
             diag.update(full.info)
             return full, wide_policy, screen, wide_found
-        diag['segment_selection'] = searched
+        if searched is None:        # (the filtered method searches no segment length)
+            diag.pop('segment_selection', None)
+        else:
+            diag['segment_selection'] = searched
         diag['disturbance'] = {'requested': {'torque_bias': torque_bias,
                                              'inertial_torque': 'auto'}, 'chosen': None,
                                'tests': rule['tests'], 'rule': rule['rule'] + (
