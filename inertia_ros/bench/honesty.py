@@ -245,7 +245,8 @@ def feed_online(est: Any, rec: TruthRecord, publish_rate: float = 10.0,
 
 #: The inertia estimator node's defaults for the options the node path sets (the node's
 #: ``ESTIMATOR`` parameter table; this module may not import nodes/: test_honesty checks it).
-_NODE_DEFAULTS = {'model': 'full', 'torque_bias': 'auto', 'hold': 'auto'}
+_NODE_DEFAULTS = {'model': 'full', 'torque_bias': 'auto', 'hold': 'auto',
+                  'inertial_torque': 'auto'}
 
 
 def _node(rec: TruthRecord, opts: dict[str, Any]) -> tuple[str, Any, Any]:
