@@ -180,8 +180,8 @@ def choose_hold(stats: dict[str, Any], windows: HoldWindows, bias: bool, nv: np.
     inertial : {'off', 'auto', 'on'}
         The torque fixed in inertial axes (wide statistics and windows).  The holds are
         compared without it, as with ``'off'``, and, when the held fit keeps it
-        (``'on'``, or ``'auto'`` and :func:`_held_keeps`: the batch's linear runs keep the
-        held run's choice, :func:`.hold_choice.fixed_inertial`), with it in both as well;
+        (``'on'``, or ``'auto'`` and :func:`_held_keeps`), with it in both as well (the
+        batch compares its holds without it only, :func:`.hold_choice.auto_hold`);
         linear only when both comparisons choose it.  Selected anew on the wrong hold, a bias
         and an inertial torque in opposite directions absorb its misfit and make it win
         (online 5 s zero-control records, the tests repeated on the growing record: 5 of 20
