@@ -104,8 +104,10 @@ class MomentumInput:
         self._opts = require(mode, 'wheels_torque' if other_torque else 'wheels',
                              dict({'model': 'full', 'torque_bias': False}, **kwargs, hold=hold))
         # the stated inputs' columns take the places after the 13 variables: no inertial
-        # torque here ('on' refused by the table; 'auto' runs without it)
-        kwargs = dict(kwargs, inertial_torque='off')
+        # torque here ('on' refused by the table; 'auto' runs without it; the tracker has none)
+        kwargs = {k: v for k, v in kwargs.items() if k != 'inertial_torque'}
+        if mode == 'recursive':
+            kwargs['inertial_torque'] = 'off'
         scale = kwargs.pop('torque_scale_std', 0.0)
         # the gyro's scales the measured rate in both sides, w x h included: a stated input
         # like the others (:mod:`.online_stated`), not a scale of y
