@@ -79,8 +79,14 @@ CASES: dict[str, HonestyCase] = {
     'torque_scale': HonestyCase(_BASE.with_(torque_scale=0.02),
                                 options={'torque_scale_std': 0.02},
                                 node={'torque_scale_std': 0.02}),
+    # a torque fixed in inertial axes: modelled by the default inertial_torque='auto'
+    # (session 9); with it left out ('off') an unmodelled fault the status must flag
     'disturbance': HonestyCase(_BASE.with_(disturbance=(0.01, 0.01, -0.01),
-                                           disturbance_kind='inertial'), expect_ok=False),
+                                           disturbance_kind='inertial')),
+    'disturbance_off': HonestyCase(_BASE.with_(disturbance=(0.01, 0.01, -0.01),
+                                               disturbance_kind='inertial'),
+                                   options={'inertial_torque': 'off'},
+                                   node={'inertial_torque': 'off'}, expect_ok=False),
     'payload_change': HonestyCase(_BASE.with_(t_change=30.0, change=0.2), expect_ok=False),
     'continuous': HonestyCase(_BASE.with_(torque_kind='continuous')),
     'constant': HonestyCase(_BASE.with_(torque_kind='constant', duration=20.0,
