@@ -64,7 +64,10 @@ def _check_auto(auto, hand, records):
         sel = e.diagnostics['method_selection']
         assert sel['chosen'] == 'filtered' and e.method == 'filtered'
         assert sel['evidence']['found'] and sel['evidence']['cutoff_hz'] > 0
-        assert set(sel['candidates']) == {'integral', 'ml', 'filtered'}
+        # (ml is no candidate where the integral stage kept a torque fixed in inertial axes:
+        # its likelihood has none; on the motor-line records the misfit keeps one on some)
+        assert set(sel['candidates']) >= {'integral', 'filtered'}
+        assert 'ml' in sel['candidates'] or 'inertial axes is kept' in sel['rule']
 
 
 @pytest.mark.slow
