@@ -67,7 +67,6 @@ def _check_auto(auto, hand, records):
         # (ml is no candidate where the integral stage kept a torque fixed in inertial axes:
         # its likelihood has none; on the motor-line records the misfit keeps one on some)
         assert set(sel['candidates']) >= {'integral', 'filtered'}
-        assert 'ml' in sel['candidates'] or 'inertial axes is kept' in sel['rule']
 
 
 @pytest.mark.slow
