@@ -231,7 +231,7 @@ def test_momentum_view_satisfies_the_body_equation() -> None:
     view = momentum_view(log, h)
 
     class Est:
-        inertia, torque_bias = I, None
+        inertia, torque_bias, inertial_torque = I, None, None
 
     _, meas, model = window_torques(Est, view.omega.t, view.omega.values, view.torque.t,
                                     view.torque.values, 'zoh', 0.5)
