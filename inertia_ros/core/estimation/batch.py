@@ -337,13 +337,15 @@ def _estimate_direct(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray,
     def run(h: str, head: int | None = None, final: bool = True,
             chosen: tuple[float | None, dict[str, Any]] | None = None,
             shared: dict[str, Any] | None = None,
-            inertial: str | None = None) -> InertiaEstimate:
+            inertial: str | None = None,
+            plain: InertiaEstimate | None = None) -> InertiaEstimate:
         """The estimate with hold ``h`` on its own copy of the diagnostics so far (on the
-        first ``head`` gyro samples when given;
-        without the adequacy tests, which do not change the residual excess, unless
-        ``final``; with the segment length ``chosen`` by an earlier run when given; the
+        first ``head`` gyro samples when given; without the adequacy tests, which do not
+        change the residual excess, unless ``final``: a result only compared, not reported;
+        with the segment length ``chosen`` by an earlier run when given; the
         equations shared with the other hold's run through ``shared``; ``inertial``: the
-        ``inertial_torque`` setting instead of the requested one)."""
+        ``inertial_torque`` setting instead of the requested one; ``plain``: this run's
+        result without the inertial torque, returned when its screen keeps none)."""
         pol = policy if inertial is None else replace(policy, inertial_torque=inertial)
         own = dict(diag, warnings=list(diag['warnings']))
         if inertial is not None:                 # (a selection on this run replaces it)
@@ -355,7 +357,7 @@ def _estimate_direct(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray,
         return _estimate_shifted(method, tg[:n] - t_origin, w[:n], ts[:m] - t_origin, tau[:m],
                                  h, gyro_std ** 2, torque_std ** 2, segment, window, model,
                                  torque_bias, axis, pol, own, mom_noise,
-                                 final, chosen, shared)
+                                 final, chosen, shared, plain)
     if hold != 'auto':
         return run(hold, final=final)
     head = _SELECT_MAX_ROWS if len(tg) > _HOLD_PREFIX_FROM else None
@@ -386,12 +388,11 @@ def _estimate_shifted(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray
                       mom_noise: tuple[Any, ...] = (None, None, None),
                       final: bool = True,
                       chosen: tuple[float | None, dict[str, Any]] | None = None,
-                      shared: dict[str, Any] | None = None) -> InertiaEstimate:
+                      shared: dict[str, Any] | None = None,
+                      plain: InertiaEstimate | None = None) -> InertiaEstimate:
     """Every method but ``ml`` on validated, origin-shifted data: coverage, rules, fit.
 
-    ``final=False`` leaves out the adequacy tests (a result only compared, not reported);
-    ``chosen``: the segment length and its selection record from an earlier run; ``shared``:
-    the equations of the other hold's run (:func:`.equations.shared_integral_equations`).
+    ``final``, ``chosen``, ``shared``, ``plain``: as :func:`_estimate_direct`'s ``run``.
     """
     mask, tau_end = coverage(tg, ts, hold, diag)
     used = int(np.sum(mask))
@@ -422,6 +423,8 @@ def _estimate_shifted(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray
         eq, method, data, hold, gyro_var, shared, policy, diag,
         (ts, tau_end, torque_var, torque_bias), lambda e: _statistics(
             e, segment, chosen, ts, tau_end, gyro_var, torque_var, torque_bias != 'off', diag))
+    if plain is not None and screen is not None and policy.inertial_torque == 'off':
+        return _as_plain(plain, diag, screen)          # (the same fit: no work twice)
     segment, st = segments[torque_bias != 'off']
     if eq.kind == 'anchored':
         diag['segments'] = st.n_seg
@@ -548,6 +551,16 @@ def _screened(eq: Equations, method: str, data: tuple[np.ndarray, ...], hold: st
                                'tests': rule['tests'], 'rule': rule['rule'] + (
                                    '; d not kept: the 13-variable estimate')}
     return eq, replace(policy, inertial_torque='off'), screen, found
+
+
+def _as_plain(plain: InertiaEstimate, diag: dict[str, Any],
+              screen: dict[str, Any]) -> InertiaEstimate:
+    """``plain`` (the run without the inertial torque) as the result of the run whose screen
+    or rule kept none, with that run's disturbance record."""
+    est = replace(plain, diagnostics=dict(plain.diagnostics,
+                                          disturbance=dict(diag.get('disturbance') or {})))
+    _note_screen(est, screen)
+    return est
 
 
 def _note_screen(est: InertiaEstimate, screen: dict[str, Any]) -> None:

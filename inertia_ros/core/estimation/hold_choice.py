@@ -68,7 +68,8 @@ def auto_hold(run: Any, torque_std: np.ndarray, head: int | None,
               results.items()}
     rss = hold_window_rss(results, data, head, shared) if len(results) == 2 else (
         'torque-free or noise-free torque: no choice')
-    shared.clear()                       # (the equations' memory, before another run)
+    if head is not None:
+        shared.clear()                   # (the equations' memory, before the whole record)
     if isinstance(rss, str):
         chosen, record = 'zoh', {'statistic': None, 'p_value': None, 'reason': rss,
                                  'rule': hold_rule(HOLD_ALPHA)}
@@ -87,7 +88,8 @@ def auto_hold(run: Any, torque_std: np.ndarray, head: int | None,
         chosen, est = 'zoh', results['zoh']
         record['adequacy'] = {'zoh_ok': True, 'linear_ok': False}
     if term and head is None:            # the chosen hold with the term allowed
-        est = _with_term(run, chosen, est, results)
+        est = _with_term(run, chosen, est, results, shared)
+    shared.clear()
     est.diagnostics['hold'] = chosen
     est.diagnostics['hold_selection'] = {'requested': 'auto', 'residual_excess': excess,
                                          **record, 'chosen': chosen}
@@ -97,7 +99,8 @@ def auto_hold(run: Any, torque_std: np.ndarray, head: int | None,
 
 
 def _with_term(run: Any, chosen: str, plain: InertiaEstimate,
-               results: dict[str, InertiaEstimate]) -> InertiaEstimate:
+               results: dict[str, InertiaEstimate], shared: dict[str, Any]
+               ) -> InertiaEstimate:
     """The chosen hold's estimate with the torque fixed in inertial axes allowed; kept only
     when it passes the adequacy tests or the estimate without it fails them too (an
     extension of the model the data do not support is not kept: a model-conforming 5 s
@@ -106,15 +109,17 @@ def _with_term(run: Any, chosen: str, plain: InertiaEstimate,
     other hold's fit keeps it too (a disturbance is in the data whatever the hold; a wrong
     hold's misfit is not: on continuously varying 5 s records whose hold the likelihoods
     could not tell, the held fit kept one and moved 1.2 -> 3.6-4.6 %); else ``plain``, the
-    estimate without it (``diagnostics.disturbance.rule`` says why)."""
-    est = run(chosen, chosen=segment_choice(plain, False))
+    estimate without it (``diagnostics.disturbance.rule`` says why); ``shared``: the
+    comparison's equations (the regressors are reused)."""
+    est = run(chosen, chosen=segment_choice(plain, False), plain=plain, shared=shared)
     other = next((h for h in results if h != chosen), None)
     if not model_parts(est.model)[2]:
         return est
     if est.status == 'model_mismatch' and plain.status == 'ok':
         why = 'the fit with it fails the adequacy tests that the fit without it passes'
     elif other is not None and not model_parts(run(
-            other, chosen=segment_choice(results[other], False), final=False).model)[2]:
+            other, chosen=segment_choice(results[other], False), final=False,
+            plain=results[other], shared=shared).model)[2]:
         why = f'kept with the {chosen} hold but not with the {other} hold: a hold misfit'
     else:
         return est
