@@ -384,10 +384,8 @@ def _estimate_shifted(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray
                       tau: np.ndarray, hold: str, gyro_var: np.ndarray, torque_var: np.ndarray,
                       segment: float | None, window: float | None, model: str,
                       torque_bias: str, axis: np.ndarray | None, policy: SelectionPolicy,
-                      diag: dict[str, Any],
-                      mom_noise: tuple[Any, ...] = (None, None, None),
-                      final: bool = True,
-                      chosen: tuple[float | None, dict[str, Any]] | None = None,
+                      diag: dict[str, Any], mom_noise: tuple[Any, ...] = (None, None, None),
+                      final: bool = True, chosen: tuple[float | None, Any] | None = None,
                       shared: dict[str, Any] | None = None,
                       plain: InertiaEstimate | None = None) -> InertiaEstimate:
     """Every method but ``ml`` on validated, origin-shifted data: coverage, rules, fit.
@@ -419,12 +417,14 @@ def _estimate_shifted(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray
     early = _equation_rules(eq, method, diag, base)
     if early is not None:
         return early
-    eq, policy, screen, (segments, fit) = _screened(
+    eq, policy, screen, found = _screened(
         eq, method, data, hold, gyro_var, shared, policy, diag,
         (ts, tau_end, torque_var, torque_bias), lambda e: _statistics(
-            e, segment, chosen, ts, tau_end, gyro_var, torque_var, torque_bias != 'off', diag))
+            e, segment, chosen, ts, tau_end, gyro_var, torque_var, torque_bias != 'off', diag),
+        chosen if plain is not None else None)
     if plain is not None and screen is not None and policy.inertial_torque == 'off':
         return _as_plain(plain, diag, screen)          # (the same fit: no work twice)
+    segments, fit = found
     segment, st = segments[torque_bias != 'off']
     if eq.kind == 'anchored':
         diag['segments'] = st.n_seg
@@ -494,8 +494,9 @@ def _skipped(gap: float, policy: SelectionPolicy, diag: dict[str, Any]) -> Selec
 
 def _screened(eq: Equations, method: str, data: tuple[np.ndarray, ...], hold: str,
               gyro_var: np.ndarray, shared: dict[str, Any] | None, policy: SelectionPolicy,
-              diag: dict[str, Any], run: tuple[Any, ...], stats: Any
-              ) -> tuple[Equations, SelectionPolicy, dict[str, Any] | None, tuple[Any, Any]]:
+              diag: dict[str, Any], run: tuple[Any, ...], stats: Any,
+              lazy: tuple[float | None, Any] | None = None
+              ) -> tuple[Equations, SelectionPolicy, dict[str, Any] | None, Any]:
     """The run's equations, policy, screen record and ``stats(eq) -> (segments, fit)``
     (:func:`_statistics`).  ``inertial_torque='auto'``: the 13-variable equations ``eq`` and
     the policy without the inertial torque, unless its screen
@@ -503,18 +504,19 @@ def _screened(eq: Equations, method: str, data: tuple[np.ndarray, ...], hold: st
     equation, at the segment length the 13-variable run chose) keeps it and then the rule at
     its own level on the wide statistics does too: then the wide equations (otherwise the
     13-variable estimate, as ``'off'``).  ``run``: ``ts, tau_end, torque_var,
-    torque_bias``."""
-    found = stats(eq)
+    torque_bias``; ``lazy``: the segment length chosen by a run without the inertial torque
+    whose result stands unless it is kept (the statistics then ``None`` when it is not)."""
+    found = None if lazy is not None else stats(eq)
     if policy.inertial_torque != 'auto' or eq.V.shape[1] != 13:
-        return eq, policy, None, found
+        return eq, policy, None, found or stats(eq)
     ts, tau_end, torque_var, torque_bias = run
-    segment = found[0][torque_bias != 'off'][0]
+    segment = lazy[0] if lazy is not None else found[0][torque_bias != 'off'][0]
     step = screen_step(len(eq.t))
     thin = thinned_inertial_equations(eq, data[0], data[1], np.flatnonzero(data[4]), step)
     gap = thin.info['attitude']['bridge_error_rad']
     if gap > ATTITUDE_BRIDGE_RAD:
         diag['attitude'] = thin.info['attitude']
-        return eq, _skipped(gap, policy, diag), None, found
+        return eq, _skipped(gap, policy, diag), None, found or stats(eq)
     # the torque noise on a grid about as coarse as the kept equations (the walk between
     # them is the same; g intervals' held noise as one with 1/g of the variance)
     g = 1 if eq.walk_cov is not None or len(ts) < 3 else max(
