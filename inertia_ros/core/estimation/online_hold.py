@@ -195,7 +195,7 @@ def choose_hold(stats: dict[str, Any], windows: HoldWindows, bias: bool, nv: np.
     record : dict
         :func:`.selection.select_hold`'s record (``diagnostics['hold_selection']``).
     """
-    chosen, record = _compare(stats, windows, bias, False, nv, tv, white_y_cov)
+    chosen, record = _compare(stats, windows, bias, nv, tv, white_y_cov)
     if inertial == 'off':
         return chosen, record
     keep_d = inertial == 'on' or all(_held_keeps(stats[h], bias, nv, tv) for h in stats)
@@ -203,21 +203,20 @@ def choose_hold(stats: dict[str, Any], windows: HoldWindows, bias: bool, nv: np.
     return chosen, record
 
 
-def _compare(stats: dict[str, Any], windows: HoldWindows, bias: bool, inertial: bool,
-             nv: np.ndarray, tv: np.ndarray, white_y_cov: np.ndarray | None
-             ) -> tuple[str, dict[str, Any]]:
-    """:func:`choose_hold`'s comparison of the holds' general models (the bias if ``bias``,
-    the inertial torque if ``inertial``) on the windows."""
+def _compare(stats: dict[str, Any], windows: HoldWindows, bias: bool, nv: np.ndarray,
+             tv: np.ndarray, white_y_cov: np.ndarray | None) -> tuple[str, dict[str, Any]]:
+    """:func:`choose_hold`'s comparison of the holds' general models (the bias if ``bias``;
+    never the inertial torque, whose columns of wide windows get a zero coefficient)."""
     coef = {}
+    pad = [np.zeros(3)] if windows.n_var == 25 else []
     for h, st in stats.items():
-        f = fit_two_pass(st, np.eye(6), bias, nv, tv, inertial=inertial)
+        f = fit_two_pass(st, np.eye(6), bias, nv, tv)
         theta = f.basis @ f.beta[:6]
         if not np.all(np.isfinite(theta)):
             return 'zoh', {'statistic': None, 'p_value': None, 'rule': hold_rule(HOLD_ALPHA),
                            'reason': f'the {h} fit is not finite: the holds are not compared'}
         d = f.beta[f.bias_at] if bias else np.zeros(3)
-        d_i = f.beta[f.inertial_at] if inertial else np.zeros(3)
-        coef[h] = np.concatenate([-theta, -d, [1.0], *([-d_i] if windows.n_var == 25 else [])])
+        coef[h] = np.concatenate([-theta, -d, [1.0], *pad])
     W = equation_weight(-coef['zoh'][:6], nv, white_y_cov)
     rz, rl = windows.rss(coef, W, nv)
     return select_hold(rz, rl, HOLD_ALPHA)
