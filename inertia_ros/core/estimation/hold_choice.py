@@ -19,7 +19,7 @@ from .fit import equation_weight
 from .model import model_parts
 from .options import GAP_FACTOR, HOLDS
 from .result import InertiaEstimate
-from .selection import HOLD_ALPHA, hold_rule, select_hold
+from .selection import select_hold_by_excess
 from .statistics import segment_rss
 
 __all__ = ['HOLD_MIN_ROWS', 'HOLD_WINDOWS', 'auto_hold', 'coverage',
@@ -66,15 +66,9 @@ def auto_hold(run: Any, torque_std: np.ndarray, head: int | None,
             break
     excess = {h: float(r.diagnostics.get('residual_excess', np.inf)) for h, r in
               results.items()}
-    rss = hold_window_rss(results, data, head, shared) if len(results) == 2 else (
-        'torque-free or noise-free torque: no choice')
     if head is not None:
         shared.clear()                   # (the equations' memory, before the whole record)
-    if isinstance(rss, str):
-        chosen, record = 'zoh', {'statistic': None, 'p_value': None, 'reason': rss,
-                                 'rule': hold_rule(HOLD_ALPHA)}
-    else:
-        chosen, record = select_hold(*rss, HOLD_ALPHA)
+    chosen, record = select_hold_by_excess(excess if len(results) == 2 else None)
     est = results[chosen] if chosen == 'zoh' and head is None else (
         run if head is not None else compare)(
         chosen, chosen=segment_choice(results[chosen], head is not None))

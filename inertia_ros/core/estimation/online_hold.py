@@ -208,18 +208,19 @@ def _compare(stats: dict[str, Any], windows: HoldWindows, bias: bool, nv: np.nda
     """:func:`choose_hold`'s comparison of the holds' general models (the bias if ``bias``;
     never the inertial torque, whose columns of wide windows get a zero coefficient)."""
     coef = {}
+    excess = {}
     pad = [np.zeros(3)] if windows.n_var == 25 else []
     for h, st in stats.items():
         f = fit_two_pass(st, np.eye(6), bias, nv, tv)
+        excess[h] = f.excess
         theta = f.basis @ f.beta[:6]
         if not np.all(np.isfinite(theta)):
             return 'zoh', {'statistic': None, 'p_value': None, 'rule': hold_rule(HOLD_ALPHA),
                            'reason': f'the {h} fit is not finite: the holds are not compared'}
         d = f.beta[f.bias_at] if bias else np.zeros(3)
         coef[h] = np.concatenate([-theta, -d, [1.0], *pad])
-    W = equation_weight(-coef['zoh'][:6], nv, white_y_cov)
-    rz, rl = windows.rss(coef, W, nv)
-    return select_hold(rz, rl, HOLD_ALPHA)
+    from .selection import select_hold_by_excess
+    return select_hold_by_excess(excess)
 
 
 def _held_keeps(st: Any, bias: bool, nv: np.ndarray, tv: np.ndarray) -> bool:

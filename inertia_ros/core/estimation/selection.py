@@ -538,6 +538,20 @@ def hold_rule(alpha: float) -> str:
             '(two-sided), zoh when the data cannot tell')
 
 
+def select_hold_by_excess(excess: dict[str, float] | None) -> tuple[str, dict[str, Any]]:
+    """PROTOTYPE: the hold whose whole-record fit has the lower residual excess."""
+    if excess is None:
+        return 'zoh', {'statistic': None, 'p_value': None, 'rule': 'likelihood',
+                       'reason': 'torque-free or noise-free torque: no choice'}
+    ez, el = float(excess['zoh']), float(excess['linear'])
+    if not (np.isfinite(ez) and np.isfinite(el)):
+        return 'zoh', {'statistic': None, 'p_value': None, 'rule': 'likelihood',
+                       'reason': 'a fit has no residual excess'}
+    chosen = 'linear' if el < ez else 'zoh'
+    return chosen, {'test': 'likelihood', 'statistic': float(np.log(el / ez)), 'p_value': None,
+                    'rule': 'likelihood', 'chosen': chosen}
+
+
 def select_hold(rss_zoh: np.ndarray, rss_linear: np.ndarray, alpha: float
                 ) -> tuple[str, dict[str, Any]]:
     """Held or linear torque between samples, by a Vuong test on per-window likelihoods.
