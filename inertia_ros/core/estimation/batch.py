@@ -361,9 +361,7 @@ def _estimate_direct(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray,
     if hold != 'auto':
         return run(hold, final=final)
     head = _SELECT_MAX_ROWS if len(tg) > _HOLD_PREFIX_FROM else None
-    return auto_hold(run, torque_std, head, (tg - t_origin, w, ts - t_origin, tau,
-                                             gyro_std ** 2, torque_std ** 2),
-                     policy.inertial_torque != 'off')
+    return auto_hold(run, torque_std, head, policy.inertial_torque != 'off')
 
 
 def _noise_levels(w: np.ndarray, tau: np.ndarray, gyro_noise: Any,

@@ -616,56 +616,24 @@ def estimate_with_momentum(t_gyro: Any, omega: Any, t_torque: Any, torque: Any,
 def _hold_auto(held: Any, run: Any, tg: np.ndarray, w: np.ndarray, mom: Momentum,
                ts: np.ndarray, tau: np.ndarray, options: dict[str, Any]) -> tuple[Any, str]:
     """``hold='auto'`` with another torque: the held and the linear other torque compared by
-    the batch's evidence rule (:func:`.selection.select_hold`, a Vuong test on per-window
-    likelihoods of the two whole-record fits, same weights), held when it cannot tell.
+    the batch's rule (:func:`.selection.select_hold`: the higher likelihood, the lower
+    residual excess of the two whole-record fits), held when a fit has none.
 
     ``held`` is the estimate with the held other torque; ``tg``, ``w`` the gyro samples inside
     its coverage.  Returns the chosen estimate (``diagnostics['hold_selection']``) and hold.
     """
-    from .selection import HOLD_ALPHA, select_hold
+    from .selection import select_hold
 
     grid, tq, inside = equivalent_torque(tg, w, mom.t, mom.h, ts, tau, 'linear', mom.torque)
-    both = inside                          # the linear coverage lies inside the held one
     opts = dict(options)
     if held.diagnostics.get('segment_s') is not None and 'segment' not in opts:
         opts['segment'] = held.diagnostics['segment_s']       # the same segmentation
-    lin = run(w, grid, tq, **opts) if int(np.sum(both)) >= 6 else None
+    lin = run(w, grid, tq, **opts) if int(np.sum(inside)) >= 6 else None
     results = {'zoh': held, 'linear': lin}
-    rss = _hold_rss(results, tg[both], w[both], mom, ts, tau)
-    if isinstance(rss, str):
-        chosen, record = 'zoh', {'statistic': None, 'p_value': None, 'reason': rss}
-    else:
-        chosen, record = select_hold(*rss, HOLD_ALPHA)
+    chosen, record = select_hold(*(None if r is None or r.theta is None else
+                                   r.diagnostics.get('residual_excess') for r in results.values()))
     est = results[chosen]
     diag = dict(est.diagnostics, hold=chosen)
     diag['hold_selection'] = {'requested': 'auto', **record, 'chosen': chosen,
                               'compared': 'the other torque held or linear, momentum the same'}
     return replace(est, diagnostics=diag), chosen
-
-
-def _hold_rss(results: dict[str, Any], tg: np.ndarray, w: np.ndarray, mom: Momentum,
-              ts: np.ndarray, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray] | str:
-    """Weighted residual sums (K,) per window of each hold's anchored equations at its own
-    whole-record tensor and bias (one weight, from the held fit): the batch's rule,
-    :func:`.hold_choice.hold_window_rss`, on the equations of each hold's equivalent torque
-    (:func:`.equations.shared_integral_equations`, the regressors built once).  Why not,
-    when not."""
-    from .align import gap_starts
-    from .equations import shared_integral_equations
-    from .hold_choice import hold_window_rss
-
-    if results['linear'] is None:
-        return 'the linear fit covers too few gyro samples: the holds are not compared'
-    gv = np.asarray(results['zoh'].diagnostics['gyro_noise_std'], dtype=float) ** 2
-    t0 = float(tg[0])
-    breaks = np.zeros(len(tg) - 1, dtype=bool)
-    breaks[gap_starts(tg)] = True
-    shared: dict[str, Any] = {}
-    eqs = {}
-    for h in results:                   # each hold's equivalent torque, itself held
-        grid, tq, _ = equivalent_torque(tg, w, mom.t, mom.h, ts, tau, h, mom.torque)
-        shared_integral_equations('integral', tg - t0, w, grid - t0, tq,
-                                  np.ones(len(tg), bool), breaks, 'zoh', gv, shared)
-        eqs[h] = shared.pop('eqs')['zoh']
-    return hold_window_rss(results, (tg - t0, w, np.zeros(0), np.zeros((0, 3)), gv, None),
-                            None, {'eqs': eqs})

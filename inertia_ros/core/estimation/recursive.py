@@ -311,7 +311,7 @@ class RecursiveEstimator:
             self._gyro_nv.add(w)
         held = 'zoh' if self._auto is not None else self.hold
         V = self._align.variables(t, w, held)       # [w, m, t, T] (n, 13), [.., c] (n, 22)
-        Vs = {held: V} if self._auto is None else self._auto.rows(self._align, t, V, breaks)
+        Vs = {held: V} if self._auto is None else self._auto.rows(self._align, t, V)
         # a gap starts a new anchored segment: the wrongly held torque and the trapezoid across
         # the gap shift T and M by constants, which the new segment's momentum absorbs
         for h, acc in self._accs.items():
@@ -431,7 +431,7 @@ class RecursiveEstimator:
         changed, diag['hold_selection'] = self._auto.select(
             due, torque_free, lambda h: self._accs[h].stats(
                 nv, n_eff, self._tau_var is not None, **self._context()),
-            self.torque_bias != 'off', nv, tv, self._white_y_cov, self.samples_used, inertial)
+            self.torque_bias != 'off', nv, tv, self.samples_used, inertial)
         if changed:
             self._set_active(self._auto.chosen)
             self._schedule.reset_verdicts()

@@ -13,8 +13,8 @@
   not show to cost more (an MSE test at :attr:`SelectionPolicy.model_alpha`) is used
   (:func:`select_model`).
 * Torque hold (:func:`select_hold`): held (zero-order) against linear between the torque
-  samples, two non-nested models with the same parameters, by a Vuong test on the
-  per-window log-likelihood differences of the two fits under the same noise model.
+  samples, two non-nested models with the same parameters, by their likelihoods (the
+  residual excess of each whole-record fit).
 
 The rules' numbers come from one :class:`SelectionPolicy`, shared by the batch and the
 recursive estimators (defaults :data:`.options.ALPHA`, :data:`.options.IDENTIFIABILITY_TOL`).
@@ -34,9 +34,9 @@ from .model import describe_direction, model_basis
 from .options import ALPHA, IDENTIFIABILITY_TOL
 from .tails import chi2_sf
 
-__all__ = ['HOLD_ALPHA', 'MODEL_ALPHA', 'SCREEN_ALPHA', 'SCREEN_ROWS', 'FitFunction',
+__all__ = ['HOLD_RULE', 'MODEL_ALPHA', 'SCREEN_ALPHA', 'SCREEN_ROWS', 'FitFunction',
            'SelectionPolicy', 'bias_test', 'complement', 'conditioning', 'dropped_bias_cov',
-           'held_by_test', 'held_leak', 'hold_rule', 'identifiable', 'mse_test_p',
+           'held_by_test', 'held_leak', 'identifiable', 'mse_test_p',
            'screen_inertial', 'screen_step', 'select_bias', 'select_disturbance', 'select_hold',
            'select_model', 'undetermined', 'wald']
 
@@ -512,90 +512,48 @@ def select_model(f: Fit, axis: np.ndarray | None, alpha: float = MODEL_ALPHA
                     'chosen': chosen}
 
 
-#: Two-sided level of the hold choice (:func:`select_hold`).  A choice between two
-#: candidates of equal size, not a fault alarm: a held model kept on continuous torque leaves
-#: a lag of half a torque period that ``ml``'s bound-tight sigma does not cover (10 s records
-#: of the default scene on the reference simulator: |z| up to 4.8 where the likelihoods
-#: favoured linear at p = 0.014), while linear on held torque costs only ``ml``'s refinement.
-HOLD_ALPHA = 0.05
+#: The hold choice's rule (``diagnostics['hold_selection']['rule']``).
+HOLD_RULE = ('the higher likelihood: the hold whose whole-record fit leaves the lower residual '
+             'excess over the noise model (equal parameter counts, no size correction); '
+             'zoh on a tie or when a fit has none')
 
 
-def _t_to_z(t: float, dof: int) -> float:
-    """A Student-t statistic as the standard normal one of the same tail (Wallace 1959).
-
-    ``z = sqrt(dof ln(1 + t^2 / dof)) (8 dof + 1) / (8 dof + 3)``, signed as ``t``: within
-    about 0.02 of the exact quantile for ``dof >= 7`` at tails down to 1e-4 (scipy's t
-    distribution is not imported for one p-value; see :mod:`.tails`).
-    """
-    z = np.sqrt(dof * np.log1p(t * t / dof)) * (8.0 * dof + 1.0) / (8.0 * dof + 3.0)
-    return float(np.copysign(z, t))
-
-
-def hold_rule(alpha: float) -> str:
-    """The text of :func:`select_hold`'s rule at level ``alpha``."""
-    return ('Vuong test on the per-window log-likelihood differences of the two holds under '
-            f'the same noise model: linear or zoh when significant at alpha={alpha:g} '
-            '(two-sided), zoh when the data cannot tell')
-
-
-def select_hold_by_excess(excess: dict[str, float] | None) -> tuple[str, dict[str, Any]]:
-    """PROTOTYPE: the hold whose whole-record fit has the lower residual excess."""
-    if excess is None:
-        return 'zoh', {'statistic': None, 'p_value': None, 'rule': 'likelihood',
-                       'reason': 'torque-free or noise-free torque: no choice'}
-    ez, el = float(excess['zoh']), float(excess['linear'])
-    if not (np.isfinite(ez) and np.isfinite(el)):
-        return 'zoh', {'statistic': None, 'p_value': None, 'rule': 'likelihood',
-                       'reason': 'a fit has no residual excess'}
-    chosen = 'linear' if el < ez else 'zoh'
-    return chosen, {'test': 'likelihood', 'statistic': float(np.log(el / ez)), 'p_value': None,
-                    'rule': 'likelihood', 'chosen': chosen}
-
-
-def select_hold(rss_zoh: np.ndarray, rss_linear: np.ndarray, alpha: float
+def select_hold(excess_zoh: float | None, excess_linear: float | None
                 ) -> tuple[str, dict[str, Any]]:
-    """Held or linear torque between samples, by a Vuong test on per-window likelihoods.
+    """Held or linear torque between samples: the hold with the higher likelihood.
 
-    Both holds give the same parameters (non-nested models of equal size), so the Vuong
-    (1989) statistic needs no size correction: with ``K`` independent windows, each window's
-    log-likelihood difference under the same Gaussian noise model (the same weights, each hold
-    at its own whole-record estimate) is ``l_k = (rss_zoh_k - rss_linear_k) / 2`` in units of
-    that model, and ``t = mean(l) / (std(l) / sqrt(K))`` is Student-t with ``K - 1`` degrees
-    of freedom when the two fit equally well.  The sample spread of ``l_k`` carries whatever
-    correlation the equations have inside a window (the scale of the noise model cancels).
-    Linear when ``t`` is significantly positive at level ``alpha`` (two-sided), held when
-    significantly negative, and held when the data cannot tell (then the two answers agree
-    within their noise and the held model, which ``ml`` refines, is kept).
+    Both holds give the same parameters (non-nested models of equal size), so AIC and BIC
+    reduce to the likelihoods, and the likelihood of each is that of its own whole-record fit:
+    its weighted residual sum over what its noise model predicts (``Fit.excess``, the same
+    anchored noise model for both), the lower the better.  No margin and no significance
+    level: either way the other hold is the wrong model, and a wrong hold biases the tensor
+    by a lag of half a torque period (5 s records of the reference simulator: 2.5 % median
+    error where the right one gives 0.4 %).  Measured on those records, the lower excess
+    picked the true hold in 59 of 60 (held and continuously varying torque; the one miss
+    a near tie, 0.2 %), where the rule before, a Vuong test on per-window likelihoods at the
+    whole-record fits, picked either hold with |t| up to 23 on either torque: the windows
+    share the fits' estimation error, so their differences are not independent.
 
     Parameters
     ----------
-    rss_zoh, rss_linear : numpy.ndarray, shape (K,)
-        Weighted residual sums of squares of each window under each hold (same weights).
-    alpha : float
-        Two-sided level of the test.
+    excess_zoh, excess_linear : float or None
+        Residual excess of each hold's whole-record fit (None: no fit to compare).
 
     Returns
     -------
     chosen : str
         ``'zoh'`` or ``'linear'``.
     record : dict
-        ``test, statistic (t), dof, p_value, windows, rss_ratio`` (sum linear / sum held),
-        ``alpha, rule, chosen`` (for ``diagnostics['hold_selection']``).
+        ``test, statistic`` (log of the linear excess over the held one: negative favours
+        linear), ``rss_ratio`` (linear / held), ``rule, chosen`` (for
+        ``diagnostics['hold_selection']``); ``reason`` when not compared.
     """
-    rule = hold_rule(alpha)
-    d = 0.5 * (np.asarray(rss_zoh, dtype=float) - np.asarray(rss_linear, dtype=float))
-    K = len(d)
-    rec: dict[str, Any] = {'test': 'vuong', 'windows': K, 'alpha': alpha, 'rule': rule}
-    sd = float(np.std(d, ddof=1)) if K > 1 else 0.0
-    if K < 8 or not np.all(np.isfinite(d)) or not sd > 0:
-        rec.update(statistic=None, dof=max(K - 1, 0), p_value=None, chosen='zoh',
-                   reason='too few windows to compare the holds' if K < 8 else
-                   'the holds give identical residuals')
+    rec: dict[str, Any] = {'test': 'likelihood', 'rule': HOLD_RULE}
+    ez, el = (np.nan if v is None else float(v) for v in (excess_zoh, excess_linear))
+    if not (ez > 0 and el > 0 and np.isfinite(ez) and np.isfinite(el)):
+        rec.update(statistic=None, chosen='zoh',
+                   reason='a fit has no residual excess: the holds are not compared')
         return 'zoh', rec
-    t = float(np.mean(d) / (sd / np.sqrt(K)))
-    z = _t_to_z(t, K - 1)
-    pval = chi2_sf(z * z, 1)                          # two-sided normal tail of z
-    chosen = 'linear' if (t > 0 and pval < alpha) else 'zoh'
-    rec.update(statistic=t, dof=K - 1, p_value=pval, chosen=chosen,
-               rss_ratio=float(np.sum(rss_linear) / np.sum(rss_zoh)))
+    chosen = 'linear' if el < ez else 'zoh'
+    rec.update(statistic=float(np.log(el / ez)), rss_ratio=el / ez, chosen=chosen)
     return chosen, rec

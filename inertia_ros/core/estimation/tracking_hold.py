@@ -4,16 +4,14 @@
 zero-order hold and a twin filter under linear interpolation on the same streams, and feeds
 the streams to a judge, a :class:`~.recursive.RecursiveEstimator` with ``hold='auto'`` (both
 holds' statistics on the same rows, :mod:`.online_hold`), which applies the batch rule
-(:func:`.selection.select_hold` at :data:`.selection.HOLD_ALPHA`, a Vuong test) about once a
-second of data.  The choice is locked once it is settled: at least :data:`MIN_S` of data
-judged, and the same hold chosen significantly (p < HOLD_ALPHA) at every judgement over the
-latest half of them (early judgements, on a tensor not yet settled and short windows, are
-unreliable: on the reference simulator's 0.06 N m multisine at 200/50 Hz, 2-5 s of data gave
-the wrong hold at p < 1e-4 in 2 of 4 records; the settled rule locked the right one in all
-four, at 14-18 s or, for one, by the 20 s cap); or after :data:`DECIDE_S` of data, the
-rule's answer whatever its p-value (then the two holds agree within their noise: the
-default scene's torque, commanded at the sensor rate, p = 0.3 at 30 s).  Then
-the losing filter and the judge are dropped, so the cost is that of one filter again.
+(:func:`.selection.select_hold`, the higher likelihood) about once a second of data.  The
+choice is locked once it is settled: at least :data:`MIN_S` of data judged, and the same
+hold chosen at every judgement over the latest half of them (early judgements, on a tensor
+not yet settled, are unreliable: on the reference simulator's 0.06 N m multisine at
+200/50 Hz, 2-5 s of data gave the wrong hold in 2 of 4 records under the rule before; the
+settled rule locked the right one in all four, at 14-18 s or, for one, by the 20 s cap); or
+after :data:`DECIDE_S` of data, the rule's answer however it changed before.  Then the
+losing filter and the judge are dropped, so the cost is that of one filter again.
 Until then the estimate is that of the filter the rule prefers so far
 (``diagnostics['hold_selection']['locked']`` False).  The judge fits one tensor over the
 whole evidence (no forgetting): how the torque behaves between its samples is a property of
@@ -29,7 +27,6 @@ import numpy as np
 from .homogeneous import is_torque_free
 from .options import MIN_EQUATIONS, MIN_GYRO_SAMPLES
 from .recursive import RecursiveEstimator
-from .selection import HOLD_ALPHA
 from .tracking_output import StateOutput
 
 __all__ = ['DECIDE_S', 'JUDGE_EVERY_S', 'MIN_S', 'HoldChoice', 'keep_by_adequacy']
@@ -97,10 +94,8 @@ class HoldChoice:
         if now - self._at >= JUDGE_EVERY_S:
             sel = _judge(self.judge)
             if sel is not None and sel.get('statistic') is not None:
-                p = sel.get('p_value')
-                significant = p is not None and p < HOLD_ALPHA
                 same = self._since is not None and sel['chosen'] == self.chosen
-                self._since = (self._since if same else now) if significant else None
+                self._since = self._since if same else now
                 self.record, self.chosen, self._at = sel, sel['chosen'], now
         if now - self._t0 >= DECIDE_S and self.record is None:     # never compared
             self.record = {'requested': 'auto', 'chosen': 'zoh', 'statistic': None,
@@ -135,8 +130,8 @@ def keep_by_adequacy(preferred: str, est: Any, record: dict[str, Any],
     innovations fail (``est`` is ``model_mismatch``) and the other's do not, as the batch
     and the recursive estimator keep a hold by adequacy (``hold_selection.adequacy``).
 
-    Until the choice is settled the rule's preference may be a coin toss (p well above
-    :data:`.selection.HOLD_ALPHA` on a few seconds): on 4 s of held torque it preferred the
+    Until the choice is settled the rule's preference may be a coin toss (a few seconds
+    of data): on 4 s of held torque it preferred the
     linear hold in 7 of 20 records, whose filter then failed its innovation test in 2 while
     the zero-order hold's passed.
 
