@@ -41,8 +41,8 @@ def auto_hold(run: Any, torque_std: np.ndarray, head: int | None,
     and the chosen hold runs again with it.  Allowed in the comparison, it absorbed the wrong
     hold's misfit: on held-torque 5 s records a body bias and an inertial torque in opposite
     directions made the wrong hold win (seed 36) or pass the tests that send it back (seed
-    184: linear at 3.9 %, where the package keeps zoh at 0.5 %); on continuously varying torque the held
-    run kept one, and every run after it (seed 29: zoh at 7.8 %, linear without it 0.8 %).
+    184: linear at 3.9 %, where the package keeps zoh at 0.5 %); on continuously varying
+    torque the held run kept one, and every run after it (seed 29: zoh at 7.8 %, linear without it 0.8 %).
     """
     results = {}
     shared: dict[str, Any] = {}          # the runs' equations (shared_integral_equations)
