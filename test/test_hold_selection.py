@@ -1,14 +1,16 @@
 """``hold='auto'`` decides held against linear torque by evidence (issue 27, item 2).
 
-The rule (:func:`inertia_ros.core.estimation.selection.select_hold`): a Vuong test on the
-per-window likelihood differences of the two holds' fits at level ``HOLD_ALPHA``; when it
-cannot tell, linear if only the held fit fails the adequacy tests; else held (zoh).
+The rule (:func:`inertia_ros.core.estimation.selection.select_hold`): the higher likelihood,
+the lower residual excess of the two holds' whole-record fits; then the adequacy tests (a
+held fit that fails them is left for a linear one that passes them, and the other way).
 Records from the independent RK4 simulator :mod:`inertia_ros.bench.truth_sim` with the
 default scene's body and excitation (multisine of RMS 0.06 N m per axis, torque noise 2 % of
 it, 200 Hz gyro with 0.002 rad/s noise, 50 Hz torque), the applied torque either held between
 its samples (a command) or continuous (varying smoothly, nearly linearly, between them).
 Before this rule a fixed margin (linear's residual excess 10 % below the held one) kept zoh
-on 8 of 10 continuous records and the window test then said ``model_mismatch``.
+on 8 of 10 continuous records and the window test then said ``model_mismatch``; the Vuong
+test on per-window likelihoods that replaced it chose linear on 7 of 40 held 5 s records
+(the node's seed 28 ok at |z| 5.1).
 """
 from __future__ import annotations
 
@@ -20,7 +22,8 @@ import pytest
 from inertia_ros.bench.truth_sim import TruthCase, simulate_truth
 from inertia_ros.core.estimation import estimate
 from inertia_ros.core.estimation.hold_choice import hold_by_adequacy
-from inertia_ros.core.estimation.selection import HOLD_ALPHA, select_hold
+from inertia_ros.core.estimation.recursive import RecursiveEstimator
+from inertia_ros.core.estimation.selection import HOLD_RULE, select_hold
 from inertia_ros.core.inertia import matrix_to_theta
 
 #: The default scene (config/scenes/default.yaml) on the reference simulator.
@@ -37,48 +40,53 @@ def _runs(kind: str, seeds: range, duration: float) -> list[tuple[object, np.nda
     return out
 
 
-def test_rule_on_window_likelihoods() -> None:
-    """Significant either way picks that hold; equal fits or too few windows keep zoh."""
-    rng = np.random.default_rng(0)
-    base = 100.0 + rng.normal(0.0, 5.0, 32)
-    noise = rng.normal(0.0, 1.0, 32)
-    chosen, rec = select_hold(base + 2.0 + noise, base, 1e-3)       # zoh fits worse
-    assert chosen == 'linear' and rec['statistic'] > 5 and rec['p_value'] < 1e-3
-    assert rec['windows'] == 32 and rec['dof'] == 31 and rec['rss_ratio'] < 1.0
-    assert 'Vuong' in rec['rule']
-    assert select_hold(base, base + 2.0 + noise, 1e-3)[0] == 'zoh'  # linear fits worse
-    chosen, rec = select_hold(base + 0.1 * noise, base, 1e-3)       # cannot tell
-    assert chosen == 'zoh' and rec['p_value'] > 1e-3
-    chosen, rec = select_hold(base[:5] + 10.0, base[:5], 1e-3)
-    assert chosen == 'zoh' and rec['statistic'] is None and 'too few' in rec['reason']
+def test_rule_picks_the_lower_excess() -> None:
+    """The hold whose fit leaves the lower residual excess; zoh on a tie or without fits."""
+    chosen, rec = select_hold(1.05, 1.0)                  # the held fit is worse
+    assert chosen == 'linear' == rec['chosen'] and rec['test'] == 'likelihood'
+    assert rec['statistic'] == pytest.approx(np.log(1.0 / 1.05)) and rec['rss_ratio'] < 1.0
+    assert rec['rule'] == HOLD_RULE
+    assert select_hold(1.0, 1.002)[0] == 'zoh'            # the linear fit is worse
+    assert select_hold(1.0, 1.0)[0] == 'zoh'              # a tie
+    for bad in ((None, 1.0), (1.0, float('nan')), (0.0, 1.0)):
+        chosen, rec = select_hold(*bad)
+        assert chosen == 'zoh' and rec['statistic'] is None and 'not compared' in rec['reason']
 
 
-def test_t_tail_matches_scipy() -> None:
-    """The Student-t tail through its normal equivalent: within 15 % of scipy's p-value."""
-    from scipy import stats
-
-    from inertia_ros.core.estimation.selection import _t_to_z
-    from inertia_ros.core.estimation.tails import chi2_sf
-    for dof in (7, 15, 31):
-        for t in (1.0, 2.5, 4.0, 6.0):
-            z = _t_to_z(t, dof)
-            exact = 2 * stats.t.sf(t, dof)
-            assert chi2_sf(z * z, 1) == pytest.approx(exact, rel=0.15), (dof, t)
+@pytest.mark.parametrize('kind, want', [('zoh', 'zoh'), ('continuous', 'linear')])
+def test_short_records_pick_the_true_hold(kind: str, want: str) -> None:
+    """5 s records, seeds 20-39 (the Vuong rule chose linear on 7 of 40 held ones, the
+    node's seed 28 ok at |z| 5.1): the true hold in at least 19 of 20, batch defaults and
+    the node's estimator alike, and every ok record within 4 sigma."""
+    from inertia_ros.bench.honesty import _NODE_DEFAULTS, feed_online
+    recs = simulate_truth(SCENE.with_(torque_kind=kind, duration=5.0), range(20, 40))
+    for path in ('api', 'node'):
+        right = 0
+        for rec in recs:
+            if path == 'api':
+                e = estimate(rec.t_gyro, rec.omega, rec.t_torque, rec.torque)
+            else:
+                e = feed_online(RecursiveEstimator(**_NODE_DEFAULTS, reselect_every=10,
+                                                   defer_adequacy=True), rec, 10.0)
+            right += e.diagnostics['hold'] == want
+            z = (e.theta - matrix_to_theta(rec.inertia)) / e.theta_std
+            assert e.status != 'ok' or np.max(np.abs(z)) < 4.0, (path, rec.seed, z)
+        assert right >= 19, (path, right)
 
 
 def test_continuous_torque_picks_linear() -> None:
     """Continuous torque, 20 s, 3 seeds, CLI defaults: linear chosen by the likelihoods
-    (p < 0.01, the level being 0.05), status ok, max |z| < 4."""
+    (the linear excess at least 1 % below the held one), status ok, max |z| < 4."""
     for e, z in _runs('continuous', range(3), 20.0):
         sel = e.diagnostics['hold_selection']
         assert sel['chosen'] == 'linear' == e.diagnostics['hold'], sel
-        assert sel['statistic'] > 0 and sel['p_value'] < 0.01 and sel['alpha'] == HOLD_ALPHA
+        assert sel['statistic'] < -0.01 and sel['test'] == 'likelihood', sel
         assert 'adequacy' not in sel, sel
         assert e.status == 'ok', e.diagnostics.get('reason')
         assert np.max(np.abs(z)) < 4.0, z
 
 
-def test_adequacy_decides_when_the_likelihoods_cannot() -> None:
+def test_adequacy_overrides_the_likelihoods() -> None:
     """Held fit inadequate and linear adequate: linear; both inadequate: the held result."""
     def est(ok: bool) -> SimpleNamespace:
         return SimpleNamespace(diagnostics={'adequacy': {'ok': ok}})
@@ -107,11 +115,9 @@ def test_held_torque_keeps_zoh_and_ml() -> None:
 @pytest.mark.parametrize('fault', [
     {'gyro_bias': (0.01, -0.01, 0.01)},
     {'t_change': 15.0, 'change': 0.2},
-    {'disturbance': (0.01, 0.01, -0.01), 'disturbance_kind': 'inertial'},
 ])
 def test_faults_stay_flagged_under_either_hold(fault: dict) -> None:
-    """Continuous torque plus a fault (gyro bias, +20 % payload at 15 s, unmeasured torque),
-    30 s, 2 seeds: model_mismatch whichever hold is chosen (the adequacy step never turns a
+    """Continuous torque plus a fault (gyro bias, +20 % payload at 15 s), 30 s, 2 seeds: model_mismatch whichever hold is chosen (the adequacy step never turns a
     fault into ok: both holds fail the tests)."""
     case = SCENE.with_(torque_kind='continuous', duration=30.0, **fault)
     for rec in simulate_truth(case, range(2)):
@@ -129,3 +135,20 @@ def test_ok_fraction_and_calibration(kind: str) -> None:
     rms = float(np.sqrt(np.mean(np.square([z for _, z in runs]))))
     assert ok >= (9 if kind == 'continuous' else 10), [e.status for e, _ in runs]
     assert 0.7 <= rms <= 1.5, rms
+
+
+def test_inertial_disturbance_is_modelled_with_the_right_hold() -> None:
+    """Continuous torque plus a torque of 0.01 N m fixed in inertial axes, 30 s, seeds 0-3:
+    modelled by default (``inertial_torque='auto'``), the holds compared again with it
+    (without it the unmodelled torque swamped the comparison: zoh and ``model_mismatch`` in
+    3 of 6 at |z| < 2; before this rule in all 6): linear, ok, the torque within 3 % and
+    max |z| < 4."""
+    case = SCENE.with_(torque_kind='continuous', duration=30.0,
+                       disturbance=(0.01, 0.01, -0.01), disturbance_kind='inertial')
+    for rec in simulate_truth(case, range(4)):
+        e = estimate(rec.t_gyro, rec.omega, rec.t_torque, rec.torque)
+        assert e.status == 'ok' and e.diagnostics['hold'] == 'linear', (
+            e.status, e.diagnostics['hold_selection'])
+        np.testing.assert_allclose(e.inertial_torque, [0.01, 0.01, -0.01], rtol=0.03)
+        z = (e.theta - matrix_to_theta(rec.inertia)) / e.theta_std
+        assert np.max(np.abs(z)) < 4.0, z
