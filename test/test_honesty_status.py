@@ -311,8 +311,9 @@ def test_node_hold_auto_keeps_the_hold_whose_fit_passes() -> None:
         assert status != 'ok' or np.nanmax(np.abs(z)) <= 5.0, (rec.seed, status, z)
 
 
-def test_node_hold_chosen_by_adequacy_says_so() -> None:
-    """The hold the adequacy tests chose is named in ``hold_selection`` (seed 2 above)."""
+def test_node_hold_of_seed_2_by_the_likelihoods() -> None:
+    """Seed 2 above: the Vuong test could not tell, the adequacy tests chose linear; the
+    likelihoods now do (linear's residual excess 4.6 % below the held one's)."""
     from inertia_ros.bench.honesty import feed_online
     from inertia_ros.bench.truth_sim import TruthCase, simulate_truth
     from inertia_ros.core.estimation import RecursiveEstimator
@@ -320,8 +321,8 @@ def test_node_hold_chosen_by_adequacy_says_so() -> None:
     e = feed_online(RecursiveEstimator(model='full', torque_bias='auto', hold='auto',
                                        reselect_every=10, defer_adequacy=True), rec)
     sel = e.diagnostics['hold_selection']
-    assert e.status == 'ok' and sel['chosen'] == 'linear' and sel['p_value'] >= 0.05, sel
-    assert sel['adequacy']['zoh_ok'] is False and sel['adequacy']['linear_ok'] is True, sel
+    assert e.status == 'ok' and sel['chosen'] == 'linear' and sel['statistic'] < -0.01, sel
+    assert 'adequacy' not in sel, sel
 
 
 def test_tracker_after_an_untested_change_is_not_ok_far() -> None:

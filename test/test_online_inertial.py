@@ -132,7 +132,7 @@ def test_off_keeps_the_13_variables() -> None:
     e = RecursiveEstimator(hold='auto')
     assert e._align.attitude is None
     assert all(a.dim == a.width == 13 for a in e._accs.values())
-    assert e._auto is not None and e._auto.windows.n_var == 16
+    assert e._auto is not None and not e._auto.wide
 
 
 def test_the_node_parameter_reaches_the_recursive_estimator_only() -> None:

@@ -344,10 +344,9 @@ def test_torque_scale_std_scales_the_torque_part_only() -> None:
 
 def test_hold_auto_with_wheels_compares_the_other_torques_holds() -> None:
     """Batch ``hold='auto'`` with wheels and another torque compares the other torque held
-    and linear by the evidence rule (Vuong test on window likelihoods, as torque-only input):
-    a torque commanded at 50 Hz and sampled at 50 Hz is kept held, one varying continuously
-    (commanded at 1 kHz) between its 50 Hz samples is taken linear; each choice significant
-    (p < 0.01) on 3 seeds.  (On f0eb6ad it ran as zoh with no comparison.)"""
+    and linear by the evidence rule (the higher likelihood, as torque-only input): a torque
+    commanded at 50 Hz and sampled at 50 Hz is kept held, one varying continuously
+    (commanded at 1 kHz) between its 50 Hz samples is taken linear, on 3 seeds.  (On f0eb6ad it ran as zoh with no comparison.)"""
     for seed in (4, 5, 6):
         for rate, want in ((50.0, 'zoh'), (1000.0, 'linear')):
             d = scene_dict(duration=6.0, gyro_rate=100.0)
@@ -363,7 +362,7 @@ def test_hold_auto_with_wheels_compares_the_other_torques_holds() -> None:
                                        hold='auto')
             sel = e.diagnostics['hold_selection']
             assert e.diagnostics['hold'] == want and sel['chosen'] == want, (seed, rate, sel)
-            assert sel['p_value'] < 0.01 and e.status == 'ok', (seed, rate, sel, e.status)
+            assert sel['test'] == 'likelihood' and e.status == 'ok', (seed, rate, sel, e.status)
 
 
 def test_products_sigma_follows_the_time_varying_walk() -> None:
