@@ -104,10 +104,14 @@ def test_tracker_start_up_is_not_shrunk() -> None:
     assert np.all(np.abs(z) < 5.0), np.round(z, 1)
 
 
-def test_tracker_hold_kept_by_adequacy_before_it_is_locked() -> None:
-    """Seed 11 at 4 s: the hold rule prefers the linear hold on the held torque (not
-    significant, not locked) and its filter fails the innovation test; the zero-order hold's
-    passes and is reported, ``hold_selection.adequacy`` saying so (before: model_mismatch)."""
+def test_tracker_hold_kept_by_adequacy_before_it_is_locked(monkeypatch) -> None:
+    """Seed 11 at 4 s, the rule made to prefer the linear hold on the held torque (the Vuong
+    rule did so, not significant; the likelihood rule picks zoh): its filter fails the
+    innovation test, the zero-order hold's passes and is reported, not locked,
+    ``hold_selection.adequacy`` saying so (before: model_mismatch)."""
+    from inertia_ros.core.estimation import online_hold
+    monkeypatch.setattr(online_hold, 'select_hold', lambda ez, el: (
+        'linear', {'test': 'likelihood', 'statistic': -0.001, 'chosen': 'linear'}))
     rec = simulate_truth(SCENE.with_(duration=4.0), [11])[0]
     e = feed_online(TrackingEstimator(**NODE_TRACKER), rec, 10.0)
     sel = e.diagnostics['hold_selection']
