@@ -117,8 +117,9 @@ def test_held_torque_keeps_zoh_and_ml() -> None:
     {'t_change': 15.0, 'change': 0.2},
 ])
 def test_faults_stay_flagged_under_either_hold(fault: dict) -> None:
-    """Continuous torque plus a fault (gyro bias, +20 % payload at 15 s), 30 s, 2 seeds: model_mismatch whichever hold is chosen (the adequacy step never turns a
-    fault into ok: both holds fail the tests)."""
+    """Continuous torque plus a fault (gyro bias, +20 % payload at 15 s), 30 s, 2 seeds:
+    model_mismatch whichever hold is chosen (the adequacy step never turns a fault into ok:
+    both holds fail the tests)."""
     case = SCENE.with_(torque_kind='continuous', duration=30.0, **fault)
     for rec in simulate_truth(case, range(2)):
         e = estimate(rec.t_gyro, rec.omega, rec.t_torque, rec.torque)

@@ -377,8 +377,9 @@ def _wheels_and_commanded_torque(seed: int, command_rate: float):
 def test_auto_hold_of_the_other_torque_follows_its_source(command_rate, chosen) -> None:
     """Issue 26: wheels plus another torque with ``hold='auto'`` compare the other torque's
     two reductions on the same rows by the batch rule (the higher likelihood): a torque
-    continuous between its samples -> linear, a held one -> zoh (seeds 0-1), and the estimate is the one of that hold given explicitly (rtol
-    1e-9), status ok, |z| < 4.  On f0eb6ad ``auto`` always held (zoh) without comparing."""
+    continuous between its samples -> linear, a held one -> zoh (seeds 0-1), and the
+    estimate is the one of that hold given explicitly (rtol 1e-9), status ok, |z| < 4.  On
+    f0eb6ad ``auto`` always held (zoh) without comparing."""
     for seed in (0, 1):
         sc, r = _wheels_and_commanded_torque(seed, command_rate)
         ws = [Wheel(w.joint, w.axis, w.inertia) for w in sc.wheels.wheels]

@@ -2,9 +2,9 @@
 
 :class:`~inertia_ros.core.estimation.recursive.RecursiveEstimator` keeps both holds'
 statistics on the same rows and decides by :func:`~inertia_ros.core.estimation.selection.
-select_hold` (the higher likelihood: the lower residual excess of the two fits).  Records from the independent RK4 simulator
-:mod:`inertia_ros.bench.truth_sim` with the default scene (multisine of RMS 0.06 N m per axis,
-torque noise 2 % of it, 200 Hz gyro, 50 Hz torque), the applied torque held between its
+select_hold` (the higher likelihood: the lower residual excess of the two fits).  Records
+from the independent RK4 simulator :mod:`inertia_ros.bench.truth_sim` with the default
+scene (multisine of RMS 0.06 N m per axis, torque noise 2 % of it, 200 Hz gyro, 50 Hz torque), the applied torque held between its
 samples (a command) or continuous between them.
 """
 from __future__ import annotations
@@ -47,8 +47,8 @@ def _online(rec, block: float | None = None, **kw):
 @pytest.mark.parametrize('kind, chosen', [('continuous', 'linear'), ('zoh', 'zoh')])
 def test_online_auto_hold_follows_the_torque(kind: str, chosen: str) -> None:
     """20 s records, seeds 0-2: continuous torque -> linear, held -> zoh, each by at least
-    0.5 % of residual excess, status ok, max |z| < 4; the estimate equals the batch ``integral`` one
-    with the same hold (and the same 10 s segments) within 0.1 sigma."""
+    0.5 % of residual excess, status ok, max |z| < 4; the estimate equals the batch
+    ``integral`` one with the same hold (and the same 10 s segments) within 0.1 sigma."""
     for rec in _records(kind, range(3)):
         e = _online(rec)
         sel = e.diagnostics['hold_selection']

@@ -346,7 +346,8 @@ def test_hold_auto_with_wheels_compares_the_other_torques_holds() -> None:
     """Batch ``hold='auto'`` with wheels and another torque compares the other torque held
     and linear by the evidence rule (the higher likelihood, as torque-only input): a torque
     commanded at 50 Hz and sampled at 50 Hz is kept held, one varying continuously
-    (commanded at 1 kHz) between its 50 Hz samples is taken linear, on 3 seeds.  (On f0eb6ad it ran as zoh with no comparison.)"""
+    (commanded at 1 kHz) between its 50 Hz samples is taken linear, on 3 seeds.  (On
+    f0eb6ad it ran as zoh with no comparison.)"""
     for seed in (4, 5, 6):
         for rate, want in ((50.0, 'zoh'), (1000.0, 'linear')):
             d = scene_dict(duration=6.0, gyro_rate=100.0)
