@@ -4,8 +4,8 @@
 statistics on the same rows and decides by :func:`~inertia_ros.core.estimation.selection.
 select_hold` (the higher likelihood: the lower residual excess of the two fits).  Records
 from the independent RK4 simulator :mod:`inertia_ros.bench.truth_sim` with the default
-scene (multisine of RMS 0.06 N m per axis, torque noise 2 % of it, 200 Hz gyro, 50 Hz torque), the applied torque held between its
-samples (a command) or continuous between them.
+scene (multisine of RMS 0.06 N m per axis, torque noise 2 % of it, 200 Hz gyro, 50 Hz
+torque), the applied torque held between its samples (a command) or continuous between them.
 """
 from __future__ import annotations
 
