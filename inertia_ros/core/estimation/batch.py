@@ -101,7 +101,7 @@ from .equations import (
 )
 from .filtered import equations_for
 from .fit import Fit, fit_two_pass
-from .hold_choice import auto_hold, coverage
+from .hold_choice import auto_hold, coverage, stated_hold
 from .homogeneous import is_torque_free, torque_free_checked
 from .model import model_basis, model_parts
 from .model import symmetry_axis as unit_axis
@@ -359,7 +359,7 @@ def _estimate_direct(method: str, tg: np.ndarray, w: np.ndarray, ts: np.ndarray,
                                  torque_bias, axis, pol, own, mom_noise,
                                  final, chosen, shared, plain)
     if hold != 'auto':
-        return run(hold, final=final)
+        return stated_hold(run, hold, final, policy.inertial_torque == 'auto')
     head = _SELECT_MAX_ROWS if len(tg) > _HOLD_PREFIX_FROM else None
     return auto_hold(run, torque_std, head, policy.inertial_torque != 'off')
 
