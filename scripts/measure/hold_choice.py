@@ -20,5 +20,5 @@ for rec in simulate_truth(SCENE.with_(torque_kind=kind, duration=dur), range(n))
     errs.append(np.linalg.norm(e.inertia - rec.inertia) / np.linalg.norm(rec.inertia))
 print(
     f"{kind} {n} seeds x {dur:g} s: status {st} hold {holds} method {meth} RMS z {np.sqrt(np.mean(np.square(zs))):.3f} "
-    f"max|z| {np.max(np.abs(zs)):.1f} median error {100 * np.median(errs):.3f} % t in [{min(ts):.1f}, {max(ts):.1f}]"
+    f"max|z| {np.max(np.abs(zs)):.1f} median error {100 * np.median(errs):.3f} % statistic (log excess ratio) in [{min(ts):.3f}, {max(ts):.3f}]"
 )

@@ -7,7 +7,8 @@
 CPU seconds (``time.process_time``) to feed a 60 s reference record (``bench.truth_sim``,
 200 Hz gyro, 50 Hz torque, the scene of docs/BENCHMARKS.md "The node's estimator per record
 against the issue's start") to the estimator the node builds (``make_estimator`` with the
-node's parameter defaults; ``--holds``: ``default`` or a hold) in 0.1 s blocks, sample by
+node's parameter defaults; ``--holds``: ``default`` or a hold; ``batchD``: instead the batch
+``estimate()`` at its defaults on a D-second record) in 0.1 s blocks, sample by
 sample, with an estimate and a refresh after each block (the node's cadence).  Each
 measurement is one process with ``PYTHONPATH`` set to the tree (``OPENBLAS_NUM_THREADS=1``),
 the minimum of ``--repeats`` runs in it; the trees alternate within each (round, seed, hold)
@@ -35,6 +36,17 @@ except ImportError:                       # the trees before nodes/selection.py
     from inertia_ros.nodes.estimator import make_estimator
 hold, seed, repeats = sys.argv[1], int(sys.argv[2]), int(sys.argv[3])
 SCENE = TruthCase(amplitude=0.06, torque_noise=0.0012, omega0=(0.05, -0.03, 0.02))
+if hold.startswith('batch'):              # the batch estimate() at its defaults instead
+    from inertia_ros.core.estimation import estimate
+    rec = simulate_truth(SCENE.with_(duration=float(hold[5:])), [seed])[0]
+    best = None
+    for _ in range(repeats):
+        c0 = time.process_time()
+        last = estimate(rec.t_gyro, rec.omega, rec.t_torque, rec.torque)
+        cpu = time.process_time() - c0
+        best = cpu if best is None else min(best, cpu)
+    print(f'{best:.4f} {last.status} {hold}')
+    sys.exit(0)
 rec = simulate_truth(SCENE.with_(duration=60.0), [seed])[0]
 cfg = {n: s.default for n, s in params.ESTIMATOR.items()}
 if hold != 'default':

@@ -231,7 +231,7 @@ def hac_small_sample(X: np.ndarray, W: np.ndarray, e: np.ndarray, lag: int,
 def fit_weighted(st: SufficientStats, basis: np.ndarray, bias: bool, W: np.ndarray,
                  gyro_var: np.ndarray, torque_var: np.ndarray, bias_comp: bool,
                  offset: np.ndarray | None = None, noise_theta: np.ndarray | None = None,
-                 inertial: bool = False) -> Fit:
+                 inertial: bool = False, held: np.ndarray | None = None) -> Fit:
     """Weighted LS of ``y = X6 (T psi + offset) (+ Xd d)`` with its covariance.
 
     Parameters
@@ -257,6 +257,9 @@ def fit_weighted(st: SufficientStats, basis: np.ndarray, bias: bool, W: np.ndarr
         with it; the whole record's tensor is the model's under the null.
     inertial : bool
         Fit the torque fixed in inertial axes too (wide statistics only).
+    held : ndarray, shape (6,), optional
+        The torque bias and the torque fixed in inertial axes where not fitted, held at these
+        values [N m] (:func:`.model.selector`).
 
     Returns
     -------
@@ -264,7 +267,7 @@ def fit_weighted(st: SufficientStats, basis: np.ndarray, bias: bool, W: np.ndarr
     """
     k = basis.shape[1]
     T, p, G, H0, H, beta, B6 = _normal_solution(st, basis, bias, W, bias_comp, offset,
-                                                inertial)
+                                                inertial, held)
     compensate = B6 is not None
     Hinv = solve_symmetric(H, np.eye(p))
     c = np.append(-beta, 1.0)
@@ -295,7 +298,8 @@ def fit_weighted(st: SufficientStats, basis: np.ndarray, bias: bool, W: np.ndarr
 
 
 def _normal_solution(st: SufficientStats, basis: np.ndarray, bias: bool, W: np.ndarray,
-                     bias_comp: bool, offset: np.ndarray | None, inertial: bool = False
+                     bias_comp: bool, offset: np.ndarray | None, inertial: bool = False,
+                     held: np.ndarray | None = None
                      ) -> tuple[np.ndarray, int, np.ndarray, np.ndarray, np.ndarray, np.ndarray,
                                 np.ndarray | None]:
     """The (bias-compensated) normal equations of :func:`fit_weighted` and their solution.
@@ -305,7 +309,7 @@ def _normal_solution(st: SufficientStats, basis: np.ndarray, bias: bool, W: np.n
     gyro-noise term ``B6`` (6, 6) (``None`` without compensation).
     """
     k = basis.shape[1]
-    T = selector(basis, bias, offset, inertial, st.C.shape[-1])
+    T = selector(basis, bias, offset, inertial, st.C.shape[-1], held)
     p = T.shape[1] - 1
     G = T.T @ metric(st.C, W) @ T
     H0 = G[:p, :p]
@@ -342,25 +346,27 @@ def equation_weight(theta: np.ndarray, gyro_var: np.ndarray,
 def fit_two_pass(st: SufficientStats, basis: np.ndarray, bias: bool, gyro_var: np.ndarray,
                  torque_var: np.ndarray, offset: np.ndarray | None = None,
                  theta0: np.ndarray | None = None, noise_theta: np.ndarray | None = None,
-                 inertial: bool = False) -> Fit:
+                 inertial: bool = False, held: np.ndarray | None = None) -> Fit:
     """Two-pass fit: unweighted, then weighted by the first pass's tensor (weighted methods).
 
     ``theta0`` (6,), a tensor from an earlier fit of the same data, gives the weights at once
     (one weighted pass; model selection refits the same equations several times).  Other
-    parameters as :func:`fit_weighted` (``inertial``: the torque fixed in inertial axes too).
+    parameters as :func:`fit_weighted` (``inertial``: the torque fixed in inertial axes too;
+    ``held``: the disturbances not fitted, at fixed values, :func:`.model.selector`).
     """
     if theta0 is not None and st.weighted and np.all(gyro_var > 0) \
             and np.all(np.isfinite(theta0)) and np.any(theta0[:3] != 0):
         return fit_weighted(st, basis, bias,
                             equation_weight(theta0, gyro_var, st.white_y_cov), gyro_var,
-                            torque_var, st.weighted, offset, noise_theta, inertial)
+                            torque_var, st.weighted, offset, noise_theta, inertial, held)
     if st.weighted and np.all(gyro_var > 0):
         # the unweighted pass gives the weights only: its estimate, not its covariance
-        beta = _normal_solution(st, basis, bias, np.eye(3), st.weighted, offset, inertial)[5]
+        beta = _normal_solution(st, basis, bias, np.eye(3), st.weighted, offset, inertial,
+                                held)[5]
         theta = basis @ beta[:basis.shape[1]] + (0.0 if offset is None else offset)
         if np.all(np.isfinite(theta)) and np.any(theta[:3] != 0):
             return fit_weighted(st, basis, bias,
                                 equation_weight(theta, gyro_var, st.white_y_cov), gyro_var,
-                                torque_var, st.weighted, offset, noise_theta, inertial)
+                                torque_var, st.weighted, offset, noise_theta, inertial, held)
     return fit_weighted(st, basis, bias, np.eye(3), gyro_var, torque_var, st.weighted, offset,
-                        noise_theta, inertial)
+                        noise_theta, inertial, held)

@@ -137,7 +137,8 @@ def parameter_names(basis: np.ndarray, bias: bool, model: str,
 
 
 def selector(basis: np.ndarray, bias: bool, offset: np.ndarray | None = None,
-             inertial: bool = False, width: int = 10) -> np.ndarray:
+             inertial: bool = False, width: int = 10, held: np.ndarray | None = None
+             ) -> np.ndarray:
     """Map (10, p + 1) from ``[psi, d, 1]`` to the columns ``[X6 | Xd | y]`` of a block.
 
     With ``width=13`` the blocks are the wide ones ``[X6 | Xd | y | Xi]`` of a torque fixed
@@ -158,6 +159,10 @@ def selector(basis: np.ndarray, bias: bool, offset: np.ndarray | None = None,
         ``width=13``).
     width : {10, 13}
         Columns of the blocks.
+    held : ndarray, shape (6,), optional
+        Fixed values of the disturbances not fitted: the torque bias ``[0:3]`` [N m] (when
+        ``bias`` is False) and the torque fixed in inertial axes ``[3:6]`` [N m] (when
+        ``inertial`` is False and ``width=13``), moved to the right-hand side.
 
     Returns
     -------
@@ -178,6 +183,11 @@ def selector(basis: np.ndarray, bias: bool, offset: np.ndarray | None = None,
     T[9, p] = 1.0
     if offset is not None:
         T[:6, p] = -offset
+    if held is not None:
+        if not bias:
+            T[6:9, p] = -held[:3]
+        if width == 13 and not inertial:
+            T[10:13, p] = -held[3:6]
     return T
 
 
