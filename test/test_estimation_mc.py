@@ -223,7 +223,10 @@ def test_ml_is_calibrated_at_low_snr():
     """Gyro noise 0.01 rad/s, multisine 0.03 N m, 60 s: ml's RMS z per element in [0.6, 1.3].
 
     Low SNR, where the integral method's standard errors run small (RMS z up to ~1.5 on these
-    records); 20 seeds give RMS z a Monte Carlo spread of ~0.16, hence the lower limit.
+    records); 20 seeds give RMS z a Monte Carlo spread of ~0.16, hence the lower limit.  The
+    hold is given (``ml`` refines the held model only): at this SNR the two holds' fits tie
+    (log excess ratio within 4e-4) and the likelihoods pick linear on 2 of 20, reported as
+    the ``integral`` estimate (with the defaults RMS z 1.03, per element 0.74-1.20).
     """
     from test_estimation import scene_dict
     d = scene_dict('default')
@@ -234,7 +237,8 @@ def test_ml_is_calibrated_at_low_snr():
     truth = matrix_to_theta(sim.inertia)
     z = []
     for seed in range(20):
-        est = estimate(*add_noise(sim, seed=6000 + seed, gyro_std=0.01), method='ml')
+        est = estimate(*add_noise(sim, seed=6000 + seed, gyro_std=0.01), method='ml',
+                       hold='zoh')
         assert est.status == 'ok' and est.diagnostics['ml']['refined'] is True
         z.append((est.theta - truth) / est.theta_std)
     assert_calibrated(z, 0.6, 1.3)
