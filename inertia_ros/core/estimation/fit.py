@@ -347,32 +347,6 @@ def fit_two_pass(st: SufficientStats, basis: np.ndarray, bias: bool, gyro_var: n
                  torque_var: np.ndarray, offset: np.ndarray | None = None,
                  theta0: np.ndarray | None = None, noise_theta: np.ndarray | None = None,
                  inertial: bool = False, held: np.ndarray | None = None) -> Fit:
-    """:func:`_two_pass`, whose tensor sets the weights and the noise model; a fit with
-    disturbances (the torque bias, the torque fixed in inertial axes) whose tensor is not
-    physical is fitted again with both from the same statistics' fit without them, when that
-    one is physical.  A tensor no body has predicts no gyro noise: on a single-axis sine of
-    10 s (peer-like ``sine_x_0.005``, seed 12) the bias and the inertial torque kept
-    together beside two weakly excited moments gave moments (0.004, 0.94, 0.98) whose own
-    noise model put sigma at 0.017 on ``iyy``, ``ok`` at |z| 45; at the fit without them
-    ``iyy`` has sigma 2.0 and is reported undetermined."""
-    f = _two_pass(st, basis, bias, gyro_var, torque_var, offset, theta0, noise_theta, inertial,
-                  held)
-    if noise_theta is not None or not (bias or inertial) or st.kind != 'anchored':
-        return f
-    theta = basis @ f.beta[:basis.shape[1]] + (0.0 if offset is None else offset)
-    if not np.all(np.isfinite(theta)) or check_physical(theta_to_matrix(theta)).valid:
-        return f
-    plain = _two_pass(st, basis, False, gyro_var, torque_var, offset, theta0, None, False, held)
-    ref = basis @ plain.beta[:basis.shape[1]] + (0.0 if offset is None else offset)
-    if not (np.all(np.isfinite(ref)) and check_physical(theta_to_matrix(ref)).valid):
-        return f
-    return _two_pass(st, basis, bias, gyro_var, torque_var, offset, ref, ref, inertial, held)
-
-
-def _two_pass(st: SufficientStats, basis: np.ndarray, bias: bool, gyro_var: np.ndarray,
-              torque_var: np.ndarray, offset: np.ndarray | None = None,
-              theta0: np.ndarray | None = None, noise_theta: np.ndarray | None = None,
-              inertial: bool = False, held: np.ndarray | None = None) -> Fit:
     """Two-pass fit: unweighted, then weighted by the first pass's tensor (weighted methods).
 
     ``theta0`` (6,), a tensor from an earlier fit of the same data, gives the weights at once
