@@ -30,6 +30,7 @@ from ..tensor import THETA_NAMES, check_physical, nearest_physical, theta_to_mat
 from .adequacy import Adequacy, widening_weight
 from .fit import Fit
 from .model import model_basis, model_name, parameter_names
+from .options import MIN_RESIDUAL_EXCESS
 from .result import InertiaEstimate
 from .selection import (
     FitFunction,
@@ -288,6 +289,15 @@ def _adequate(adequacy: AdequacyFunction, f: Fit, chosen: str, diag: dict[str, A
     """
     a = adequacy(f, chosen)
     rec = diag['adequacy'] = a.as_dict()
+    if f.excess < MIN_RESIDUAL_EXCESS:
+        # (a single-axis sine of 10 s, peer-like sine_x_0.005 seed 12: a bias and an inertial
+        # torque beside two weakly excited moments, excess 0.12, ok at |z| 45)
+        rec['ok'] = False
+        diag['reason'] = (f'the residuals are {f.excess:.2g} of what the noise model predicts '
+                          f'(below {MIN_RESIDUAL_EXCESS:g}): the fit absorbs the noise, a '
+                          'near-degenerate fit (too little excitation for its parameters) or '
+                          'a noise level given too high; its sigma is not to be trusted')
+        return 'model_mismatch'
     factor = max(1.0, a.inflation / max(f.excess, 1.0))
     # over the noise model's sigma (what the tests saw; a verdict the node may report one
     # estimate later, so not relative to the current fit's own excess inflation)
