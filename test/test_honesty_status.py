@@ -230,13 +230,13 @@ def test_peer_like_sine_profiles_honest() -> None:
     assert all(o.status == 'ok' for o in out) and 0.7 <= rms <= 1.5, (rms, out)
 
 
-def test_single_axis_sine_windows_hold_the_disturbances() -> None:
+def test_single_axis_sine_windows_hold_the_inertial_torque() -> None:
     """Sine on x only, 0.02 N m, a 2e-4 N m torque fixed in inertial axes (modelled by
-    default), 20 s, seeds 0-5: the window test fits the tensor alone per window, the bias
-    and the inertial torque held at the whole record's values.  Fitted per window beside the
-    two moments only the gyroscopic coupling excites, they made the windows disagree far
-    beyond their sigmas: 10 of 20 ``model_mismatch`` at |z| < 1; now ok in at least 5 of 6,
-    RMS z in [0.6, 1.5], never ok beyond 5 sigma."""
+    default), 20 s, seeds 0-5: the window test holds the inertial torque at the whole
+    record's value.  Fitted per window beside the two moments only the gyroscopic coupling
+    excites, it made the windows disagree far beyond their sigmas: 10 of 20
+    ``model_mismatch`` at |z| < 1; now ok in at least 5 of 6, RMS z in [0.6, 1.5], never ok
+    beyond 5 sigma."""
     from inertia_ros.bench.honesty import peer_like
     out, rms = _outcomes(peer_like('x', 0.02, 2e-4, 20.0), range(6))
     assert sum(o.status == 'ok' for o in out) >= 5, [(o.status, o.z) for o in out]
