@@ -163,11 +163,9 @@ def test_a_stated_hold_keeps_the_term_only_when_the_tests_pass() -> None:
     a body bias and an inertial torque nearly cancelling failed the adequacy tests at
     13.8 % where the fit without them is ok at 0.9 %; now the fit without them, and the
     diagnostics say why."""
-    import sys
-    from pathlib import Path
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / 'scripts' / 'measure'))
-    from honest_status import SCENE
-    rec = simulate_truth(SCENE.with_(duration=5.0), [33])[0]
+    from inertia_ros.bench.truth_sim import TruthCase
+    scene = TruthCase(amplitude=0.06, torque_noise=0.0012, omega0=(0.05, -0.03, 0.02))
+    rec = simulate_truth(scene.with_(duration=5.0), [33])[0]
     e = estimate(rec.t_gyro, rec.omega, rec.t_torque, rec.torque, hold='zoh')
     err = np.linalg.norm(e.inertia - rec.inertia) / np.linalg.norm(rec.inertia)
     assert e.status == 'ok' and e.inertial_torque is None and err < 0.02, (e.status, err)

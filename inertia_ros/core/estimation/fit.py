@@ -54,6 +54,9 @@ class Fit:
     offset: np.ndarray | None = None  # (6,) fixed part of theta
     H_full: np.ndarray | None = None  # information of the full model (fits with an offset)
     inertial: bool = False         # d_i (3) after the bias
+    #: the equations carry a momentum input's noise (wheels, rotors): its noise model is an
+    #: upper bound (a residual excess well below 1 is expected there)
+    momentum_noise: bool = False
 
     @property
     def bias_at(self) -> slice:
@@ -294,7 +297,9 @@ def fit_weighted(st: SufficientStats, basis: np.ndarray, bias: bool, W: np.ndarr
             H_full[:6, :6] -= st.n_eff * B6
     return Fit(beta=beta, cov=cov, H=H, H0=H0, basis=basis, bias=bias, offset=offset,
                resid_rms=np.sqrt(np.maximum(rss, 0.0) / dof), n_eq=st.n, excess=excess,
-               H_full=H_full, inertial=inertial)
+               H_full=H_full, inertial=inertial,
+               momentum_noise=st.white_y_cov is not None
+               or getattr(st, 'walk_grams', None) is not None)
 
 
 def _normal_solution(st: SufficientStats, basis: np.ndarray, bias: bool, W: np.ndarray,

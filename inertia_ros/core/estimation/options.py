@@ -77,7 +77,8 @@ MAX_RESIDUAL_EXCESS = 1.5
 #: predicts mean the fit absorbs the noise (a near-degenerate fit, its sigma not to be
 #: trusted).  Measured (session 10): 0.86-1.12 on 150 model-conforming, continuous,
 #: disturbance and gyro-scale records of 2-5 s; 0.11-0.38 on the four peer-like single-axis
-#: records ``ok`` at |z| 7-47.
+#: records ``ok`` at |z| 7-47.  Not applied with a wheel or rotor momentum input, whose noise
+#: model is an upper bound (correct rotor fits: 0.28-0.96).
 MIN_RESIDUAL_EXCESS = 0.5
 #: Windows of the adequacy test, and the shortest window [s] (fewer windows on short records).
 ADEQUACY_WINDOWS = 4
