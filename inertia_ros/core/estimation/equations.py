@@ -432,8 +432,7 @@ def shared_integral_equations(method: str, tg: np.ndarray, w: np.ndarray, ts: np
     keeps a copy of them (before any statistics centre its ``V``) and a later run on the same
     gyro samples, or on their start (the linear hold's coverage ends at the last torque
     sample, the held one's a torque period later), only integrates its torque.  The same
-    numbers as a fresh build, bit for bit.  Every run's equations stay in
-    ``shared['eqs'][hold]`` as ``(tg, idx, Equations)`` (the hold comparison's windows).
+    numbers as a fresh build, bit for bit.
     With ``inertial`` the attitude integral's nine columns are shared too.
     """
     idx = np.flatnonzero(mask)
@@ -449,5 +448,4 @@ def shared_integral_equations(method: str, tg: np.ndarray, w: np.ndarray, ts: np
                       info={k: v for k, v in eq.info.items() if k == 'attitude'})
     else:
         eq.info.update(shared['info'])
-    shared.setdefault('eqs', {})[hold] = (tg, idx, eq)
     return eq

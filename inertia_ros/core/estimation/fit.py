@@ -260,9 +260,9 @@ def fit_weighted(st: SufficientStats, basis: np.ndarray, bias: bool, W: np.ndarr
         with it; the whole record's tensor is the model's under the null.
     inertial : bool
         Fit the torque fixed in inertial axes too (wide statistics only).
-    held : ndarray, shape (6,), optional
-        The torque bias and the torque fixed in inertial axes where not fitted, held at these
-        values [N m] (:func:`.model.selector`).
+    held : ndarray, shape (3,), optional
+        The torque fixed in inertial axes, not fitted, held at these values [N m]
+        (:func:`.model.selector`).
 
     Returns
     -------
@@ -357,7 +357,7 @@ def fit_two_pass(st: SufficientStats, basis: np.ndarray, bias: bool, gyro_var: n
     ``theta0`` (6,), a tensor from an earlier fit of the same data, gives the weights at once
     (one weighted pass; model selection refits the same equations several times).  Other
     parameters as :func:`fit_weighted` (``inertial``: the torque fixed in inertial axes too;
-    ``held``: the disturbances not fitted, at fixed values, :func:`.model.selector`).
+    ``held``: the inertial torque not fitted, at fixed values, :func:`.model.selector`).
     """
     if theta0 is not None and st.weighted and np.all(gyro_var > 0) \
             and np.all(np.isfinite(theta0)) and np.any(theta0[:3] != 0):

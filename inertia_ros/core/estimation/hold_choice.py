@@ -17,7 +17,7 @@ from .._numeric import median
 from .model import model_parts
 from .options import GAP_FACTOR, HOLDS
 from .result import InertiaEstimate
-from .selection import HOLD_RULE, select_hold
+from .selection import hold_not_compared, select_hold
 
 __all__ = ['auto_hold', 'coverage', 'hold_by_adequacy', 'segment_choice', 'stated_hold']
 
@@ -62,8 +62,8 @@ def auto_hold(run: Any, torque_std: np.ndarray, head: int | None,
     if len(results) == 2:
         chosen, record = select_hold(excess['zoh'], excess['linear'])
     else:
-        chosen, record = 'zoh', {'statistic': None, 'rule': HOLD_RULE,
-                                 'reason': 'torque-free or noise-free torque: no choice'}
+        chosen, record = 'zoh', hold_not_compared('torque-free or noise-free torque: no '
+                                                  'choice')
     est = results[chosen] if chosen == 'zoh' and head is None else (
         run if head is not None else compare)(
         chosen, chosen=segment_choice(results[chosen], head is not None))

@@ -159,10 +159,9 @@ def selector(basis: np.ndarray, bias: bool, offset: np.ndarray | None = None,
         ``width=13``).
     width : {10, 13}
         Columns of the blocks.
-    held : ndarray, shape (6,), optional
-        Fixed values of the disturbances not fitted: the torque bias ``[0:3]`` [N m] (when
-        ``bias`` is False) and the torque fixed in inertial axes ``[3:6]`` [N m] (when
-        ``inertial`` is False and ``width=13``), moved to the right-hand side.
+    held : ndarray, shape (3,), optional
+        With ``width=13`` and ``inertial`` False: the torque fixed in inertial axes held at
+        these values [N m], moved to the right-hand side.
 
     Returns
     -------
@@ -183,11 +182,8 @@ def selector(basis: np.ndarray, bias: bool, offset: np.ndarray | None = None,
     T[9, p] = 1.0
     if offset is not None:
         T[:6, p] = -offset
-    if held is not None:
-        if not bias:
-            T[6:9, p] = -held[:3]
-        if width == 13 and not inertial:
-            T[10:13, p] = -held[3:6]
+    if held is not None and width == 13 and not inertial:
+        T[10:13, p] = -held
     return T
 
 

@@ -28,8 +28,8 @@ from .fit import Fit, fit_two_pass
 from .options import ALPHA, HOLDS, IDENTIFIABILITY_TOL
 from .regressors import cumulative_torque
 from .selection import (
-    HOLD_RULE,
     SelectionPolicy,
+    hold_not_compared,
     identifiable,
     select_disturbance,
     select_hold,
@@ -166,8 +166,7 @@ class AutoHold:
         reused = not due and self.record is not None
         if not reused:
             if torque_free:
-                self.chosen, rec = 'zoh', {'statistic': None, 'rule': HOLD_RULE,
-                                           'reason': 'torque-free data: no choice'}
+                self.chosen, rec = 'zoh', hold_not_compared('torque-free data: no choice')
             else:
                 self.chosen, rec = choose_hold({h: stats(h) for h in HOLDS}, bias, nv, tv,
                                                inertial)

@@ -54,6 +54,7 @@ from .options import HOLDS
 from .recursive import RecursiveEstimator
 from .regressors import gyroscopic_matrix, momentum_matrix
 from .result import InertiaEstimate
+from .selection import hold_not_compared
 from .tracking import TrackingEstimator
 from .tracking_hold import HoldChoice
 from .tracking_input import StreamInput
@@ -372,10 +373,9 @@ class MomentumInput:
                             'other_torque': self.other_torque}
         if self._requested == 'auto' and not self.other_torque:
             diag['hold'] = 'zoh'
-            diag['hold_selection'] = {
-                'requested': 'auto', 'chosen': 'zoh', 'statistic': None, 'p_value': None,
-                'reason': 'no other torque: the momentum input is not held (known at its '
-                          'samples), so there is no hold to choose'}
+            diag['hold_selection'] = {'requested': 'auto', **hold_not_compared(
+                'no other torque: the momentum input is not held (known at its samples), so '
+                'there is no hold to choose')}
 
     def _share(self) -> float:
         """Gyro samples per momentum sample (those sharing one momentum sample's noise)."""

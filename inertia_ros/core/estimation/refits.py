@@ -106,10 +106,7 @@ def _window_fits(eq: Equations, segment: float | None, ts: np.ndarray, gyro_var:
     Returns the fits and the windows' mid-times [s].
     """
     theta0 = f.basis @ f.beta[:f.basis.shape[1]]
-    held = None
-    if hold_inertial and f.inertial:
-        held = np.zeros(6)
-        held[3:] = f.beta[f.inertial_at]
+    held = f.beta[f.inertial_at] if hold_inertial and f.inertial else None
     cuts = np.searchsorted(eq.t, np.linspace(eq.t[0], eq.t[-1], n_win + 1)[1:-1])
     bounds = [0, *cuts.tolist(), len(eq.t)]
     fits, mids = [], []

@@ -36,7 +36,7 @@ from .tails import chi2_sf
 
 __all__ = ['HOLD_RULE', 'MODEL_ALPHA', 'SCREEN_ALPHA', 'SCREEN_ROWS', 'FitFunction',
            'SelectionPolicy', 'bias_test', 'complement', 'conditioning', 'dropped_bias_cov',
-           'held_by_test', 'held_leak', 'identifiable', 'mse_test_p',
+           'held_by_test', 'held_leak', 'hold_not_compared', 'identifiable', 'mse_test_p',
            'screen_inertial', 'screen_step', 'select_bias', 'select_disturbance', 'select_hold',
            'select_model', 'undetermined', 'wald']
 
@@ -518,6 +518,12 @@ HOLD_RULE = ('the higher likelihood: the hold whose whole-record fit leaves the 
              'zoh on a tie or when a fit has none')
 
 
+def hold_not_compared(reason: str) -> dict[str, Any]:
+    """``diagnostics['hold_selection']`` where the holds are not compared (``zoh`` kept):
+    ``statistic`` None, the ``rule`` and the ``reason``."""
+    return {'statistic': None, 'rule': HOLD_RULE, 'reason': reason, 'chosen': 'zoh'}
+
+
 def select_hold(excess_zoh: float | None, excess_linear: float | None
                 ) -> tuple[str, dict[str, Any]]:
     """Held or linear torque between samples: the hold with the higher likelihood.
@@ -548,12 +554,10 @@ def select_hold(excess_zoh: float | None, excess_linear: float | None
         linear), ``rss_ratio`` (linear / held), ``rule, chosen`` (for
         ``diagnostics['hold_selection']``); ``reason`` when not compared.
     """
-    rec: dict[str, Any] = {'test': 'likelihood', 'rule': HOLD_RULE}
     ez, el = (np.nan if v is None else float(v) for v in (excess_zoh, excess_linear))
     if not (ez > 0 and el > 0 and np.isfinite(ez) and np.isfinite(el)):
-        rec.update(statistic=None, chosen='zoh',
-                   reason='a fit has no residual excess: the holds are not compared')
-        return 'zoh', rec
+        return 'zoh', {'test': 'likelihood', **hold_not_compared(
+            'a fit has no residual excess: the holds are not compared')}
     chosen = 'linear' if el < ez else 'zoh'
-    rec.update(statistic=float(np.log(el / ez)), rss_ratio=el / ez, chosen=chosen)
-    return chosen, rec
+    return chosen, {'test': 'likelihood', 'rule': HOLD_RULE, 'statistic': float(np.log(el / ez)),
+                    'rss_ratio': el / ez, 'chosen': chosen}

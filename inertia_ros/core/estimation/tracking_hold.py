@@ -27,6 +27,7 @@ import numpy as np
 from .homogeneous import is_torque_free
 from .options import MIN_EQUATIONS, MIN_GYRO_SAMPLES
 from .recursive import RecursiveEstimator
+from .selection import hold_not_compared
 from .tracking_output import StateOutput
 
 __all__ = ['DECIDE_S', 'JUDGE_EVERY_S', 'MIN_S', 'HoldChoice', 'keep_by_adequacy']
@@ -98,9 +99,8 @@ class HoldChoice:
                 self._since = self._since if same else now
                 self.record, self.chosen, self._at = sel, sel['chosen'], now
         if now - self._t0 >= DECIDE_S and self.record is None:     # never compared
-            self.record = {'requested': 'auto', 'chosen': 'zoh', 'statistic': None,
-                           'p_value': None, 'reason': f'no comparison in {DECIDE_S:g} s of '
-                           'data (torque-free or too little): held'}
+            self.record = {'requested': 'auto', **hold_not_compared(
+                f'no comparison in {DECIDE_S:g} s of data (torque-free or too little): held')}
             return True
         if self.record is None:
             return False
